@@ -1,0 +1,140 @@
+"""Pipeline configuration (SPEC §2): static structure plus traced numeric thresholds.
+
+:class:`Config` holds plain Python values, so it is hashable and can be a static argument
+of ``jax.jit``. Its numeric fields (τ, δ, α, the jump rule...) are *not* part of the jit
+key: :meth:`Config.thresholds` turns them into a :class:`Thresholds` pytree of arrays that
+the pipeline receives as a traced input, so a sweep over them (or over σ) compiles once.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Literal, NamedTuple
+
+import jax.numpy as jnp
+
+from ._types import Array, Float
+
+Adjacency = Literal["mutual", "union"]
+PruneScope = Literal["all", "conflicts", "none"]
+IqrScore = Literal["exclude_own", "include_own"]
+IqrQuartiles = Literal["zero_pad", "positive"]
+SigmaMode = Literal["given", "auto"]
+
+
+class Thresholds(NamedTuple):
+    """Numeric thresholds, traced (scalars, or arrays with a leading batch axis under vmap).
+
+    ``tau_px = max(alpha_tau * sqrt(2) * sigma_px, tau_min_px)`` (SPEC §2.1).
+    """
+
+    sigma_px: Float[Array, ""]  # 2D noise std (pixels); ignored when sigma_mode="auto"
+    alpha_tau: Float[Array, ""]
+    tau_min_px: Float[Array, ""]
+    delta: Float[Array, ""]  # δ-overlap threshold (Alg. 2)
+    iqr_alpha: Float[Array, ""]  # IQR fence multiplier (Alg. 3)
+    iqr_min_px: Float[Array, ""]  # reference guard: no outlier if max score below this
+    iqr_force_px: Float[Array, ""]  # reference guard: drop the max if above this
+    jump_kappa: Float[Array, ""]  # BPE jump: gap > kappa * median(previous gaps)
+    jump_floor_px2: Float[Array, ""]  # BPE jump: gap > floor_px2 + (floor_sigma * sigma)^2
+    jump_floor_sigma: Float[Array, ""]
+    second_frac: Float[Array, ""]  # second association: attach if mean cost < frac * tau
+
+
+_NUMERIC = tuple(f for f in Thresholds._fields if f != "sigma_px")
+
+
+@dataclasses.dataclass(frozen=True)
+class Config:
+    """How to associate. Structural fields change the compiled program; numeric ones do not.
+
+    Presets: :meth:`paper` (the paper's method, our defaults) and :meth:`reference` (the
+    original public implementation's behaviour, SPEC §2.7).
+    """
+
+    # --- structure (part of the jit key) ---
+    adjacency: Adjacency = "mutual"
+    prune_scope: PruneScope = "all"
+    iqr: bool = True
+    iqr_score: IqrScore = "exclude_own"
+    iqr_quartiles: IqrQuartiles = "zero_pad"
+    iqr_guards: bool = False  # reference's 10 px / 50 px rules
+    second_association: bool = False
+    bpe_filter: bool = True
+    refine: bool = False
+    sigma_mode: SigmaMode = "given"
+    max_split_iters: int = 64
+    max_iqr_iters: int = 16
+    refine_max_steps: int = 20
+    jump_min_gaps: int = 3  # gaps needed before a jump can be declared
+    # --- numeric defaults (become a traced Thresholds) ---
+    alpha_tau: float = 2.0
+    tau_min_px: float = 1.0
+    delta: float = 0.5
+    iqr_alpha: float = 2.0
+    iqr_min_px: float = 10.0
+    iqr_force_px: float = 50.0
+    jump_kappa: float = 10.0
+    jump_floor_px2: float = 4.0
+    jump_floor_sigma: float = 3.0
+    second_frac: float = 0.5
+
+    def __post_init__(self):
+        choices = {
+            "adjacency": ("mutual", "union"),
+            "prune_scope": ("all", "conflicts", "none"),
+            "iqr_score": ("exclude_own", "include_own"),
+            "iqr_quartiles": ("zero_pad", "positive"),
+            "sigma_mode": ("given", "auto"),
+        }
+        for name, allowed in choices.items():
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"Config.{name} must be one of {allowed}; got {getattr(self, name)!r}")
+        for name in ("max_split_iters", "max_iqr_iters", "refine_max_steps", "jump_min_gaps"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < 1:
+                raise ValueError(f"Config.{name} must be a positive int; got {value!r}")
+
+    @classmethod
+    def paper(cls, **overrides) -> "Config":
+        """The paper's C-DOG (Alg. 1–3 and §IV-E) with noise-matched τ."""
+        return cls(**overrides)
+
+    @classmethod
+    def reference(cls, **overrides) -> "Config":
+        """The original public code's choices (SPEC §2.7): fixed τ = 10 px, δ-pruning only of
+        view-conflicting components, IQR α = 1.5 on positive scores with own errors and the
+        10/50 px guards, no BPE filter, then the second association."""
+        base = dict(
+            adjacency="mutual",
+            prune_scope="conflicts",
+            iqr_alpha=1.5,
+            iqr_score="include_own",
+            iqr_quartiles="positive",
+            iqr_guards=True,
+            bpe_filter=False,
+            second_association=True,
+            alpha_tau=0.0,
+            tau_min_px=10.0,
+        )
+        base.update(overrides)
+        return cls(**base)
+
+    def replace(self, **changes) -> "Config":
+        return dataclasses.replace(self, **changes)
+
+    def thresholds(self, sigma_px=0.0, dtype=None) -> Thresholds:
+        """The numeric fields (and σ) as a :class:`Thresholds` of arrays."""
+        dtype = dtype or jnp.asarray(0.0).dtype
+        values = {name: getattr(self, name) for name in _NUMERIC}
+        return Thresholds(sigma_px=jnp.asarray(sigma_px, dtype), **{k: jnp.asarray(v, dtype) for k, v in values.items()})
+
+    def structure(self) -> "Config":
+        """This config with its numeric fields reset to the defaults: the part a jit key needs."""
+        defaults = Config()
+        return dataclasses.replace(self, **{name: getattr(defaults, name) for name in _NUMERIC})
+
+
+def tau_px(th: Thresholds, sigma_px: Float[Array, ""]) -> Float[Array, ""]:
+    """Epipolar gate ``τ = max(alpha_tau · √2 · σ, tau_min)`` in pixels (SPEC §2.1)."""
+    return jnp.maximum(th.alpha_tau * jnp.sqrt(2.0) * sigma_px, th.tau_min_px)

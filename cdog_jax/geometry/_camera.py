@@ -1,0 +1,102 @@
+"""The camera rig (SPEC §1): pinhole cameras with a general upper-triangular K.
+
+World→camera: ``X_cam = R X_world + t``; pixels ``x ~ K X_cam``, always dehomogenised by
+the third coordinate (K[2,2] may be negative). "In front" means ``X_cam[2] > 0``.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from .._types import Array, Bool, Float
+
+
+class Rig(eqx.Module):
+    """M calibrated pinhole cameras. A batch of rigs adds leading axes to every field.
+
+    Attributes:
+        K: ``(M, 3, 3)`` intrinsics, general upper-triangular (``K[2,2]`` may be -1).
+        R: ``(M, 3, 3)`` world→camera rotations.
+        t: ``(M, 3)`` world→camera translations (scene units).
+    """
+
+    K: Float[Array, "M 3 3"]
+    R: Float[Array, "M 3 3"]
+    t: Float[Array, "M 3"]
+
+    @property
+    def num_views(self) -> int:
+        return self.K.shape[-3]
+
+    @property
+    def proj(self) -> Float[Array, "M 3 4"]:
+        """Projection matrices ``K [R | t]``, ``(M, 3, 4)``."""
+        return jnp.einsum("...ij,...jk->...ik", self.K, jnp.concatenate([self.R, self.t[..., None]], -1))
+
+    @property
+    def centers(self) -> Float[Array, "M 3"]:
+        """Camera centres in world coordinates, ``C = -Rᵀ t``, ``(M, 3)``."""
+        return -jnp.einsum("...ji,...j->...i", self.R, self.t)
+
+    @property
+    def view_dirs(self) -> Float[Array, "M 3"]:
+        """Optical axes in world coordinates (unit), ``(M, 3)``: the third row of R."""
+        return self.R[..., 2, :]
+
+    def select(self, views) -> "Rig":
+        """The sub-rig of the given view indices (a sequence or an int array)."""
+        views = np.asarray(views)
+        return Rig(self.K[..., views, :, :], self.R[..., views, :, :], self.t[..., views, :])
+
+
+def rig_from_arrays(K, R, t, *, dtype=None) -> Rig:
+    """Build a :class:`Rig` from array-likes, with eager shape and value checks.
+
+    Raises ``ValueError`` naming the offending view for wrong shapes, non-finite values,
+    a singular ``K`` or a rotation that is not orthonormal (tolerance 1e-3).
+    """
+    dtype = dtype or jnp.asarray(0.0).dtype
+    K, R, t = (np.asarray(a, dtype=np.float64) for a in (K, R, t))
+    if K.ndim != 3 or K.shape[1:] != (3, 3):
+        raise ValueError(f"K must have shape (M, 3, 3); got {K.shape}")
+    M = K.shape[0]
+    if R.shape != (M, 3, 3):
+        raise ValueError(f"R must have shape (M, 3, 3) with M={M} from K; got {R.shape}")
+    if t.shape != (M, 3):
+        raise ValueError(f"t must have shape (M, 3) with M={M} from K; got {t.shape}")
+    check_rig_values(K, R, t)
+    return Rig(jnp.asarray(K, dtype), jnp.asarray(R, dtype), jnp.asarray(t, dtype))
+
+
+def check_rig_values(K: np.ndarray, R: np.ndarray, t: np.ndarray) -> None:
+    """Eager value checks on host arrays; raises ``ValueError`` naming the first bad view."""
+    for name, a in (("K", K), ("R", R), ("t", t)):
+        bad = ~np.isfinite(a).reshape(a.shape[0], -1).all(axis=1)
+        if bad.any():
+            raise ValueError(f"{name} of view {int(np.argmax(bad))} has non-finite entries")
+    det_K = np.linalg.det(K)
+    scale = np.abs(K).max(axis=(1, 2)) ** 3
+    singular = np.abs(det_K) <= 1e-12 * np.maximum(scale, 1e-300)
+    if singular.any():
+        m = int(np.argmax(singular))
+        raise ValueError(f"K of view {m} is singular (det = {det_K[m]:.3g})")
+    ortho_err = np.abs(np.einsum("mji,mjk->mik", R, R) - np.eye(3)).max(axis=(1, 2))
+    det_R = np.linalg.det(R)
+    bad = (ortho_err > 1e-3) | (det_R < 0)
+    if bad.any():
+        m = int(np.argmax(bad))
+        raise ValueError(
+            f"R of view {m} is not a rotation (max |RᵀR - I| = {ortho_err[m]:.3g}, det = {det_R[m]:.3g})"
+        )
+
+
+def camera_points(rig: Rig, X_world: Float[Array, "*S 3"]) -> Float[Array, "*S M 3"]:
+    """World points in every camera frame: ``X_cam = R X + t``, shape ``(*S, M, 3)``."""
+    return jnp.einsum("mij,...j->...mi", rig.R, X_world) + rig.t
+
+
+def in_front(rig: Rig, X_world: Float[Array, "*S 3"]) -> Bool[Array, "*S M"]:
+    """Whether each point lies in front of each camera, ``(R X + t)_z > 0``."""
+    return camera_points(rig, X_world)[..., 2] > 0

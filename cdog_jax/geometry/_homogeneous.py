@@ -1,0 +1,22 @@
+"""Homogeneous ↔ Euclidean conversions that divide by ``w`` honestly (no sign-blind epsilon)."""
+
+import jax.numpy as jnp
+
+from .._types import Array, Bool, Float
+
+
+def points_from_homogeneous(h: Float[Array, "*S 3"]) -> tuple[Float[Array, "*S 2"], Bool[Array, "*S"]]:
+    """``(x/w, y/w)`` and a flag ``w != 0``; where ``w == 0`` the point is 0 and the flag False.
+
+    The division uses the safe-where pattern so that values and gradients stay finite.
+    """
+    w = h[..., 2]
+    ok = jnp.abs(w) > jnp.finfo(h.dtype).tiny
+    safe_w = jnp.where(ok, w, 1.0)
+    xy = h[..., :2] / safe_w[..., None]
+    return jnp.where(ok[..., None], xy, 0.0), ok
+
+
+def homogeneous_from_points(xy: Float[Array, "*S 2"]) -> Float[Array, "*S 3"]:
+    """Append a 1: ``(x, y) → (x, y, 1)``."""
+    return jnp.concatenate([xy, jnp.ones_like(xy[..., :1])], axis=-1)

@@ -1,0 +1,29 @@
+"""Projection of world points into every view, and reprojection errors (pixels)."""
+
+import jax.numpy as jnp
+
+from .._types import Array, Bool, Float
+from ._camera import Rig, camera_points
+from ._homogeneous import points_from_homogeneous
+
+
+def project(rig: Rig, X_world: Float[Array, "*S 3"]) -> tuple[Float[Array, "*S M 2"], Bool[Array, "*S M"]]:
+    """Pixels of world points in every view, ``(*S, M, 2)``, and a flag that the point is in
+    front of the camera (``X_cam[2] > 0``) and projects to a finite pixel."""
+    X_cam = camera_points(rig, X_world)  # (*S, M, 3)
+    h = jnp.einsum("mij,...mj->...mi", rig.K, X_cam)
+    xy, ok = points_from_homogeneous(h)
+    return xy, ok & (X_cam[..., 2] > 0)
+
+
+def reprojection_errors(
+    rig: Rig, X_world: Float[Array, "*S 3"], xy: Float[Array, "*S M 2"]
+) -> Float[Array, "*S M"]:
+    """Pixel distance ``‖π_m(X) − x_m‖`` in every view (``(*S, M)``); finite even where the
+    point projects badly (such entries are meaningful only where the caller masks them)."""
+    xy_hat, _ = project(rig, X_world)
+    diff = xy_hat - xy
+    sq = jnp.sum(diff * diff, axis=-1)
+    # sqrt has an infinite derivative at 0: exact reprojections are common (σ = 0).
+    pos = sq > 0
+    return jnp.where(pos, jnp.sqrt(jnp.where(pos, sq, 1.0)), 0.0)
