@@ -1,0 +1,8 @@
+"""cdog_jax: multi-view, multi-instance point association with connected δ-overlap graphs."""
+
+from ._config import Config as Config, Thresholds as Thresholds
+from ._pipeline import associate as associate, associate_batch as associate_batch, associate_traced as associate_traced
+from ._result import Association as Association
+from .geometry import Rig as Rig, project as project, rig_from_arrays as rig_from_arrays, triangulate as triangulate
+
+__version__ = "0.1.0"

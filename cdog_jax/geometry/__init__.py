@@ -1,0 +1,11 @@
+"""Cameras, epipolar geometry, triangulation (SPEC §1, §2.1)."""
+
+from ._camera import Rig as Rig, camera_points as camera_points, in_front as in_front, rig_from_arrays as rig_from_arrays
+from ._epipolar import (
+    epipolar_distances as epipolar_distances,
+    essential_from_rig as essential_from_rig,
+    fundamental_from_rig as fundamental_from_rig,
+)
+from ._homogeneous import homogeneous_from_points as homogeneous_from_points, points_from_homogeneous as points_from_homogeneous
+from ._projection import project as project, reprojection_errors as reprojection_errors
+from ._triangulate import dlt_blocks as dlt_blocks, triangulate as triangulate, triangulate_pairs as triangulate_pairs

@@ -1,0 +1,243 @@
+"""C-DOG end to end for one scene (SPEC §2, ALGORITHM.md), and the public entry points.
+
+``associate_traced`` is the pure function (jit/vmap it yourself; ``config`` must be
+static). ``associate`` checks its inputs eagerly and runs the jitted pipeline on one
+scene; ``associate_batch`` runs many scenes in one compiled call, chunked with ``lax.map``
+so memory stays bounded.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+
+from ._config import Config, Thresholds, tau_px
+from ._result import Association
+from ._types import Array, Bool, Float
+from ._validate import check_observations, check_rig
+from .geometry._camera import Rig
+from .geometry._epipolar import epipolar_distances
+from .geometry._projection import reprojection_errors
+from .geometry._triangulate import dlt_blocks, solve_normal_3x3
+from .graph._adjacency import adjacency_from_edges, alive_edges, nearest_neighbour_edges
+from .graph._components import component_view_counts, connected_components
+from .graph._groups import compact_groups, groups_from_labels, labels_from_groups
+from .graph._overlap import edge_overlap, remove_edges
+from .graph._sigma import estimate_sigma
+from .graph._split import split_conflicts
+from .refine._bpe_filter import bpe_jump_keep
+from .refine._least_squares import refine_points
+from .refine._outliers import remove_outliers
+from .refine._second_association import second_association
+
+
+def _gather_groups(groups, per_node):
+    """``per_node (M, P, ...)`` gathered to ``(G, M, ...)`` at the group slots (slot 0 where
+    the group has no member; callers mask)."""
+    M = groups.shape[1]
+    return per_node[jnp.arange(M)[None, :], jnp.maximum(groups, 0)]
+
+
+def _group_fit(rig, xy_g, member, N_g, r_g, origin):
+    """Multi-view DLT point, per-member reprojection errors, BPE (px²) and mean error (px)."""
+    w = member.astype(N_g.dtype)
+    X, ok = solve_normal_3x3(jnp.einsum("gm,gmij->gij", w, N_g), jnp.einsum("gm,gmi->gi", w, r_g))
+    X = jnp.where(ok[:, None], X + origin, 0.0)
+    return X, _errors(rig, X, xy_g, member)
+
+
+def _errors(rig, X, xy_g, member):
+    err = reprojection_errors(rig, X, xy_g)  # (G, M)
+    w = member.astype(err.dtype)
+    n = jnp.maximum(jnp.sum(w, axis=1), 1.0)
+    return jnp.sum(w * err * err, axis=1) / n, jnp.sum(w * err, axis=1) / n
+
+
+def associate_traced(
+    rig: Rig,
+    xy: Float[Array, "M P 2"],
+    mask: Bool[Array, "M P"],
+    thresholds: Thresholds,
+    config: Config,
+) -> Association:
+    """The whole pipeline for one scene as a pure function; no input checks.
+
+    Args:
+        rig: cameras, ``K, R, t`` of shapes ``(M, 3, 3), (M, 3, 3), (M, 3)``.
+        xy: ``(M, P, 2)`` detections in pixels; padded slots may hold anything.
+        mask: ``(M, P)`` bool, slot holds a detection.
+        thresholds: numeric thresholds and σ (traced; see ``Config.thresholds``).
+        config: structural configuration (static under ``jit``).
+    """
+    th = thresholds
+    M, P = mask.shape
+    N = M * P
+    xy = jnp.where(mask[..., None], xy, 0.0)  # padding is neutral from here on
+    valid = mask.reshape(-1)
+    node_view = jnp.arange(N) // P
+
+    # Alg. 1: epipolar graph.
+    d = epipolar_distances(rig, xy, mask)  # (M, P, M, P)
+    sigma = estimate_sigma(d, mask) if config.sigma_mode == "auto" else th.sigma_px
+    tau = tau_px(th, sigma)
+    edges = nearest_neighbour_edges(d, tau)
+    A = adjacency_from_edges(edges, N, config.adjacency)
+
+    # Alg. 2: δ-overlap pruning, then view-uniqueness.
+    theta = edge_overlap(edges, A)
+    d_nodes = d.reshape(N, N)
+    edge_dist = 0.5 * (d_nodes[edges.src, edges.dst] + d_nodes[edges.dst, edges.src])
+    weak = alive_edges(edges, A) & (theta < th.delta)
+    if config.prune_scope == "conflicts":
+        labels0 = connected_components(edges, alive_edges(edges, A), N)
+        counts = component_view_counts(labels0, node_view, valid, M)
+        weak = weak & jnp.any(counts >= 2, axis=1)[labels0[edges.src]]
+    elif config.prune_scope == "none":
+        weak = jnp.zeros_like(weak)
+    A = remove_edges(A, edges, weak)
+    A, labels = split_conflicts(A, edges, theta, edge_dist, node_view, valid, M, config.max_split_iters)
+    groups, gvalid = groups_from_labels(labels, valid, M, P)
+
+    # Alg. 3: IQR outlier removal on per-group DLT blocks.
+    N_node, r_node, origin = dlt_blocks(rig, jnp.swapaxes(xy, 0, 1))  # (P, M, 3, 3), (P, M, 3)
+    N_node, r_node = jnp.swapaxes(N_node, 0, 1), jnp.swapaxes(r_node, 0, 1)
+    member = gvalid[:, None] & (groups >= 0)
+    if config.iqr:
+        member = remove_outliers(
+            rig,
+            _gather_groups(groups, N_node),
+            _gather_groups(groups, r_node),
+            origin,
+            _gather_groups(groups, xy),
+            member,
+            th,
+            config,
+        )
+        groups = jnp.where(member, groups, -1)
+        gvalid = jnp.sum(member.astype(jnp.int32), axis=1) >= 2
+
+    if config.second_association:
+        groups = second_association(d_nodes, groups, gvalid, valid, tau, th)
+        member = gvalid[:, None] & (groups >= 0)
+
+    # §IV-E: group BPE filter; then the final points.
+    xy_g = _gather_groups(groups, xy)
+    N_g, r_g = _gather_groups(groups, N_node), _gather_groups(groups, r_node)
+    X, (bpe, err_px) = _group_fit(rig, xy_g, member, N_g, r_g, origin)
+    if config.bpe_filter:
+        gvalid = bpe_jump_keep(bpe, gvalid, sigma, th, config.jump_min_gaps)
+        member = member & gvalid[:, None]
+    if config.refine:
+        X = refine_points(rig, X, xy_g, member, config.refine_max_steps)
+        bpe, err_px = _errors(rig, X, xy_g, member)
+
+    groups = jnp.where(member, groups, -1)
+    groups, gvalid, order = compact_groups(groups, gvalid)
+    keep = gvalid[:, None]
+    return Association(
+        labels=labels_from_groups(groups, gvalid, P),
+        groups=groups,
+        valid=gvalid,
+        points3d=jnp.where(keep, X[order], 0.0),
+        bpe=jnp.where(gvalid, bpe[order], 0.0),
+        err_px=jnp.where(gvalid, err_px[order], 0.0),
+        n_views=jnp.sum((groups >= 0).astype(jnp.int32), axis=1),
+        num_groups=jnp.sum(gvalid.astype(jnp.int32)),
+        sigma_px=jnp.asarray(sigma, xy.dtype),
+        tau_px=jnp.asarray(tau, xy.dtype),
+    )
+
+
+_associate_jit = jax.jit(associate_traced, static_argnames=("config",))
+
+
+def _prepare(config: Config, sigma, thresholds: Thresholds | None, dtype):
+    if isinstance(sigma, str):
+        if sigma != "auto":
+            raise ValueError(f'sigma must be a number, an array or "auto"; got {sigma!r}')
+        config = config.replace(sigma_mode="auto")
+        sigma = 0.0
+    elif config.sigma_mode == "auto":
+        pass  # the config asks for the estimate; a given sigma is ignored
+    if thresholds is None:
+        thresholds = config.thresholds(sigma, dtype=dtype)
+    else:
+        thresholds = thresholds._replace(sigma_px=jnp.asarray(sigma, dtype))
+    thresholds = Thresholds(*(jnp.asarray(v, dtype) for v in thresholds))
+    return config.structure(), thresholds
+
+
+def _float_dtype(xy):
+    dtype = jnp.asarray(xy).dtype
+    return dtype if jnp.issubdtype(dtype, jnp.floating) else jnp.asarray(0.0).dtype
+
+
+def associate(
+    rig: Rig,
+    xy: Float[Array, "M P 2"],
+    mask: Bool[Array, "M P"],
+    *,
+    config: Config = Config.paper(),
+    sigma: float | str = 1.0,
+    thresholds: Thresholds | None = None,
+) -> Association:
+    """Associate the detections of one scene and triangulate every group.
+
+    Args:
+        rig: the cameras (``M`` views).
+        xy: ``(M, P, 2)`` detections (pixels); ``P`` is a padded capacity.
+        mask: ``(M, P)`` bool, True where a slot holds a detection.
+        config: structure and default thresholds (``Config.paper()``, ``Config.reference()``).
+        sigma: 2D noise std in pixels, or ``"auto"`` to estimate it (ALGORITHM.md §0.1).
+        thresholds: overrides the config's numeric thresholds (for sweeps; arrays welcome).
+
+    Returns:
+        An :class:`Association` (labels, groups, points, errors).
+    """
+    check_rig(rig)
+    check_observations(xy, mask, rig.num_views)
+    dtype = _float_dtype(xy)
+    static, th = _prepare(config, sigma, thresholds, dtype)
+    return _associate_jit(rig, jnp.asarray(xy, dtype), jnp.asarray(mask), th, config=static)
+
+
+@partial(jax.jit, static_argnames=("config", "batch_size", "shared_rig"))
+def _associate_batch_jit(rig, xy, mask, th, *, config, batch_size, shared_rig):
+    if shared_rig:
+        one = lambda a: associate_traced(rig, *a, config)  # noqa: E731
+        return jax.lax.map(one, (xy, mask, th), batch_size=batch_size)
+    one = lambda a: associate_traced(a[0], *a[1:], config)  # noqa: E731
+    return jax.lax.map(one, (rig, xy, mask, th), batch_size=batch_size)
+
+
+def associate_batch(
+    rig: Rig,
+    xy: Float[Array, "B M P 2"],
+    mask: Bool[Array, "B M P"],
+    *,
+    config: Config = Config.paper(),
+    sigma: float | str | Float[Array, " B"] = 1.0,
+    thresholds: Thresholds | None = None,
+    batch_size: int = 16,
+) -> Association:
+    """:func:`associate` for ``B`` scenes in one compiled call.
+
+    The rig is shared (``K (M, 3, 3)``) or per scene (``K (B, M, 3, 3)``); ``sigma`` and the
+    thresholds may be scalars or ``(B,)`` arrays. Scenes run ``batch_size`` at a time
+    (vmapped inside ``lax.map``), which bounds memory. Every field of the result gains a
+    leading ``B`` axis.
+    """
+    shared = rig.K.ndim == 3
+    check_rig(rig, batched=not shared)
+    check_observations(xy, mask, rig.num_views, batched=True)
+    if batch_size < 1:
+        raise ValueError(f"batch_size must be >= 1; got {batch_size}")
+    B = xy.shape[0]
+    dtype = _float_dtype(xy)
+    static, th = _prepare(config, sigma, thresholds, dtype)
+    th = Thresholds(*(jnp.broadcast_to(v, (B,)) for v in th))
+    return _associate_batch_jit(
+        rig, jnp.asarray(xy, dtype), jnp.asarray(mask), th, config=static, batch_size=min(batch_size, B), shared_rig=shared
+    )

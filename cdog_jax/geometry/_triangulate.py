@@ -1,0 +1,81 @@
+"""DLT triangulation, two-view and masked multi-view (ALGORITHM.md §9).
+
+Each view contributes the rows ``x̂ P3 − P1`` and ``ŷ P3 − P2`` of the DLT in normalised
+camera coordinates (``x̂ = K⁻¹ x``), with the world origin moved to the mean camera centre
+so that every entry is O(1) in float32. With ``X = (x, y, z, 1)`` the least-squares problem
+reduces to a 3×3 system ``(Σ_v N_v) X = −Σ_v r_v``, solved in closed form: a subset of
+views is triangulated by summing its precomputed per-view blocks, and the derivative is
+well defined wherever the system is (no SVD).
+"""
+
+import jax.numpy as jnp
+
+from .._types import Array, Bool, Float
+from ._camera import Rig
+from ._homogeneous import homogeneous_from_points
+
+
+def dlt_blocks(
+    rig: Rig, xy: Float[Array, "*S M 2"]
+) -> tuple[Float[Array, "*S M 3 3"], Float[Array, "*S M 3"], Float[Array, "3"]]:
+    """Per-observation normal blocks ``N = AᵀA`` and ``r = Aᵀb`` of the DLT rows.
+
+    Returns ``(N, r, origin)``: solving ``(Σ N) X = −Σ r`` gives ``X + origin`` in world
+    coordinates (scene units).
+    """
+    origin = jnp.mean(rig.centers, axis=0)  # (3,)
+    t_shift = rig.t + jnp.einsum("mij,j->mi", rig.R, origin)  # (M, 3)
+    rays = jnp.einsum("mab,...mb->...ma", jnp.linalg.inv(rig.K), homogeneous_from_points(xy))
+    # K is upper triangular, so rays[..., 2] = 1 / K[2, 2] is never 0.
+    x_hat = rays[..., 0] / rays[..., 2]
+    y_hat = rays[..., 1] / rays[..., 2]
+    R, t = rig.R, t_shift
+    A0 = x_hat[..., None] * R[:, 2, :] - R[:, 0, :]  # (*S, M, 3)
+    A1 = y_hat[..., None] * R[:, 2, :] - R[:, 1, :]
+    b0 = x_hat * t[:, 2] - t[:, 0]  # (*S, M)
+    b1 = y_hat * t[:, 2] - t[:, 1]
+    N = A0[..., :, None] * A0[..., None, :] + A1[..., :, None] * A1[..., None, :]
+    r = A0 * b0[..., None] + A1 * b1[..., None]
+    return N, r, origin
+
+
+def solve_normal_3x3(
+    N: Float[Array, "*S 3 3"], r: Float[Array, "*S 3"]
+) -> tuple[Float[Array, "*S 3"], Bool[Array, "*S"]]:
+    """Solve ``N X = −r`` for symmetric PSD ``N`` with the adjugate; ``ok`` is False (and X = 0)
+    where ``N`` is near singular (fewer than two views, or rays nearly parallel)."""
+    c0 = jnp.cross(N[..., 1, :], N[..., 2, :])
+    c1 = jnp.cross(N[..., 2, :], N[..., 0, :])
+    c2 = jnp.cross(N[..., 0, :], N[..., 1, :])
+    det = jnp.sum(N[..., 0, :] * c0, axis=-1)
+    trace = N[..., 0, 0] + N[..., 1, 1] + N[..., 2, 2]
+    # Relative test: parallax below ~0.01° or a single view gives det ≈ 0 at this scale.
+    ok = det > 1e-9 * trace**3
+    inv_det = jnp.where(ok, 1.0 / jnp.where(ok, det, 1.0), 0.0)
+    adj = jnp.stack([c0, c1, c2], axis=-1)  # symmetric N: adj(N) has these columns
+    X = -jnp.einsum("...ij,...j->...i", adj, r) * inv_det[..., None]
+    return X, ok
+
+
+def triangulate(
+    rig: Rig, xy: Float[Array, "*S M 2"], mask: Bool[Array, "*S M"]
+) -> tuple[Float[Array, "*S 3"], Bool[Array, "*S"]]:
+    """Multi-view DLT of any batch of tracks: one 3D point (scene units) per track from the
+    views where ``mask`` is True, and a flag that the point is determined (≥ 2 views with
+    parallax). Works standalone, without association; jit/vmap friendly."""
+    N, r, origin = dlt_blocks(rig, xy)
+    w = mask.astype(N.dtype)
+    X, ok = solve_normal_3x3(jnp.einsum("...m,...mij->...ij", w, N), jnp.einsum("...m,...mi->...i", w, r))
+    return jnp.where(ok[..., None], X + origin, 0.0), ok
+
+
+def triangulate_pairs(
+    N: Float[Array, "M 3 3"], r: Float[Array, "M 3"], origin: Float[Array, "3"]
+) -> tuple[Float[Array, "M M 3"], Bool[Array, "M M"]]:
+    """Two-view DLT for every pair of one track's views from its per-view blocks:
+    ``X[a, b]`` from views a and b (the diagonal is not meaningful, ``ok`` False there)."""
+    X, ok = solve_normal_3x3(N[:, None] + N[None, :], r[:, None] + r[None, :])
+    ok = ok & ~jnp.eye(N.shape[0], dtype=bool)
+    return X + origin, ok
+
+

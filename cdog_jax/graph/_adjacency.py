@@ -1,0 +1,53 @@
+"""Association graph initialisation (paper Alg. 1, ALGORITHM.md §2).
+
+Every valid node ``u = m * P + i`` proposes at most one edge into each other view: to its
+epipolar nearest neighbour there, if closer than τ. The undirected graph keeps an edge when
+both ends propose it (``mutual``) or when either does (``union``). Every edge of either
+graph is therefore one of these ``N × M`` proposals, which is the edge table the later
+stages work on.
+"""
+
+from typing import NamedTuple
+
+import jax.numpy as jnp
+
+from .._config import Adjacency
+from .._types import Array, Bool, Float, Int
+
+
+class EdgeTable(NamedTuple):
+    """The ``E = N * M`` proposals ``src → dst`` (entry ``u * M + n`` is u's proposal into
+    view n). ``ok`` is False where u proposed nothing (then ``dst == src``)."""
+
+    src: Int[Array, " E"]
+    dst: Int[Array, " E"]
+    ok: Bool[Array, " E"]
+
+
+def nearest_neighbour_edges(d: Float[Array, "M P M P"], tau_px: Float[Array, ""]) -> EdgeTable:
+    """For every node and other view, the edge to the nearest valid point if ``d < τ``.
+
+    Ties go to the smallest slot; padded nodes and views propose nothing (``d = +inf``).
+    """
+    M, P = d.shape[:2]
+    j_star = jnp.argmin(d, axis=-1)  # (M, P, M)
+    d_star = jnp.take_along_axis(d, j_star[..., None], axis=-1)[..., 0]
+    ok = (d_star < tau_px).reshape(-1)  # (E,)
+    src = jnp.repeat(jnp.arange(M * P), M)
+    dst = (jnp.arange(M)[None, None, :] * P + j_star).reshape(-1)
+    return EdgeTable(src=src, dst=jnp.where(ok, dst, src), ok=ok)
+
+
+def adjacency_from_edges(edges: EdgeTable, num_nodes: int, mode: Adjacency) -> Bool[Array, "N N"]:
+    """Symmetric adjacency ``A`` from the proposals: ``D ∧ Dᵀ`` (mutual) or ``D ∨ Dᵀ`` (union)."""
+    D = jnp.zeros((num_nodes, num_nodes), dtype=bool).at[edges.src, edges.dst].max(edges.ok)
+    if mode == "mutual":
+        return D & D.T
+    if mode == "union":
+        return D | D.T
+    raise ValueError(f"unknown adjacency mode {mode!r}")
+
+
+def alive_edges(edges: EdgeTable, A: Bool[Array, "N N"]) -> Bool[Array, " E"]:
+    """Which proposals are edges of the (possibly pruned) graph ``A``."""
+    return edges.ok & A[edges.src, edges.dst]

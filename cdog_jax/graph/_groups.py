@@ -1,0 +1,43 @@
+"""The ``(G, M)`` group table from component labels (ALGORITHM.md §5)."""
+
+import jax.numpy as jnp
+
+from .._types import Array, Bool, Int
+
+
+def groups_from_labels(
+    labels: Int[Array, " N"], valid: Bool[Array, " N"], num_views: int, num_slots: int
+) -> tuple[Int[Array, "G M"], Bool[Array, " G"]]:
+    """Components with ≥ 2 valid nodes become groups, numbered by label (smallest node index)
+    ascending. Returns ``groups[g, m]`` (slot in view m or -1) and ``valid[g]``; the capacity
+    ``G = N // 2`` always suffices. Assumes view-unique components."""
+    N = labels.shape[0]
+    G = max(N // 2, 1)
+    size = jnp.zeros((N,), jnp.int32).at[labels].add(valid.astype(jnp.int32))
+    is_root = (jnp.arange(N) == labels) & (size >= 2)
+    group_of_root = jnp.cumsum(is_root.astype(jnp.int32)) - 1
+    node_group = jnp.where(valid & is_root[labels], group_of_root[labels], G)  # G = dropped
+    node = jnp.arange(N)
+    groups = jnp.full((G, num_views), -1, jnp.int32).at[node_group, node // num_slots].set(
+        (node % num_slots).astype(jnp.int32), mode="drop"
+    )
+    group_valid = jnp.arange(G) < jnp.sum(is_root.astype(jnp.int32))
+    return groups, group_valid
+
+
+def labels_from_groups(groups: Int[Array, "G M"], valid: Bool[Array, " G"], num_slots: int) -> Int[Array, "M P"]:
+    """``labels[m, i]``: the group holding slot i of view m, or -1."""
+    G, M = groups.shape
+    member = valid[:, None] & (groups >= 0)
+    gid = jnp.broadcast_to(jnp.arange(G, dtype=jnp.int32)[:, None], (G, M))
+    view = jnp.broadcast_to(jnp.arange(M)[None, :], (G, M))
+    slot = jnp.where(member, groups, num_slots)
+    return jnp.full((M, num_slots), -1, jnp.int32).at[view, slot].set(gid, mode="drop")
+
+
+def compact_groups(groups: Int[Array, "G M"], valid: Bool[Array, " G"]) -> tuple[Int[Array, "G M"], Bool[Array, " G"], Int[Array, " G"]]:
+    """Move valid groups to the front, keeping their order; returns the permutation too
+    (``order[k]`` = old index of new group k)."""
+    G = valid.shape[0]
+    order = jnp.argsort(jnp.where(valid, 0, 1), stable=True)
+    return groups[order], valid[order], order

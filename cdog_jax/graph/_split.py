@@ -1,0 +1,99 @@
+"""View-uniqueness: split components that hold two nodes of one view (ALGORITHM.md §4).
+
+A group may hold at most one detection per view. While a component conflicts, its single
+weakest edge (lowest θ, then largest epipolar distance, then smallest node pair) is
+removed; after ``max_iters`` rounds, the last resort keeps in each over-full view the node
+with the smallest mean edge distance and detaches the others.
+"""
+
+import jax
+import jax.numpy as jnp
+
+from .._types import Array, Bool, Float, Int
+from ._adjacency import EdgeTable, alive_edges
+from ._components import component_view_counts, connected_components
+from ._overlap import remove_edges
+
+
+def _conflicting(labels, node_view, valid, num_views):
+    counts = component_view_counts(labels, node_view, valid, num_views)  # (N, M)
+    return jnp.any(counts >= 2, axis=1), counts  # per label
+
+
+def _segment_argbest(key, active, seg, num_segments, minimise=True):
+    """Per segment, the best key among active entries, broadcast back to the entries."""
+    fill = jnp.inf if minimise else -jnp.inf
+    k = jnp.where(active, key, fill)
+    init = jnp.full((num_segments,), fill, key.dtype)
+    best = init.at[seg].min(k) if minimise else init.at[seg].max(k)
+    return active & (k == best[seg])
+
+
+def split_conflicts(
+    A: Bool[Array, "N N"],
+    edges: EdgeTable,
+    theta: Float[Array, " E"],
+    edge_dist: Float[Array, " E"],
+    node_view: Int[Array, " N"],
+    valid: Bool[Array, " N"],
+    num_views: int,
+    max_iters: int,
+) -> tuple[Bool[Array, "N N"], Int[Array, " N"]]:
+    """Remove edges until every component is view-unique; returns the graph and its labels."""
+    N = A.shape[0]
+    pair_lo = jnp.minimum(edges.src, edges.dst).astype(theta.dtype)
+    pair_hi = jnp.maximum(edges.src, edges.dst).astype(theta.dtype)
+
+    def cond(carry):
+        _, _, any_conflict, it = carry
+        return any_conflict & (it < max_iters)
+
+    def body(carry):
+        A, labels, _, it = carry
+        conflict, _ = _conflicting(labels, node_view, valid, num_views)
+        seg = labels[edges.src]
+        cand = alive_edges(edges, A) & conflict[seg]
+        # Lexicographic (θ ↑, distance ↓, pair ↑) best per component; both proposals of
+        # one undirected edge tie on every key and are removed together.
+        cand = _segment_argbest(theta, cand, seg, N)
+        cand = _segment_argbest(edge_dist, cand, seg, N, minimise=False)
+        cand = _segment_argbest(pair_lo, cand, seg, N)
+        cand = _segment_argbest(pair_hi, cand, seg, N)
+        A = remove_edges(A, edges, cand)
+        labels = connected_components(edges, alive_edges(edges, A), N)
+        conflict, _ = _conflicting(labels, node_view, valid, num_views)
+        return A, labels, jnp.any(conflict), it + 1
+
+    labels = connected_components(edges, alive_edges(edges, A), N)
+    conflict, _ = _conflicting(labels, node_view, valid, num_views)
+    A, labels, any_conflict, _ = jax.lax.while_loop(cond, body, (A, labels, jnp.any(conflict), jnp.int32(0)))
+    return jax.lax.cond(
+        any_conflict,
+        lambda: _detach_last_resort(A, labels, edges, edge_dist, node_view, valid, num_views),
+        lambda: (A, labels),
+    )
+
+
+def _detach_last_resort(A, labels, edges, edge_dist, node_view, valid, num_views):
+    """In each conflicting component, keep per over-full view the node of smallest mean edge
+    distance (ties: smallest index) and remove every edge of the others."""
+    N = A.shape[0]
+    conflict, counts = _conflicting(labels, node_view, valid, num_views)
+    alive = alive_edges(edges, A)
+    # Each undirected edge may appear as one or two proposals: count it once per endpoint
+    # through a dense symmetric matrix of edge distances.
+    E_dense = jnp.zeros((N, N), edge_dist.dtype).at[edges.src, edges.dst].max(jnp.where(alive, edge_dist, 0.0))
+    E_dense = jnp.maximum(E_dense, E_dense.T)
+    A_f = A.astype(edge_dist.dtype)
+    deg = jnp.sum(A_f, axis=1)
+    mean_dist = jnp.sum(A_f * E_dense, axis=1) / jnp.maximum(deg, 1.0)
+    over_full = conflict[labels] & (counts[labels, node_view] >= 2) & valid  # (N,)
+    # Winner per (label, view): smallest mean distance, then smallest node index.
+    key = jnp.where(over_full, mean_dist, jnp.inf)
+    best = jnp.full((N, num_views), jnp.inf, key.dtype).at[labels, node_view].min(key)
+    tied = over_full & (key == best[labels, node_view])
+    idx = jnp.where(tied, jnp.arange(N), N)
+    first = jnp.full((N, num_views), N, jnp.int32).at[labels, node_view].min(idx.astype(jnp.int32))
+    detach = over_full & (first[labels, node_view] != jnp.arange(N))
+    A = A & ~detach[:, None] & ~detach[None, :]
+    return A, connected_components(edges, alive_edges(edges, A), N)

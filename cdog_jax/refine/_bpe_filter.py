@@ -1,0 +1,38 @@
+"""Error association group removal (paper §IV-E, ALGORITHM.md §8).
+
+Groups sorted by back-projection error (BPE, px²) ascending; the first "sudden increase"
+is a gap ``g_i = b_{i+1} − b_i`` larger than ``kappa`` times the median of the gaps before
+it and larger than an absolute floor ``floor_px2 + (floor_sigma · σ)²``; every group after
+it is discarded.
+"""
+
+import jax.numpy as jnp
+
+from .._config import Thresholds
+from .._types import Array, Bool, Float
+
+
+def bpe_jump_keep(
+    bpe: Float[Array, " G"], valid: Bool[Array, " G"], sigma_px: Float[Array, ""], th: Thresholds, min_gaps: int
+) -> Bool[Array, " G"]:
+    """Which valid groups survive the jump rule."""
+    G = bpe.shape[0]
+    if G < 2:
+        return valid
+    order = jnp.argsort(jnp.where(valid, bpe, jnp.inf), stable=True)
+    b = jnp.where(valid, bpe, jnp.inf)[order]
+    count = jnp.sum(valid.astype(jnp.int32))
+    gaps = b[1:] - b[:-1]  # (G-1,), meaningful for i < count - 1
+    i = jnp.arange(G - 1)
+    # Row i holds the gaps before i: their median via a masked sort.
+    before = jnp.where(i[None, :] < i[:, None], gaps[None, :], jnp.inf)  # (G-1, G-1)
+    srt = jnp.sort(before, axis=1)
+    lo = jnp.maximum(i - 1, 0) // 2
+    hi = i // 2
+    med = 0.5 * (srt[i, lo] + srt[i, jnp.minimum(hi, G - 2)])
+    floor = th.jump_floor_px2 + (th.jump_floor_sigma * sigma_px) ** 2
+    jump = (i >= min_gaps) & (i < count - 1) & (gaps > th.jump_kappa * med) & (gaps > floor)
+    first = jnp.where(jnp.any(jump), jnp.argmax(jump), G)
+    rank_keep = jnp.arange(G) <= first
+    keep = jnp.zeros((G,), bool).at[order].set(rank_keep)
+    return keep & valid

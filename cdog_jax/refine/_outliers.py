@@ -1,0 +1,110 @@
+"""Group-level outlier removal with the interquartile range (paper Alg. 3, ALGORITHM.md §6).
+
+For a group with ≥ 3 members, every pair of member views is triangulated (two-view DLT)
+and reprojected into the other members; a node's score is its mean reprojection error
+(pixels) and scores outside the IQR fences are outliers. Repeated in a
+``lax.while_loop`` until no group changes.
+"""
+
+import jax
+import jax.numpy as jnp
+
+from .._config import Config, Thresholds
+from .._types import Array, Bool, Float
+from ..geometry._camera import Rig
+from ..geometry._projection import reprojection_errors
+from ..geometry._triangulate import triangulate_pairs
+
+
+def percentile_linear(values: Float[Array, " K"], count, q: float) -> Float[Array, ""]:
+    """``numpy.percentile(values[:count], q)`` (linear) of the ``count`` smallest finite
+    entries; the other entries must be ``+inf``. Meaningless (but finite) if ``count == 0``."""
+    v = jnp.sort(values)
+    pos = (q / 100.0) * jnp.maximum(count - 1, 0).astype(values.dtype)
+    lo = jnp.floor(pos).astype(jnp.int32)
+    hi = jnp.minimum(lo + 1, jnp.maximum(count - 1, 0))
+    frac = pos - lo.astype(values.dtype)
+    v_lo, v_hi = v[lo], v[hi]
+    v_hi = jnp.where(jnp.isfinite(v_hi), v_hi, v_lo)
+    v_lo = jnp.where(jnp.isfinite(v_lo), v_lo, 0.0)
+    return v_lo + frac * (v_hi - v_lo)
+
+
+def node_scores(
+    rig: Rig, N, r, origin, xy_g: Float[Array, "M 2"], member: Bool[Array, " M"], own: bool
+) -> tuple[Float[Array, " M"], Bool[Array, " M"]]:
+    """Mean pair-reprojection error of every member view (pixels) and whether it is defined."""
+    M = member.shape[0]
+    X, ok = triangulate_pairs(N, r, origin)  # (M, M, 3), (M, M)
+    err = reprojection_errors(rig, X, jnp.broadcast_to(xy_g, (M, M, M, 2)))  # e[a, b, c]
+    a_lt_b = jnp.triu(jnp.ones((M, M), bool), k=1)
+    pair = ok & a_lt_b & member[:, None] & member[None, :]
+    weight = pair[:, :, None] & member[None, None, :]
+    if not own:
+        eye = jnp.eye(M, dtype=bool)
+        weight = weight & ~eye[:, None, :] & ~eye[None, :, :]
+    w = weight.astype(err.dtype)
+    total = jnp.einsum("abc,abc->c", w, err)
+    count = jnp.sum(w, axis=(0, 1))
+    defined = count > 0
+    return jnp.where(defined, total / jnp.where(defined, count, 1.0), 0.0), defined
+
+
+def iqr_outliers(
+    score: Float[Array, " M"], member: Bool[Array, " M"], th: Thresholds, config: Config
+) -> Bool[Array, " M"]:
+    """Members whose score lies outside ``[max(0, Q1 − α IQR), Q3 + α IQR]``."""
+    if config.iqr_quartiles == "zero_pad":
+        vals = jnp.concatenate([jnp.where(member, score, jnp.inf), jnp.zeros((1,), score.dtype)])
+        count = jnp.sum(member.astype(jnp.int32)) + 1
+    else:
+        positive = member & (score > 0)
+        vals = jnp.concatenate([jnp.where(positive, score, jnp.inf), jnp.full((1,), jnp.inf, score.dtype)])
+        count = jnp.sum(positive.astype(jnp.int32))
+    q1 = percentile_linear(vals, count, 25.0)
+    q3 = percentile_linear(vals, count, 75.0)
+    iqr = q3 - q1
+    lb = jnp.maximum(0.0, q1 - th.iqr_alpha * iqr)
+    ub = q3 + th.iqr_alpha * iqr
+    out = member & ((score < lb) | (score > ub)) & (count > 0)
+    if config.iqr_guards:
+        top = jnp.max(jnp.where(member, score, -jnp.inf))
+        out = out & (top >= th.iqr_min_px)
+        worst = jnp.argmax(jnp.where(member, score, -jnp.inf))
+        force = ~jnp.any(out) & (top > th.iqr_force_px)
+        out = out | (force & (jnp.arange(score.shape[0]) == worst))
+    return out
+
+
+def remove_outliers(
+    rig: Rig,
+    N_g: Float[Array, "G M 3 3"],
+    r_g: Float[Array, "G M 3"],
+    origin: Float[Array, "3"],
+    xy_g: Float[Array, "G M 2"],
+    member: Bool[Array, "G M"],
+    th: Thresholds,
+    config: Config,
+) -> Bool[Array, "G M"]:
+    """Iterated IQR removal over all groups; groups left with < 2 members dissolve."""
+    own = config.iqr_score == "include_own"
+
+    def one_group(N, r, xy, mem):
+        big = jnp.sum(mem.astype(jnp.int32)) >= 3
+        w = mem.astype(N.dtype)
+        score, _ = node_scores(rig, N * w[:, None, None], r * w[:, None], origin, xy, mem, own)
+        out = iqr_outliers(score, mem, th, config) & big
+        return mem & ~out
+
+    def cond(carry):
+        _, changed, it = carry
+        return changed & (it < config.max_iqr_iters)
+
+    def body(carry):
+        mem, _, it = carry
+        new = jax.vmap(one_group)(N_g, r_g, xy_g, mem)
+        new = new & (jnp.sum(new.astype(jnp.int32), axis=1, keepdims=True) >= 2)
+        return new, jnp.any(new != mem), it + 1
+
+    member, _, _ = jax.lax.while_loop(cond, body, (member, jnp.bool_(True), jnp.int32(0)))
+    return member

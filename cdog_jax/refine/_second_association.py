@@ -1,0 +1,54 @@
+"""The reference code's "second association" (SPEC §2.7, ALGORITHM.md §7).
+
+Each leftover valid node joins the group (lacking its view) whose members' epipolar lines
+pass closest to it on average, distances ≥ τ counted three times, if that mean is below
+``second_frac · τ``. One pass; when nodes of one view pick the same group, the cheapest wins.
+"""
+
+import jax.numpy as jnp
+
+from .._config import Thresholds
+from .._types import Array, Bool, Float, Int
+
+
+def second_association(
+    d: Float[Array, "N N"],
+    groups: Int[Array, "G M"],
+    valid: Bool[Array, " G"],
+    node_valid: Bool[Array, " N"],
+    tau_px: Float[Array, ""],
+    th: Thresholds,
+) -> Int[Array, "G M"]:
+    """The group table with leftover nodes attached. ``d[v, u]`` is the distance in u's
+    image from u to the epipolar line of v (pixels)."""
+    G, M = groups.shape
+    N = d.shape[0]
+    P = N // M
+    member = valid[:, None] & (groups >= 0)  # (G, M)
+    member_node = jnp.where(member, jnp.arange(M)[None, :] * P + groups, 0)  # (G, M)
+    in_group = jnp.zeros((N,), bool).at[member_node.reshape(-1)].max(member.reshape(-1))
+    leftover = node_valid & ~in_group
+    node_view = jnp.arange(N) // P
+
+    dist = d[member_node]  # (G, M, N): from member (g, m) to every node
+    w = jnp.where(dist < tau_px, dist, 3.0 * dist)
+    w = jnp.where(member[:, :, None], w, 0.0)
+    n_mem = jnp.sum(member.astype(d.dtype), axis=1)  # (G,)
+    cost = jnp.sum(w, axis=1) / jnp.maximum(n_mem, 1.0)[:, None]  # (G, N)
+    lacks_view = ~member[:, node_view]  # (G, N)
+    allowed = valid[:, None] & lacks_view & leftover[None, :]
+    cost = jnp.where(allowed, cost, jnp.inf)
+
+    best_group = jnp.argmin(cost, axis=0)  # (N,), ties: lowest id
+    best_cost = jnp.min(cost, axis=0)
+    wants = best_cost < th.second_frac * tau_px
+    # Conflicts: per (group, view) the cheapest candidate, then the smallest node index.
+    target = jnp.where(wants, best_group, G)
+    lowest = jnp.full((G, M), jnp.inf, d.dtype).at[target, node_view].min(best_cost, mode="drop")
+    is_best = wants & (best_cost == lowest[jnp.minimum(target, G - 1), node_view])
+    first = jnp.full((G, M), N, jnp.int32).at[jnp.where(is_best, target, G), node_view].min(
+        jnp.arange(N, dtype=jnp.int32), mode="drop"
+    )
+    winner = is_best & (first[jnp.minimum(target, G - 1), node_view] == jnp.arange(N))
+    slot = (jnp.arange(N) % P).astype(jnp.int32)
+    return groups.at[jnp.where(winner, target, G), node_view].set(slot, mode="drop")
