@@ -44,7 +44,7 @@ def _group_fit(rig, xy_g, member, N_g, r_g, origin):
     """Multi-view DLT point, per-member reprojection errors, BPE (px²) and mean error (px)."""
     w = member.astype(N_g.dtype)
     X, ok = solve_normal_3x3(jnp.einsum("gm,gmij->gij", w, N_g), jnp.einsum("gm,gmi->gi", w, r_g))
-    X = jnp.where(ok[:, None], X + origin, 0.0)
+    X = jnp.where(ok[:, None], X + origin[None, :], 0.0)
     return X, _errors(rig, X, xy_g, member)
 
 

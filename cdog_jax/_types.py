@@ -10,4 +10,10 @@ Pixels = Float[Array, "M P 2"]
 Mask = Bool[Array, "M P"]
 Labels = Int[Array, "M P"]
 
-__all__ = ["Array", "Bool", "Float", "Int", "Scalar", "Mat3", "Vec3", "Pixels", "Mask", "Labels"]
+__all__ = ["Array", "Bool", "Float", "Int", "Scalar", "Mat3", "Vec3", "Pixels", "Mask", "Labels", "lift"]
+
+
+def lift(a, ndim: int):
+    """``a`` with leading singleton axes up to ``ndim`` dims, so that it broadcasts against an
+    ``ndim``-dimensional array without implicit rank promotion."""
+    return a.reshape((1,) * (ndim - a.ndim) + a.shape)

@@ -15,3 +15,10 @@ def getkey():
         return jax.random.PRNGKey(state["i"])
 
     return _getkey
+
+
+import os  # noqa: E402
+import sys  # noqa: E402
+
+# Test modules live in sub-folders without __init__.py; make tests/helpers.py importable.
+sys.path.insert(0, os.path.dirname(__file__))

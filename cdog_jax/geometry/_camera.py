@@ -10,7 +10,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from .._types import Array, Bool, Float
+from .._types import Array, Bool, Float, lift
 
 
 class Rig(eqx.Module):
@@ -94,7 +94,8 @@ def check_rig_values(K: np.ndarray, R: np.ndarray, t: np.ndarray) -> None:
 
 def camera_points(rig: Rig, X_world: Float[Array, "*S 3"]) -> Float[Array, "*S M 3"]:
     """World points in every camera frame: ``X_cam = R X + t``, shape ``(*S, M, 3)``."""
-    return jnp.einsum("mij,...j->...mi", rig.R, X_world) + rig.t
+    X_cam = jnp.einsum("mij,...j->...mi", rig.R, X_world)
+    return X_cam + lift(rig.t, X_cam.ndim)
 
 
 def in_front(rig: Rig, X_world: Float[Array, "*S 3"]) -> Bool[Array, "*S M"]:

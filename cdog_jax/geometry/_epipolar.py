@@ -24,7 +24,9 @@ def essential_from_rig(rig: Rig) -> Float[Array, "M M 3 3"]:
     R_rel = jnp.einsum("nij,mkj->mnik", rig.R, rig.R)  # R_n R_mᵀ, (M, M, 3, 3)
     t_rel = rig.t[None, :, :] - jnp.einsum("mnij,mj->mni", R_rel, rig.t)  # (M, M, 3)
     t_norm = jnp.sqrt(jnp.sum(t_rel * t_rel, axis=-1, keepdims=True))
-    ok = t_norm > 0  # zero only on the diagonal (or for two cameras at one centre)
+    M = rig.K.shape[0]
+    # The diagonal is zero up to round-off only; zero it exactly (no pair of a view with itself).
+    ok = (t_norm > 0) & ~jnp.eye(M, dtype=bool)[..., None]
     t_unit = jnp.where(ok, t_rel / jnp.where(ok, t_norm, 1.0), 0.0)
     return jnp.einsum("mnij,mnjk->mnik", skew(t_unit), R_rel)
 

@@ -10,7 +10,7 @@ well defined wherever the system is (no SVD).
 
 import jax.numpy as jnp
 
-from .._types import Array, Bool, Float
+from .._types import Array, Bool, Float, lift
 from ._camera import Rig
 from ._homogeneous import homogeneous_from_points
 
@@ -29,11 +29,13 @@ def dlt_blocks(
     # K is upper triangular, so rays[..., 2] = 1 / K[2, 2] is never 0.
     x_hat = rays[..., 0] / rays[..., 2]
     y_hat = rays[..., 1] / rays[..., 2]
-    R, t = rig.R, t_shift
-    A0 = x_hat[..., None] * R[:, 2, :] - R[:, 0, :]  # (*S, M, 3)
-    A1 = y_hat[..., None] * R[:, 2, :] - R[:, 1, :]
-    b0 = x_hat * t[:, 2] - t[:, 0]  # (*S, M)
-    b1 = y_hat * t[:, 2] - t[:, 1]
+    shape = x_hat.shape  # (*S, M)
+    R = jnp.broadcast_to(rig.R, shape + (3, 3))
+    t = jnp.broadcast_to(t_shift, shape + (3,))
+    A0 = x_hat[..., None] * R[..., 2, :] - R[..., 0, :]  # (*S, M, 3)
+    A1 = y_hat[..., None] * R[..., 2, :] - R[..., 1, :]
+    b0 = x_hat * t[..., 2] - t[..., 0]  # (*S, M)
+    b1 = y_hat * t[..., 2] - t[..., 1]
     N = A0[..., :, None] * A0[..., None, :] + A1[..., :, None] * A1[..., None, :]
     r = A0 * b0[..., None] + A1 * b1[..., None]
     return N, r, origin
@@ -66,7 +68,7 @@ def triangulate(
     N, r, origin = dlt_blocks(rig, xy)
     w = mask.astype(N.dtype)
     X, ok = solve_normal_3x3(jnp.einsum("...m,...mij->...ij", w, N), jnp.einsum("...m,...mi->...i", w, r))
-    return jnp.where(ok[..., None], X + origin, 0.0), ok
+    return jnp.where(ok[..., None], X + lift(origin, X.ndim), 0.0), ok
 
 
 def triangulate_pairs(
@@ -76,6 +78,6 @@ def triangulate_pairs(
     ``X[a, b]`` from views a and b (the diagonal is not meaningful, ``ok`` False there)."""
     X, ok = solve_normal_3x3(N[:, None] + N[None, :], r[:, None] + r[None, :])
     ok = ok & ~jnp.eye(N.shape[0], dtype=bool)
-    return X + origin, ok
+    return X + lift(origin, X.ndim), ok
 
 

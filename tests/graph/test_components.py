@@ -1,0 +1,48 @@
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from cdog_jax.graph import EdgeTable, connected_components
+
+
+def _union_find(n, pairs):
+    parent = list(range(n))
+
+    def find(a):
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    for u, v in pairs:
+        ru, rv = find(u), find(v)
+        if ru != rv:
+            parent[max(ru, rv)] = min(ru, rv)
+    roots = [find(a) for a in range(n)]
+    smallest = {}
+    for a, r in enumerate(roots):
+        smallest.setdefault(r, a)
+    return np.array([smallest[r] for r in roots])
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_components_equal_union_find(seed):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 60))
+    E = int(rng.integers(0, 2 * n))
+    src = rng.integers(0, n, E)
+    dst = rng.integers(0, n, E)
+    alive = rng.random(E) < 0.7
+    edges = EdgeTable(jnp.asarray(src, jnp.int32), jnp.asarray(dst, jnp.int32), jnp.ones(E, bool))
+    got = np.asarray(connected_components(edges, jnp.asarray(alive), n))
+    want = _union_find(n, [(u, v) for u, v, a in zip(src, dst, alive) if a])
+    assert np.array_equal(got, want)
+
+
+def test_long_path_converges():
+    n = 200
+    perm = np.random.default_rng(0).permutation(n)
+    src, dst = perm[:-1], perm[1:]
+    edges = EdgeTable(jnp.asarray(src, jnp.int32), jnp.asarray(dst, jnp.int32), jnp.ones(n - 1, bool))
+    got = np.asarray(connected_components(edges, jnp.ones(n - 1, bool), n))
+    assert np.all(got == 0)

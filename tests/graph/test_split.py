@@ -1,0 +1,55 @@
+import jax.numpy as jnp
+import numpy as np
+
+from cdog_jax.graph import EdgeTable, alive_edges, connected_components, split_conflicts
+
+
+def _edges(pairs, N):
+    src = jnp.asarray([p[0] for p in pairs], jnp.int32)
+    dst = jnp.asarray([p[1] for p in pairs], jnp.int32)
+    A = np.zeros((N, N), bool)
+    for u, v in pairs:
+        A[u, v] = A[v, u] = True
+    return EdgeTable(src, dst, jnp.ones(len(pairs), bool)), jnp.asarray(A)
+
+
+def test_weakest_edge_removed_first():
+    # Views: node u is in view u // 2 (P = 2). A chain 0 - 2 - 4 - 1 holds two nodes of view 0.
+    N, M = 6, 3
+    edges, A = _edges([(0, 2), (2, 4), (4, 1)], N)
+    theta = jnp.asarray([0.9, 0.4, 0.6], jnp.float32)
+    dist = jnp.asarray([1.0, 1.0, 1.0], jnp.float32)
+    view = jnp.arange(N) // 2
+    A2, labels = split_conflicts(A, edges, theta, dist, view, jnp.ones(N, bool), M, max_iters=8)
+    assert not bool(A2[2, 4]) and bool(A2[0, 2]) and bool(A2[4, 1])
+    assert np.array_equal(np.asarray(labels), [0, 1, 0, 3, 1, 5])
+
+
+def test_ties_broken_by_larger_distance():
+    N, M = 6, 3
+    edges, A = _edges([(0, 2), (2, 4), (4, 1)], N)
+    theta = jnp.full((3,), 0.5, jnp.float32)
+    dist = jnp.asarray([1.0, 2.0, 3.0], jnp.float32)
+    A2, _ = split_conflicts(A, edges, theta, dist, jnp.arange(N) // 2, jnp.ones(N, bool), M, max_iters=8)
+    assert not bool(A2[4, 1]) and bool(A2[0, 2]) and bool(A2[2, 4])
+
+
+def test_random_graphs_end_view_unique():
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        M, P = 4, 5
+        N = M * P
+        pairs = [(int(u), int(v)) for u, v in rng.integers(0, N, (40, 2)) if u // P != v // P]
+        edges, A = _edges(pairs, N)
+        E = len(pairs)
+        theta = jnp.asarray(rng.random(E), jnp.float32)
+        dist = jnp.asarray(rng.random(E), jnp.float32)
+        view = jnp.arange(N) // P
+        for iters in (1, 64):  # the last resort alone, and the edge-removal loop
+            A2, labels = split_conflicts(A, edges, theta, dist, view, jnp.ones(N, bool), M, max_iters=iters)
+            labels = np.asarray(labels)
+            assert np.array_equal(labels, np.asarray(connected_components(edges, alive_edges(edges, A2), N)))
+            for c in np.unique(labels):
+                views = np.asarray(view)[labels == c]
+                assert len(views) == len(set(views))
+            assert not np.any(np.asarray(A2) & ~np.asarray(A))  # only removals
