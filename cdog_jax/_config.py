@@ -33,6 +33,7 @@ class Thresholds(NamedTuple):
     tau_min_px: Float[Array, ""]
     delta: Float[Array, ""]  # δ-overlap threshold (Alg. 2)
     iqr_alpha: Float[Array, ""]  # IQR fence multiplier (Alg. 3)
+    iqr_floor_px: Float[Array, ""]  # an outlier's score must also exceed this (pixels)
     iqr_min_px: Float[Array, ""]  # reference guard: no outlier if max score below this
     iqr_force_px: Float[Array, ""]  # reference guard: drop the max if above this
     jump_kappa: Float[Array, ""]  # BPE jump: gap > kappa * median(previous gaps)
@@ -72,6 +73,7 @@ class Config:
     tau_min_px: float = 1.0
     delta: float = 0.5
     iqr_alpha: float = 2.0
+    iqr_floor_px: float = 1.0
     iqr_min_px: float = 10.0
     iqr_force_px: float = 50.0
     jump_kappa: float = 10.0
@@ -109,6 +111,7 @@ class Config:
             adjacency="mutual",
             prune_scope="conflicts",
             iqr_alpha=1.5,
+            iqr_floor_px=0.0,
             iqr_score="include_own",
             iqr_quartiles="positive",
             iqr_guards=True,

@@ -15,7 +15,7 @@ import jax.numpy as jnp
 
 from ._config import Config, Thresholds, tau_px
 from ._result import Association
-from ._types import Array, Bool, Float
+from ._types import Array, ArrayLike, Bool, Float
 from ._validate import check_observations, check_rig
 from .geometry._camera import Rig
 from .geometry._epipolar import epipolar_distances
@@ -37,7 +37,7 @@ def _gather_groups(groups, per_node):
     """``per_node (M, P, ...)`` gathered to ``(G, M, ...)`` at the group slots (slot 0 where
     the group has no member; callers mask)."""
     M = groups.shape[1]
-    return per_node[jnp.arange(M)[None, :], jnp.maximum(groups, 0)]
+    return per_node[jnp.arange(M, dtype=jnp.int32)[None, :], jnp.maximum(groups, 0)]
 
 
 def _group_fit(rig, xy_g, member, N_g, r_g, origin):
@@ -76,7 +76,7 @@ def associate_traced(
     N = M * P
     xy = jnp.where(mask[..., None], xy, 0.0)  # padding is neutral from here on
     valid = mask.reshape(-1)
-    node_view = jnp.arange(N) // P
+    node_view = jnp.arange(N, dtype=jnp.int32) // P
 
     # Alg. 1: epipolar graph.
     d = epipolar_distances(rig, xy, mask)  # (M, P, M, P)
@@ -86,7 +86,7 @@ def associate_traced(
     A = adjacency_from_edges(edges, N, config.adjacency)
 
     # Alg. 2: δ-overlap pruning, then view-uniqueness.
-    theta = edge_overlap(edges, A)
+    theta = edge_overlap(edges, A, d.dtype)
     d_nodes = d.reshape(N, N)
     edge_dist = 0.5 * (d_nodes[edges.src, edges.dst] + d_nodes[edges.dst, edges.src])
     weak = alive_edges(edges, A) & (theta < th.delta)
@@ -116,7 +116,7 @@ def associate_traced(
             config,
         )
         groups = jnp.where(member, groups, -1)
-        gvalid = jnp.sum(member.astype(jnp.int32), axis=1) >= 2
+        gvalid = jnp.sum(member, dtype=jnp.int32, axis=1) >= 2
 
     if config.second_association:
         groups = second_association(d_nodes, groups, gvalid, valid, tau, th)
@@ -143,8 +143,8 @@ def associate_traced(
         points3d=jnp.where(keep, X[order], 0.0),
         bpe=jnp.where(gvalid, bpe[order], 0.0),
         err_px=jnp.where(gvalid, err_px[order], 0.0),
-        n_views=jnp.sum((groups >= 0).astype(jnp.int32), axis=1),
-        num_groups=jnp.sum(gvalid.astype(jnp.int32)),
+        n_views=jnp.sum((groups >= 0), dtype=jnp.int32, axis=1),
+        num_groups=jnp.sum(gvalid, dtype=jnp.int32),
         sigma_px=jnp.asarray(sigma, xy.dtype),
         tau_px=jnp.asarray(tau, xy.dtype),
     )
@@ -176,8 +176,8 @@ def _float_dtype(xy):
 
 def associate(
     rig: Rig,
-    xy: Float[Array, "M P 2"],
-    mask: Bool[Array, "M P"],
+    xy: ArrayLike,  # (M, P, 2); checked eagerly with a clear message
+    mask: ArrayLike,  # (M, P) bool
     *,
     config: Config = Config.paper(),
     sigma: float | str = 1.0,
@@ -214,8 +214,8 @@ def _associate_batch_jit(rig, xy, mask, th, *, config, batch_size, shared_rig):
 
 def associate_batch(
     rig: Rig,
-    xy: Float[Array, "B M P 2"],
-    mask: Bool[Array, "B M P"],
+    xy: ArrayLike,  # (B, M, P, 2); checked eagerly
+    mask: ArrayLike,  # (B, M, P) bool
     *,
     config: Config = Config.paper(),
     sigma: float | str | Float[Array, " B"] = 1.0,

@@ -1,7 +1,13 @@
 """Shape aliases shared by all modules (dimension letters: B scenes, M views, P slots per
 view, N = M*P nodes, G groups)."""
 
+from typing import Union
+
+import numpy as np
 from jaxtyping import Array, Bool, Float, Int
+
+# Public entry points accept NumPy arrays too; internals take jax Arrays.
+ArrayLike = Union[Array, np.ndarray]
 
 Scalar = Float[Array, ""]
 Mat3 = Float[Array, "M 3 3"]
@@ -10,7 +16,7 @@ Pixels = Float[Array, "M P 2"]
 Mask = Bool[Array, "M P"]
 Labels = Int[Array, "M P"]
 
-__all__ = ["Array", "Bool", "Float", "Int", "Scalar", "Mat3", "Vec3", "Pixels", "Mask", "Labels", "lift"]
+__all__ = ["Array", "ArrayLike", "Bool", "Float", "Int", "Scalar", "Mat3", "Vec3", "Pixels", "Mask", "Labels", "lift"]
 
 
 def lift(a, ndim: int):

@@ -65,7 +65,7 @@ def epipolar_distances(
     ok_line = line_norm_sq > jnp.finfo(xy.dtype).tiny
     inv_norm = jnp.where(ok_line, 1.0 / jnp.sqrt(jnp.where(ok_line, line_norm_sq, 1.0)), 0.0)
     d = num * inv_norm[..., None]
-    views = jnp.arange(M)
+    views = jnp.arange(M, dtype=jnp.int32)
     ok = (
         mask[:, :, None, None]
         & mask[None, None, :, :]

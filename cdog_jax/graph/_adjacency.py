@@ -30,11 +30,11 @@ def nearest_neighbour_edges(d: Float[Array, "M P M P"], tau_px: Float[Array, ""]
     Ties go to the smallest slot; padded nodes and views propose nothing (``d = +inf``).
     """
     M, P = d.shape[:2]
-    j_star = jnp.argmin(d, axis=-1)  # (M, P, M)
+    j_star = jnp.argmin(d, axis=-1).astype(jnp.int32)  # (M, P, M)
     d_star = jnp.take_along_axis(d, j_star[..., None], axis=-1)[..., 0]
     ok = (d_star < tau_px).reshape(-1)  # (E,)
-    src = jnp.repeat(jnp.arange(M * P), M)
-    dst = (jnp.arange(M)[None, None, :] * P + j_star).reshape(-1)
+    src = jnp.repeat(jnp.arange(M * P, dtype=jnp.int32), M)
+    dst = (jnp.arange(M, dtype=jnp.int32)[None, None, :] * P + j_star).reshape(-1)
     return EdgeTable(src=src, dst=jnp.where(ok, dst, src), ok=ok)
 
 

@@ -14,14 +14,14 @@ def groups_from_labels(
     N = labels.shape[0]
     G = max(N // 2, 1)
     size = jnp.zeros((N,), jnp.int32).at[labels].add(valid.astype(jnp.int32))
-    is_root = (jnp.arange(N) == labels) & (size >= 2)
-    group_of_root = jnp.cumsum(is_root.astype(jnp.int32)) - 1
+    is_root = (jnp.arange(N, dtype=jnp.int32) == labels) & (size >= 2)
+    group_of_root = jnp.cumsum(is_root, dtype=jnp.int32) - 1
     node_group = jnp.where(valid & is_root[labels], group_of_root[labels], G)  # G = dropped
-    node = jnp.arange(N)
+    node = jnp.arange(N, dtype=jnp.int32)
     groups = jnp.full((G, num_views), -1, jnp.int32).at[node_group, node // num_slots].set(
         (node % num_slots).astype(jnp.int32), mode="drop"
     )
-    group_valid = jnp.arange(G) < jnp.sum(is_root.astype(jnp.int32))
+    group_valid = jnp.arange(G, dtype=jnp.int32) < jnp.sum(is_root, dtype=jnp.int32)
     return groups, group_valid
 
 
@@ -30,7 +30,7 @@ def labels_from_groups(groups: Int[Array, "G M"], valid: Bool[Array, " G"], num_
     G, M = groups.shape
     member = valid[:, None] & (groups >= 0)
     gid = jnp.broadcast_to(jnp.arange(G, dtype=jnp.int32)[:, None], (G, M))
-    view = jnp.broadcast_to(jnp.arange(M)[None, :], (G, M))
+    view = jnp.broadcast_to(jnp.arange(M, dtype=jnp.int32)[None, :], (G, M))
     slot = jnp.where(member, groups, num_slots)
     return jnp.full((M, num_slots), -1, jnp.int32).at[view, slot].set(gid, mode="drop")
 
@@ -39,5 +39,5 @@ def compact_groups(groups: Int[Array, "G M"], valid: Bool[Array, " G"]) -> tuple
     """Move valid groups to the front, keeping their order; returns the permutation too
     (``order[k]`` = old index of new group k)."""
     G = valid.shape[0]
-    order = jnp.argsort(jnp.where(valid, 0, 1), stable=True)
+    order = jnp.argsort(jnp.where(valid, 0, 1), stable=True).astype(jnp.int32)
     return groups[order], valid[order], order

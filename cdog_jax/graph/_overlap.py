@@ -13,13 +13,15 @@ from .._types import Array, Bool, Float
 from ._adjacency import EdgeTable
 
 
-def edge_overlap(edges: EdgeTable, A: Bool[Array, "N N"]) -> Float[Array, " E"]:
-    """``θ`` of every proposal's edge (defined where the proposal is an edge of ``A``), in (0, 1]."""
+def edge_overlap(edges: EdgeTable, A: Bool[Array, "N N"], dtype=jnp.float32) -> Float[Array, " E"]:
+    """``θ`` of every proposal's edge (defined where the proposal is an edge of ``A``), in (0, 1],
+    as ``dtype``."""
     A_f = A.astype(jnp.float32)
     common = jnp.einsum("ew,ew->e", A_f[edges.src], A_f[edges.dst])  # (E,) exact integers
     deg_closed = jnp.sum(A_f, axis=1) + 1.0  # (N,)
     overlap = common + 2.0
-    return overlap / jnp.maximum(deg_closed[edges.src], deg_closed[edges.dst])
+    theta = overlap.astype(dtype) / jnp.maximum(deg_closed[edges.src], deg_closed[edges.dst]).astype(dtype)
+    return theta
 
 
 def remove_edges(A: Bool[Array, "N N"], edges: EdgeTable, remove: Bool[Array, " E"]) -> Bool[Array, "N N"]:

@@ -92,8 +92,8 @@ def _detach_last_resort(A, labels, edges, edge_dist, node_view, valid, num_views
     key = jnp.where(over_full, mean_dist, jnp.inf)
     best = jnp.full((N, num_views), jnp.inf, key.dtype).at[labels, node_view].min(key)
     tied = over_full & (key == best[labels, node_view])
-    idx = jnp.where(tied, jnp.arange(N), N)
+    idx = jnp.where(tied, jnp.arange(N, dtype=jnp.int32), N)
     first = jnp.full((N, num_views), N, jnp.int32).at[labels, node_view].min(idx.astype(jnp.int32))
-    detach = over_full & (first[labels, node_view] != jnp.arange(N))
+    detach = over_full & (first[labels, node_view] != jnp.arange(N, dtype=jnp.int32))
     A = A & ~detach[:, None] & ~detach[None, :]
     return A, connected_components(edges, alive_edges(edges, A), N)

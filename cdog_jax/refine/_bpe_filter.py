@@ -19,11 +19,11 @@ def bpe_jump_keep(
     G = bpe.shape[0]
     if G < 2:
         return valid
-    order = jnp.argsort(jnp.where(valid, bpe, jnp.inf), stable=True)
+    order = jnp.argsort(jnp.where(valid, bpe, jnp.inf), stable=True).astype(jnp.int32)
     b = jnp.where(valid, bpe, jnp.inf)[order]
-    count = jnp.sum(valid.astype(jnp.int32))
+    count = jnp.sum(valid, dtype=jnp.int32)
     gaps = b[1:] - b[:-1]  # (G-1,), meaningful for i < count - 1
-    i = jnp.arange(G - 1)
+    i = jnp.arange(G - 1, dtype=jnp.int32)
     # Row i holds the gaps before i: their median via a masked sort.
     before = jnp.where(i[None, :] < i[:, None], gaps[None, :], jnp.inf)  # (G-1, G-1)
     srt = jnp.sort(before, axis=1)
@@ -32,7 +32,7 @@ def bpe_jump_keep(
     med = 0.5 * (srt[i, lo] + srt[i, jnp.minimum(hi, G - 2)])
     floor = th.jump_floor_px2 + (th.jump_floor_sigma * sigma_px) ** 2
     jump = (i >= min_gaps) & (i < count - 1) & (gaps > th.jump_kappa * med) & (gaps > floor)
-    first = jnp.where(jnp.any(jump), jnp.argmax(jump), G)
-    rank_keep = jnp.arange(G) <= first
+    first = jnp.where(jnp.any(jump), jnp.argmax(jump).astype(jnp.int32), G)
+    rank_keep = jnp.arange(G, dtype=jnp.int32) <= first
     keep = jnp.zeros((G,), bool).at[order].set(rank_keep)
     return keep & valid

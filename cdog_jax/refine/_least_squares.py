@@ -35,6 +35,6 @@ def refine_points(
         r0 = _residuals(X, (rig, xy, mem))
         r1 = _residuals(sol.value, (rig, xy, mem))
         better = jnp.all(jnp.isfinite(sol.value)) & (jnp.sum(r1 * r1) < jnp.sum(r0 * r0))
-        return jnp.where(better & (jnp.sum(mem.astype(jnp.int32)) >= 2), sol.value, X)
+        return jnp.where(better & (jnp.sum(mem, dtype=jnp.int32) >= 2), sol.value, X)
 
     return jax.vmap(one)(X0, xy_g, member)

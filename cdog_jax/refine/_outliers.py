@@ -56,23 +56,24 @@ def iqr_outliers(
     """Members whose score lies outside ``[max(0, Q1 − α IQR), Q3 + α IQR]``."""
     if config.iqr_quartiles == "zero_pad":
         vals = jnp.concatenate([jnp.where(member, score, jnp.inf), jnp.zeros((1,), score.dtype)])
-        count = jnp.sum(member.astype(jnp.int32)) + 1
+        count = jnp.sum(member, dtype=jnp.int32) + 1
     else:
         positive = member & (score > 0)
         vals = jnp.concatenate([jnp.where(positive, score, jnp.inf), jnp.full((1,), jnp.inf, score.dtype)])
-        count = jnp.sum(positive.astype(jnp.int32))
+        count = jnp.sum(positive, dtype=jnp.int32)
     q1 = percentile_linear(vals, count, 25.0)
     q3 = percentile_linear(vals, count, 75.0)
     iqr = q3 - q1
     lb = jnp.maximum(0.0, q1 - th.iqr_alpha * iqr)
     ub = q3 + th.iqr_alpha * iqr
-    out = member & ((score < lb) | (score > ub)) & (count > 0)
+    # The floor keeps float round-off (σ = 0: every score ~1e-4 px) from making outliers.
+    out = member & ((score < lb) | (score > ub)) & (score > th.iqr_floor_px) & (count > 0)
     if config.iqr_guards:
         top = jnp.max(jnp.where(member, score, -jnp.inf))
         out = out & (top >= th.iqr_min_px)
-        worst = jnp.argmax(jnp.where(member, score, -jnp.inf))
+        worst = jnp.argmax(jnp.where(member, score, -jnp.inf)).astype(jnp.int32)
         force = ~jnp.any(out) & (top > th.iqr_force_px)
-        out = out | (force & (jnp.arange(score.shape[0]) == worst))
+        out = out | (force & (jnp.arange(score.shape[0], dtype=jnp.int32) == worst))
     return out
 
 
@@ -90,7 +91,7 @@ def remove_outliers(
     own = config.iqr_score == "include_own"
 
     def one_group(N, r, xy, mem):
-        big = jnp.sum(mem.astype(jnp.int32)) >= 3
+        big = jnp.sum(mem, dtype=jnp.int32) >= 3
         w = mem.astype(N.dtype)
         score, _ = node_scores(rig, N * w[:, None, None], r * w[:, None], origin, xy, mem, own)
         out = iqr_outliers(score, mem, th, config) & big
@@ -103,7 +104,7 @@ def remove_outliers(
     def body(carry):
         mem, _, it = carry
         new = jax.vmap(one_group)(N_g, r_g, xy_g, mem)
-        new = new & (jnp.sum(new.astype(jnp.int32), axis=1, keepdims=True) >= 2)
+        new = new & (jnp.sum(new, dtype=jnp.int32, axis=1, keepdims=True) >= 2)
         return new, jnp.any(new != mem), it + 1
 
     member, _, _ = jax.lax.while_loop(cond, body, (member, jnp.bool_(True), jnp.int32(0)))

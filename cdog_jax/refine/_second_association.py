@@ -25,10 +25,10 @@ def second_association(
     N = d.shape[0]
     P = N // M
     member = valid[:, None] & (groups >= 0)  # (G, M)
-    member_node = jnp.where(member, jnp.arange(M)[None, :] * P + groups, 0)  # (G, M)
+    member_node = jnp.where(member, jnp.arange(M, dtype=jnp.int32)[None, :] * P + groups, 0)  # (G, M)
     in_group = jnp.zeros((N,), bool).at[member_node.reshape(-1)].max(member.reshape(-1))
     leftover = node_valid & ~in_group
-    node_view = jnp.arange(N) // P
+    node_view = jnp.arange(N, dtype=jnp.int32) // P
 
     dist = d[member_node]  # (G, M, N): from member (g, m) to every node
     w = jnp.where(dist < tau_px, dist, 3.0 * dist)
@@ -39,7 +39,7 @@ def second_association(
     allowed = valid[:, None] & lacks_view & leftover[None, :]
     cost = jnp.where(allowed, cost, jnp.inf)
 
-    best_group = jnp.argmin(cost, axis=0)  # (N,), ties: lowest id
+    best_group = jnp.argmin(cost, axis=0).astype(jnp.int32)  # (N,), ties: lowest id
     best_cost = jnp.min(cost, axis=0)
     wants = best_cost < th.second_frac * tau_px
     # Conflicts: per (group, view) the cheapest candidate, then the smallest node index.
@@ -49,6 +49,6 @@ def second_association(
     first = jnp.full((G, M), N, jnp.int32).at[jnp.where(is_best, target, G), node_view].min(
         jnp.arange(N, dtype=jnp.int32), mode="drop"
     )
-    winner = is_best & (first[jnp.minimum(target, G - 1), node_view] == jnp.arange(N))
-    slot = (jnp.arange(N) % P).astype(jnp.int32)
+    winner = is_best & (first[jnp.minimum(target, G - 1), node_view] == jnp.arange(N, dtype=jnp.int32))
+    slot = (jnp.arange(N, dtype=jnp.int32) % P).astype(jnp.int32)
     return groups.at[jnp.where(winner, target, G), node_view].set(slot, mode="drop")
