@@ -1,0 +1,753 @@
+"""A plain NumPy (float64) oracle of the whole association pipeline of docs/ALGORITHM.md.
+
+Written from docs/ALGORITHM.md only, independently of the JAX code, for clarity rather
+than speed (Python loops over nodes, edges and groups). The tests compare it with the
+jitted pipeline (tests/test_pipeline_vs_oracle.py) and test it on its own
+(tests/test_oracle_self.py).
+
+Notation as in ALGORITHM.md: ``M`` views, ``P`` slots, node ``u = m * P + i``.
+Section numbers (§) refer to docs/ALGORITHM.md.
+
+Besides the oracle this module holds a small numpy scene generator (:func:`make_rig`,
+:func:`make_scene`) shared by the tests.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = [
+    "fundamental_matrices",
+    "epipolar_distance_table",
+    "tau_px",
+    "estimate_sigma",
+    "directed_edges",
+    "adjacency",
+    "overlap_theta",
+    "components",
+    "conflicting_labels",
+    "prune_weak_edges",
+    "edge_epipolar",
+    "split_view_unique",
+    "project",
+    "triangulate_dlt",
+    "triangulate_dlt_svd",
+    "iqr_scores",
+    "iqr_outliers",
+    "second_association",
+    "group_bpe",
+    "bpe_jump_keep",
+    "oracle_associate",
+    "look_at",
+    "make_rig",
+    "make_scene",
+]
+
+
+# ----------------------------------------------------------------------------- geometry
+
+
+def _skew(v):
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def fundamental_matrices(K, R, t):
+    """``F[m, n]`` (M, M, 3, 3) mapping a pixel of view m to its epipolar line in view n (§1).
+
+    ``F[m, n] = K_n^{-T} [t_rel]_x R_rel K_m^{-1}``, ``R_rel = R_n R_mᵀ``,
+    ``t_rel = t_n − R_rel t_m``, scaled to unit Frobenius norm. ``F[m, m] = 0``.
+    """
+    K, R, t = (np.asarray(a, np.float64) for a in (K, R, t))
+    M = K.shape[0]
+    F = np.zeros((M, M, 3, 3))
+    for m in range(M):
+        for n in range(M):
+            if m == n:
+                continue
+            R_rel = R[n] @ R[m].T
+            t_rel = t[n] - R_rel @ t[m]
+            f = np.linalg.inv(K[n]).T @ _skew(t_rel) @ R_rel @ np.linalg.inv(K[m])
+            norm = np.linalg.norm(f)
+            F[m, n] = f / norm if norm > 0 else f
+    return F
+
+
+def epipolar_distance_table(K, R, t, xy, mask):
+    """``d[m, i, n, j]`` (M, P, M, P): distance in image n from (n, j) to the epipolar line of
+    (m, i) (§1); ``+inf`` for ``m == n``, invalid nodes or a degenerate line."""
+    xy = np.asarray(xy, np.float64)
+    mask = np.asarray(mask, bool)
+    M, P = mask.shape
+    F = fundamental_matrices(K, R, t)
+    d = np.full((M, P, M, P), np.inf)
+    for m in range(M):
+        for i in range(P):
+            if not mask[m, i]:
+                continue
+            x = np.array([xy[m, i, 0], xy[m, i, 1], 1.0])
+            for n in range(M):
+                if n == m:
+                    continue
+                line = F[m, n] @ x
+                nrm2 = line[0] ** 2 + line[1] ** 2
+                if nrm2 == 0:
+                    continue
+                for j in range(P):
+                    if not mask[n, j]:
+                        continue
+                    y = np.array([xy[n, j, 0], xy[n, j, 1], 1.0])
+                    d[m, i, n, j] = abs(line @ y) / math.sqrt(nrm2)
+    return d
+
+
+def project(K, R, t, X):
+    """Pixels of one world point ``X`` (3,) in every view, (M, 2); divides by the third
+    homogeneous coordinate whatever its sign."""
+    K, R, t = (np.asarray(a, np.float64) for a in (K, R, t))
+    out = np.zeros((K.shape[0], 2))
+    for m in range(K.shape[0]):
+        h = K[m] @ (R[m] @ X + t[m])
+        out[m] = h[:2] / h[2]
+    return out
+
+
+def _normalised(K, xy_views):
+    """``x̂ = K⁻¹ (x, y, 1)`` dehomogenised, (M, 2)."""
+    out = np.zeros((K.shape[0], 2))
+    for m in range(K.shape[0]):
+        h = np.linalg.inv(K[m]) @ np.array([xy_views[m, 0], xy_views[m, 1], 1.0])
+        out[m] = h[:2] / h[2]
+    return out
+
+
+def triangulate_dlt(K, R, t, xy_views, mask_views, center=None):
+    """Multi-view DLT of §9: rows ``x̂ P3 − P1``, ``ŷ P3 − P2`` with ``P = [R | t + R c̄]``,
+    inhomogeneous least squares through the 3×3 normal equations, ``X = X' + c̄``.
+
+    ``xy_views`` (M, 2) one observation per view, ``mask_views`` (M,) which views to use.
+    ``center`` is the origin shift c̄; by default the mean centre of the views used (any
+    choice gives the same point up to rounding: the algebraic residuals are translation
+    equivariant).
+    """
+    K, R, t = (np.asarray(a, np.float64) for a in (K, R, t))
+    xy_views = np.asarray(xy_views, np.float64)
+    used = np.flatnonzero(np.asarray(mask_views, bool))
+    centres = np.stack([-R[m].T @ t[m] for m in range(K.shape[0])])
+    c_bar = centres[used].mean(axis=0) if center is None else np.asarray(center, np.float64)
+    xn = _normalised(K, xy_views)
+    N = np.zeros((3, 3))
+    rhs = np.zeros(3)
+    for m in used:
+        Pm = np.concatenate([R[m], (t[m] + R[m] @ c_bar)[:, None]], axis=1)
+        rows = np.stack([xn[m, 0] * Pm[2] - Pm[0], xn[m, 1] * Pm[2] - Pm[1]])
+        A, b = rows[:, :3], rows[:, 3]
+        N += A.T @ A
+        rhs -= A.T @ b
+    return np.linalg.solve(N, rhs) + c_bar
+
+
+def triangulate_dlt_svd(K, R, t, xy_views, mask_views):
+    """Homogeneous DLT in pixel coordinates (rows ``x P3 − P1``, ``y P3 − P2`` with
+    ``P = K [R | t]``), solved by SVD. For cross-checking :func:`triangulate_dlt`: both
+    are exact on noise-free data, they differ (slightly) with noise."""
+    K, R, t = (np.asarray(a, np.float64) for a in (K, R, t))
+    rows = []
+    for m in np.flatnonzero(np.asarray(mask_views, bool)):
+        Pm = K[m] @ np.concatenate([R[m], t[m][:, None]], axis=1)
+        x, y = xy_views[m]
+        rows.append(x * Pm[2] - Pm[0])
+        rows.append(y * Pm[2] - Pm[1])
+    _, _, vt = np.linalg.svd(np.stack(rows))
+    Xh = vt[-1]
+    return Xh[:3] / Xh[3]
+
+
+# ----------------------------------------------------------------------------- §0 noise
+
+
+def tau_px(sigma, alpha_tau, tau_min_px):
+    """``tau = max(alpha_tau · √2 · σ, tau_min)`` (§0)."""
+    return max(alpha_tau * math.sqrt(2.0) * sigma, tau_min_px)
+
+
+def sigma_samples(d, mask):
+    """§0.1 samples ``s[u, n] = min_j d(u; n, j)`` for valid u and views n ≠ view(u) with a
+    valid point, finite values only (1-D array)."""
+    mask = np.asarray(mask, bool)
+    M, P = mask.shape
+    s = []
+    for m in range(M):
+        for i in range(P):
+            if not mask[m, i]:
+                continue
+            for n in range(M):
+                if n == m or not mask[n].any():
+                    continue
+                v = d[m, i, n][mask[n]].min()
+                if np.isfinite(v):
+                    s.append(v)
+    return np.asarray(s, np.float64)
+
+
+def estimate_sigma(d, mask, iters=30):
+    """§0.1: EM on a half-normal (scale c) + exponential (rate lam) mixture of the smallest
+    epipolar distances; σ = c / √2. Exactly the recipe of ALGORITHM.md §0.1:
+
+    start ``c = max(lower median, 1e-3)``, ``lam = 1 / max(mean, 1e-3)``, ``pi = 0.5``; per
+    iteration ``r = sigmoid(log pi + log HN(s; c) − log(1 − pi) − log Exp(s; lam))``, then
+    ``c = sqrt(Σ r s² / Σ r)``, ``lam = Σ(1 − r) / Σ(1 − r) s``,
+    ``pi = clip(Σ r / n, 1e-4, 1 − 1e-4)``, ``c, lam ≥ 1e-6``.
+    """
+    s = np.sort(sigma_samples(d, mask))
+    n = s.size
+    if n == 0:
+        return 0.0
+    c = max(float(s[(n - 1) // 2]), 1e-3)
+    lam = 1.0 / max(float(np.mean(s)), 1e-3)
+    pi = 0.5
+    for _ in range(iters):
+        log_hn = 0.5 * math.log(2.0 / math.pi) - math.log(c) - s**2 / (2.0 * c**2)
+        log_exp = math.log(lam) - lam * s
+        z = math.log(pi) + log_hn - math.log(1.0 - pi) - log_exp
+        r = 0.5 * (1.0 + np.tanh(0.5 * z))  # sigmoid without overflow warnings
+        c = max(math.sqrt(float(np.sum(r * s**2) / np.sum(r))), 1e-6)
+        lam = max(float(np.sum(1.0 - r) / np.sum((1.0 - r) * s)), 1e-6)
+        pi = min(max(float(np.sum(r)) / n, 1e-4), 1.0 - 1e-4)
+    return c / math.sqrt(2.0)
+
+
+# ----------------------------------------------------------------------------- §2 graph
+
+
+def directed_edges(d, mask, tau):
+    """``out[u, n]`` (N, M) int: node index ``n * P + j*`` of the nearest valid point of view
+    n to u's epipolar line if closer than ``tau`` (ties: smallest j), else -1 (§2)."""
+    mask = np.asarray(mask, bool)
+    M, P = mask.shape
+    out = np.full((M * P, M), -1, dtype=np.int64)
+    for m in range(M):
+        for i in range(P):
+            if not mask[m, i]:
+                continue
+            for n in range(M):
+                if n == m:
+                    continue
+                row = d[m, i, n]
+                j = int(np.argmin(row))  # first minimum = smallest j
+                if row[j] < tau:
+                    out[m * P + i, n] = n * P + j
+    return out
+
+
+def adjacency(d, mask, tau, mode="mutual"):
+    """Undirected adjacency ``A`` (N, N) bool (§2): ``D ∧ Dᵀ`` (mutual) or ``D ∨ Dᵀ`` (union)."""
+    mask = np.asarray(mask, bool)
+    M, P = mask.shape
+    N = M * P
+    out = directed_edges(d, mask, tau)
+    D = np.zeros((N, N), bool)
+    for u in range(N):
+        for n in range(M):
+            if out[u, n] >= 0:
+                D[u, out[u, n]] = True
+    if mode == "mutual":
+        A = D & D.T
+    elif mode == "union":
+        A = D | D.T
+    else:
+        raise ValueError(mode)
+    np.fill_diagonal(A, False)
+    return A
+
+
+def overlap_theta(A):
+    """θ of §3 by the literal dense formula: ``C = A + I``, ``O = C Cᵀ``, ``deg = C 1``,
+    ``θ[u, v] = O[u, v] / max(deg[u], deg[v])`` on edges, 0 elsewhere. (N, N) float."""
+    A = np.asarray(A, bool)
+    N = A.shape[0]
+    C = A.astype(np.float64) + np.eye(N)
+    O = C @ C.T
+    deg = C.sum(axis=1)
+    theta = O / np.maximum(deg[:, None], deg[None, :])
+    return np.where(A, theta, 0.0)
+
+
+def components(A):
+    """Component label of every node: the smallest node index of its component (§4), by
+    union-find."""
+    A = np.asarray(A, bool)
+    N = A.shape[0]
+    parent = list(range(N))
+
+    def find(x):
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    for u in range(N):
+        for v in range(u + 1, N):
+            if A[u, v]:
+                ru, rv = find(u), find(v)
+                if ru != rv:
+                    parent[max(ru, rv)] = min(ru, rv)  # root = smallest index
+    return np.array([find(u) for u in range(N)], dtype=np.int64)
+
+
+def conflicting_labels(labels, M, P):
+    """Labels of the components holding two nodes of one view."""
+    bad = set()
+    for lab in np.unique(labels):
+        members = np.flatnonzero(labels == lab)
+        views = members // P
+        if len(np.unique(views)) < len(views):
+            bad.add(int(lab))
+    return bad
+
+
+def prune_weak_edges(A, theta, delta, scope, M, P):
+    """§3: remove weak edges (θ < δ) everywhere (``"all"``), only inside components of A that
+    violate view-uniqueness (``"conflicts"``), or nowhere (``"none"``). Returns ``A1``."""
+    A1 = np.array(A, bool)
+    if scope == "none":
+        return A1
+    weak = A1 & (theta < delta)
+    if scope == "all":
+        A1[weak] = False
+        return A1
+    if scope == "conflicts":
+        labels = components(A)
+        bad = conflicting_labels(labels, M, P)
+        in_bad = np.array([lab in bad for lab in labels])
+        A1[weak & in_bad[:, None] & in_bad[None, :]] = False
+        return A1
+    raise ValueError(scope)
+
+
+def edge_epipolar(d):
+    """``e[u, v] = (d(u; v) + d(v; u)) / 2`` (N, N) (§3)."""
+    M, P = d.shape[:2]
+    dd = d.reshape(M * P, M * P)
+    with np.errstate(invalid="ignore"):
+        return (dd + dd.T) / 2.0
+
+
+def split_view_unique(A1, theta, e, M, P, max_iters):
+    """§4: split components until each holds at most one node per view. Returns the graph."""
+    A = np.array(A1, bool)
+    labels = components(A)
+    it = 0
+    while it < max_iters:
+        bad = conflicting_labels(labels, M, P)
+        if not bad:
+            break
+        for lab in sorted(bad):
+            members = set(np.flatnonzero(labels == lab).tolist())
+            best = None
+            for u in sorted(members):
+                for v in np.flatnonzero(A[u]):
+                    v = int(v)
+                    if v <= u:
+                        continue
+                    key = (theta[u, v], -e[u, v], u, v)
+                    if best is None or key < best:
+                        best = key
+            _, _, u, v = best
+            A[u, v] = A[v, u] = False
+        labels = components(A)
+        it += 1
+    bad = conflicting_labels(labels, M, P)
+    if bad:  # last resort, all detachments decided on the graph left by the loop
+        detach = []
+        for lab in sorted(bad):
+            members = np.flatnonzero(labels == lab)
+            for view in np.unique(members // P):
+                nodes = [int(u) for u in members if u // P == view]
+                if len(nodes) < 2:
+                    continue
+                means = [float(np.mean(e[u][A[u]])) for u in nodes]
+                keep = nodes[int(np.argmin(means))]  # first minimum = smallest node index
+                detach += [u for u in nodes if u != keep]
+        for u in detach:
+            A[u, :] = False
+            A[:, u] = False
+        labels = components(A)
+        assert not conflicting_labels(labels, M, P)
+    return A, labels
+
+
+# ----------------------------------------------------------------------------- §6 IQR
+
+
+def iqr_scores(K, R, t, xy_views, member_mask, score="exclude_own"):
+    """Node scores of §6 for one group, (M,) (0 outside the members).
+
+    ``xy_views`` (M, 2) the member observations, ``member_mask`` (M,) the member views.
+    """
+    K, R, t = (np.asarray(a, np.float64) for a in (K, R, t))
+    M = K.shape[0]
+    V = [int(v) for v in np.flatnonzero(member_mask)]
+    sums = np.zeros(M)
+    counts = np.zeros(M)
+    for ai, a in enumerate(V):
+        for b in V[ai + 1 :]:
+            pair = np.zeros(M, bool)
+            pair[[a, b]] = True
+            X = triangulate_dlt(K, R, t, xy_views, pair)
+            proj = project(K, R, t, X)
+            for c in V:
+                if score == "exclude_own" and c in (a, b):
+                    continue
+                sums[c] += np.linalg.norm(proj[c] - xy_views[c])
+                counts[c] += 1
+    scores = np.zeros(M)
+    for c in V:
+        scores[c] = sums[c] / counts[c]
+    return scores
+
+
+def iqr_outliers(
+    scores, member_mask, alpha, quartiles="zero_pad", guards=False, min_px=10.0, force_px=50.0, floor_px=0.0
+):
+    """Outlier members (M,) bool of one group from its node scores (§6): outside
+    ``[max(0, Q1 − α IQR), Q3 + α IQR]`` and above ``floor_px``; then the guards."""
+    scores = np.asarray(scores, np.float64)
+    member_mask = np.asarray(member_mask, bool)
+    s = scores[member_mask]
+    out = np.zeros(scores.shape, bool)
+    if s.size == 0:
+        return out
+    if quartiles == "zero_pad":
+        values = np.concatenate([s, [0.0]])
+    elif quartiles == "positive":
+        values = s[s > 0]
+    else:
+        raise ValueError(quartiles)
+    if guards and s.max() < min_px:
+        return out
+    if values.size > 0:
+        q1, q3 = np.percentile(values, [25, 75])
+        iqr = q3 - q1
+        lb = max(0.0, q1 - alpha * iqr)
+        ub = q3 + alpha * iqr
+        out = member_mask & ((scores < lb) | (scores > ub)) & (scores > floor_px)
+    if guards and not out.any() and s.max() > force_px:
+        views = np.flatnonzero(member_mask)
+        out[views[int(np.argmax(s))]] = True  # first maximum = lowest view
+    return out
+
+
+# ----------------------------------------------------------------------------- §7 / §8
+
+
+def second_association(groups, gvalid, d, mask, tau, frac):
+    """§7 on a group table ``groups`` (G, M) (slots, -1) with ``gvalid`` (G,); returns the
+    new group table (a copy)."""
+    mask = np.asarray(mask, bool)
+    M, P = mask.shape
+    groups = np.array(groups)
+    assigned = np.zeros((M, P), bool)
+    for g in np.flatnonzero(gvalid):
+        for m in range(M):
+            if groups[g, m] >= 0:
+                assigned[m, groups[g, m]] = True
+    picks = []  # (group, view, cost, node)
+    for m in range(M):
+        for i in range(P):
+            if not mask[m, i] or assigned[m, i]:
+                continue
+            best_cost, best_g = None, None
+            for g in np.flatnonzero(gvalid):
+                if groups[g, m] >= 0:
+                    continue
+                ws = []
+                for n in range(M):
+                    j = groups[g, n]
+                    if j < 0:
+                        continue
+                    dist = d[n, j, m, i]
+                    ws.append(dist if dist < tau else 3.0 * dist)
+                cost = float(np.mean(ws))
+                if best_cost is None or cost < best_cost:
+                    best_cost, best_g = cost, int(g)
+            if best_g is not None and best_cost < frac * tau:
+                picks.append((best_g, m, best_cost, m * P + i))
+    winners = {}
+    for g, m, cost, u in picks:
+        key = (g, m)
+        if key not in winners or (cost, u) < winners[key][:2]:
+            winners[key] = (cost, u)
+    for (g, m), (_, u) in winners.items():
+        groups[g, m] = u % P
+    return groups
+
+
+def group_bpe(K, R, t, xy, groups, gvalid):
+    """Multi-view DLT point, BPE (mean squared px) and mean reprojection distance of every
+    valid group (§8); zeros for invalid groups."""
+    xy = np.asarray(xy, np.float64)
+    G, M = groups.shape
+    pts = np.zeros((G, 3))
+    bpe = np.zeros(G)
+    err = np.zeros(G)
+    for g in np.flatnonzero(gvalid):
+        members = groups[g] >= 0
+        obs = np.zeros((M, 2))
+        for m in np.flatnonzero(members):
+            obs[m] = xy[m, groups[g, m]]
+        X = triangulate_dlt(K, R, t, obs, members)
+        r = np.linalg.norm(project(K, R, t, X) - obs, axis=1)[members]
+        pts[g], bpe[g], err[g] = X, np.mean(r**2), np.mean(r)
+    return pts, bpe, err
+
+
+def bpe_jump_keep(bpe, valid, kappa=10.0, floor_px2=4.0, floor_sigma=3.0, sigma=0.0, min_gaps=3):
+    """§8 jump rule: which groups (G,) bool stay. Sort valid groups by BPE (ties: group id),
+    gaps ``g_i``; the first ``i ≥ min_gaps`` with ``g_i > kappa · median(g_0…g_{i−1})`` and
+    ``g_i > floor_px2 + (floor_sigma · sigma)²`` dissolves the groups after it."""
+    bpe = np.asarray(bpe, np.float64)
+    valid = np.asarray(valid, bool)
+    keep = valid.copy()
+    ids = np.flatnonzero(valid)
+    order = ids[np.argsort(bpe[ids], kind="stable")]  # ids ascending, so ties: group id
+    b = bpe[order]
+    gaps = np.diff(b)
+    floor = floor_px2 + (floor_sigma * sigma) ** 2
+    for i in range(min_gaps, len(gaps)):
+        if gaps[i] > kappa * np.median(gaps[:i]) and gaps[i] > floor:
+            keep[order[i + 1 :]] = False
+            break
+    return keep
+
+
+# ----------------------------------------------------------------------------- pipeline
+
+
+def _table_from_labels(labels, mask, M, P):
+    """§5: group table (G, M) and valid (G,) from component labels; groups ordered by label."""
+    G = M * P // 2
+    groups = np.full((G, M), -1, dtype=np.int64)
+    gvalid = np.zeros(G, bool)
+    glabel = []
+    flat_mask = np.asarray(mask, bool).reshape(-1)
+    for lab in np.unique(labels):
+        members = [int(u) for u in np.flatnonzero(labels == lab) if flat_mask[u]]
+        if len(members) < 2:
+            continue
+        g = len(glabel)
+        glabel.append(int(lab))
+        for u in members:
+            groups[g, u // P] = u % P
+        gvalid[g] = True
+    return groups, gvalid
+
+
+def _group_labels(groups, gvalid, M, P):
+    labels = np.full((M, P), -1, dtype=np.int64)
+    for g in np.flatnonzero(gvalid):
+        for m in range(M):
+            if groups[g, m] >= 0:
+                labels[m, groups[g, m]] = g
+    return labels
+
+
+def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
+    """The whole pipeline of docs/ALGORITHM.md on one scene, in float64 NumPy.
+
+    Args:
+        K, R, t: rig, (M, 3, 3), (M, 3, 3), (M, 3).
+        xy: (M, P, 2) pixels; mask: (M, P) bool.
+        config: a ``cdog_jax.Config`` (structure and numeric fields are read from it).
+        sigma: noise std in pixels, or ``"auto"`` (also auto when ``config.sigma_mode ==
+            "auto"``).
+        return_stages: also return ``"stages"``, a dict of intermediate results
+            (``A``, ``theta``, ``A1``, ``A2``, and ``(M, P)`` group-id label maps
+            ``labels_split``, ``labels_iqr``, ``labels_second``, ``labels_bpe`` in the
+            numbering of §5) for diagnosing mismatches.
+
+    Returns:
+        dict with ``labels`` (M, P), ``groups`` (G, M), ``valid`` (G,), ``points3d`` (G, 3),
+        ``bpe`` (G,), ``err_px`` (G,), ``n_views`` (G,), ``num_groups``, ``sigma_px``,
+        ``tau_px``, laid out like ``cdog_jax.Association`` (valid groups first, §11).
+    """
+    cfg = config
+    if cfg.refine:
+        raise NotImplementedError("the oracle does not implement refinement (§10)")
+    K, R, t, xy = (np.asarray(a, np.float64) for a in (K, R, t, xy))
+    mask = np.asarray(mask, bool)
+    M, P = mask.shape
+    G = M * P // 2
+    stages = {}
+
+    # §1 epipolar distances, §0 noise level and gate
+    d = epipolar_distance_table(K, R, t, xy, mask)
+    auto = cfg.sigma_mode == "auto" or (isinstance(sigma, str) and sigma == "auto")
+    sigma_px = estimate_sigma(d, mask) if auto else float(sigma)
+    tau = tau_px(sigma_px, cfg.alpha_tau, cfg.tau_min_px)
+
+    # §2 adjacency, §3 pruning
+    A = adjacency(d, mask, tau, cfg.adjacency)
+    theta = overlap_theta(A)
+    A1 = prune_weak_edges(A, theta, cfg.delta, cfg.prune_scope, M, P)
+    e = edge_epipolar(d)
+
+    # §4 view-uniqueness split, §5 group table
+    A2, labels = split_view_unique(A1, theta, e, M, P, cfg.max_split_iters)
+    groups, gvalid = _table_from_labels(labels, mask, M, P)
+    stages.update(A=A, theta=theta, A1=A1, A2=A2, labels_split=_group_labels(groups, gvalid, M, P))
+
+    # §6 IQR
+    if cfg.iqr:
+        for _ in range(cfg.max_iqr_iters):
+            lost = False
+            for g in np.flatnonzero(gvalid):
+                members = groups[g] >= 0
+                if members.sum() < 3:
+                    continue
+                obs = np.zeros((M, 2))
+                for m in np.flatnonzero(members):
+                    obs[m] = xy[m, groups[g, m]]
+                scores = iqr_scores(K, R, t, obs, members, cfg.iqr_score)
+                out = iqr_outliers(
+                    scores,
+                    members,
+                    cfg.iqr_alpha,
+                    cfg.iqr_quartiles,
+                    cfg.iqr_guards,
+                    cfg.iqr_min_px,
+                    cfg.iqr_force_px,
+                    getattr(cfg, "iqr_floor_px", 0.0),
+                )
+                if out.any():
+                    lost = True
+                    groups[g, out] = -1
+                    if (groups[g] >= 0).sum() < 2:
+                        groups[g] = -1
+                        gvalid[g] = False
+            if not lost:
+                break
+    stages["labels_iqr"] = _group_labels(groups, gvalid, M, P)
+
+    # §7 second association
+    if cfg.second_association:
+        groups = second_association(groups, gvalid, d, mask, tau, cfg.second_frac)
+    stages["labels_second"] = _group_labels(groups, gvalid, M, P)
+
+    # §8 BPE filter
+    pts, bpe, err = group_bpe(K, R, t, xy, groups, gvalid)
+    if cfg.bpe_filter:
+        keep = bpe_jump_keep(
+            bpe,
+            gvalid,
+            cfg.jump_kappa,
+            cfg.jump_floor_px2,
+            cfg.jump_floor_sigma,
+            sigma_px,
+            cfg.jump_min_gaps,
+        )
+        groups[~keep] = -1
+        gvalid = keep
+    stages["labels_bpe"] = _group_labels(groups, gvalid, M, P)
+
+    # §11 output: valid groups first, in the order of §5
+    order = np.flatnonzero(gvalid)
+    k = len(order)
+    res = dict(
+        labels=np.full((M, P), -1, dtype=np.int64),
+        groups=np.full((G, M), -1, dtype=np.int64),
+        valid=np.zeros(G, bool),
+        points3d=np.zeros((G, 3)),
+        bpe=np.zeros(G),
+        err_px=np.zeros(G),
+        n_views=np.zeros(G, dtype=np.int64),
+        num_groups=k,
+        sigma_px=sigma_px,
+        tau_px=tau,
+    )
+    for new, g in enumerate(order):
+        res["groups"][new] = groups[g]
+        res["valid"][new] = True
+        res["points3d"][new] = pts[g]
+        res["bpe"][new] = bpe[g]
+        res["err_px"][new] = err[g]
+        res["n_views"][new] = int((groups[g] >= 0).sum())
+        for m in range(M):
+            if groups[g, m] >= 0:
+                res["labels"][m, groups[g, m]] = new
+    if return_stages:
+        res["stages"] = stages
+    return res
+
+
+# ----------------------------------------------------------------------------- scenes
+
+
+def look_at(center, target=(0.0, 0.0, 0.0), up=(0.0, 0.0, 1.0)):
+    """World→camera ``R, t`` of a camera at ``center`` looking at ``target`` (+z forward)."""
+    center = np.asarray(center, np.float64)
+    z = np.asarray(target, np.float64) - center
+    z /= np.linalg.norm(z)
+    x = np.cross(z, np.asarray(up, np.float64))
+    if np.linalg.norm(x) < 1e-8:
+        x = np.cross(z, np.array([1.0, 0.0, 0.0]))
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    R = np.stack([x, y, z])
+    assert np.linalg.det(R) > 0
+    return R, -R @ center
+
+
+def make_rig(M, rng, radius=3.0, focal=500.0, size=(640, 480), negative_k=(0,)):
+    """M cameras on a ring-ish arc at ~``radius`` around the origin looking at it; the views
+    in ``negative_k`` get ``K`` multiplied by -1 (K[2,2] = -1, OpenMVG style)."""
+    K = np.zeros((M, 3, 3))
+    R = np.zeros((M, 3, 3))
+    t = np.zeros((M, 3))
+    for m in range(M):
+        az = 2 * np.pi * m / M + rng.uniform(-0.2, 0.2)
+        el = rng.uniform(0.2, 0.7)
+        r = radius * rng.uniform(0.9, 1.1)
+        c = r * np.array([np.cos(az) * np.cos(el), np.sin(az) * np.cos(el), np.sin(el)])
+        R[m], t[m] = look_at(c, target=rng.uniform(-0.1, 0.1, 3))
+        f = focal * rng.uniform(0.9, 1.1)
+        cx, cy = size[0] / 2 + rng.uniform(-5, 5), size[1] / 2
+        K[m] = [[f, rng.uniform(-1, 1), cx], [0, f * rng.uniform(0.98, 1.02), cy], [0, 0, 1]]
+        if m in negative_k:
+            K[m] = -K[m]
+    return K, R, t
+
+
+def make_scene(K, R, t, n_points, rng, sigma=0.0, P=None, drop=0.0, clutter=0, shuffle=True):
+    """Random points in the unit box ``[-0.5, 0.5]³``, projected (noise ``sigma``), each
+    detection dropped with probability ``drop`` (a point keeps ≥ 2 views), ``clutter``
+    uniform false points per view (in the image), slots shuffled per view.
+
+    Returns ``xy (M, P, 2)``, ``mask (M, P)``, ``instance (M, P)`` (-1 padding/clutter),
+    ``X (n_points, 3)``. Padded slots hold garbage-free zeros.
+    """
+    M = K.shape[0]
+    X = rng.uniform(-0.5, 0.5, (n_points, 3))
+    vis = rng.uniform(size=(n_points, M)) >= drop
+    for p in range(n_points):
+        while vis[p].sum() < 2:
+            vis[p, rng.integers(M)] = True
+    P = P or n_points + clutter
+    xy = np.zeros((M, P, 2))
+    mask = np.zeros((M, P), bool)
+    inst = np.full((M, P), -1, dtype=np.int64)
+    for m in range(M):
+        dets = []
+        for p in range(n_points):
+            if vis[p, m]:
+                dets.append((project(K[m : m + 1], R[m : m + 1], t[m : m + 1], X[p])[0], p))
+        for _ in range(clutter):
+            dets.append((rng.uniform([0, 0], [640, 480]), -1))
+        assert len(dets) <= P
+        slots = rng.permutation(P)[: len(dets)] if shuffle else np.arange(len(dets))
+        for (pix, p), s in zip(dets, slots):
+            xy[m, s] = pix + (sigma * rng.standard_normal(2) if p >= 0 else 0.0)
+            mask[m, s] = True
+            inst[m, s] = p
+    return xy, mask, inst, X
