@@ -72,7 +72,7 @@ def iqr_outliers(
         top = jnp.max(jnp.where(member, score, -jnp.inf))
         out = out & (top >= th.iqr_min_px)
         worst = jnp.argmax(jnp.where(member, score, -jnp.inf)).astype(jnp.int32)
-        force = ~jnp.any(out) & (top > th.iqr_force_px)
+        force = ~jnp.any(out) & (top > th.iqr_force_px) & (top >= th.iqr_min_px)
         out = out | (force & (jnp.arange(score.shape[0], dtype=jnp.int32) == worst))
     return out
 

@@ -1,7 +1,12 @@
 import jax.numpy as jnp
 import numpy as np
 
-from cdog_jax.graph import EdgeTable, alive_edges, connected_components, split_conflicts
+import jax
+
+from cdog_jax.graph import EdgeTable, alive_edges, connected_components
+from cdog_jax.graph import split_conflicts as _split_conflicts
+
+split_conflicts = jax.jit(_split_conflicts, static_argnums=(6, 7))
 
 
 def _edges(pairs, N):
