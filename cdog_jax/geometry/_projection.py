@@ -3,17 +3,18 @@
 import jax.numpy as jnp
 
 from .._types import Array, Bool, Float
-from ._camera import Rig, camera_points
+from ._camera import Rig, affine_per_view
 from ._homogeneous import points_from_homogeneous
 
 
 def project(rig: Rig, X_world: Float[Array, "*S 3"]) -> tuple[Float[Array, "*S M 2"], Bool[Array, "*S M"]]:
     """Pixels of world points in every view, ``(*S, M, 2)``, and a flag that the point is in
     front of the camera (``X_cam[2] > 0``) and projects to a finite pixel."""
-    X_cam = camera_points(rig, X_world)  # (*S, M, 3)
-    h = jnp.einsum("mij,...mj->...mi", rig.K, X_cam)
+    proj = jnp.einsum("mij,mjk->mik", rig.K, jnp.concatenate([rig.R, rig.t[:, :, None]], axis=-1))  # (M, 3, 4)
+    h = affine_per_view(proj[:, :, :3], proj[:, :, 3], X_world)  # (*S, M, 3)
+    depth = affine_per_view(rig.R[:, 2:3, :], rig.t[:, 2:3], X_world)[..., 0]  # X_cam z, (*S, M)
     xy, ok = points_from_homogeneous(h)
-    return xy, ok & (X_cam[..., 2] > 0)
+    return xy, ok & (depth > 0)
 
 
 def reprojection_errors(
