@@ -92,13 +92,13 @@ def check_rig_values(K: np.ndarray, R: np.ndarray, t: np.ndarray) -> None:
         )
 
 
-def affine_per_view(A: Float[Array, "M 3 3"], b: Float[Array, "M 3"], X: Float[Array, "*S 3"]) -> Float[Array, "*S M 3"]:
-    """``A_m X + b_m`` for every view m, ``(*S, M, 3)``.
+def affine_per_view(A: Float[Array, "M R 3"], b: Float[Array, "M R"], X: Float[Array, "*S 3"]) -> Float[Array, "*S M R"]:
+    """``A_m X + b_m`` for every view m, ``(*S, M, R)`` (R output rows, e.g. 3).
 
     Written as three broadcast multiply-adds rather than an einsum: with a contraction of
     size 3, XLA's CPU dot is several times slower than plain elementwise arithmetic.
     """
-    nd = X.ndim + 1  # (*S, M, 3)
+    nd = X.ndim + 1  # (*S, M, R)
     Xe = X[..., None, :]  # (*S, 1, 3)
     out = lift(b, nd)
     for j in range(3):
