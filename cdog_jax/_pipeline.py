@@ -86,7 +86,7 @@ def associate_traced(
     A = adjacency_from_edges(edges, N, config.adjacency)
 
     # Alg. 2: δ-overlap pruning, then view-uniqueness.
-    theta = edge_overlap(edges, A, d.dtype)
+    theta = edge_overlap(edges, A, dtype=d.dtype)
     d_nodes = d.reshape(N, N)
     edge_dist = 0.5 * (d_nodes[edges.src, edges.dst] + d_nodes[edges.dst, edges.src])
     weak = alive_edges(edges, A) & (theta < th.delta)

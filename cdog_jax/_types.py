@@ -19,7 +19,7 @@ Labels = Int[Array, "M P"]
 __all__ = ["Array", "ArrayLike", "Bool", "Float", "Int", "Scalar", "Mat3", "Vec3", "Pixels", "Mask", "Labels", "lift"]
 
 
-def lift(a, ndim: int):
+def lift(a, ndim: int):  # noqa: D401
     """``a`` with leading singleton axes up to ``ndim`` dims, so that it broadcasts against an
     ``ndim``-dimensional array without implicit rank promotion."""
     return a.reshape((1,) * (ndim - a.ndim) + a.shape)

@@ -123,7 +123,7 @@ def test_refinement_lowers_reprojection_error():
 def test_sigma_auto_is_reported_and_reasonable():
     xy, mask, _, _ = random_scene(RIG, 12, P, sigma=2.0, seed=9)
     res = associate(RIG, xy, mask, sigma="auto")
-    assert 0.5 < float(res.sigma_px) < 6.0
+    assert 1.4 < float(res.sigma_px) < 2.8
     assert float(res.tau_px) == pytest.approx(max(2 * np.sqrt(2) * float(res.sigma_px), 1.0), rel=1e-5)
 
 

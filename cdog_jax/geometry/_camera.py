@@ -54,7 +54,8 @@ class Rig(eqx.Module):
 def rig_from_arrays(K, R, t, *, dtype=None) -> Rig:
     """Build a :class:`Rig` from array-likes, with eager shape and value checks.
 
-    Raises ``ValueError`` naming the offending view for wrong shapes, non-finite values,
+    ``K (M, 3, 3)``, ``R (M, 3, 3)``, ``t (M, 3)``. Raises ``ValueError`` naming the
+    offending view for wrong shapes, non-finite values,
     a singular ``K`` or a rotation that is not orthonormal (tolerance 1e-3).
     """
     dtype = dtype or jnp.asarray(0.0).dtype

@@ -19,7 +19,7 @@ def skew(v: Float[Array, "*S 3"]) -> Float[Array, "*S 3 3"]:
 
 
 def essential_from_rig(rig: Rig) -> Float[Array, "M M 3 3"]:
-    """``E[m, n] = [t_rel]_x R_rel`` with ``R_rel = R_n R_mᵀ``, ``t_rel = t_n − R_rel t_m``
+    """``E (M, M, 3, 3)``, ``E[m, n] = [t_rel]_x R_rel`` with ``R_rel = R_n R_mᵀ``, ``t_rel = t_n − R_rel t_m``
     scaled to unit length: ``x̂_nᵀ E x̂_m = 0`` for normalised rays ``x̂ = K⁻¹ x``."""
     R_rel = jnp.einsum("nij,mkj->mnik", rig.R, rig.R)  # R_n R_mᵀ, (M, M, 3, 3)
     t_rel = rig.t[None, :, :] - jnp.einsum("mnij,mj->mni", R_rel, rig.t)  # (M, M, 3)

@@ -6,7 +6,8 @@ from .._types import Array, Bool, Float
 
 
 def points_from_homogeneous(h: Float[Array, "*S 3"]) -> tuple[Float[Array, "*S 2"], Bool[Array, "*S"]]:
-    """``(x/w, y/w)`` and a flag ``w != 0``; where ``w == 0`` the point is 0 and the flag False.
+    """``(x/w, y/w)`` of ``h (*S, 3)`` as ``(*S, 2)``, and a flag ``(*S,)`` that ``w != 0``;
+    where ``w == 0`` the point is 0 and the flag False.
 
     The division uses the safe-where pattern so that values and gradients stay finite.
     """
@@ -18,5 +19,5 @@ def points_from_homogeneous(h: Float[Array, "*S 3"]) -> tuple[Float[Array, "*S 2
 
 
 def homogeneous_from_points(xy: Float[Array, "*S 2"]) -> Float[Array, "*S 3"]:
-    """Append a 1: ``(x, y) → (x, y, 1)``."""
+    """Append a 1: ``(*S, 2) → (*S, 3)``, ``(x, y) → (x, y, 1)``."""
     return jnp.concatenate([xy, jnp.ones_like(xy[..., :1])], axis=-1)

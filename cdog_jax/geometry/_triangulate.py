@@ -62,9 +62,17 @@ def solve_normal_3x3(
 def triangulate(
     rig: Rig, xy: Float[Array, "*S M 2"], mask: Bool[Array, "*S M"]
 ) -> tuple[Float[Array, "*S 3"], Bool[Array, "*S"]]:
-    """Multi-view DLT of any batch of tracks: one 3D point (scene units) per track from the
-    views where ``mask`` is True, and a flag that the point is determined (≥ 2 views with
-    parallax). Works standalone, without association; jit/vmap friendly."""
+    """Multi-view DLT of any batch of tracks, without association; jit/vmap friendly.
+
+    Args:
+        rig: ``M`` cameras.
+        xy: ``(*S, M, 2)`` pixels of each track in every view (anything where masked).
+        mask: ``(*S, M)`` bool, the views that observe the track.
+
+    Returns:
+        ``points (*S, 3)`` (scene units, 0 where undetermined) and ``ok (*S,)``: the point is
+        determined (≥ 2 views with parallax).
+    """
     N, r, origin = dlt_blocks(rig, xy)
     w = mask.astype(N.dtype)
     X, ok = solve_normal_3x3(jnp.einsum("...m,...mij->...ij", w, N), jnp.einsum("...m,...mi->...i", w, r))
@@ -74,8 +82,9 @@ def triangulate(
 def triangulate_pairs(
     N: Float[Array, "M 3 3"], r: Float[Array, "M 3"], origin: Float[Array, "3"]
 ) -> tuple[Float[Array, "M M 3"], Bool[Array, "M M"]]:
-    """Two-view DLT for every pair of one track's views from its per-view blocks:
-    ``X[a, b]`` from views a and b (the diagonal is not meaningful, ``ok`` False there)."""
+    """Two-view DLT for every pair of one track's views from its per-view blocks
+    ``N (M, 3, 3)``, ``r (M, 3)``: ``X (M, M, 3)`` with ``X[a, b]`` from views a and b, and
+    ``ok (M, M)`` (False on the diagonal and for near-parallel rays)."""
     X, ok = solve_normal_3x3(N[:, None] + N[None, :], r[:, None] + r[None, :])
     ok = ok & ~jnp.eye(N.shape[0], dtype=bool)
     return X + lift(origin, X.ndim), ok

@@ -25,7 +25,8 @@ class EdgeTable(NamedTuple):
 
 
 def nearest_neighbour_edges(d: Float[Array, "M P M P"], tau_px: Float[Array, ""]) -> EdgeTable:
-    """For every node and other view, the edge to the nearest valid point if ``d < τ``.
+    """For every node and other view, the edge to the nearest valid point if ``d < τ``;
+    ``d (M, P, M, P)`` is the epipolar distance table, the result has ``E = M·P·M`` entries.
 
     Ties go to the smallest slot; padded nodes and views propose nothing (``d = +inf``).
     """
@@ -39,7 +40,8 @@ def nearest_neighbour_edges(d: Float[Array, "M P M P"], tau_px: Float[Array, ""]
 
 
 def adjacency_from_edges(edges: EdgeTable, num_nodes: int, mode: Adjacency) -> Bool[Array, "N N"]:
-    """Symmetric adjacency ``A`` from the proposals: ``D ∧ Dᵀ`` (mutual) or ``D ∨ Dᵀ`` (union)."""
+    """Symmetric adjacency ``A (N, N)`` from the proposals: ``D ∧ Dᵀ`` (mutual) or ``D ∨ Dᵀ``
+    (union)."""
     D = jnp.zeros((num_nodes, num_nodes), dtype=bool).at[edges.src, edges.dst].max(edges.ok)
     if mode == "mutual":
         return D & D.T
@@ -49,5 +51,5 @@ def adjacency_from_edges(edges: EdgeTable, num_nodes: int, mode: Adjacency) -> B
 
 
 def alive_edges(edges: EdgeTable, A: Bool[Array, "N N"]) -> Bool[Array, " E"]:
-    """Which proposals are edges of the (possibly pruned) graph ``A``."""
+    """``(E,)``: which proposals are edges of the (possibly pruned) graph ``A (N, N)``."""
     return edges.ok & A[edges.src, edges.dst]

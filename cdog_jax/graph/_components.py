@@ -14,8 +14,8 @@ from ._adjacency import EdgeTable
 
 
 def connected_components(edges: EdgeTable, alive: Bool[Array, " E"], num_nodes: int) -> Int[Array, " N"]:
-    """Label of every node: the smallest node index in its component of the graph formed by
-    the alive proposals (undirected)."""
+    """Labels ``(N,)``: the smallest node index in each node's component of the graph formed
+    by the alive proposals ``alive (E,)`` (undirected)."""
     big = jnp.int32(num_nodes)
     src, dst = edges.src, edges.dst
 

@@ -8,7 +8,7 @@ from .._types import Array, Bool, Int
 def groups_from_labels(
     labels: Int[Array, " N"], valid: Bool[Array, " N"], num_views: int, num_slots: int
 ) -> tuple[Int[Array, "G M"], Bool[Array, " G"]]:
-    """Components with ≥ 2 valid nodes become groups, numbered by label (smallest node index)
+    """From ``labels (N,)`` and ``valid (N,)``: components with ≥ 2 valid nodes become groups, numbered by label (smallest node index)
     ascending. Returns ``groups[g, m]`` (slot in view m or -1) and ``valid[g]``; the capacity
     ``G = N // 2`` always suffices. Assumes view-unique components."""
     N = labels.shape[0]
@@ -26,7 +26,7 @@ def groups_from_labels(
 
 
 def labels_from_groups(groups: Int[Array, "G M"], valid: Bool[Array, " G"], num_slots: int) -> Int[Array, "M P"]:
-    """``labels[m, i]``: the group holding slot i of view m, or -1."""
+    """``labels (M, P)`` from ``groups (G, M)``: the group holding slot i of view m, or -1."""
     G, M = groups.shape
     member = valid[:, None] & (groups >= 0)
     gid = jnp.broadcast_to(jnp.arange(G, dtype=jnp.int32)[:, None], (G, M))

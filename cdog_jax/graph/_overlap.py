@@ -13,9 +13,9 @@ from .._types import Array, Bool, Float
 from ._adjacency import EdgeTable
 
 
-def edge_overlap(edges: EdgeTable, A: Bool[Array, "N N"], dtype=jnp.float32) -> Float[Array, " E"]:
-    """``θ`` of every proposal's edge (defined where the proposal is an edge of ``A``), in (0, 1],
-    as ``dtype``."""
+def edge_overlap(edges: EdgeTable, A: Bool[Array, "N N"], *, dtype=jnp.float32) -> Float[Array, " E"]:
+    """``θ (E,)`` of every proposal's edge (defined where the proposal is an edge of the
+    ``(N, N)`` graph ``A``), in (0, 1], as ``dtype``."""
     A_f = A.astype(jnp.float32)
     common = jnp.einsum("ew,ew->e", A_f[edges.src], A_f[edges.dst])  # (E,) exact integers
     deg_closed = jnp.sum(A_f, axis=1) + 1.0  # (N,)
@@ -25,7 +25,7 @@ def edge_overlap(edges: EdgeTable, A: Bool[Array, "N N"], dtype=jnp.float32) -> 
 
 
 def remove_edges(A: Bool[Array, "N N"], edges: EdgeTable, remove: Bool[Array, " E"]) -> Bool[Array, "N N"]:
-    """``A`` without the (undirected) edges of the flagged proposals."""
+    """``A (N, N)`` without the (undirected) edges of the flagged proposals ``remove (E,)``."""
     keep = ~remove
     A = A.at[edges.src, edges.dst].min(keep)
     return A.at[edges.dst, edges.src].min(keep)

@@ -16,7 +16,8 @@ EM_ITERS = 30
 
 
 def estimate_sigma(d: Float[Array, "M P M P"], mask: Bool[Array, "M P"]) -> Float[Array, ""]:
-    """Robust noise estimate (pixels) from the epipolar distance table; 0 if nothing to fit."""
+    """Robust noise estimate ``()`` (pixels) from the epipolar distance table
+    ``d (M, P, M, P)`` and ``mask (M, P)``; 0 if nothing to fit."""
     s = jnp.min(d, axis=-1)  # (M, P, M): nearest distance of node (m, i) into view n
     ok = jnp.isfinite(s)
     w_ok = ok.astype(d.dtype)

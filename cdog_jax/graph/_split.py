@@ -39,7 +39,11 @@ def split_conflicts(
     num_views: int,
     max_iters: int,
 ) -> tuple[Bool[Array, "N N"], Int[Array, " N"]]:
-    """Remove edges until every component is view-unique; returns the graph and its labels."""
+    """Remove edges until every component is view-unique.
+
+    ``A (N, N)``; per proposal ``theta (E,)`` and ``edge_dist (E,)`` (pixels); per node
+    ``node_view (N,)`` and ``valid (N,)``. Returns the graph ``(N, N)`` and its labels ``(N,)``.
+    """
     N = A.shape[0]
     pair_lo = jnp.minimum(edges.src, edges.dst).astype(theta.dtype)
     pair_hi = jnp.maximum(edges.src, edges.dst).astype(theta.dtype)

@@ -15,7 +15,8 @@ from .._types import Array, Bool, Float
 def bpe_jump_keep(
     bpe: Float[Array, " G"], valid: Bool[Array, " G"], sigma_px: Float[Array, ""], th: Thresholds, min_gaps: int
 ) -> Bool[Array, " G"]:
-    """Which valid groups survive the jump rule."""
+    """``(G,)``: which valid groups survive the jump rule, from ``bpe (G,)`` (px²) and
+    ``valid (G,)``."""
     G = bpe.shape[0]
     if G < 2:
         return valid

@@ -27,7 +27,8 @@ def refine_points(
     member: Bool[Array, "G M"],
     max_steps: int,
 ) -> Float[Array, "G 3"]:
-    """Least-squares refinement of every group's point (scene units); invalid groups unchanged."""
+    """Refined points ``(G, 3)`` (scene units) from ``X0 (G, 3)``, ``xy_g (G, M, 2)`` and
+    ``member (G, M)``; groups with < 2 members are unchanged."""
     solver = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-6)
 
     def one(X, xy, mem):

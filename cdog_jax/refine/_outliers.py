@@ -17,8 +17,9 @@ from ..geometry._triangulate import triangulate_pairs
 
 
 def percentile_linear(values: Float[Array, " K"], count, q: float) -> Float[Array, ""]:
-    """``numpy.percentile(values[:count], q)`` (linear) of the ``count`` smallest finite
-    entries; the other entries must be ``+inf``. Meaningless (but finite) if ``count == 0``."""
+    """``()``: ``numpy.percentile`` (linear) at ``q`` (0–100) of the ``count`` smallest finite
+    entries of ``values (K,)``; the others must be ``+inf``. Finite but meaningless if
+    ``count == 0``."""
     v = jnp.sort(values)
     pos = (q / 100.0) * jnp.maximum(count - 1, 0).astype(values.dtype)
     lo = jnp.floor(pos).astype(jnp.int32)
@@ -33,7 +34,9 @@ def percentile_linear(values: Float[Array, " K"], count, q: float) -> Float[Arra
 def node_scores(
     rig: Rig, N, r, origin, xy_g: Float[Array, "M 2"], member: Bool[Array, " M"], own: bool
 ) -> tuple[Float[Array, " M"], Bool[Array, " M"]]:
-    """Mean pair-reprojection error of every member view (pixels) and whether it is defined."""
+    """Scores ``(M,)``: mean pair-reprojection error (pixels) of every member view of one
+    group, and ``(M,)`` whether it is defined. ``N (M, 3, 3)``, ``r (M, 3)`` DLT blocks,
+    ``xy_g (M, 2)``, ``member (M,)``; ``own`` counts each pair's own two errors too."""
     M = member.shape[0]
     X, ok = triangulate_pairs(N, r, origin)  # (M, M, 3), (M, M)
     err = reprojection_errors(rig, X, jnp.broadcast_to(xy_g, (M, M, M, 2)))  # e[a, b, c]
@@ -87,7 +90,11 @@ def remove_outliers(
     th: Thresholds,
     config: Config,
 ) -> Bool[Array, "G M"]:
-    """Iterated IQR removal over all groups; groups left with < 2 members dissolve."""
+    """Iterated IQR removal over all groups; returns the members ``(G, M)``.
+
+    Per group ``N_g (G, M, 3, 3)``, ``r_g (G, M, 3)`` DLT blocks, ``xy_g (G, M, 2)`` pixels,
+    ``member (G, M)``. Groups left with < 2 members dissolve (all False).
+    """
     own = config.iqr_score == "include_own"
 
     def one_group(N, r, xy, mem):

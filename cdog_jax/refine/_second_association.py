@@ -19,8 +19,8 @@ def second_association(
     tau_px: Float[Array, ""],
     th: Thresholds,
 ) -> Int[Array, "G M"]:
-    """The group table with leftover nodes attached. ``d[v, u]`` is the distance in u's
-    image from u to the epipolar line of v (pixels)."""
+    """The group table ``(G, M)`` with leftover nodes attached. ``d (N, N)``: ``d[v, u]`` is
+    the distance in u's image from u to the epipolar line of v (pixels)."""
     G, M = groups.shape
     N = d.shape[0]
     P = N // M

@@ -39,7 +39,7 @@ _FOCAL_JITTER_PX = 6.0
 _PRINCIPAL_JITTER_PX = (6.0, 5.0)
 
 
-def look_at_rotation(center, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
+def look_at_rotation(center, target, *, up=(0.0, 0.0, 1.0)) -> np.ndarray:
     """World→camera rotation ``(3, 3)`` (numpy, float64) of a camera at ``center`` looking at
     ``target`` (both ``(3,)``, world frame), OpenCV axes: x right, y down, z forward.
 
@@ -116,7 +116,7 @@ def default_rig(*, num_views: int = 10, dtype=None) -> Rig:
 
 
 def negate_intrinsics(rig: Rig, views) -> Rig:
-    """An equivalent rig in which ``K`` of the given views is multiplied by -1.
+    """An equivalent rig in which ``K (M, 3, 3)`` of the given views is multiplied by -1.
 
     Then ``K[2,2] = -1`` as in OpenMVG/EasyVis exports; pixels are unchanged because the
     projection is divided by the third homogeneous coordinate. ``views`` is a sequence or
