@@ -4,7 +4,7 @@ view, N = M*P nodes, G groups)."""
 from typing import Union
 
 import numpy as np
-from jaxtyping import Array, Bool, Float, Int
+from jaxtyping import Array, Bool, Float, Int, UInt
 
 # Public entry points accept NumPy arrays too; internals take jax Arrays.
 ArrayLike = Union[Array, np.ndarray]
@@ -16,7 +16,7 @@ Pixels = Float[Array, "M P 2"]
 Mask = Bool[Array, "M P"]
 Labels = Int[Array, "M P"]
 
-__all__ = ["Array", "ArrayLike", "Bool", "Float", "Int", "Scalar", "Mat3", "Vec3", "Pixels", "Mask", "Labels", "lift"]
+__all__ = ["Array", "ArrayLike", "Bool", "Float", "Int", "UInt", "Scalar", "Mat3", "Vec3", "Pixels", "Mask", "Labels", "lift"]
 
 
 def lift(a, ndim: int):  # noqa: D401

@@ -12,6 +12,23 @@ from .._config import Thresholds
 from .._types import Array, Bool, Float
 
 
+def _prefix_medians(x: Float[Array, " K"]) -> Float[Array, " K"]:
+    """``med[i] = median(x[:i])`` (``+inf`` for ``i = 0``) without sorting every prefix: sort
+    once, then the r-th smallest of a prefix is where the prefix's running count in sorted
+    order reaches ``r + 1``."""
+    K = x.shape[0]
+    order = jnp.argsort(x, stable=True).astype(jnp.int32)
+    xs = x[order]
+    i = jnp.arange(K, dtype=jnp.int32)
+    counts = jnp.cumsum(order[None, :] < i[:, None], axis=1, dtype=jnp.int32)  # (K, K)
+
+    def kth(r):
+        return xs[jnp.argmax(counts >= (r + 1)[:, None], axis=1)]
+
+    med = 0.5 * (kth(jnp.maximum(i - 1, 0) // 2) + kth(i // 2))
+    return jnp.where(i > 0, med, jnp.inf)
+
+
 def bpe_jump_keep(
     bpe: Float[Array, " G"], valid: Bool[Array, " G"], sigma_px: Float[Array, ""], th: Thresholds, min_gaps: int
 ) -> Bool[Array, " G"]:
@@ -25,12 +42,7 @@ def bpe_jump_keep(
     count = jnp.sum(valid, dtype=jnp.int32)
     gaps = b[1:] - b[:-1]  # (G-1,), meaningful for i < count - 1
     i = jnp.arange(G - 1, dtype=jnp.int32)
-    # Row i holds the gaps before i: their median via a masked sort.
-    before = jnp.where(i[None, :] < i[:, None], gaps[None, :], jnp.inf)  # (G-1, G-1)
-    srt = jnp.sort(before, axis=1)
-    lo = jnp.maximum(i - 1, 0) // 2
-    hi = i // 2
-    med = 0.5 * (srt[i, lo] + srt[i, jnp.minimum(hi, G - 2)])
+    med = _prefix_medians(gaps)
     floor = th.jump_floor_px2 + (th.jump_floor_sigma * sigma_px) ** 2
     jump = (i >= min_gaps) & (i < count - 1) & (gaps > th.jump_kappa * med) & (gaps > floor)
     first = jnp.where(jnp.any(jump), jnp.argmax(jump).astype(jnp.int32), G)

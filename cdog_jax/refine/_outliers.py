@@ -8,12 +8,13 @@ and reprojected into the other members; a node's score is its mean reprojection 
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .._config import Config, Thresholds
 from .._types import Array, Bool, Float
 from ..geometry._camera import Rig
 from ..geometry._projection import reprojection_errors
-from ..geometry._triangulate import triangulate_pairs
+from ..geometry._triangulate import solve_normal_3x3
 
 
 def percentile_linear(values: Float[Array, " K"], count, q: float) -> Float[Array, ""]:
@@ -38,17 +39,18 @@ def node_scores(
     group, and ``(M,)`` whether it is defined. ``N (M, 3, 3)``, ``r (M, 3)`` DLT blocks,
     ``xy_g (M, 2)``, ``member (M,)``; ``own`` counts each pair's own two errors too."""
     M = member.shape[0]
-    X, ok = triangulate_pairs(N, r, origin)  # (M, M, 3), (M, M)
-    err = reprojection_errors(rig, X, jnp.broadcast_to(xy_g, (M, M, M, 2)))  # e[a, b, c]
-    a_lt_b = jnp.triu(jnp.ones((M, M), bool), k=1)
-    pair = ok & a_lt_b & member[:, None] & member[None, :]
-    weight = pair[:, :, None] & member[None, None, :]
+    pa, pb = np.triu_indices(M, k=1)  # the K = M(M-1)/2 unordered pairs a < b, static
+    X, ok = solve_normal_3x3(N[pa] + N[pb], r[pa] + r[pb])  # (K, 3), (K,)
+    X = X + origin[None, :]
+    err = reprojection_errors(rig, X, jnp.broadcast_to(xy_g, (len(pa), M, 2)))  # e[p, c], (K, M)
+    pair = ok & member[pa] & member[pb]
+    weight = pair[:, None] & member[None, :]
     if not own:
-        eye = jnp.eye(M, dtype=bool)
-        weight = weight & ~eye[:, None, :] & ~eye[None, :, :]
+        views = np.arange(M)
+        weight = weight & jnp.asarray((views[None, :] != pa[:, None]) & (views[None, :] != pb[:, None]))
     w = weight.astype(err.dtype)
-    total = jnp.einsum("abc,abc->c", w, err)
-    count = jnp.sum(w, axis=(0, 1))
+    total = jnp.sum(w * err, axis=0)
+    count = jnp.sum(w, axis=0)
     defined = count > 0
     return jnp.where(defined, total / jnp.where(defined, count, 1.0), 0.0), defined
 

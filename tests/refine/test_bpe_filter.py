@@ -26,3 +26,13 @@ def test_floor_protects_small_gaps():
     bpe = jnp.asarray([0.01, 0.011, 0.012, 0.013, 0.014, 2.0], jnp.float32)
     keep = np.asarray(bpe_jump_keep(bpe, jnp.ones(6, bool), jnp.float32(1.0), th, 3))
     assert keep.all()
+
+
+def test_prefix_medians_match_numpy():
+    from cdog_jax.refine._bpe_filter import _prefix_medians
+
+    x = np.random.default_rng(0).exponential(1.0, 40)
+    x[[3, 7]] = x[5]  # ties
+    got = np.asarray(_prefix_medians(jnp.asarray(x, jnp.float32)))
+    want = np.array([np.inf] + [np.median(x[:i]) for i in range(1, 40)])
+    assert np.allclose(got, want, rtol=1e-6)
