@@ -40,6 +40,7 @@ class Thresholds(NamedTuple):
     jump_floor_px2: Float[Array, ""]  # BPE jump: gap > floor_px2 + (floor_sigma * sigma)^2
     jump_floor_sigma: Float[Array, ""]
     second_frac: Float[Array, ""]  # second association: attach if mean cost < frac * tau
+    recover_frac: Float[Array, ""]  # recovery: attach if reprojection error < frac * tau
 
 
 _NUMERIC = tuple(f for f in Thresholds._fields if f != "sigma_px")
@@ -61,6 +62,8 @@ class Config:
     iqr_quartiles: IqrQuartiles = "zero_pad"
     iqr_guards: bool = False  # reference's 10 px / 50 px rules
     second_association: bool = False
+    recover: bool = False  # attach leftovers to groups by reprojection (beyond the paper)
+    regroup: bool = False  # run Alg. 1-3 again on what is left (beyond the paper)
     bpe_filter: bool = True
     refine: bool = False
     sigma_mode: SigmaMode = "given"
@@ -80,6 +83,7 @@ class Config:
     jump_floor_px2: float = 4.0
     jump_floor_sigma: float = 3.0
     second_frac: float = 0.5
+    recover_frac: float = 1.0
 
     def __post_init__(self):
         choices = {
@@ -101,6 +105,15 @@ class Config:
     def paper(cls, **overrides) -> "Config":
         """The paper's C-DOG (Alg. 1–3 and §IV-E) with noise-matched τ."""
         return cls(**overrides)
+
+    @classmethod
+    def extended(cls, **overrides) -> "Config":
+        """Beyond the paper: union adjacency, then leftover detections are attached to groups
+        by reprojection (``recover``) and what is still left is associated again
+        (``regroup``). Recovers most points the paper's pruning loses (2-view points above all)."""
+        base = dict(adjacency="union", recover=True, recover_frac=2.0, regroup=True)
+        base.update(overrides)
+        return cls(**base)
 
     @classmethod
     def reference(cls, **overrides) -> "Config":

@@ -30,6 +30,7 @@ from .graph._split import split_conflicts
 from .refine._bpe_filter import bpe_jump_keep
 from .refine._least_squares import refine_points
 from .refine._outliers import remove_outliers
+from .refine._recovery import recover_leftovers
 from .refine._second_association import second_association
 
 
@@ -55,6 +56,64 @@ def _errors(rig, X, xy_g, member):
     return jnp.sum(w * err * err, axis=1) / n, jnp.sum(w * err, axis=1) / n
 
 
+def _graph_groups(d, valid, tau, th, config):
+    """Alg. 1–2 on the valid nodes: epipolar graph, δ-pruning, view-unique components;
+    returns the group table ``(G, M)`` and its validity ``(G,)``."""
+    M, P = d.shape[:2]
+    N = M * P
+    d = jnp.where(valid.reshape(M, P, 1, 1) & valid.reshape(1, 1, M, P), d, jnp.inf)
+    node_view = jnp.arange(N, dtype=jnp.int32) // P
+    edges = nearest_neighbour_edges(d, tau)
+    A = adjacency_from_edges(edges, N, config.adjacency)
+    theta = edge_overlap(edges, A, dtype=d.dtype)
+    d_nodes = d.reshape(N, N)
+    edge_dist = 0.5 * (d_nodes[edges.src, edges.dst] + d_nodes[edges.dst, edges.src])
+    weak = alive_edges(edges, A) & (theta < th.delta)
+    if config.prune_scope == "conflicts":
+        labels0 = connected_components(edges, alive_edges(edges, A), N)
+        counts = component_view_counts(labels0, node_view, valid, M)
+        weak = weak & jnp.any(counts >= 2, axis=1)[labels0[edges.src]]
+    elif config.prune_scope == "none":
+        weak = jnp.zeros_like(weak)
+    A = remove_edges(A, edges, weak)
+    _, labels = split_conflicts(A, edges, theta, edge_dist, node_view, valid, M, config.max_split_iters)
+    return groups_from_labels(labels, valid, M, P)
+
+
+def _iqr(rig, xy, groups, gvalid, blocks, th, config):
+    """Alg. 3 on the group table; returns the cleaned table and validity."""
+    N_node, r_node, origin = blocks
+    member = remove_outliers(
+        rig,
+        _gather_groups(groups, N_node),
+        _gather_groups(groups, r_node),
+        origin,
+        _gather_groups(groups, xy),
+        gvalid[:, None] & (groups >= 0),
+        th,
+        config,
+    )
+    return jnp.where(member, groups, -1), jnp.sum(member, dtype=jnp.int32, axis=1) >= 2
+
+
+def _leftovers(groups, gvalid, mask):
+    """``(N,)`` valid nodes in no valid group."""
+    M, P = mask.shape
+    member = gvalid[:, None] & (groups >= 0)
+    views = jnp.arange(M, dtype=jnp.int32)[None, :]
+    in_group = jnp.zeros((M, P + 1), bool).at[views, jnp.where(member, groups, P)].set(True)
+    return (mask & ~in_group[:, :P]).reshape(-1)
+
+
+def _merge_groups(groups_a, valid_a, groups_b, valid_b):
+    """Two tables of disjoint groups as one of the same capacity (at most N/2 groups exist)."""
+    G = groups_a.shape[0]
+    groups = jnp.concatenate([groups_a, groups_b])
+    valid = jnp.concatenate([valid_a, valid_b])
+    groups, valid, _ = compact_groups(jnp.where(valid[:, None], groups, -1), valid)
+    return groups[:G], valid[:G]
+
+
 def associate_traced(
     rig: Rig,
     xy: Float[Array, "M P 2"],
@@ -73,62 +132,48 @@ def associate_traced(
     """
     th = thresholds
     M, P = mask.shape
-    N = M * P
     xy = jnp.where(mask[..., None], xy, 0.0)  # padding is neutral from here on
     valid = mask.reshape(-1)
-    node_view = jnp.arange(N, dtype=jnp.int32) // P
 
-    # Alg. 1: epipolar graph.
+    # Alg. 1–2: epipolar graph, δ-overlap pruning, view-unique components.
     d = epipolar_distances(rig, xy, mask)  # (M, P, M, P)
     sigma = estimate_sigma(d, mask) if config.sigma_mode == "auto" else th.sigma_px
     tau = tau_px(th, sigma)
-    edges = nearest_neighbour_edges(d, tau)
-    A = adjacency_from_edges(edges, N, config.adjacency)
-
-    # Alg. 2: δ-overlap pruning, then view-uniqueness.
-    theta = edge_overlap(edges, A, dtype=d.dtype)
-    d_nodes = d.reshape(N, N)
-    edge_dist = 0.5 * (d_nodes[edges.src, edges.dst] + d_nodes[edges.dst, edges.src])
-    weak = alive_edges(edges, A) & (theta < th.delta)
-    if config.prune_scope == "conflicts":
-        labels0 = connected_components(edges, alive_edges(edges, A), N)
-        counts = component_view_counts(labels0, node_view, valid, M)
-        weak = weak & jnp.any(counts >= 2, axis=1)[labels0[edges.src]]
-    elif config.prune_scope == "none":
-        weak = jnp.zeros_like(weak)
-    A = remove_edges(A, edges, weak)
-    A, labels = split_conflicts(A, edges, theta, edge_dist, node_view, valid, M, config.max_split_iters)
-    groups, gvalid = groups_from_labels(labels, valid, M, P)
+    groups, gvalid = _graph_groups(d, valid, tau, th, config)
 
     # Alg. 3: IQR outlier removal on per-group DLT blocks.
     N_node, r_node, origin = dlt_blocks(rig, jnp.swapaxes(xy, 0, 1))  # (P, M, 3, 3), (P, M, 3)
-    N_node, r_node = jnp.swapaxes(N_node, 0, 1), jnp.swapaxes(r_node, 0, 1)
-    member = gvalid[:, None] & (groups >= 0)
+    blocks = (jnp.swapaxes(N_node, 0, 1), jnp.swapaxes(r_node, 0, 1), origin)  # (M, P, ...)
     if config.iqr:
-        member = remove_outliers(
-            rig,
-            _gather_groups(groups, N_node),
-            _gather_groups(groups, r_node),
-            origin,
-            _gather_groups(groups, xy),
-            member,
-            th,
-            config,
-        )
-        groups = jnp.where(member, groups, -1)
-        gvalid = jnp.sum(member, dtype=jnp.int32, axis=1) >= 2
-
+        groups, gvalid = _iqr(rig, xy, groups, gvalid, blocks, th, config)
     if config.second_association:
-        groups = second_association(d_nodes, groups, gvalid, valid, tau, th)
-        member = gvalid[:, None] & (groups >= 0)
+        groups = second_association(d.reshape(M * P, M * P), groups, gvalid, valid, tau, th)
 
-    # §IV-E: group BPE filter; then the final points.
-    xy_g = _gather_groups(groups, xy)
-    N_g, r_g = _gather_groups(groups, N_node), _gather_groups(groups, r_node)
-    X, (bpe, err_px) = _group_fit(rig, xy_g, member, N_g, r_g, origin)
+    def fit(groups, gvalid):
+        member = gvalid[:, None] & (groups >= 0)
+        xy_g = _gather_groups(groups, xy)
+        N_g, r_g = _gather_groups(groups, blocks[0]), _gather_groups(groups, blocks[1])
+        X, errors = _group_fit(rig, xy_g, member, N_g, r_g, origin)
+        return member, xy_g, X, errors
+
+    # §IV-E: group BPE filter.
+    member, xy_g, X, (bpe, err_px) = fit(groups, gvalid)
     if config.bpe_filter:
         gvalid = bpe_jump_keep(bpe, gvalid, sigma, th, config.jump_min_gaps)
-        member = member & gvalid[:, None]
+    groups = jnp.where(gvalid[:, None], groups, -1)
+
+    # Beyond the paper: attach leftovers by reprojection, then group what is still left.
+    if config.recover:
+        groups = recover_leftovers(rig, xy, mask, groups, gvalid, X, tau, th)
+    if config.regroup:
+        left = _leftovers(groups, gvalid, mask)
+        new_groups, new_valid = _graph_groups(d, left, tau, th, config)
+        if config.iqr:
+            new_groups, new_valid = _iqr(rig, xy, new_groups, new_valid, blocks, th, config)
+        groups, gvalid = _merge_groups(groups, gvalid, new_groups, new_valid)
+    if config.recover or config.regroup:
+        member, xy_g, X, (bpe, err_px) = fit(groups, gvalid)
+
     if config.refine:
         X = refine_points(rig, X, xy_g, member, config.refine_max_steps)
         bpe, err_px = _errors(rig, X, xy_g, member)

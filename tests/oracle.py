@@ -553,6 +553,87 @@ def _group_labels(groups, gvalid, M, P):
     return labels
 
 
+def _graph_stage(d, nodes, tau, cfg):
+    """§2–§5 on the detections flagged in ``nodes (M, P)``: group table, validity, graphs."""
+    M, P = nodes.shape
+    d = np.where(nodes[:, :, None, None] & nodes[None, None, :, :], d, np.inf)
+    A = adjacency(d, nodes, tau, cfg.adjacency)
+    theta = overlap_theta(A)
+    A1 = prune_weak_edges(A, theta, cfg.delta, cfg.prune_scope, M, P)
+    e = edge_epipolar(d)
+    A2, labels = split_view_unique(A1, theta, e, M, P, cfg.max_split_iters)
+    groups, gvalid = _table_from_labels(labels, nodes, M, P)
+    return groups, gvalid, dict(A=A, theta=theta, A1=A1, A2=A2)
+
+
+def _iqr_stage(K, R, t, xy, groups, gvalid, cfg):
+    """§6, iterated over all groups."""
+    M = groups.shape[1]
+    groups, gvalid = groups.copy(), gvalid.copy()
+    if not cfg.iqr:
+        return groups, gvalid
+    for _ in range(cfg.max_iqr_iters):
+        lost = False
+        for g in np.flatnonzero(gvalid):
+            members = groups[g] >= 0
+            if members.sum() < 3:
+                continue
+            obs = np.zeros((M, 2))
+            for m in np.flatnonzero(members):
+                obs[m] = xy[m, groups[g, m]]
+            scores = iqr_scores(K, R, t, obs, members, cfg.iqr_score)
+            out = iqr_outliers(
+                scores,
+                members,
+                cfg.iqr_alpha,
+                cfg.iqr_quartiles,
+                cfg.iqr_guards,
+                cfg.iqr_min_px,
+                cfg.iqr_force_px,
+                getattr(cfg, "iqr_floor_px", 0.0),
+            )
+            if out.any():
+                lost = True
+                groups[g, out] = -1
+                if (groups[g] >= 0).sum() < 2:
+                    groups[g] = -1
+                    gvalid[g] = False
+        if not lost:
+            break
+    return groups, gvalid
+
+
+def recover_leftovers(K, R, t, xy, mask, groups, gvalid, pts, tau, frac):
+    """§8b: attach leftover detections to the group whose point reprojects closest."""
+    M, P = mask.shape
+    groups = groups.copy()
+    in_group = np.zeros((M, P), bool)
+    for g in np.flatnonzero(gvalid):
+        for m in np.flatnonzero(groups[g] >= 0):
+            in_group[m, groups[g, m]] = True
+    choice = {}
+    for m in range(M):
+        for i in range(P):
+            if not mask[m, i] or in_group[m, i]:
+                continue
+            best, best_err = None, np.inf
+            for g in np.flatnonzero(gvalid):
+                if groups[g, m] >= 0 or (groups[g] >= 0).sum() < 2:
+                    continue
+                X_cam = R[m] @ pts[g] + t[m]
+                if X_cam[2] <= 0:
+                    continue
+                err = np.linalg.norm(project(K[m : m + 1], R[m : m + 1], t[m : m + 1], pts[g])[0] - xy[m, i])
+                if err < best_err:
+                    best, best_err = g, err
+            if best is not None and best_err < frac * tau:
+                choice[(m, i)] = (best, best_err)
+    for (m, i), (g, err) in sorted(choice.items(), key=lambda kv: (kv[1][1], kv[0][0] * P + kv[0][1])):
+        if groups[g, m] < 0:
+            groups[g, m] = i
+    return groups
+
+
 def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
     """The whole pipeline of docs/ALGORITHM.md on one scene, in float64 NumPy.
 
@@ -587,47 +668,12 @@ def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
     sigma_px = estimate_sigma(d, mask) if auto else float(sigma)
     tau = tau_px(sigma_px, cfg.alpha_tau, cfg.tau_min_px)
 
-    # §2 adjacency, §3 pruning
-    A = adjacency(d, mask, tau, cfg.adjacency)
-    theta = overlap_theta(A)
-    A1 = prune_weak_edges(A, theta, cfg.delta, cfg.prune_scope, M, P)
-    e = edge_epipolar(d)
-
-    # §4 view-uniqueness split, §5 group table
-    A2, labels = split_view_unique(A1, theta, e, M, P, cfg.max_split_iters)
-    groups, gvalid = _table_from_labels(labels, mask, M, P)
-    stages.update(A=A, theta=theta, A1=A1, A2=A2, labels_split=_group_labels(groups, gvalid, M, P))
+    # §2 adjacency, §3 pruning, §4 view-uniqueness split, §5 group table
+    groups, gvalid, graphs = _graph_stage(d, mask, tau, cfg)
+    stages.update(graphs, labels_split=_group_labels(groups, gvalid, M, P))
 
     # §6 IQR
-    if cfg.iqr:
-        for _ in range(cfg.max_iqr_iters):
-            lost = False
-            for g in np.flatnonzero(gvalid):
-                members = groups[g] >= 0
-                if members.sum() < 3:
-                    continue
-                obs = np.zeros((M, 2))
-                for m in np.flatnonzero(members):
-                    obs[m] = xy[m, groups[g, m]]
-                scores = iqr_scores(K, R, t, obs, members, cfg.iqr_score)
-                out = iqr_outliers(
-                    scores,
-                    members,
-                    cfg.iqr_alpha,
-                    cfg.iqr_quartiles,
-                    cfg.iqr_guards,
-                    cfg.iqr_min_px,
-                    cfg.iqr_force_px,
-                    getattr(cfg, "iqr_floor_px", 0.0),
-                )
-                if out.any():
-                    lost = True
-                    groups[g, out] = -1
-                    if (groups[g] >= 0).sum() < 2:
-                        groups[g] = -1
-                        gvalid[g] = False
-            if not lost:
-                break
+    groups, gvalid = _iqr_stage(K, R, t, xy, groups, gvalid, cfg)
     stages["labels_iqr"] = _group_labels(groups, gvalid, M, P)
 
     # §7 second association
@@ -650,6 +696,27 @@ def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
         groups[~keep] = -1
         gvalid = keep
     stages["labels_bpe"] = _group_labels(groups, gvalid, M, P)
+
+    # §8b recovery by reprojection, §8c regrouping of leftovers
+    if cfg.recover:
+        groups = recover_leftovers(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg.recover_frac)
+    if cfg.regroup:
+        left = mask.copy()
+        for g in np.flatnonzero(gvalid):
+            for m in np.flatnonzero(groups[g] >= 0):
+                left[m, groups[g, m]] = False
+        new_groups, new_valid, _ = _graph_stage(d, left, tau, cfg)
+        new_groups, new_valid = _iqr_stage(K, R, t, xy, new_groups, new_valid, cfg)
+        old = [groups[g] for g in np.flatnonzero(gvalid)]
+        new = [new_groups[g] for g in np.flatnonzero(new_valid)]
+        groups = np.full((G, M), -1, dtype=np.int64)
+        gvalid = np.zeros(G, bool)
+        for g, row in enumerate(old + new):
+            groups[g] = row
+            gvalid[g] = True
+    if cfg.recover or cfg.regroup:
+        pts, bpe, err = group_bpe(K, R, t, xy, groups, gvalid)
+    stages["labels_recovered"] = _group_labels(groups, gvalid, M, P)
 
     # §11 output: valid groups first, in the order of §5
     order = np.flatnonzero(gvalid)

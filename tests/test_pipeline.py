@@ -10,7 +10,7 @@ from helpers import purity, random_scene, ring_rig, x64
 import cdog_jax
 from cdog_jax import Config, associate, associate_batch, associate_traced
 
-PRESETS = {"paper": Config.paper(), "reference": Config.reference()}
+PRESETS = {"paper": Config.paper(), "reference": Config.reference(), "extended": Config.extended()}
 RIG = ring_rig(5)
 M, P = 5, 12
 

@@ -70,12 +70,14 @@ VARIANT_SCENES = _scenes(77, 12, 4, (0.5, 2.0, 4.0), empty_views=(0,), drop=(0.2
 # float32 presets: 3-view rigs.
 F32_SCENES = _scenes(5, 24, 3, (0.0, 0.5, 2.0, 4.0), empty_views=(0,))
 
-PRESETS = {"paper": Config.paper(), "reference": Config.reference()}
+PRESETS = {"paper": Config.paper(), "reference": Config.reference(), "extended": Config.extended()}
 # Every structural branch the presets leave out, in as few compilations as possible.
 # (bpe_filter off is the reference preset; prune_scope "conflicts" too.)
 VARIANTS = {
     "paper_union_prune_none_auto_sigma": Config.paper(adjacency="union", prune_scope="none", sigma_mode="auto"),
     "reference_union_bpe_filter": Config.reference(adjacency="union", bpe_filter=True),
+    "paper_recover_only": Config.paper(recover=True),
+    "paper_regroup_no_iqr": Config.paper(regroup=True, iqr=False),
 }
 
 

@@ -1,0 +1,54 @@
+"""Recovery of leftover detections by reprojection (beyond the paper; ``Config.recover``).
+
+Pruning and outlier removal leave correct detections unassigned, most often the third or
+fourth view of a point whose group survived. Each leftover detection joins the group
+(lacking its view, ≥ 2 members, point in front of the camera) whose triangulated point
+reprojects closest to it, if closer than ``recover_frac · τ`` pixels; when detections of
+one view compete for a group, the closest wins (ties: smallest node index).
+"""
+
+import jax.numpy as jnp
+
+from .._config import Thresholds
+from .._types import Array, Bool, Float, Int
+from ..geometry._camera import Rig
+from ..geometry._projection import project
+
+
+def recover_leftovers(
+    rig: Rig,
+    xy: Float[Array, "M P 2"],
+    mask: Bool[Array, "M P"],
+    groups: Int[Array, "G M"],
+    valid: Bool[Array, " G"],
+    X: Float[Array, "G 3"],
+    tau_px: Float[Array, ""],
+    th: Thresholds,
+) -> Int[Array, "G M"]:
+    """The group table ``(G, M)`` with leftover detections attached (``xy (M, P, 2)`` pixels,
+    ``X (G, 3)`` the groups' points)."""
+    G, M = groups.shape
+    P = mask.shape[1]
+    N = M * P
+    member = valid[:, None] & (groups >= 0)
+    in_group = jnp.zeros((M, P + 1), bool).at[jnp.arange(M, dtype=jnp.int32)[None, :], jnp.where(member, groups, P)].set(True)
+    leftover = (mask & ~in_group[:, :P]).reshape(-1)  # (N,)
+
+    pix, in_front = project(rig, X)  # (G, M, 2), (G, M)
+    node_view = jnp.arange(N, dtype=jnp.int32) // P
+    diff = pix[:, node_view, :] - xy.reshape(N, 2)[None, :, :]  # (G, N, 2)
+    err = jnp.sqrt(jnp.sum(diff * diff, axis=-1))
+    enough = jnp.sum(member, axis=1, dtype=jnp.int32) >= 2
+    allowed = (valid & enough)[:, None] & ~member[:, node_view] & in_front[:, node_view] & leftover[None, :]
+    err = jnp.where(allowed, err, jnp.inf)
+
+    best_group = jnp.argmin(err, axis=0).astype(jnp.int32)  # (N,)
+    best_err = jnp.min(err, axis=0)
+    wants = best_err < th.recover_frac * tau_px
+    target = jnp.where(wants, best_group, G)
+    lowest = jnp.full((G, M), jnp.inf, err.dtype).at[target, node_view].min(best_err, mode="drop")
+    is_best = wants & (best_err == lowest[jnp.minimum(target, G - 1), node_view])
+    node = jnp.arange(N, dtype=jnp.int32)
+    first = jnp.full((G, M), N, jnp.int32).at[jnp.where(is_best, target, G), node_view].min(node, mode="drop")
+    winner = is_best & (first[jnp.minimum(target, G - 1), node_view] == node)
+    return groups.at[jnp.where(winner, target, G), node_view].set(node % P, mode="drop")
