@@ -22,7 +22,7 @@ COLUMNS = ("g_f1", "mp_f1", "pg_p", "pg_r", "pg_f1", "err3d", "bpe_px")
 
 def run(sigmas=(0.0, 1.0, 3.0, 5.0), counts=(10, 40, 130), scenes=5, seed=0, capacity=130):
     rig = default_rig()
-    presets = {"paper": cdog_jax.Config.paper(), "reference": cdog_jax.Config.reference()}
+    presets = {"paper": cdog_jax.Config.paper(), "extended": cdog_jax.Config.extended(), "reference": cdog_jax.Config.reference()}
     score = jax.jit(jax.vmap(scene_metrics, in_axes=(None, 0, 0)))
     rows = []
     for sigma in sigmas:
