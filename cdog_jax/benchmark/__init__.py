@@ -1,0 +1,15 @@
+"""The benchmark sweep (SPEC §3, §5): a noise × density grid generated, associated and
+scored in one compiled call, sharded over devices, saved to NPZ/CSV/JSON, summarised."""
+
+from ._grid import DRAW_CAPACITY as DRAW_CAPACITY
+from ._grid import Grid as Grid
+from ._grid import GridIndex as GridIndex
+from ._grid import bucket_of as bucket_of
+from ._grid import compact_scene as compact_scene
+from ._grid import scene_keys as scene_keys
+from ._io import load_results as load_results
+from ._io import save_results as save_results
+from ._io import summary_table as summary_table
+from ._sweep import SweepResult as SweepResult
+from ._sweep import default_mesh as default_mesh
+from ._sweep import sweep as sweep
