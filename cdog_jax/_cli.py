@@ -4,8 +4,10 @@ One function per subcommand: ``_add_<name>(subparsers)`` declares its arguments 
 ``func`` to ``_run_<name>(args) -> int``; register new ones in ``_SUBCOMMANDS``.
 
 Subcommands:
-    demo  built-in rig → synthetic scene → :func:`cdog_jax.associate` → summary, SPEC §5
-          metrics, timings and a PNG figure.
+    demo       built-in rig → synthetic scene → :func:`cdog_jax.associate` → summary, SPEC §5
+               metrics, timings and a PNG figure.
+    benchmark  the SPEC §3 grid for several methods in one compiled call → tables, saved
+               results, figures (``cdog_jax/benchmark/_command.py``).
 """
 
 from __future__ import annotations
@@ -172,7 +174,13 @@ def _run_demo(args: argparse.Namespace) -> int:
 
 # --- entry point ----------------------------------------------------------------------
 
-_SUBCOMMANDS = (_add_demo,)
+def _add_benchmark(subparsers) -> None:
+    from .benchmark._command import add_parser
+
+    add_parser(subparsers)
+
+
+_SUBCOMMANDS = (_add_demo, _add_benchmark)
 
 
 def build_parser() -> argparse.ArgumentParser:
