@@ -11,7 +11,9 @@ from __future__ import annotations
 import dataclasses
 from typing import Literal, NamedTuple
 
+import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ._types import Array, Float
 
@@ -139,11 +141,16 @@ class Config:
     def replace(self, **changes) -> "Config":
         return dataclasses.replace(self, **changes)
 
-    def thresholds(self, sigma_px=0.0, dtype=None) -> Thresholds:
-        """The numeric fields (and σ) as a :class:`Thresholds` of arrays."""
-        dtype = dtype or jnp.asarray(0.0).dtype
-        values = {name: getattr(self, name) for name in _NUMERIC}
-        return Thresholds(sigma_px=jnp.asarray(sigma_px, dtype), **{k: jnp.asarray(v, dtype) for k, v in values.items()})
+    def thresholds(self, sigma_px=0.0, *, dtype=None) -> Thresholds:
+        """The numeric fields (and σ) as a :class:`Thresholds` of scalar arrays.
+
+        NumPy scalars (cheap to pass to a jitted function), except that a JAX ``sigma_px``
+        (traced, or batched) stays a JAX array.
+        """
+        dtype = np.dtype(jax.dtypes.canonicalize_dtype(dtype or jnp.float32))
+        values = {name: np.asarray(getattr(self, name), dtype) for name in _NUMERIC}
+        sigma = jnp.asarray(sigma_px, dtype) if isinstance(sigma_px, jax.Array) else np.asarray(sigma_px, dtype)
+        return Thresholds(sigma_px=sigma, **values)
 
     def structure(self) -> "Config":
         """This config with its numeric fields reset to the defaults: the part a jit key needs."""

@@ -12,6 +12,7 @@ from functools import partial
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ._config import Config, Thresholds, tau_px
 from ._result import Association
@@ -130,7 +131,7 @@ def associate_traced(
         thresholds: numeric thresholds and σ (traced; see ``Config.thresholds``).
         config: structural configuration (static under ``jit``).
     """
-    th = thresholds
+    th = Thresholds(*(jnp.asarray(v) for v in thresholds))  # NumPy scalars when called eagerly
     M, P = mask.shape
     xy = jnp.where(mask[..., None], xy, 0.0)  # padding is neutral from here on
     valid = mask.reshape(-1)
@@ -209,8 +210,10 @@ def _prepare(config: Config, sigma, thresholds: Thresholds | None, dtype):
     if thresholds is None:
         thresholds = config.thresholds(sigma, dtype=dtype)
     else:
-        thresholds = thresholds._replace(sigma_px=jnp.asarray(sigma, dtype))
-    thresholds = Thresholds(*(jnp.asarray(v, dtype) for v in thresholds))
+        thresholds = thresholds._replace(sigma_px=sigma)
+    # NumPy scalars go to the jitted call as they are (cheaper than one device array each).
+    np_dtype = np.dtype(jax.dtypes.canonicalize_dtype(dtype))
+    thresholds = Thresholds(*(jnp.asarray(v, dtype) if isinstance(v, jax.Array) else np.asarray(v, np_dtype) for v in thresholds))
     return config.structure(), thresholds
 
 
