@@ -31,11 +31,15 @@ def check_rig(rig: Rig, batched: bool = False) -> None:
     if tuple(rig.t.shape) != K_shape[:-1]:
         raise ValueError(f"rig.t must have shape {K_shape[:-1]}; got {tuple(rig.t.shape)}")
     if _is_concrete(rig.K, rig.R, rig.t):
-        K, R, t = (np.asarray(a, np.float64).reshape((-1,) + a.shape[-2:] if a.ndim > 2 else a.shape) for a in (rig.K, rig.R, rig.t))
-        K = K.reshape(-1, 3, 3)
-        R = R.reshape(-1, 3, 3)
-        t = np.asarray(rig.t, np.float64).reshape(-1, 3)
-        check_rig_values(K, R, t)
+        K, R, t = (np.asarray(a, np.float64) for a in (rig.K, rig.R, rig.t))
+        if not batched:
+            check_rig_values(K, R, t)
+            return
+        for b in range(K.shape[0]):
+            try:
+                check_rig_values(K[b], R[b], t[b])
+            except ValueError as e:
+                raise ValueError(f"rig of scene {b}: {e}") from None
 
 
 def check_observations(xy, mask, num_views: int, batched: bool = False) -> None:

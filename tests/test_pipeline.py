@@ -167,3 +167,11 @@ def test_bad_values_are_refused():
         associate(cdog_jax.Rig(RIG.K, jnp.asarray(R), RIG.t), np.zeros((M, P, 2), np.float32), np.zeros((M, P), bool))
     with pytest.raises(ValueError, match='sigma must be a number'):
         associate(RIG, np.zeros((M, P, 2), np.float32), np.zeros((M, P), bool), sigma="guess")
+
+
+def test_bad_batched_rig_names_the_scene():
+    K = np.stack([np.array(RIG.K)] * 2)
+    K[1, 2] = 0.0
+    rigs = cdog_jax.Rig(jnp.asarray(K), jnp.stack([RIG.R] * 2), jnp.stack([RIG.t] * 2))
+    with pytest.raises(ValueError, match="rig of scene 1: K of view 2 is singular"):
+        associate_batch(rigs, np.zeros((2, M, P, 2), np.float32), np.zeros((2, M, P), bool))

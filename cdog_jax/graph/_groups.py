@@ -38,6 +38,5 @@ def labels_from_groups(groups: Int[Array, "G M"], valid: Bool[Array, " G"], num_
 def compact_groups(groups: Int[Array, "G M"], valid: Bool[Array, " G"]) -> tuple[Int[Array, "G M"], Bool[Array, " G"], Int[Array, " G"]]:
     """Move valid groups to the front, keeping their order; returns the permutation too
     (``order[k]`` = old index of new group k)."""
-    G = valid.shape[0]
     order = jnp.argsort(jnp.where(valid, 0, 1), stable=True).astype(jnp.int32)
     return groups[order], valid[order], order
