@@ -22,9 +22,9 @@ class Rig(eqx.Module):
         t: ``(M, 3)`` world→camera translations (scene units).
     """
 
-    K: Float[Array, "M 3 3"]
-    R: Float[Array, "M 3 3"]
-    t: Float[Array, "M 3"]
+    K: Float[Array, "*B M 3 3"]
+    R: Float[Array, "*B M 3 3"]
+    t: Float[Array, "*B M 3"]
 
     @property
     def num_views(self) -> int:
