@@ -13,6 +13,7 @@ from .._config import Thresholds
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..geometry._projection import project
+from ._attach import attach_cheapest
 
 
 def recover_leftovers(
@@ -42,13 +43,4 @@ def recover_leftovers(
     allowed = (valid & enough)[:, None] & ~member[:, node_view] & in_front[:, node_view] & leftover[None, :]
     err = jnp.where(allowed, err, jnp.inf)
 
-    best_group = jnp.argmin(err, axis=0).astype(jnp.int32)  # (N,)
-    best_err = jnp.min(err, axis=0)
-    wants = best_err < th.recover_frac * tau_px
-    target = jnp.where(wants, best_group, G)
-    lowest = jnp.full((G, M), jnp.inf, err.dtype).at[target, node_view].min(best_err, mode="drop")
-    is_best = wants & (best_err == lowest[jnp.minimum(target, G - 1), node_view])
-    node = jnp.arange(N, dtype=jnp.int32)
-    first = jnp.full((G, M), N, jnp.int32).at[jnp.where(is_best, target, G), node_view].min(node, mode="drop")
-    winner = is_best & (first[jnp.minimum(target, G - 1), node_view] == node)
-    return groups.at[jnp.where(winner, target, G), node_view].set(node % P, mode="drop")
+    return attach_cheapest(groups, err, th.recover_frac * tau_px)

@@ -9,6 +9,7 @@ import jax.numpy as jnp
 
 from .._config import Thresholds
 from .._types import Array, Bool, Float, Int
+from ._attach import attach_cheapest
 
 
 def second_association(
@@ -39,16 +40,4 @@ def second_association(
     allowed = valid[:, None] & lacks_view & leftover[None, :]
     cost = jnp.where(allowed, cost, jnp.inf)
 
-    best_group = jnp.argmin(cost, axis=0).astype(jnp.int32)  # (N,), ties: lowest id
-    best_cost = jnp.min(cost, axis=0)
-    wants = best_cost < th.second_frac * tau_px
-    # Conflicts: per (group, view) the cheapest candidate, then the smallest node index.
-    target = jnp.where(wants, best_group, G)
-    lowest = jnp.full((G, M), jnp.inf, d.dtype).at[target, node_view].min(best_cost, mode="drop")
-    is_best = wants & (best_cost == lowest[jnp.minimum(target, G - 1), node_view])
-    first = jnp.full((G, M), N, jnp.int32).at[jnp.where(is_best, target, G), node_view].min(
-        jnp.arange(N, dtype=jnp.int32), mode="drop"
-    )
-    winner = is_best & (first[jnp.minimum(target, G - 1), node_view] == jnp.arange(N, dtype=jnp.int32))
-    slot = (jnp.arange(N, dtype=jnp.int32) % P).astype(jnp.int32)
-    return groups.at[jnp.where(winner, target, G), node_view].set(slot, mode="drop")
+    return attach_cheapest(groups, cost, th.second_frac * tau_px)

@@ -1,0 +1,27 @@
+"""Attaching leftover detections to groups, shared by the second association (§2.7) and
+the recovery by reprojection: each node picks its cheapest group, and where nodes of one
+view compete for a group the cheapest wins (ties: smallest node index)."""
+
+import jax.numpy as jnp
+
+from .._types import Array, Float, Int
+
+
+def attach_cheapest(groups: Int[Array, "G M"], cost: Float[Array, "G N"], gate: Float[Array, ""]) -> Int[Array, "G M"]:
+    """The group table ``(G, M)`` with every node ``u`` whose smallest ``cost[:, u]`` is
+    below ``gate`` attached to that group (ties: lowest group id), one node per (group,
+    view). ``cost`` must be ``+inf`` where a node may not join a group."""
+    G, M = groups.shape
+    N = cost.shape[1]
+    P = N // M
+    node = jnp.arange(N, dtype=jnp.int32)
+    node_view = node // P
+    best_group = jnp.argmin(cost, axis=0).astype(jnp.int32)  # (N,)
+    best_cost = jnp.min(cost, axis=0)
+    target = jnp.where(best_cost < gate, best_group, G)  # G: attaches nowhere
+    safe = jnp.minimum(target, G - 1)
+    lowest = jnp.full((G, M), jnp.inf, cost.dtype).at[target, node_view].min(best_cost, mode="drop")
+    is_best = (target < G) & (best_cost == lowest[safe, node_view])
+    first = jnp.full((G, M), N, jnp.int32).at[jnp.where(is_best, target, G), node_view].min(node, mode="drop")
+    winner = is_best & (first[safe, node_view] == node)
+    return groups.at[jnp.where(winner, target, G), node_view].set(node % P, mode="drop")
