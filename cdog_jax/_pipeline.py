@@ -31,6 +31,7 @@ from .graph._split import split_conflicts
 from .refine._bpe_filter import bpe_jump_keep
 from .refine._least_squares import refine_points
 from .refine._outliers import remove_outliers
+from .refine._attach import leftover_nodes
 from .refine._recovery import recover_leftovers
 from .refine._second_association import second_association
 
@@ -97,15 +98,6 @@ def _iqr(rig, xy, groups, gvalid, blocks, th, config):
     return jnp.where(member, groups, -1), jnp.sum(member, dtype=jnp.int32, axis=1) >= 2
 
 
-def _leftovers(groups, gvalid, mask):
-    """``(N,)`` valid nodes in no valid group."""
-    M, P = mask.shape
-    member = gvalid[:, None] & (groups >= 0)
-    views = jnp.arange(M, dtype=jnp.int32)[None, :]
-    in_group = jnp.zeros((M, P + 1), bool).at[views, jnp.where(member, groups, P)].set(True)
-    return (mask & ~in_group[:, :P]).reshape(-1)
-
-
 def _merge_groups(groups_a, valid_a, groups_b, valid_b):
     """Two tables of disjoint groups as one of the same capacity (at most N/2 groups exist)."""
     G = groups_a.shape[0]
@@ -167,7 +159,7 @@ def associate_traced(
     if config.recover:
         groups = recover_leftovers(rig, xy, mask, groups, gvalid, X, tau, th)
     if config.regroup:
-        left = _leftovers(groups, gvalid, mask)
+        left = leftover_nodes(groups, gvalid, mask)
         new_groups, new_valid = _graph_groups(d, left, tau, th, config)
         if config.iqr:
             new_groups, new_valid = _iqr(rig, xy, new_groups, new_valid, blocks, th, config)

@@ -4,7 +4,7 @@ view compete for a group the cheapest wins (ties: smallest node index)."""
 
 import jax.numpy as jnp
 
-from .._types import Array, Float, Int
+from .._types import Array, Bool, Float, Int
 
 
 def attach_cheapest(groups: Int[Array, "G M"], cost: Float[Array, "G N"], gate: Float[Array, ""]) -> Int[Array, "G M"]:
@@ -25,3 +25,12 @@ def attach_cheapest(groups: Int[Array, "G M"], cost: Float[Array, "G N"], gate: 
     first = jnp.full((G, M), N, jnp.int32).at[jnp.where(is_best, target, G), node_view].min(node, mode="drop")
     winner = is_best & (first[safe, node_view] == node)
     return groups.at[jnp.where(winner, target, G), node_view].set(node % P, mode="drop")
+
+
+def leftover_nodes(groups: Int[Array, "G M"], valid: Bool[Array, " G"], mask: Bool[Array, "M P"]) -> Bool[Array, " N"]:
+    """``(N,)``: detections (``mask (M, P)``) that are in no valid group of ``groups (G, M)``."""
+    M, P = mask.shape
+    member = valid[:, None] & (groups >= 0)
+    views = jnp.arange(M, dtype=jnp.int32)[None, :]
+    in_group = jnp.zeros((M, P + 1), bool).at[views, jnp.where(member, groups, P)].set(True)
+    return (mask & ~in_group[:, :P]).reshape(-1)

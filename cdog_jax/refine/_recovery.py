@@ -13,7 +13,7 @@ from .._config import Thresholds
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..geometry._projection import project
-from ._attach import attach_cheapest
+from ._attach import attach_cheapest, leftover_nodes
 
 
 def recover_leftovers(
@@ -32,8 +32,7 @@ def recover_leftovers(
     P = mask.shape[1]
     N = M * P
     member = valid[:, None] & (groups >= 0)
-    in_group = jnp.zeros((M, P + 1), bool).at[jnp.arange(M, dtype=jnp.int32)[None, :], jnp.where(member, groups, P)].set(True)
-    leftover = (mask & ~in_group[:, :P]).reshape(-1)  # (N,)
+    leftover = leftover_nodes(groups, valid, mask)  # (N,)
 
     pix, in_front = project(rig, X)  # (G, M, 2), (G, M)
     node_view = jnp.arange(N, dtype=jnp.int32) // P

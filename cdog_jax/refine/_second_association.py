@@ -9,7 +9,7 @@ import jax.numpy as jnp
 
 from .._config import Thresholds
 from .._types import Array, Bool, Float, Int
-from ._attach import attach_cheapest
+from ._attach import attach_cheapest, leftover_nodes
 
 
 def second_association(
@@ -27,8 +27,7 @@ def second_association(
     P = N // M
     member = valid[:, None] & (groups >= 0)  # (G, M)
     member_node = jnp.where(member, jnp.arange(M, dtype=jnp.int32)[None, :] * P + groups, 0)  # (G, M)
-    in_group = jnp.zeros((N,), bool).at[member_node.reshape(-1)].max(member.reshape(-1))
-    leftover = node_valid & ~in_group
+    leftover = leftover_nodes(groups, valid, node_valid.reshape(M, P))
     node_view = jnp.arange(N, dtype=jnp.int32) // P
 
     dist = d[member_node]  # (G, M, N): from member (g, m) to every node
