@@ -1,0 +1,357 @@
+"""Rig files (SPEC §4): EasyVis/OpenMVG text folders, the project's JSON, and NPZ.
+
+Every format stores the convention of SPEC §1: world→camera ``X_cam = R X_world + t``
+with ``R`` a 3×3 rotation matrix (rows are the camera axes in world coordinates: x right,
+y down, z forward), pixels ``x ~ K X_cam`` divided by the third homogeneous coordinate,
+so a general upper-triangular ``K`` (``K[2,2] = -1`` included) is kept as it is. Pixel
+coordinates are those of the rest of the library: x right, y down, pixel centres at
+integer coordinates (OpenCV). ``dist`` holds OpenCV distortion ``(k1, k2, p1, p2, k3)``;
+it is read and written but never applied (the pipeline takes undistorted pixels).
+
+Precision: files are parsed to float64 on the host; the :class:`Rig` gets ``dtype``
+(default: JAX's default float, float32 unless x64 is enabled), as :func:`rig_from_arrays`.
+Writers widen the rig to float64 (exact) and write every number with ``repr``, so a saved
+rig loads back bit-identical in its own dtype.
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+import os
+import re
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from ..geometry._camera import Rig, rig_from_arrays
+
+PathLike = str | os.PathLike  # a folder or file name
+
+FORMATS = ("easyvis", "json", "npz")
+_EASYVIS_FILE = re.compile(r"^([KRT])(0|[1-9][0-9]*)\.txt$")
+
+
+class RigFile(NamedTuple):
+    """What a rig file holds.
+
+    Attributes:
+        rig: the ``M`` cameras, ``K, R (M, 3, 3)``, ``t (M, 3)``.
+        image_size: ``(width, height)`` in pixels, or ``None`` when the file gives none.
+        dist: ``(M, 5)`` float64 OpenCV distortion ``(k1, k2, p1, p2, k3)`` (not applied),
+            or ``None`` when the file gives none.
+    """
+
+    rig: Rig
+    image_size: tuple[int, int] | None
+    dist: np.ndarray | None
+
+
+def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigFile:
+    """Read a rig file: ``K, R (M, 3, 3)``, ``t (M, 3)`` and optional image size and distortion.
+
+    Formats (world→camera ``X_cam = R X + t`` in all of them, ``K`` general):
+
+    - ``"easyvis"``: a folder of ``K{i}.txt``, ``R{i}.txt`` (3×3 Python-literal nested
+      lists) and ``T{i}.txt`` (``[[x], [y], [z]]`` or ``[x, y, z]``), ``i = 0 … M-1``;
+      other files are ignored. Parsed with ``ast.literal_eval``. No image size, no ``dist``.
+    - ``"json"``: ``{"views": [{"K", "R", "t", "dist" (optional, 5), "image_size"
+      (optional, [w, h])}, …]}``; views without ``dist`` get zeros when others have one.
+    - ``"npz"``: ``K (M, 3, 3)``, ``R (M, 3, 3)``, ``t (M, 3)``, optional ``dist (M, 5)``
+      and ``image_size (2,)``.
+    - ``"auto"``: a directory is EasyVis, ``.json`` is JSON, ``.npz`` is NPZ.
+
+    Args:
+        path: the folder or file.
+        format: one of ``"auto"``, ``"easyvis"``, ``"json"``, ``"npz"``.
+        dtype: float dtype of the rig (default: JAX's default float).
+
+    Returns:
+        A :class:`RigFile`. Raises ``ValueError`` naming the file (and view and key) for an
+        unreadable file, a missing view or key, a wrong shape, a non-finite number, a
+        singular ``K`` or a ``R`` that is not a rotation.
+    """
+    path = os.fspath(path)
+    fmt = _resolve_format(path, format)
+    if fmt == "easyvis":
+        K, R, t, image_size, dist = _read_easyvis(path)
+    elif fmt == "json":
+        K, R, t, image_size, dist = _read_json(path)
+    else:
+        K, R, t, image_size, dist = _read_npz(path)
+    try:
+        rig = rig_from_arrays(K, R, t, dtype=dtype)
+    except ValueError as e:
+        raise ValueError(f"{path}: {e}") from e
+    return RigFile(rig, image_size, dist)
+
+
+def save_rig_json(path: PathLike, rig: Rig, *, image_size: tuple[int, int] | None = None, dist: Any = None) -> None:
+    """Write ``rig`` (``K, R (M, 3, 3)``, ``t (M, 3)``) as the project's JSON rig.
+
+    One object per view ``{"K": 3×3, "R": 3×3, "t": [3]}``, plus ``"image_size": [w, h]``
+    and ``"dist": [5]`` (OpenCV ``k1, k2, p1, p2, k3``, ``dist (M, 5)``) when given.
+    Numbers are written exactly (float64 ``repr``).
+    """
+    K, R, t = _host_rig(rig)
+    size = _check_image_size(image_size, "image_size")
+    dist = _check_dist(dist, K.shape[0])
+    views = []
+    for m in range(K.shape[0]):
+        view: dict[str, Any] = {"K": K[m].tolist(), "R": R[m].tolist(), "t": t[m].tolist()}
+        if dist is not None:
+            view["dist"] = dist[m].tolist()
+        if size is not None:
+            view["image_size"] = list(size)
+        views.append(json.dumps(view, allow_nan=False))
+    with open(path, "w", encoding="utf-8") as f:
+        f.write('{"views": [\n  ' + ",\n  ".join(views) + "\n]}\n")
+
+
+def save_rig_npz(path: PathLike, rig: Rig, *, image_size: tuple[int, int] | None = None, dist: Any = None) -> None:
+    """Write ``rig`` as NPZ: float64 ``K (M, 3, 3)``, ``R (M, 3, 3)``, ``t (M, 3)``, and
+    ``dist (M, 5)`` and int ``image_size (2,)`` (width, height) when given."""
+    K, R, t = _host_rig(rig)
+    arrays = {"K": K, "R": R, "t": t}
+    size = _check_image_size(image_size, "image_size")
+    dist = _check_dist(dist, K.shape[0])
+    if size is not None:
+        arrays["image_size"] = np.asarray(size, dtype=np.int64)
+    if dist is not None:
+        arrays["dist"] = dist
+    with open(path, "wb") as f:  # a file object: np.savez would append ".npz" to a str path
+        np.savez(f, **arrays)
+
+
+def save_rig_easyvis(folder: PathLike, rig: Rig) -> None:
+    """Write ``rig`` (``K, R (M, 3, 3)``, ``t (M, 3)``) as ``K{i}.txt``, ``R{i}.txt`` and
+    ``T{i}.txt`` (``[[x], [y], [z]]``) Python-literal files in ``folder`` (created if needed).
+
+    The format has no image size and no distortion. Raises ``ValueError`` if the folder
+    already holds a ``K/R/T{i}.txt`` with ``i >= M``, which would be read as an extra view.
+    """
+    K, R, t = _host_rig(rig)
+    folder = os.fspath(folder)
+    os.makedirs(folder, exist_ok=True)
+    M = K.shape[0]
+    stale = sorted(name for name, _, i in _easyvis_files(folder) if i >= M)
+    if stale:
+        raise ValueError(f"{folder}: holds {stale[0]}, beyond the {M} views of the rig; remove it or use an empty folder")
+    for m in range(M):
+        for name, a in (("K", K[m]), ("R", R[m]), ("T", t[m][:, None])):
+            with open(os.path.join(folder, f"{name}{m}.txt"), "w", encoding="utf-8") as f:
+                f.write(_literal(a) + "\n")
+
+
+# Readers ---------------------------------------------------------------------------------
+
+
+def _resolve_format(path: str, format: str) -> str:
+    if format in FORMATS:
+        return format
+    if format != "auto":
+        raise ValueError(f"{path}: unknown rig format {format!r}; expected 'auto' or one of {FORMATS}")
+    if os.path.isdir(path):
+        return "easyvis"
+    suffix = os.path.splitext(path)[1].lower()
+    if suffix in (".json", ".npz"):
+        return suffix[1:]
+    raise ValueError(
+        f"{path}: cannot tell the rig format; expected a folder (easyvis), a .json or a .npz file "
+        f"(or pass format= one of {FORMATS})"
+    )
+
+
+def _easyvis_files(folder: str) -> list[tuple[str, str, int]]:
+    """``(file name, letter, view index)`` of every ``K/R/T{i}.txt`` in ``folder``."""
+    out = []
+    for name in os.listdir(folder):
+        match = _EASYVIS_FILE.match(name)
+        if match and os.path.isfile(os.path.join(folder, name)):
+            out.append((name, match.group(1), int(match.group(2))))
+    return out
+
+
+def _read_easyvis(folder: str):
+    if not os.path.isdir(folder):
+        raise ValueError(f"{folder}: not a folder (the easyvis format is a folder of K/R/T{{i}}.txt files)")
+    files = _easyvis_files(folder)
+    if not files:
+        raise ValueError(f"{folder}: no K{{i}}.txt, R{{i}}.txt, T{{i}}.txt files (zero views)")
+    present = {(letter, i) for _, letter, i in files}
+    M = max(i for _, _, i in files) + 1
+    for i in range(M):  # views must be 0 … M-1, each with its three files
+        for letter in "KRT":
+            if (letter, i) not in present:
+                found = sorted({i for _, _, i in files})
+                raise ValueError(
+                    f"{folder}: missing {letter}{i}.txt (views must be numbered 0…M-1 with K, R and T "
+                    f"files each; found view indices {found})"
+                )
+    K = np.stack([_read_literal(os.path.join(folder, f"K{i}.txt"), (3, 3)) for i in range(M)])
+    R = np.stack([_read_literal(os.path.join(folder, f"R{i}.txt"), (3, 3)) for i in range(M)])
+    t = np.stack([_read_literal(os.path.join(folder, f"T{i}.txt"), (3,)) for i in range(M)])
+    return K, R, t, None, None
+
+
+def _read_literal(file: str, shape: tuple[int, ...]) -> np.ndarray:
+    """A Python-literal nested list of numbers, checked for shape and finiteness (a ``(3,)``
+    vector may also be written as a ``(3, 1)`` column)."""
+    with open(file, encoding="utf-8") as f:
+        text = f.read()
+    try:
+        value = ast.literal_eval(text.strip())
+    except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError) as e:
+        raise ValueError(f"{file}: not a Python literal ({type(e).__name__}: {e})") from e
+    return _to_array(value, shape, file)
+
+
+def _read_json(path: str):
+    with open(path, encoding="utf-8") as f:
+        try:
+            data = json.load(f)
+        except json.JSONDecodeError as e:
+            raise ValueError(f"{path}: not valid JSON ({e})") from e
+    if not isinstance(data, dict) or "views" not in data:
+        raise ValueError(f'{path}: missing key "views" (expected {{"views": [{{"K", "R", "t"}}, …]}})')
+    views = data["views"]
+    if not isinstance(views, list) or not views:
+        raise ValueError(f'{path}: "views" must be a non-empty list of view objects')
+    K, R, t, dists, sizes = [], [], [], [], []
+    for m, view in enumerate(views):
+        where = f"{path}: view {m}"
+        if not isinstance(view, dict):
+            raise ValueError(f"{where}: expected an object with keys K, R, t; got {type(view).__name__}")  # noqa: TRY004 (bad file content, not a bad argument)
+        for key in ("K", "R", "t"):
+            if key not in view:
+                raise ValueError(f'{where}: missing key "{key}"')
+        K.append(_to_array(view["K"], (3, 3), f'{where}, key "K"'))
+        R.append(_to_array(view["R"], (3, 3), f'{where}, key "R"'))
+        t.append(_to_array(view["t"], (3,), f'{where}, key "t"'))
+        dists.append(_to_array(view["dist"], (5,), f'{where}, key "dist"') if "dist" in view else None)
+        sizes.append(_check_image_size(view["image_size"], f'{where}, key "image_size"') if "image_size" in view else None)
+    given = {s for s in sizes if s is not None}
+    if len(given) > 1:
+        raise ValueError(f'{path}: views give different "image_size" values {sorted(given)}; expected one for all views')
+    image_size = given.pop() if given else None
+    dist = None
+    if any(d is not None for d in dists):
+        dist = np.stack([np.zeros(5) if d is None else d for d in dists])
+    return np.stack(K), np.stack(R), np.stack(t), image_size, dist
+
+
+def _read_npz(path: str):
+    try:
+        npz = np.load(path, allow_pickle=False)
+    except (ValueError, OSError) as e:
+        if isinstance(e, FileNotFoundError):
+            raise
+        raise ValueError(f"{path}: not a readable .npz file ({e})") from e
+    with npz:
+        for key in ("K", "R", "t"):
+            if key not in npz.files:
+                raise ValueError(f'{path}: missing array "{key}" (expected K (M, 3, 3), R (M, 3, 3), t (M, 3))')
+        K = _npz_array(npz, "K", path)
+        M = K.shape[0] if K.ndim == 3 else -1
+        if K.ndim != 3 or K.shape[1:] != (3, 3) or M == 0:
+            raise ValueError(f'{path}: array "K": expected shape (M, 3, 3) with M >= 1; got {K.shape}')
+        R = _npz_array(npz, "R", path)
+        t = _npz_array(npz, "t", path)
+        if t.shape == (M, 3, 1):
+            t = t[..., 0]
+        for key, a, shape in (("R", R, (M, 3, 3)), ("t", t, (M, 3))):
+            if a.shape != shape:
+                raise ValueError(f'{path}: array "{key}": expected shape {shape} (M={M} from K); got {a.shape}')
+        dist = None
+        if "dist" in npz.files:
+            dist = _npz_array(npz, "dist", path)
+            if dist.shape != (M, 5):
+                raise ValueError(f'{path}: array "dist": expected shape {(M, 5)} (M={M} from K); got {dist.shape}')
+        image_size = None
+        if "image_size" in npz.files:
+            image_size = _check_image_size(npz["image_size"].tolist(), f'{path}: array "image_size"')
+    for key, a in (("K", K), ("R", R), ("t", t), ("dist", dist)):
+        if a is not None:
+            bad = ~np.isfinite(a).reshape(M, -1).all(axis=1)
+            if bad.any():
+                raise ValueError(f'{path}: array "{key}", view {int(np.argmax(bad))}: non-finite entries')
+    return K, R, t, image_size, dist
+
+
+def _npz_array(npz, key: str, path: str) -> np.ndarray:
+    a = npz[key]
+    if not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer)):
+        raise ValueError(f'{path}: array "{key}": expected real numbers; got dtype {a.dtype}')
+    return a.astype(np.float64)
+
+
+def _to_array(value: Any, shape: tuple[int, ...], where: str) -> np.ndarray:
+    """Nested lists of real numbers (no strings, no booleans) as a float64 array of ``shape``;
+    a ``(3,)`` vector may come as a ``(3, 1)`` column."""
+
+    def check(v):
+        if isinstance(v, (list, tuple)):
+            return [check(x) for x in v]
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ValueError(f"{where}: expected a nested list of numbers; found {v!r}")  # noqa: TRY004
+        return float(v)
+
+    try:
+        a = np.array(check(value), dtype=np.float64)
+    except ValueError as e:
+        if str(e).startswith(where):
+            raise
+        raise ValueError(f"{where}: expected a nested list of numbers of shape {shape}; got ragged lists") from e
+    if shape == (3,) and a.shape == (3, 1):
+        a = a[:, 0]
+    if a.shape != shape:
+        expected = f"{shape}" + (" or (3, 1)" if shape == (3,) else "")
+        raise ValueError(f"{where}: expected shape {expected}; got {a.shape}")
+    if not np.isfinite(a).all():
+        raise ValueError(f"{where}: non-finite entries")
+    return a
+
+
+def _check_image_size(size: Any, where: str) -> tuple[int, int] | None:
+    if size is None:
+        return None
+    values = list(size) if isinstance(size, (list, tuple, np.ndarray)) else [size]
+    ok = len(values) == 2 and all(
+        not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating)) and float(v).is_integer() and v >= 1
+        for v in values
+    )
+    if not ok:
+        raise ValueError(f"{where}: expected (width, height), two positive integers; got {size!r}")
+    return int(values[0]), int(values[1])
+
+
+# Writers ---------------------------------------------------------------------------------
+
+
+def _host_rig(rig: Rig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The rig as float64 host arrays (exact widening), checked to be one finite rig."""
+    K, R, t = (np.asarray(a, dtype=np.float64) for a in (rig.K, rig.R, rig.t))
+    if K.ndim != 3:
+        raise ValueError(f"expected one rig with K of shape (M, 3, 3); got {K.shape} (a batch of rigs?)")
+    for name, a in (("K", K), ("R", R), ("t", t)):
+        if not np.isfinite(a).all():
+            raise ValueError(f"{name} has non-finite entries; cannot write it")
+    return K, R, t
+
+
+def _check_dist(dist: Any, M: int) -> np.ndarray | None:
+    if dist is None:
+        return None
+    dist = np.asarray(dist, dtype=np.float64)
+    if dist.shape != (M, 5):
+        raise ValueError(f"dist must have shape (M, 5) = {(M, 5)}; got {dist.shape}")
+    if not np.isfinite(dist).all():
+        raise ValueError("dist has non-finite entries; cannot write it")
+    return dist
+
+
+def _literal(a: np.ndarray) -> str:
+    """A float64 array as a Python-literal nested list, every number as its exact ``repr``."""
+    if a.ndim == 1:
+        return "[" + ", ".join(repr(float(x)) for x in a) + "]"
+    return "[" + ", ".join(_literal(row) for row in a) + "]"
