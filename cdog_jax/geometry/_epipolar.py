@@ -59,12 +59,15 @@ def epipolar_distances(
     K_inv = jnp.linalg.inv(rig.K)
     rays = jnp.einsum("mab,mib->mia", K_inv, homogeneous_from_points(xy))  # (M, P, 3)
     lines_hat = jnp.einsum("mnab,mib->mina", essential_from_rig(rig), rays)  # (M, P, M, 3)
-    num = jnp.abs(jnp.einsum("mina,nja->minj", lines_hat, rays))  # (M, P, M, P)
     lines_px = jnp.einsum("nba,minb->mina", K_inv, lines_hat)  # K_n^{-T} l̂, (M, P, M, 3)
     line_norm_sq = lines_px[..., 0] ** 2 + lines_px[..., 1] ** 2  # (M, P, M)
     ok_line = line_norm_sq > jnp.finfo(xy.dtype).tiny
     inv_norm = jnp.where(ok_line, 1.0 / jnp.sqrt(jnp.where(ok_line, line_norm_sq, 1.0)), 0.0)
-    d = num * inv_norm[..., None]
+    lines = lines_hat * inv_norm[..., None]  # scaled so that l · x̂_n is in pixels
+    # Three broadcast products rather than an einsum: XLA fuses them with the masking
+    # below into one pass over the (M, P, M, P) table (twice as fast on CPU).
+    r = rays[None, None]  # (1, 1, M, P, 3)
+    d = jnp.abs(sum(lines[..., k, None] * r[..., k] for k in range(3)))
     views = jnp.arange(M, dtype=jnp.int32)
     ok = (
         mask[:, :, None, None]

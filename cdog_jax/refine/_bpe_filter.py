@@ -6,27 +6,45 @@ it and larger than an absolute floor ``floor_px2 + (floor_sigma · σ)²``; ever
 it is discarded.
 """
 
+import jax
 import jax.numpy as jnp
 
 from .._config import Thresholds
-from .._types import Array, Bool, Float
+from .._types import Array, Bool, Float, Int
 
 
-def _prefix_medians(x: Float[Array, " K"]) -> Float[Array, " K"]:
-    """``med[i] = median(x[:i])`` (``+inf`` for ``i = 0``) without sorting every prefix: sort
-    once, then the r-th smallest of a prefix is where the prefix's running count in sorted
-    order reaches ``r + 1``."""
+PREFIX_CHUNK = 64
+"""Prefixes whose median :func:`_prefix_medians` computes together (static)."""
+
+
+def _prefix_medians(x: Float[Array, " K"], n: Int[Array, ""]) -> Float[Array, " K"]:
+    """``med[i] = median(x[:i])`` for ``0 < i < n``; ``+inf`` for ``i = 0`` and ``i >= n``.
+
+    Without sorting every prefix: sort once; the r-th smallest of a prefix is where the
+    prefix's running count in sorted order reaches ``r + 1``. The prefixes are visited
+    ``PREFIX_CHUNK`` at a time and only up to ``n``, so the cost is ``O(n K)``, not ``O(K²)``
+    (``K`` is the static group capacity, ``n`` the groups that exist).
+    """
     K = x.shape[0]
+    C = min(PREFIX_CHUNK, K)
+    K_pad = -(-K // C) * C
     order = jnp.argsort(x, stable=True).astype(jnp.int32)
     xs = x[order]
+
+    def chunk(start, med):
+        i = start + jnp.arange(C, dtype=jnp.int32)  # (C,) prefix lengths
+        counts = jnp.cumsum(order[None, :] < i[:, None], axis=1, dtype=jnp.int32)  # (C, K)
+
+        def kth(r):
+            return xs[jnp.argmax(counts >= (r + 1)[:, None], axis=1)]
+
+        m = 0.5 * (kth(jnp.maximum(i - 1, 0) // 2) + kth(i // 2))
+        return start + C, jax.lax.dynamic_update_slice_in_dim(med, m, start, 0)
+
+    med = jnp.full((K_pad,), jnp.inf, x.dtype)
+    _, med = jax.lax.while_loop(lambda c: c[0] < jnp.minimum(n, K), lambda c: chunk(*c), (jnp.int32(0), med))
     i = jnp.arange(K, dtype=jnp.int32)
-    counts = jnp.cumsum(order[None, :] < i[:, None], axis=1, dtype=jnp.int32)  # (K, K)
-
-    def kth(r):
-        return xs[jnp.argmax(counts >= (r + 1)[:, None], axis=1)]
-
-    med = 0.5 * (kth(jnp.maximum(i - 1, 0) // 2) + kth(i // 2))
-    return jnp.where(i > 0, med, jnp.inf)
+    return jnp.where((i > 0) & (i < n), med[:K], jnp.inf)
 
 
 def bpe_jump_keep(
@@ -42,7 +60,7 @@ def bpe_jump_keep(
     count = jnp.sum(valid, dtype=jnp.int32)
     gaps = b[1:] - b[:-1]  # (G-1,), meaningful for i < count - 1
     i = jnp.arange(G - 1, dtype=jnp.int32)
-    med = _prefix_medians(gaps)
+    med = _prefix_medians(gaps, count - 1)
     floor = th.jump_floor_px2 + (th.jump_floor_sigma * sigma_px) ** 2
     jump = (i >= min_gaps) & (i < count - 1) & (gaps > th.jump_kappa * med) & (gaps > floor)
     first = jnp.where(jnp.any(jump), jnp.argmax(jump).astype(jnp.int32), G)

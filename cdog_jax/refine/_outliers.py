@@ -82,6 +82,10 @@ def iqr_outliers(
     return out
 
 
+IQR_CHUNK = 16
+"""Groups processed together by :func:`remove_outliers` (static)."""
+
+
 def remove_outliers(
     rig: Rig,
     N_g: Float[Array, "G M 3 3"],
@@ -96,8 +100,16 @@ def remove_outliers(
 
     Per group ``N_g (G, M, 3, 3)``, ``r_g (G, M, 3)`` DLT blocks, ``xy_g (G, M, 2)`` pixels,
     ``member (G, M)``. Groups left with < 2 members dissolve (all False).
+
+    Groups are independent, so only those with ≥ 3 members are visited: they are moved to
+    the front and cleaned ``IQR_CHUNK`` at a time, each chunk iterated until none of its
+    groups changes (at most ``config.max_iqr_iters`` rounds). The static capacity ``G`` is
+    far larger than the number of real groups, so this costs what the real groups cost.
     """
     own = config.iqr_score == "include_own"
+    G, M = member.shape
+    C = min(IQR_CHUNK, G)
+    G_pad = -(-G // C) * C
 
     def one_group(N, r, xy, mem):
         big = jnp.sum(mem, dtype=jnp.int32) >= 3
@@ -106,15 +118,37 @@ def remove_outliers(
         out = iqr_outliers(score, mem, th, config) & big
         return mem & ~out
 
-    def cond(carry):
-        _, changed, it = carry
-        return changed & (it < config.max_iqr_iters)
+    def clean_chunk(N, r, xy, mem):
+        def cond(carry):
+            _, changed, it = carry
+            return changed & (it < config.max_iqr_iters)
 
-    def body(carry):
-        mem, _, it = carry
-        new = jax.vmap(one_group)(N_g, r_g, xy_g, mem)
-        new = new & (jnp.sum(new, dtype=jnp.int32, axis=1, keepdims=True) >= 2)
-        return new, jnp.any(new != mem), it + 1
+        def body(carry):
+            mem, _, it = carry
+            new = jax.vmap(one_group)(N, r, xy, mem)
+            new = new & (jnp.sum(new, dtype=jnp.int32, axis=1, keepdims=True) >= 2)
+            return new, jnp.any(new != mem), it + 1
 
-    member, _, _ = jax.lax.while_loop(cond, body, (member, jnp.bool_(True), jnp.int32(0)))
-    return member
+        return jax.lax.while_loop(cond, body, (mem, jnp.bool_(True), jnp.int32(0)))[0]
+
+    big = jnp.sum(member, dtype=jnp.int32, axis=1) >= 3
+    order = jnp.argsort(~big, stable=True).astype(jnp.int32)  # big groups first
+    order = jnp.concatenate([order, jnp.zeros((G_pad - G,), jnp.int32)])
+    live = jnp.arange(G_pad, dtype=jnp.int32) < jnp.sum(big, dtype=jnp.int32)
+    N_s, r_s, xy_s = N_g[order], r_g[order], xy_g[order]
+    mem_s = member[order] & live[:, None]
+
+    def chunk_cond(carry):
+        start, _ = carry
+        return (start < G_pad) & live[jnp.minimum(start, G_pad - 1)]
+
+    def chunk_body(carry):
+        start, mem_s = carry
+        take = lambda a: jax.lax.dynamic_slice_in_dim(a, start, C)  # noqa: E731
+        new = clean_chunk(take(N_s), take(r_s), take(xy_s), take(mem_s))
+        return start + C, jax.lax.dynamic_update_slice_in_dim(mem_s, new, start, 0)
+
+    _, mem_s = jax.lax.while_loop(chunk_cond, chunk_body, (jnp.int32(0), mem_s))
+    cleaned = jnp.zeros((G, M), bool).at[order].max(mem_s & live[:, None])  # padding rows add nothing
+    keep = jnp.where(big[:, None], cleaned, member)  # groups of 2 are left as they are
+    return keep & (jnp.sum(keep, dtype=jnp.int32, axis=1, keepdims=True) >= 2)

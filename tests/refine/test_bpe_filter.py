@@ -1,5 +1,6 @@
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from cdog_jax import Config
 from cdog_jax.refine import bpe_jump_keep
@@ -28,11 +29,13 @@ def test_floor_protects_small_gaps():
     assert keep.all()
 
 
-def test_prefix_medians_match_numpy():
+@pytest.mark.parametrize("n", [0, 1, 40, 129, 150])
+def test_prefix_medians_match_numpy(n):
     from cdog_jax.refine._bpe_filter import _prefix_medians
 
-    x = np.random.default_rng(0).exponential(1.0, 40)
-    x[[3, 7]] = x[5]  # ties
-    got = np.asarray(_prefix_medians(jnp.asarray(x, jnp.float32)))
-    want = np.array([np.inf] + [np.median(x[:i]) for i in range(1, 40)])
+    K = 150  # more than one chunk of prefixes, not a multiple of it
+    x = np.random.default_rng(0).exponential(1.0, K)
+    x[[3, 7, 100]] = x[5]  # ties
+    got = np.asarray(_prefix_medians(jnp.asarray(x, jnp.float32), jnp.int32(n)))
+    want = np.array([np.median(x[:i]) if 0 < i < n else np.inf for i in range(K)])
     assert np.allclose(got, want, rtol=1e-6)
