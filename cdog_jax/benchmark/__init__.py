@@ -10,6 +10,8 @@ from ._grid import scene_keys as scene_keys
 from ._io import load_results as load_results
 from ._io import save_results as save_results
 from ._io import summary_table as summary_table
+from ._sweep import SweepProgress as SweepProgress
 from ._sweep import SweepResult as SweepResult
 from ._sweep import default_mesh as default_mesh
+from ._sweep import print_progress as print_progress
 from ._sweep import sweep as sweep

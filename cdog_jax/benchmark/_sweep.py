@@ -33,7 +33,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import NamedTuple
 
 import jax
@@ -168,6 +168,7 @@ class _Plan:
     draw_capacity: int
     image_size: tuple[int, int]
     mesh: Mesh
+    progress: bool  # compile in a host callback after each bucket
 
 
 def _scene_outputs(rig, box, thresholds, plan, capacity, args):
@@ -201,9 +202,13 @@ def _sweep_body(rig, box, thresholds, buckets, gather, *, plan):
 
     def per_device(rig, box, thresholds, buckets):
         outs = []
-        for (keys, count, sigma), capacity, batch in zip(buckets, plan.capacities, plan.batch_sizes):
+        for b, ((keys, count, sigma), capacity, batch) in enumerate(zip(buckets, plan.capacities, plan.batch_sizes)):
             one = functools.partial(_scene_outputs, rig, box, thresholds, plan, capacity)
-            outs.append(_map(one, (keys, count, sigma), batch))
+            out = _map(one, (keys, count, sigma), batch)
+            if plan.progress:
+                # Depends on the bucket's output, so it runs once the bucket is done.
+                jax.debug.callback(_bucket_done, b, jnp.sum(out[0]))
+            outs.append(out)
         return tuple(outs)
 
     rep, shard = PartitionSpec(), PartitionSpec(AXIS)
@@ -240,6 +245,74 @@ def _compiled(plan: _Plan, args):
     while len(_COMPILED) > _COMPILED_MAX:
         del _COMPILED[next(iter(_COMPILED))]
     return compiled, elapsed
+
+
+# --------------------------------------------------------------------------- progress
+
+
+class SweepProgress(NamedTuple):
+    """What a ``progress`` callback of :func:`sweep` receives after each bucket.
+
+    Attributes:
+        bucket: index of the finished bucket (among the non-empty ones).
+        num_buckets: non-empty buckets in the sweep.
+        capacity: slot capacity of the finished bucket.
+        scenes_done: grid scenes in all finished buckets.
+        num_scenes: grid scenes in the sweep.
+        elapsed_s: seconds since the compiled call started.
+    """
+
+    bucket: int
+    num_buckets: int
+    capacity: int
+    scenes_done: int
+    num_scenes: int
+    elapsed_s: float
+
+
+class _ProgressState:
+    """Host side of the progress callback: the compiled program calls the module-level
+    :func:`_bucket_done` (so a cached executable works for any callback), which counts
+    device reports and forwards finished buckets to the callback of the running sweep."""
+
+    def __init__(self, callback, layout: "_Layout", num_devices: int):
+        self.callback, self.layout, self.num_devices = callback, layout, num_devices
+        self.reports = [0] * len(layout.capacities)
+        self.done = 0
+        self.t0 = time.perf_counter()
+
+    def bucket_done(self, b: int) -> None:
+        self.reports[b] += 1
+        if self.reports[b] != self.num_devices:  # every device reports its shard
+            return
+        self.done += self.layout.members[b].size
+        self.callback(
+            SweepProgress(
+                bucket=b,
+                num_buckets=len(self.layout.capacities),
+                capacity=self.layout.capacities[b],
+                scenes_done=self.done,
+                num_scenes=int(sum(m.size for m in self.layout.members)),
+                elapsed_s=time.perf_counter() - self.t0,
+            )
+        )
+
+
+_ACTIVE_PROGRESS: list[_ProgressState] = []  # the running sweep's state (one at a time)
+
+
+def _bucket_done(bucket, _) -> None:
+    if _ACTIVE_PROGRESS:
+        _ACTIVE_PROGRESS[-1].bucket_done(int(bucket))
+
+
+def print_progress(p: SweepProgress) -> None:
+    """A ``progress`` callback for :func:`sweep` that prints one line per finished bucket."""
+    print(
+        f"  bucket {p.bucket + 1}/{p.num_buckets} (capacity {p.capacity}) done: "
+        f"{p.scenes_done}/{p.num_scenes} scenes, {p.elapsed_s:.1f} s",
+        flush=True,
+    )
 
 
 # --------------------------------------------------------------------------- the public sweep
@@ -330,6 +403,7 @@ def sweep(
     mesh: Mesh | None = None,
     timing: bool = True,
     timing_runs: int = 3,
+    progress: Callable[[SweepProgress], None] | None = None,
 ) -> SweepResult:
     """Generate, associate and score every scene of ``grid`` in one compiled call.
 
@@ -351,6 +425,10 @@ def sweep(
         mesh: a one-axis ``Mesh`` named ``"scenes"``; default all devices.
         timing: estimate per-scene association time afterwards (module docstring).
         timing_runs: timed runs per chunk (the median is kept).
+        progress: called on the host with a :class:`SweepProgress` each time a bucket
+            finishes, while the compiled call runs (e.g. :func:`print_progress`). Buckets
+            are the only points where the one compiled call reports back; a sweep with
+            and one without progress are two programs (each compiled once).
 
     Returns:
         A :class:`SweepResult` with ``(S,)`` arrays in :meth:`Grid.flat` order.
@@ -384,6 +462,7 @@ def sweep(
         draw_capacity=grid.capacity,
         image_size=tuple(int(v) for v in image_size),
         mesh=mesh,
+        progress=progress is not None,
     )
     values = list(configs.values())
     thresholds = tuple(
@@ -397,8 +476,15 @@ def sweep(
         jax.device_put(layout.gather, replicated),
     )
     compiled, compile_s = _compiled(plan, args)
+    if progress is not None:
+        _ACTIVE_PROGRESS.append(_ProgressState(progress, layout, int(mesh.devices.size)))
     t0 = time.perf_counter()
-    num_points, per_group = jax.device_get(compiled(*args))
+    try:
+        num_points, per_group = jax.device_get(compiled(*args))
+        jax.effects_barrier()  # every progress callback has run
+    finally:
+        if progress is not None:
+            _ACTIVE_PROGRESS.pop()
     wall_s = time.perf_counter() - t0
 
     t0 = time.perf_counter()

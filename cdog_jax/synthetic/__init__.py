@@ -8,3 +8,5 @@ from ._rig import negate_intrinsics as negate_intrinsics
 from ._scene import Scene as Scene
 from ._scene import generate_scene as generate_scene
 from ._scene import generate_scenes as generate_scenes
+from ._box import intrinsics_image_size as intrinsics_image_size
+from ._box import visible_box as visible_box

@@ -2,6 +2,8 @@
 
 import os
 
+import numpy as np
+
 from cdog_jax._cli import main
 from cdog_jax.benchmark import load_results
 
@@ -25,3 +27,38 @@ def test_unknown_method_is_refused(capsys):
     except SystemExit as e:
         assert e.code == 2
     assert "methods must be a comma list" in capsys.readouterr().err
+
+
+def test_benchmark_on_a_rig_file(tmp_path, capsys):
+    from cdog_jax.io import save_rig_easyvis
+    from cdog_jax.synthetic import default_rig, visible_box
+
+    rig = default_rig().select([0, 1, 2, 3])
+    save_rig_easyvis(tmp_path / "rig", rig)
+    out = tmp_path / "bench"
+    argv = ["benchmark", "--quick", "--rig", str(tmp_path / "rig"), "--sigmas", "1", "--counts", "4", "--scenes", "1"]
+    argv += ["--methods", "paper", "--no-figures", "--no-timing", "--out", out]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "(4 views); image 640×480 px (guessed from K's principal points)" in text, text
+    assert "(the region ≥ 2 of the views see)" in text
+    assert "bucket 1/1 (capacity 4) done: 1/1 scenes" in text  # the progress display
+    result = load_results(out)
+    np.testing.assert_array_equal(result.rig["K"], np.asarray(rig.K))
+    np.testing.assert_allclose(np.asarray(result.box), visible_box(rig, (640, 480)), rtol=1e-6)
+    assert result.num_points[0] == 4
+
+
+def test_benchmark_rig_file_with_explicit_box(tmp_path, capsys):
+    from cdog_jax.io import save_rig_json
+    from cdog_jax.synthetic import default_rig
+
+    save_rig_json(tmp_path / "rig.json", default_rig().select([0, 1, 2, 3]), image_size=(640, 480))
+    out = tmp_path / "bench"
+    argv = ["benchmark", "--quick", "--rig", str(tmp_path / "rig.json"), "--sigmas", "1", "--counts", "4"]
+    argv += ["--scenes", "1", "--methods", "paper", "--no-figures", "--no-timing", "--out", out]
+    argv += ["--box", "-0.5", "-0.5", "0", "0.5", "0.5", "0.4"]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "image 640×480 px (the rig file)" in text and "(--box)" in text
+    np.testing.assert_allclose(load_results(out).box, [[-0.5, -0.5, 0.0], [0.5, 0.5, 0.4]], rtol=1e-6)

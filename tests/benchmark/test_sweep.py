@@ -37,10 +37,13 @@ import jax
 jax.config.update("jax_numpy_rank_promotion", "raise")
 jax.config.update("jax_numpy_dtype_promotion", "strict")
 from cdog_jax import Config
-from cdog_jax.benchmark import Grid, save_results, sweep
+from cdog_jax.benchmark import Grid, print_progress, save_results, sweep
 from cdog_jax.synthetic import default_rig
 assert jax.device_count() == 4, jax.devices()
-result = sweep(default_rig(), {grid!r}, configs={configs!r}, buckets=(16,), batch_size={batch}, timing=False)
+result = sweep(
+    default_rig(), {grid!r}, configs={configs!r}, buckets=(16,), batch_size={batch}, timing=False,
+    progress=print_progress,
+)
 save_results(result, sys.argv[1])
 """
 
@@ -141,7 +144,13 @@ def test_sweep_equals_per_scene_calls(rig, padded):
 
 def test_bucketed_equals_padded_to_max(rig, padded):
     # batch 1: the plain-scan path (the CPU default), against the vmapped one of `padded`.
-    bucketed = sweep(rig, GRID, configs=CONFIGS, buckets=(8, 16), batch_size=1, timing=False)
+    events = []
+    bucketed = sweep(rig, GRID, configs=CONFIGS, buckets=(8, 16), batch_size=1, timing=False, progress=events.append)
+    # One report per bucket, after it finished, counting the grid scenes done so far.
+    assert sorted(e.capacity for e in events) == [8, 16]
+    assert [e.scenes_done for e in events][-1] == GRID.num_scenes
+    sizes = {c: int(np.sum(bucketed.capacity == c)) for c in (8, 16)}
+    assert events[0].scenes_done == sizes[events[0].capacity] and all(e.num_buckets == 2 for e in events)
     np.testing.assert_array_equal(bucketed.capacity, np.where(GRID.flat().count <= 8, 8, 16))
     np.testing.assert_array_equal(bucketed.num_points, padded.num_points)
     _assert_same_metrics(bucketed, padded, exact=False)
@@ -152,6 +161,9 @@ def test_sharded_equals_unsharded(padded, sharded_run):
     proc, out = sharded_run
     assert proc.wait(timeout=300) == 0, (out / "stderr.txt").read_text()[-3000:]
     sharded = load_results(out / "results")
+    log = (out / "stderr.txt").read_text()
+    # The four devices' reports make one progress line.
+    assert log.count("bucket 1/1 (capacity 16) done: 12/12 scenes") == 1, log[-3000:]
     assert sharded.num_devices == 4 and "4 × cpu" in sharded.device
     np.testing.assert_array_equal(sharded.num_points, padded.num_points)
     _assert_same_metrics(sharded, padded, exact=True)

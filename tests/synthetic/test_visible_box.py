@@ -14,7 +14,8 @@ from cdog_jax.synthetic import (
     generate_scene,
     negate_intrinsics,
 )
-from cdog_jax.synthetic._box import _seen, intrinsics_image_size, visible_box
+from cdog_jax.synthetic import intrinsics_image_size, visible_box
+from cdog_jax.synthetic._box import _seen
 
 LO, HI = (np.asarray(c) for c in DEFAULT_BOX)
 

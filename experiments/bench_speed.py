@@ -1,0 +1,164 @@
+"""Speed of the benchmark sweep and of one scene (issue 3, item 8).
+
+Questions:
+
+1. How long does the full SPEC §3 grid (21 σ × 42 counts × 5 scenes = 4,410 scenes,
+   10 views, generate + associate + score) take in one ``sweep`` call, cold (a fresh
+   process: trace + compile + run) and warm (the same call again), and how much memory?
+2. How does the time of one scene grow with its point count (warm; compile apart)?
+
+Each full-grid run is a fresh Python process (so "cold" really compiles from nothing; no
+persistent compilation cache) that calls ``sweep(default_rig(), Grid.paper(), configs=…,
+timing=False)`` once cold and ``--warm`` times warm. Reported: medians over ``--runs``
+processes of the cold call (wall, of which compile), the warm call, the throughput, and
+the process's peak RSS (``ru_maxrss``; device memory too on a GPU).
+Single scenes: ``associate`` on one scene of each count at σ = 1, capacity = count, the
+median of ``--single-runs`` warm calls.
+
+Usage: ``python experiments/bench_speed.py [--runs 3] [--methods paper] [--quick]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+SINGLE_COUNTS = (5, 10, 20, 40, 70, 100, 130)
+
+
+def _child(methods: list[str], quick: bool, warm_runs: int) -> dict:
+    """One process: the cold call, then ``warm_runs`` warm calls; returns the timings."""
+    t_start = time.perf_counter()
+    import jax
+
+    from cdog_jax.benchmark import Grid, sweep
+    from cdog_jax.benchmark._command import METHODS
+    from cdog_jax.synthetic import default_rig
+
+    grid = Grid.quick() if quick else Grid.paper()
+    configs = {name: METHODS[name]() for name in methods}
+    rig = default_rig()
+    t0 = time.perf_counter()
+    cold = sweep(rig, grid, configs=configs, timing=False)
+    cold_s = time.perf_counter() - t0
+    warm = []
+    for _ in range(warm_runs):
+        t0 = time.perf_counter()
+        sweep(rig, grid, configs=configs, timing=False)
+        warm.append(time.perf_counter() - t0)
+    out = {
+        "scenes": grid.num_scenes,
+        "cold_s": cold_s,
+        "compile_s": cold.compile_s,
+        "warm_s": float(np.median(warm)),
+        "process_s": time.perf_counter() - t_start,
+        "rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6,  # KiB on Linux
+        "device": cold.device,
+        "pg_f1": {name: float(np.mean(cold.metrics[name]["pg_f1"])) for name in configs},
+    }
+    stats = jax.devices()[0].memory_stats() if jax.default_backend() != "cpu" else None
+    if stats:
+        out["device_peak_gb"] = stats.get("peak_bytes_in_use", 0) / 1e9
+    return out
+
+
+def full_grid(methods: list[str], runs: int, quick: bool, warm_runs: int) -> list[dict]:
+    """``runs`` fresh processes of :func:`_child`; their JSON reports."""
+    reports = []
+    for r in range(runs):
+        cmd = [sys.executable, __file__, "--_child", "--methods", ",".join(methods), "--warm", str(warm_runs)]
+        if quick:
+            cmd.append("--quick")
+        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        if proc.returncode != 0:
+            raise RuntimeError(f"run {r} failed:\n{proc.stderr[-3000:]}")
+        reports.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+        rep = reports[-1]
+        print(
+            f"  run {r + 1}/{runs}: cold {rep['cold_s']:.1f} s (compile {rep['compile_s']:.1f} s), "
+            f"warm {rep['warm_s']:.1f} s, peak RSS {rep['rss_gb']:.2f} GB",
+            flush=True,
+        )
+    return reports
+
+
+def single_scene(methods: list[str], counts=SINGLE_COUNTS, runs: int = 7) -> list[tuple]:
+    """``(method, count, compile_s, warm_s)`` for one scene of each count."""
+    import jax
+
+    import cdog_jax
+    from cdog_jax.benchmark._command import METHODS
+    from cdog_jax.synthetic import default_rig, generate_scene
+
+    rig = default_rig()
+    rows = []
+    for name in methods:
+        config = METHODS[name]()
+        for n in counts:
+            scene = generate_scene(jax.random.PRNGKey(n), rig, n, 1.0, capacity=n)
+
+            def call():
+                return jax.block_until_ready(cdog_jax.associate(rig, scene.xy, scene.mask, config=config, sigma=1.0))
+
+            t0 = time.perf_counter()
+            call()
+            first = time.perf_counter() - t0
+            times = []
+            for _ in range(runs):
+                t0 = time.perf_counter()
+                call()
+                times.append(time.perf_counter() - t0)
+            warm = float(np.median(times))
+            rows.append((name, n, first - warm, warm))
+    return rows
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--runs", type=int, default=3, help="fresh processes for the full grid (default 3)")
+    parser.add_argument("--warm", type=int, default=3, help="warm calls per process (median kept)")
+    parser.add_argument("--single-runs", type=int, default=7)
+    parser.add_argument("--methods", default="paper", help="comma list of cdog-jax benchmark methods")
+    parser.add_argument("--quick", action="store_true", help="the --quick grid instead of the full one")
+    parser.add_argument("--skip-grid", action="store_true")
+    parser.add_argument("--skip-single", action="store_true")
+    parser.add_argument("--_child", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    if args._child:
+        print(json.dumps(_child(methods, args.quick, args.warm)))
+        return
+
+    import jax
+
+    print(f"JAX {jax.__version__} on {jax.default_backend()} ({jax.device_count()} device(s)); methods {methods}")
+    if not args.skip_grid:
+        print(f"Full grid, {args.runs} fresh processes:", flush=True)
+        reps = full_grid(methods, args.runs, args.quick, args.warm)
+        med = {k: float(np.median([r[k] for r in reps])) for k in ("cold_s", "compile_s", "warm_s", "rss_gb", "process_s")}
+        scenes = reps[0]["scenes"]
+        print(f"\n| grid ({scenes} scenes, {reps[0]['device']}) | median of {len(reps)} |\n|---|---|")
+        print(f"| cold call (trace + compile + run) | {med['cold_s']:.1f} s |")
+        print(f"| of which compile | {med['compile_s']:.1f} s |")
+        print(f"| warm call | {med['warm_s']:.1f} s |")
+        print(f"| throughput, warm | {scenes / med['warm_s']:.0f} scenes/s ({1000 * med['warm_s'] / scenes:.2f} ms/scene) |")
+        print(f"| whole process (imports included) | {med['process_s']:.1f} s |")
+        print(f"| peak RSS | {med['rss_gb']:.2f} GB |")
+        if "device_peak_gb" in reps[0]:
+            print(f"| peak device memory | {np.median([r['device_peak_gb'] for r in reps]):.2f} GB |")
+        print("| mean PG-F1 over the grid | " + ", ".join(f"{k} {v:.3f}" for k, v in reps[0]["pg_f1"].items()) + " |")
+    if not args.skip_single:
+        print(f"\nSingle scene, σ = 1 px, capacity = count, median of {args.single_runs} warm calls:")
+        print("| method | points | compile (s) | warm (ms) |\n|---|---|---|---|")
+        for name, n, compile_s, warm_s in single_scene(methods, runs=args.single_runs):
+            print(f"| {name} | {n} | {compile_s:.2f} | {1000 * warm_s:.1f} |")
+
+
+if __name__ == "__main__":
+    main()
