@@ -15,7 +15,8 @@ the process's peak RSS (``ru_maxrss``; device memory too on a GPU).
 Single scenes: ``associate`` on one scene of each count at σ = 1, capacity = count, the
 median of ``--single-runs`` warm calls.
 
-Usage: ``python experiments/bench_speed.py [--runs 3] [--methods paper] [--quick]``.
+Usage: ``python experiments/bench_speed.py [--runs 3] [--methods paper,reference] [--quick]
+[--skip-grid] [--skip-single]``.
 """
 
 from __future__ import annotations
@@ -124,6 +125,7 @@ def main(argv=None) -> None:
     parser.add_argument("--runs", type=int, default=3, help="fresh processes for the full grid (default 3)")
     parser.add_argument("--warm", type=int, default=3, help="warm calls per process (median kept)")
     parser.add_argument("--single-runs", type=int, default=7)
+    parser.add_argument("--single-counts", type=int, nargs="+", default=SINGLE_COUNTS, help="points per single scene")
     parser.add_argument("--methods", default="paper", help="comma list of cdog-jax benchmark methods")
     parser.add_argument("--quick", action="store_true", help="the --quick grid instead of the full one")
     parser.add_argument("--skip-grid", action="store_true")
@@ -156,7 +158,7 @@ def main(argv=None) -> None:
     if not args.skip_single:
         print(f"\nSingle scene, σ = 1 px, capacity = count, median of {args.single_runs} warm calls:")
         print("| method | points | compile (s) | warm (ms) |\n|---|---|---|---|")
-        for name, n, compile_s, warm_s in single_scene(methods, runs=args.single_runs):
+        for name, n, compile_s, warm_s in single_scene(methods, tuple(args.single_counts), runs=args.single_runs):
             print(f"| {name} | {n} | {compile_s:.2f} | {1000 * warm_s:.1f} |")
 
 

@@ -171,8 +171,10 @@ class _Plan:
     progress: bool  # compile in a host callback after each bucket
 
 
-def _scene_outputs(rig, box, thresholds, plan, capacity, args):
-    """Generate one scene, run every config on it and score it."""
+def _scene_outputs(rig, box, thresholds, plan, capacity, batch, args):
+    """Generate one scene, run every config on it and score it. Configs that differ only
+    in numbers share one traced pipeline, mapped over their thresholds like scenes are
+    (``batch = 1``: a scan, ~9× faster on CPU than vmapped while loops; else vmapped)."""
     key, count, sigma = args
     scene = generate_scene(key, rig, count, sigma, capacity=plan.draw_capacity, box=box, image_size=plan.image_size)
     scene = compact_scene(scene, capacity=capacity)
@@ -185,7 +187,9 @@ def _scene_outputs(rig, box, thresholds, plan, capacity, args):
 
         if len(members) == 1:
             out = jax.tree.map(lambda a: a[None], run(jax.tree.map(lambda a: a[0], th)))
-        else:  # configs that differ only in numbers: one pipeline, vmapped over thresholds
+        elif batch == 1:
+            out = jax.lax.map(run, th)
+        else:
             out = jax.vmap(run)(th)
         per_group.append(out)
     return scene.num_points, tuple(per_group)
@@ -203,7 +207,7 @@ def _sweep_body(rig, box, thresholds, buckets, gather, *, plan):
     def per_device(rig, box, thresholds, buckets):
         outs = []
         for b, ((keys, count, sigma), capacity, batch) in enumerate(zip(buckets, plan.capacities, plan.batch_sizes)):
-            one = functools.partial(_scene_outputs, rig, box, thresholds, plan, capacity)
+            one = functools.partial(_scene_outputs, rig, box, thresholds, plan, capacity, batch)
             out = _map(one, (keys, count, sigma), batch)
             if plan.progress:
                 # Depends on the bucket's output, so it runs once the bucket is done.
@@ -415,7 +419,7 @@ def sweep(
             Each scene gets ``config.thresholds(σ)`` with its true σ (configs with
             ``sigma_mode="auto"`` estimate it themselves). Numeric config fields are traced:
             changing only them reuses the compiled program, and configs that differ only
-            in numbers (a tuning grid) share one pipeline, vmapped over their thresholds.
+            in numbers (a tuning grid) share one pipeline, mapped over their thresholds.
         buckets: increasing slot capacities; a scene runs at the smallest one ``>=`` its
             count. The largest must hold the largest count.
         batch_size: scenes per ``lax.map`` step on each device (vmapped); one int or one
@@ -451,7 +455,7 @@ def sweep(
         raise ValueError(f"box must be two (3,) corners; got shape {box.shape}")
 
     layout = _layout(grid, buckets, batch_size, mesh.devices.size, dtype)
-    # Configs that share a structure share one traced pipeline (vmapped over thresholds).
+    # Configs that share a structure share one traced pipeline (mapped over their thresholds).
     groups: dict[Config, list[int]] = {}
     for i, config in enumerate(configs.values()):
         groups.setdefault(config.structure(), []).append(i)

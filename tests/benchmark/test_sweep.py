@@ -19,7 +19,7 @@ from cdog_jax.metrics import scene_metrics
 from cdog_jax.synthetic import default_rig, generate_scene
 
 GRID = Grid(sigmas=(0.5, 3.0), counts=(3, 7, 12), scenes=2, seed=3, views=(0, 1, 2, 3, 4), capacity=16)
-# Same structure, other numbers: the sweep runs both through one pipeline vmapped over
+# Same structure, other numbers: the sweep runs both through one pipeline mapped over
 # thresholds, per-scene calls run them one by one.
 CONFIGS = {"paper": Config.paper(), "loose": Config.paper(delta=0.3, alpha_tau=3.0)}
 BATCH = 2
