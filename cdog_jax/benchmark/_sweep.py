@@ -39,6 +39,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.experimental import io_callback
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from .._config import Config
@@ -206,13 +207,17 @@ def _sweep_body(rig, box, thresholds, buckets, gather, *, plan):
 
     def per_device(rig, box, thresholds, buckets):
         outs = []
+        # With progress, buckets are chained through the report's (always 0) return value:
+        # a report needs its bucket's output and the next bucket needs the report, so XLA
+        # can neither run the reports at the end nor reorder the buckets.
+        token = jnp.int32(0)
         for b, ((keys, count, sigma), capacity, batch) in enumerate(zip(buckets, plan.capacities, plan.batch_sizes)):
             one = functools.partial(_scene_outputs, rig, box, thresholds, plan, capacity, batch)
-            out = _map(one, (keys, count, sigma), batch)
+            num_points, per_group = _map(one, (keys, count + token, sigma), batch)
             if plan.progress:
-                # Depends on the bucket's output, so it runs once the bucket is done.
-                jax.debug.callback(_bucket_done, b, jnp.sum(out[0]))
-            outs.append(out)
+                token = io_callback(_bucket_done, jax.ShapeDtypeStruct((), jnp.int32), b, jnp.sum(num_points))
+                num_points = num_points + token
+            outs.append((num_points, per_group))
         return tuple(outs)
 
     rep, shard = PartitionSpec(), PartitionSpec(AXIS)
@@ -305,9 +310,10 @@ class _ProgressState:
 _ACTIVE_PROGRESS: list[_ProgressState] = []  # the running sweep's state (one at a time)
 
 
-def _bucket_done(bucket, _) -> None:
+def _bucket_done(bucket, _) -> np.ndarray:
     if _ACTIVE_PROGRESS:
         _ACTIVE_PROGRESS[-1].bucket_done(int(bucket))
+    return np.zeros((), np.int32)
 
 
 def print_progress(p: SweepProgress) -> None:
@@ -484,8 +490,7 @@ def sweep(
         _ACTIVE_PROGRESS.append(_ProgressState(progress, layout, int(mesh.devices.size)))
     t0 = time.perf_counter()
     try:
-        num_points, per_group = jax.device_get(compiled(*args))
-        jax.effects_barrier()  # every progress callback has run
+        num_points, per_group = jax.device_get(compiled(*args))  # after every report
     finally:
         if progress is not None:
             _ACTIVE_PROGRESS.pop()

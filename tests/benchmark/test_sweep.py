@@ -146,11 +146,10 @@ def test_bucketed_equals_padded_to_max(rig, padded):
     # batch 1: the plain-scan path (the CPU default), against the vmapped one of `padded`.
     events = []
     bucketed = sweep(rig, GRID, configs=CONFIGS, buckets=(8, 16), batch_size=1, timing=False, progress=events.append)
-    # One report per bucket, after it finished, counting the grid scenes done so far.
-    assert sorted(e.capacity for e in events) == [8, 16]
-    assert [e.scenes_done for e in events][-1] == GRID.num_scenes
-    sizes = {c: int(np.sum(bucketed.capacity == c)) for c in (8, 16)}
-    assert events[0].scenes_done == sizes[events[0].capacity] and all(e.num_buckets == 2 for e in events)
+    # One report per bucket, in bucket order as each finishes, counting the scenes done.
+    assert [(e.bucket, e.capacity, e.num_buckets) for e in events] == [(0, 8, 2), (1, 16, 2)]
+    assert [e.scenes_done for e in events] == [int(np.sum(bucketed.capacity == 8)), GRID.num_scenes]
+    assert events[0].elapsed_s <= events[1].elapsed_s
     np.testing.assert_array_equal(bucketed.capacity, np.where(GRID.flat().count <= 8, 8, 16))
     np.testing.assert_array_equal(bucketed.num_points, padded.num_points)
     _assert_same_metrics(bucketed, padded, exact=False)
