@@ -1,4 +1,5 @@
-"""Cameras, epipolar geometry, triangulation (SPEC §1, §2.1)."""
+"""Cameras, epipolar geometry, triangulation (SPEC §1, §2.1), and a camera parameterisation
+for optimisation (axis-angle rotations, intrinsics)."""
 
 from ._camera import Rig as Rig, camera_points as camera_points, in_front as in_front, rig_from_arrays as rig_from_arrays
 from ._epipolar import (
@@ -9,3 +10,10 @@ from ._epipolar import (
 from ._homogeneous import homogeneous_from_points as homogeneous_from_points, points_from_homogeneous as points_from_homogeneous
 from ._projection import project as project, reprojection_errors as reprojection_errors
 from ._triangulate import dlt_blocks as dlt_blocks, triangulate as triangulate, triangulate_pairs as triangulate_pairs
+from ._parameters import (
+    CameraParams as CameraParams,
+    params_from_rig as params_from_rig,
+    rig_from_params as rig_from_params,
+    so3_exp as so3_exp,
+    so3_log as so3_log,
+)

@@ -1,7 +1,8 @@
 """Group-level stages: IQR outliers (Alg. 3), BPE jump filter (§IV-E), second association
-(reference), least-squares refinement (optimistix)."""
+(reference), least-squares refinement (optimistix), and the BPE as a differentiable loss."""
 
 from ._bpe_filter import bpe_jump_keep as bpe_jump_keep
 from ._least_squares import refine_points as refine_points
 from ._outliers import iqr_outliers as iqr_outliers, node_scores as node_scores, percentile_linear as percentile_linear, remove_outliers as remove_outliers
 from ._second_association import second_association as second_association
+from ._bpe_loss import bpe as bpe, group_bpe as group_bpe
