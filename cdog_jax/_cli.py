@@ -8,6 +8,8 @@ Subcommands:
                metrics, timings and a PNG figure.
     benchmark  the SPEC §3 grid for several methods in one compiled call → tables, saved
                results, figures (``cdog_jax/benchmark/_command.py``).
+    calibrate  perturb the built-in rig, refine it from associations, before/after table and
+               a convergence figure (``cdog_jax/_calibrate_command.py``).
 """
 
 from __future__ import annotations
@@ -185,7 +187,13 @@ def _add_benchmark(subparsers) -> None:
     add_parser(subparsers)
 
 
-_SUBCOMMANDS = (_add_demo, _add_benchmark)
+def _add_calibrate(subparsers) -> None:
+    from ._calibrate_command import add_parser
+
+    add_parser(subparsers)
+
+
+_SUBCOMMANDS = (_add_demo, _add_benchmark, _add_calibrate)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -70,3 +70,16 @@ def test_plot_association_rejects_batched_result(tiny):
     batched = jax.tree_util.tree_map(lambda a: a[None], result)
     with pytest.raises(ValueError, match="unbatched"):
         plot_association(rig, scene.xy, scene.mask, batched)
+
+
+def test_calibrate_quick_end_to_end(tmp_path, capsys):
+    out = tmp_path / "calibration.png"
+    assert main(["calibrate", "--quick", "--out", out]) == 0
+    text = capsys.readouterr().out
+    row = next(line for line in text.splitlines() if line.startswith("| medium"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    bpe_before, bpe_after = (float(v) for v in cells[4].split(" → "))
+    pg_before, pg_after = (float(v) for v in cells[5].split(" (")[0].split(" → "))
+    assert bpe_after < 0.1 * bpe_before  # the refined rig explains the detections
+    assert pg_after > pg_before + 0.3  # and re-association with it recovers the groups
+    assert out.stat().st_size > 0

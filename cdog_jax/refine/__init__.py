@@ -6,3 +6,12 @@ from ._least_squares import refine_points as refine_points
 from ._outliers import iqr_outliers as iqr_outliers, node_scores as node_scores, percentile_linear as percentile_linear, remove_outliers as remove_outliers
 from ._second_association import second_association as second_association
 from ._bpe_loss import bpe as bpe, group_bpe as group_bpe
+from ._calibration import (
+    CalibrationHistory as CalibrationHistory,
+    RefineInfo as RefineInfo,
+    RigErrors as RigErrors,
+    align_rigs as align_rigs,
+    calibrate as calibrate,
+    refine_rig as refine_rig,
+    rig_errors as rig_errors,
+)
