@@ -117,6 +117,7 @@ def run_experiment(
         return jnp.mean(jax.vmap(one)(batch.xy, batch.mask, batch))
 
     center = np.mean(np.asarray(DEFAULT_BOX), axis=0)
+    pg_f1_truth = float(pg_f1(truth))
     rows = []
     for i, level in enumerate(levels):
         start = perturb_rig(jax.random.fold_in(key_perturb, i), truth, level, center)
@@ -138,7 +139,7 @@ def run_experiment(
                 focal_pct=(100 * float(jnp.mean(jnp.abs(before.focal_rel))), 100 * float(jnp.mean(jnp.abs(after.focal_rel)))),
                 bpe=(float(bpe_start), float(bpe_rounds[-1])),
                 pg_f1=(float(pg_f1(start)), float(pg_f1(refined))),
-                pg_f1_truth=float(pg_f1(truth)),
+                pg_f1_truth=pg_f1_truth,
                 bpe_rounds=np.asarray(bpe_rounds),
                 bpe_start=float(bpe_start),
                 warm_s=warm,

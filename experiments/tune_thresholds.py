@@ -57,12 +57,11 @@ CHUNK = 40  # configs per sweep call (one compiled program, scanned over their t
 
 
 OBJECTIVES = {"mean": ("pg_f1", "mp_f1", "g_f1"), "pg_f1": ("pg_f1",)}
-_objective_fields = OBJECTIVES["mean"]
 
 
-def objective(metrics: dict[str, np.ndarray], where=None) -> float:
-    """Mean over scenes of the objective's metrics (default (PG-F1 + mP-F1 + G-F1) / 3)."""
-    parts = [metrics[f] if where is None else metrics[f][where] for f in _objective_fields]
+def objective(metrics: dict[str, np.ndarray], where=None, fields=OBJECTIVES["mean"]) -> float:
+    """Mean over scenes of the mean of ``fields`` (default (PG-F1 + mP-F1 + G-F1) / 3)."""
+    parts = [metrics[f] if where is None else metrics[f][where] for f in fields]
     return float(np.mean(sum(parts) / len(parts)))
 
 
@@ -81,7 +80,7 @@ def evaluate(configs: dict[str, Config], grid: Grid, buckets) -> dict[str, dict[
     return out
 
 
-def search(space: dict[str, tuple], base: Config, grid: Grid, buckets, top: int):
+def search(space: dict[str, tuple], base: Config, grid: Grid, buckets, top: int, fields=OBJECTIVES["mean"]):
     """Every combination of ``space`` on top of ``base``; returns (best config, ranked rows)."""
     keys = list(space)
     combos = list(itertools.product(*(space[k] for k in keys)))
@@ -89,7 +88,7 @@ def search(space: dict[str, tuple], base: Config, grid: Grid, buckets, top: int)
     metrics = evaluate(configs, grid, buckets)
     default = {k: getattr(base, k) for k in keys}
     rows = sorted(
-        ((objective(metrics[name]), dict(zip(keys, c)), name) for name, c in zip(configs, combos)),
+        ((objective(metrics[name], fields=fields), dict(zip(keys, c)), name) for name, c in zip(configs, combos)),
         # Equal scores (δ values between two attainable overlap ratios tie exactly): prefer
         # the fewest changes from the starting values.
         key=lambda r: (-r[0], sum(r[1][k] != default[k] for k in keys)),
@@ -104,7 +103,7 @@ def search(space: dict[str, tuple], base: Config, grid: Grid, buckets, top: int)
     return configs[rows[0][2]], rows
 
 
-def compare(default: Config, tuned: Config, scenes: int) -> None:
+def compare(default: Config, tuned: Config, scenes: int, fields=OBJECTIVES["mean"]) -> None:
     """Defaults vs tuned on the evaluation grid (seed 0), at σ = 0, 1, 3, 5 and overall."""
     grid = Grid.paper(scenes=scenes)
     metrics = evaluate({"default": default, "tuned": tuned}, grid, (20, 50, 90, 130))
@@ -117,19 +116,19 @@ def compare(default: Config, tuned: Config, scenes: int) -> None:
             m = metrics[name]
             vals = [float(np.mean(m[f] if where is None else m[f][where])) for f in ("pg_f1", "mp_f1", "g_f1")]
             label = "all" if s is None else f"{s:g}"
-            print(f"| {label} | {name} | {vals[0]:.3f} | {vals[1]:.3f} | {vals[2]:.3f} | {objective(m, where):.4f} |")
-    better, reasons = accept(metrics["default"], metrics["tuned"], sigma)
+            print(f"| {label} | {name} | {vals[0]:.3f} | {vals[1]:.3f} | {vals[2]:.3f} | {objective(m, where, fields):.4f} |")
+    better, reasons = accept(metrics["default"], metrics["tuned"], sigma, fields)
     print(f"\nAdopt the tuned values in paper(): {'yes' if better else 'no'} ({'; '.join(reasons)})")
 
 
 TOLERANCE = 0.005
 
 
-def accept(default, tuned, sigma) -> tuple[bool, list[str]]:
+def accept(default, tuned, sigma, fields=OBJECTIVES["mean"]) -> tuple[bool, list[str]]:
     """The rule for changing ``paper()``: the objective improves over the whole evaluation
     grid, and none of PG-F1, mP-F1, G-F1 drops by more than ``TOLERANCE`` at any of
     σ = 0, 1, 3, 5 (a trade of one metric for another is not an improvement)."""
-    gain = objective(tuned) - objective(default)
+    gain = objective(tuned, fields=fields) - objective(default, fields=fields)
     ok, reasons = gain > 0, [f"objective {gain:+.4f}"]
     for s in (0.0, 1.0, 3.0, 5.0):
         where = np.isclose(sigma, s)
@@ -149,22 +148,21 @@ def main(argv=None) -> None:
     parser.add_argument("--top", type=int, default=10)
     parser.add_argument("--objective", choices=tuple(OBJECTIVES), default="mean", help="mean of PG/mP/G-F1, or PG-F1")
     args = parser.parse_args(argv)
-    global _objective_fields
-    _objective_fields = OBJECTIVES[args.objective]
+    fields = OBJECTIVES[args.objective]
 
     grid = Grid(sigmas=TUNING_SIGMAS, counts=TUNING_COUNTS, scenes=args.scenes, seed=args.seed)
     buckets = (20, 60, 130)
     t0 = time.perf_counter()
-    print(f"Tuning split: {grid.num_scenes} scenes (seed {args.seed}); objective: mean of {'/'.join(_objective_fields)}")
+    print(f"Tuning split: {grid.num_scenes} scenes (seed {args.seed}); objective: mean of {'/'.join(fields)}")
     default = Config.paper()
     print(f"Stage 1, the graph ({np.prod([len(v) for v in STAGE1.values()])} configs):")
-    best1, _ = search(STAGE1, default, grid, buckets, args.top)
+    best1, _ = search(STAGE1, default, grid, buckets, args.top, fields)
     print(f"Stage 2, the per-group checks ({np.prod([len(v) for v in STAGE2.values()])} configs):")
-    best2, _ = search(STAGE2, best1, grid, buckets, args.top)
+    best2, _ = search(STAGE2, best1, grid, buckets, args.top, fields)
     changed = {k: getattr(best2, k) for k in (*STAGE1, *STAGE2) if getattr(best2, k) != getattr(default, k)}
     print(f"\nTuned: {changed or 'the defaults'} (search took {time.perf_counter() - t0:.0f} s)")
     if args.eval_scenes:
-        compare(default, best2, args.eval_scenes)
+        compare(default, best2, args.eval_scenes, fields)
 
 
 if __name__ == "__main__":

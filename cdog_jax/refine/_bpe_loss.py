@@ -23,8 +23,8 @@ Loss = Literal["l2", "huber", "cauchy"]
 _LOSSES = ("l2", "huber", "cauchy")
 
 
-def _rho(s: Float[Array, "G M"], loss: str, c: Float[Array, ""]) -> Float[Array, "G M"]:
-    """Robust kernel of squared residuals ``s`` (px²), scale ``c`` (px)."""
+def _rho(s: Float[Array, "*S"], loss: str, c: Float[Array, ""]) -> Float[Array, "*S"]:
+    """Robust kernel, elementwise, of squared residuals ``s`` (px²), scale ``c`` (px)."""
     if loss == "l2":
         return s
     c2 = c * c

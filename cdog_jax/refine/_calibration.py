@@ -164,7 +164,7 @@ def _robust_weight(s: Float[Array, "*S"], loss: str, c: Float[Array, ""]) -> Flo
         return jnp.ones_like(s)
     pos = s > 0
     s_safe = jnp.where(pos, s, 1.0)  # ρ(s)/s → 1 at s = 0 for every kernel; keep 0/0 out
-    rho = _rho(s_safe.reshape(1, -1), loss, c).reshape(s.shape)  # _rho takes a (G, M) table
+    rho = _rho(s_safe, loss, c)
     return jnp.where(pos, jnp.sqrt(rho / s_safe), 1.0)
 
 
