@@ -1,6 +1,8 @@
-"""Rig files (SPEC §4): EasyVis/OpenMVG text folders, the project's JSON, and NPZ.
+"""Rig files (SPEC §4): EasyVis/OpenMVG text folders, the project's JSON, NPZ, and (in
+their own modules) anipose ``calibration.toml``, COLMAP text models and EasyMocap
+``intri.yml``/``extri.yml``.
 
-Every format stores the convention of SPEC §1: world→camera ``X_cam = R X_world + t``
+Every reader returns the convention of SPEC §1: world→camera ``X_cam = R X_world + t``
 with ``R`` a 3×3 rotation matrix (rows are the camera axes in world coordinates: x right,
 y down, z forward), pixels ``x ~ K X_cam`` divided by the third homogeneous coordinate,
 so a general upper-triangular ``K`` (``K[2,2] = -1`` included) is kept as it is. Pixel
@@ -11,7 +13,8 @@ it is read and written but never applied (the pipeline takes undistorted pixels)
 Precision: files are parsed to float64 on the host; the :class:`Rig` gets ``dtype``
 (default: JAX's default float, float32 unless x64 is enabled), as :func:`rig_from_arrays`.
 Writers widen the rig to float64 (exact) and write every number with ``repr``, so a saved
-rig loads back bit-identical in its own dtype.
+rig loads back bit-identical in its own dtype (up to the conversions a format forces:
+Rodrigues vectors, quaternions, COLMAP's half-pixel shift, ``K / K[2,2]``).
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ from ..geometry._camera import Rig, rig_from_arrays
 
 PathLike = str | os.PathLike  # a folder or file name
 
-FORMATS = ("easyvis", "json", "npz")
+FORMATS = ("easyvis", "json", "npz", "anipose", "colmap", "easymocap")
 _EASYVIS_FILE = re.compile(r"^([KRT])(0|[1-9][0-9]*)\.txt$")
 
 
@@ -37,20 +40,38 @@ class RigFile(NamedTuple):
 
     Attributes:
         rig: the ``M`` cameras, ``K, R (M, 3, 3)``, ``t (M, 3)``.
-        image_size: ``(width, height)`` in pixels, or ``None`` when the file gives none.
+        image_size: ``(width, height)`` in pixels shared by all views, or ``None`` when the
+            file gives none or when its views have different sizes (see ``view_sizes``).
         dist: ``(M, 5)`` float64 OpenCV distortion ``(k1, k2, p1, p2, k3)`` (not applied),
             or ``None`` when the file gives none.
+        view_sizes: ``(M, 2)`` int64 ``(width, height)`` of every view, or ``None`` when
+            the file gives no sizes.
+        names: the camera names in view order, or ``None`` when the file has none.
     """
 
     rig: Rig
     image_size: tuple[int, int] | None
     dist: np.ndarray | None
+    view_sizes: np.ndarray | None = None
+    names: tuple[str, ...] | None = None
+
+
+class _Views(NamedTuple):
+    """What a reader returns: float64 ``K, R (M, 3, 3)``, ``t (M, 3)``, and optional int
+    ``view_sizes (M, 2)``, ``dist (M, 5)`` and names."""
+
+    K: np.ndarray
+    R: np.ndarray
+    t: np.ndarray
+    view_sizes: np.ndarray | None = None
+    dist: np.ndarray | None = None
+    names: tuple[str, ...] | None = None
 
 
 def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigFile:
-    """Read a rig file: ``K, R (M, 3, 3)``, ``t (M, 3)`` and optional image size and distortion.
+    """Read a rig file: ``K, R (M, 3, 3)``, ``t (M, 3)`` and optional sizes, distortion, names.
 
-    Formats (world→camera ``X_cam = R X + t`` in all of them, ``K`` general):
+    Formats (all read into world→camera ``X_cam = R X + t``, ``K`` general, OpenCV pixels):
 
     - ``"easyvis"``: a folder of ``K{i}.txt``, ``R{i}.txt`` (3×3 Python-literal nested
       lists) and ``T{i}.txt`` (``[[x], [y], [z]]`` or ``[x, y, z]``), ``i = 0 … M-1``;
@@ -59,31 +80,54 @@ def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigF
       (optional, [w, h])}, …]}``; views without ``dist`` get zeros when others have one.
     - ``"npz"``: ``K (M, 3, 3)``, ``R (M, 3, 3)``, ``t (M, 3)``, optional ``dist (M, 5)``
       and ``image_size (2,)``.
-    - ``"auto"``: a directory is EasyVis, ``.json`` is JSON, ``.npz`` is NPZ.
+    - ``"anipose"``: an aniposelib ``calibration.toml`` (see :func:`read_anipose`).
+    - ``"colmap"``: a COLMAP text model, ``cameras.txt`` + ``images.txt`` (see
+      :func:`read_colmap`); COLMAP's half-pixel principal point is shifted to OpenCV's.
+    - ``"easymocap"``: EasyMocap ``intri.yml`` + ``extri.yml`` (see :func:`read_easymocap`).
+    - ``"auto"``: ``.json``, ``.npz``, ``.toml`` (anipose) by suffix; ``cameras.txt`` or
+      ``images.txt`` (COLMAP) and ``intri.yml`` or ``extri.yml`` (EasyMocap) by name, their
+      folder being read; a folder holding ``cameras.txt`` and ``images.txt`` is COLMAP, one
+      holding ``intri.yml`` and ``extri.yml`` is EasyMocap, any other folder is EasyVis.
 
     Args:
         path: the folder or file.
-        format: one of ``"auto"``, ``"easyvis"``, ``"json"``, ``"npz"``.
+        format: ``"auto"`` or one of :data:`FORMATS`.
         dtype: float dtype of the rig (default: JAX's default float).
 
     Returns:
-        A :class:`RigFile`. Raises ``ValueError`` naming the file (and view and key) for an
-        unreadable file, a missing view or key, a wrong shape, a non-finite number, a
-        singular ``K`` or a ``R`` that is not a rotation.
+        A :class:`RigFile`; ``image_size`` is the common size when all views agree, else
+        ``None`` (``view_sizes`` has every view's). Raises ``ValueError`` naming the file
+        (and view, camera, line or key) for an unreadable file, a missing view or key, a
+        wrong shape, a non-finite number, a singular ``K`` or a ``R`` that is not a rotation.
     """
+    from . import _anipose, _colmap, _easymocap  # they import this module's helpers
+
     path = os.fspath(path)
     fmt = _resolve_format(path, format)
-    if fmt == "easyvis":
-        K, R, t, image_size, dist = _read_easyvis(path)
-    elif fmt == "json":
-        K, R, t, image_size, dist = _read_json(path)
-    else:
-        K, R, t, image_size, dist = _read_npz(path)
+    readers = {
+        "easyvis": _read_easyvis,
+        "json": _read_json,
+        "npz": _read_npz,
+        "anipose": _anipose.read_anipose,
+        "colmap": _colmap.read_colmap,
+        "easymocap": _easymocap.read_easymocap,
+    }
+    views = readers[fmt](path)
     try:
-        rig = rig_from_arrays(K, R, t, dtype=dtype)
+        rig = rig_from_arrays(views.K, views.R, views.t, dtype=dtype)
     except ValueError as e:
-        raise ValueError(f"{path}: {e}") from e
-    return RigFile(rig, image_size, dist)
+        raise ValueError(f"{path}: {_name_views(str(e), views.names)}") from e
+    image_size = None
+    if views.view_sizes is not None and (views.view_sizes == views.view_sizes[0]).all():
+        image_size = (int(views.view_sizes[0, 0]), int(views.view_sizes[0, 1]))
+    return RigFile(rig, image_size, views.dist, views.view_sizes, views.names)
+
+
+def _name_views(message: str, names: tuple[str, ...] | None) -> str:
+    """``"… view 3 …"`` → ``"… view 3 (camera 'c3') …"`` when the file names its cameras."""
+    if names is None:
+        return message
+    return re.sub(r"\bview (\d+)\b", lambda m: f"{m.group(0)} (camera {names[int(m.group(1))]!r})", message, count=1)
 
 
 def save_rig_json(path: PathLike, rig: Rig, *, image_size: tuple[int, int] | None = None, dist: Any = None) -> None:
@@ -152,12 +196,30 @@ def _resolve_format(path: str, format: str) -> str:
     if format != "auto":
         raise ValueError(f"{path}: unknown rig format {format!r}; expected 'auto' or one of {FORMATS}")
     if os.path.isdir(path):
+        entries = set(os.listdir(path))
+        if {"cameras.txt", "images.txt"} <= entries:
+            return "colmap"
+        if {"intri.yml", "extri.yml"} <= entries:
+            return "easymocap"
+        if {"cameras.bin", "images.bin"} <= entries:
+            raise ValueError(
+                f"{path}: a binary COLMAP model (cameras.bin, images.bin); only text models are read: "
+                "convert it with `colmap model_converter --output_type TXT`"
+            )
         return "easyvis"
+    base = os.path.basename(path)
+    if base in ("cameras.txt", "images.txt"):
+        return "colmap"
+    if base in ("intri.yml", "extri.yml"):
+        return "easymocap"
     suffix = os.path.splitext(path)[1].lower()
     if suffix in (".json", ".npz"):
         return suffix[1:]
+    if suffix == ".toml":
+        return "anipose"
     raise ValueError(
-        f"{path}: cannot tell the rig format; expected a folder (easyvis), a .json or a .npz file "
+        f"{path}: cannot tell the rig format; expected a folder (easyvis, or colmap with cameras.txt and "
+        "images.txt, or easymocap with intri.yml and extri.yml), a .json, .npz or .toml (anipose) file "
         f"(or pass format= one of {FORMATS})"
     )
 
@@ -191,7 +253,7 @@ def _read_easyvis(folder: str):
     K = np.stack([_read_literal(os.path.join(folder, f"K{i}.txt"), (3, 3)) for i in range(M)])
     R = np.stack([_read_literal(os.path.join(folder, f"R{i}.txt"), (3, 3)) for i in range(M)])
     t = np.stack([_read_literal(os.path.join(folder, f"T{i}.txt"), (3,)) for i in range(M)])
-    return K, R, t, None, None
+    return _Views(K, R, t)
 
 
 def _read_literal(file: str, shape: tuple[int, ...]) -> np.ndarray:
@@ -237,7 +299,7 @@ def _read_json(path: str):
     dist = None
     if any(d is not None for d in dists):
         dist = np.stack([np.zeros(5) if d is None else d for d in dists])
-    return np.stack(K), np.stack(R), np.stack(t), image_size, dist
+    return _Views(np.stack(K), np.stack(R), np.stack(t), _tile_size(image_size, len(K)), dist)
 
 
 def _read_npz(path: str):
@@ -275,7 +337,12 @@ def _read_npz(path: str):
             bad = ~np.isfinite(a).reshape(M, -1).all(axis=1)
             if bad.any():
                 raise ValueError(f'{path}: array "{key}", view {int(np.argmax(bad))}: non-finite entries')
-    return K, R, t, image_size, dist
+    return _Views(K, R, t, _tile_size(image_size, M), dist)
+
+
+def _tile_size(size: tuple[int, int] | None, M: int) -> np.ndarray | None:
+    """One ``(width, height)`` for all views as ``view_sizes (M, 2)``."""
+    return None if size is None else np.tile(np.asarray(size, dtype=np.int64), (M, 1))
 
 
 def _npz_array(npz, key: str, path: str) -> np.ndarray:
@@ -355,3 +422,57 @@ def _literal(a: np.ndarray) -> str:
     if a.ndim == 1:
         return "[" + ", ".join(repr(float(x)) for x in a) + "]"
     return "[" + ", ".join(_literal(row) for row in a) + "]"
+
+
+# Helpers shared by the format modules ----------------------------------------------------
+
+
+def _opencv_dist(a: np.ndarray, where: str) -> np.ndarray:
+    """4 or 5 OpenCV coefficients (a vector, or a 1×N / N×1 matrix) as ``(k1, k2, p1, p2, k3)``,
+    ``k3 = 0`` when only four are given."""
+    a = np.asarray(a, dtype=np.float64).reshape(-1)
+    if a.size in (4, 5):
+        return np.concatenate([a, np.zeros(5 - a.size)])
+    extra = " (rational, thin-prism, tilted and fisheye models are not supported)" if a.size > 5 else ""
+    raise ValueError(
+        f"{where}: expected 4 or 5 OpenCV distortion coefficients (k1, k2, p1, p2[, k3]); got {a.size}{extra}"
+    )
+
+
+def _check_view_sizes(image_size: Any, M: int, *, required: bool = False) -> np.ndarray | None:
+    """``image_size`` as ``(M, 2)`` int64 ``(width, height)``: one ``(w, h)`` for all views, or
+    one per view."""
+    if image_size is None:
+        if required:
+            raise ValueError("image_size is required by this format: (width, height) or (M, 2) per view")
+        return None
+    a = np.asarray(image_size)
+    if a.shape == (2,):
+        return np.tile(np.asarray(_check_image_size(a.tolist(), "image_size"), dtype=np.int64), (M, 1))
+    if a.shape != (M, 2):
+        raise ValueError(f"image_size must be (width, height) or have shape (M, 2) = {(M, 2)}; got shape {a.shape}")
+    return np.array([_check_image_size(row.tolist(), f"image_size[{m}]") for m, row in enumerate(a)], dtype=np.int64)
+
+
+def _check_names(names: Any, M: int, default: str, pattern: str | None = None, rule: str = "") -> tuple[str, ...]:
+    """``M`` distinct camera names (``default.format(m)`` when ``None``), each matching
+    ``pattern`` (a regular expression, described by ``rule``) when given."""
+    if names is None:
+        return tuple(default.format(m) for m in range(M))
+    if isinstance(names, str) or len(names) != M or not all(isinstance(n, str) for n in names):
+        raise ValueError(f"names must be {M} strings, one per view; got {names!r}")
+    for m, name in enumerate(names):
+        if pattern is not None and not re.fullmatch(pattern, name):
+            raise ValueError(f"names[{m}] = {name!r}: {rule}")
+    if len(set(names)) != M:
+        raise ValueError(f"names must be distinct; got {list(names)}")
+    return tuple(names)
+
+
+def _K_over_K22(K: np.ndarray) -> np.ndarray:
+    """``K / K[2,2]`` per view (same projection; the tools these formats serve assume
+    ``K[2,2] = 1``)."""
+    zero = K[:, 2, 2] == 0
+    if zero.any():
+        raise ValueError(f"K of view {int(np.argmax(zero))} has K[2,2] = 0; cannot write it in this format")
+    return K / K[:, 2:3, 2:3]
