@@ -13,6 +13,11 @@ Conventions (where SPEC §5 leaves a choice):
 - ``g(p)`` is the majority vote over the ids ``-1, 0, 1, …`` of ``p``'s nodes, clutter
   (a valid detection with ``instance = -1``) voting ``-1``; ties go to the smallest id, so
   a tie between clutter and an instance gives ``-1``, which never matches.
+- Ground truth is what the scene detects: an instance is a ground-truth group when it has
+  ≥ 2 valid detections, and ``|g|`` counts those only. With missed detections
+  (``generate_scene(drop_rate=...)``) a point visible in 3 views but detected in 2 has
+  ``|g| = 2``, one detected once is no ground-truth group (its detection, like a clutter
+  detection, is at best a correct singleton), and BPE averages over the detected views.
 - Singletons never match anything (G- needs ≥ 2 nodes) and only count as G- false
   positives, so they are counted rather than tabulated: the contingency table is
   ``(G, I + 1)`` (groups × clutter and instance ids) instead of ``(G + N, I + 1)``.
