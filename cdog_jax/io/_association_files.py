@@ -1,0 +1,239 @@
+"""Association results on disk (SPEC §2.6, §4): JSON records, NPZ arrays, a CSV of points.
+
+The JSON lists every valid detection exactly once: as a member of a group or in
+``"unassigned"``. Rows are ``[view, slot, x, y]`` (``[view, slot, x, y, confidence]`` when
+a confidence is given), pixels; points are in scene units. Per group:
+
+- ``bpe_px2``: the back-projection error ``mean_m ‖π_m(X) − x_m‖²`` over members (px²),
+- ``bpe_px``: its square root, the RMS reprojection error (px), as the CSV's ``bpe_px``,
+- ``err_px``: the mean reprojection distance (px).
+
+Numbers are written with ``repr`` (exact float64 round trip); a non-finite number is
+written as ``null``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+PathLike = str | os.PathLike  # a file name
+
+# Every field of cdog_jax.Association, as written to NPZ.
+ASSOCIATION_FIELDS = ("labels", "groups", "valid", "points3d", "bpe", "err_px", "n_views", "num_groups", "sigma_px", "tau_px")
+CSV_COLUMNS = ("frame", "group", "x", "y", "z", "bpe_px", "n_views")
+CSV_NOTE = "# bpe_px = sqrt(BPE in px^2): RMS reprojection error over the group's member views, pixels; x, y, z in scene units"
+
+
+def association_records(assoc: Any, xy: Any, mask: Any, *, confidence: Any = None, rig: Any = None) -> dict:
+    """One scene's association as JSON-ready records.
+
+    Args:
+        assoc: the :class:`cdog_jax.Association` of one scene (NumPy or JAX arrays): ``labels
+            (M, P)``, ``groups (G, M)``, ``valid (G,)``, ``points3d (G, 3)``, ``bpe``,
+            ``err_px``, ``n_views (G,)``, ``sigma_px``, ``tau_px``.
+        xy: ``(M, P, 2)`` the detections it was computed from (pixels).
+        mask: ``(M, P)`` bool, valid detections.
+        confidence: optional ``(M, P)``; appended to every row.
+        rig: optional cameras (``K, R (M, 3, 3)``, ``t (M, 3)``); then each group also gets
+            ``member_err_px``, the reprojection distance (px) of each member, in member order.
+
+    Returns:
+        ``{"groups": [{"id", "members": [[view, slot, x, y], …], "point3d": [X, Y, Z],
+        "bpe_px2", "bpe_px", "err_px", "n_views"(, "member_err_px")}, …], "unassigned":
+        [[view, slot, x, y], …], "num_views", "capacity", "sigma_px", "tau_px"}``. Only
+        ``valid`` groups are listed; ``id`` is the group's row in ``assoc.groups``.
+    """
+    a = _host(assoc)
+    xy, mask = np.asarray(xy, np.float64), np.asarray(mask, bool)
+    conf = None if confidence is None else np.asarray(confidence, np.float64)
+    if a["labels"].ndim != 2:
+        raise ValueError(f"expected the Association of one scene, labels (M, P); got labels {a['labels'].shape}")
+    M, P = a["labels"].shape
+    if xy.shape != (M, P, 2) or mask.shape != (M, P):
+        raise ValueError(f"xy and mask must have shapes {(M, P, 2)} and {(M, P)} like assoc.labels; got {xy.shape}, {mask.shape}")
+    if conf is not None and conf.shape != (M, P):
+        raise ValueError(f"confidence must have shape {(M, P)}; got {conf.shape}")
+
+    def row(m: int, i: int) -> list:
+        r = [m, i, _num(xy[m, i, 0]), _num(xy[m, i, 1])]
+        return r + [_num(conf[m, i])] if conf is not None else r
+
+    cams = None if rig is None else _host_rig(rig, M)
+    groups, used = [], np.zeros((M, P), bool)
+    for g in np.flatnonzero(a["valid"]):
+        views = np.flatnonzero(a["groups"][g] >= 0)
+        slots = a["groups"][g, views]
+        if (slots >= P).any() or not mask[views, slots].all():
+            raise ValueError(f"group {g} has a member in a slot where mask is False; are assoc and xy from the same scene?")
+        used[views, slots] = True
+        X = a["points3d"][g]
+        record = {
+            "id": int(g),
+            "members": [row(int(m), int(i)) for m, i in zip(views, slots)],
+            "point3d": [_num(v) for v in X],
+            "bpe_px2": _num(a["bpe"][g]),
+            "bpe_px": _num(math.sqrt(a["bpe"][g])) if a["bpe"][g] >= 0 else None,
+            "err_px": _num(a["err_px"][g]),
+            "n_views": int(a["n_views"][g]),
+        }
+        if cams is not None:
+            record["member_err_px"] = [_num(e) for e in _member_errors(cams, X, views, xy[views, slots])]
+        groups.append(record)
+    unassigned = [row(int(m), int(i)) for m, i in np.argwhere(mask & ~used)]
+    return {
+        "groups": groups,
+        "unassigned": unassigned,
+        "num_views": M,
+        "capacity": P,
+        "sigma_px": _num(a["sigma_px"]),
+        "tau_px": _num(a["tau_px"]),
+    }
+
+
+def save_association_json(path: PathLike, assoc: Any, xy: Any, mask: Any, *, confidence: Any = None, rig: Any = None) -> None:
+    """Write :func:`association_records` as JSON: one scene (``labels (M, P)``, ``xy (M, P, 2)``),
+    or a batch (``labels (B, M, P)``, ``xy (B, M, P, 2)``, ``mask (B, M, P)``, from
+    :func:`cdog_jax.associate_batch`) as ``{"frames": [one object per scene, …]}``.
+    ``rig`` is shared by all scenes."""
+    labels = np.asarray(assoc.labels)
+    if labels.ndim == 3:
+        B = labels.shape[0]
+        xy, mask = np.asarray(xy), np.asarray(mask)
+        if xy.shape[:1] != (B,) or mask.shape[:1] != (B,):
+            raise ValueError(f"a batch of {B} results needs xy (B, M, P, 2) and mask (B, M, P); got {xy.shape}, {mask.shape}")
+        conf = [None] * B if confidence is None else np.asarray(confidence)
+        data: dict = {
+            "frames": [association_records(_scene(assoc, b), xy[b], mask[b], confidence=conf[b], rig=rig) for b in range(B)]
+        }
+    else:
+        data = association_records(assoc, xy, mask, confidence=confidence, rig=rig)
+    with open(path, "w", encoding="utf-8") as f:
+        json.dump(data, f, allow_nan=False)
+        f.write("\n")
+
+
+def load_association_json(path: PathLike) -> dict:
+    """Read a file written by :func:`save_association_json` and check its structure.
+
+    Returns the parsed object: ``{"groups": […], "unassigned": […], …}`` for one scene or
+    ``{"frames": [such objects]}``. Raises ``ValueError`` naming the file, frame and group
+    for a missing key or a malformed member row.
+    """
+    path = os.fspath(path)
+    with open(path, encoding="utf-8") as f:
+        try:
+            data = json.load(f)
+        except json.JSONDecodeError as e:
+            raise ValueError(f"{path}: not valid JSON ({e})") from e
+    if isinstance(data, dict) and "frames" in data:
+        if not isinstance(data["frames"], list):
+            raise ValueError(f'{path}: "frames" must be a list of result objects')
+        for b, scene in enumerate(data["frames"]):
+            _check_records(scene, f"{path}: frame {b}")
+    else:
+        _check_records(data, path)
+    return data
+
+
+def save_association_npz(path: PathLike, assoc: Any, xy: Any = None, mask: Any = None, *, confidence: Any = None) -> None:
+    """Write every :class:`cdog_jax.Association` field as an array (``labels``, ``groups``,
+    ``valid``, ``points3d``, ``bpe`` (px²), ``err_px``, ``n_views``, ``num_groups``,
+    ``sigma_px``, ``tau_px``; with a leading ``B`` for a batch), plus ``xy``, ``mask`` and
+    ``confidence`` when given. Read it with ``np.load``."""
+    arrays = _host(assoc)
+    for name, v in (("xy", xy), ("mask", mask), ("confidence", confidence)):
+        if v is not None:
+            arrays[name] = np.asarray(v)
+    with open(path, "wb") as f:  # a file object: np.savez would append ".npz" to a str path
+        np.savez(f, **arrays)
+
+
+def save_association_csv(path: PathLike, assoc: Any) -> None:
+    """One row per 3D point (valid group): ``frame, group, x, y, z, bpe_px, n_views``.
+
+    Like anipose's point tables. ``bpe_px`` is the square root of the group's BPE in px²,
+    i.e. the RMS reprojection error over its member views (pixels); ``x, y, z`` are in
+    scene units. ``frame`` is the scene index of a batch (``labels (B, M, P)``), 0 for one
+    scene. The file starts with a ``#`` comment line saying so (pandas: ``comment="#"``).
+    """
+    a = _host(assoc)
+    batch = a["labels"].ndim == 3
+    with open(path, "w", encoding="utf-8", newline="") as f:
+        f.write(CSV_NOTE + "\n")
+        writer = csv.writer(f)
+        writer.writerow(CSV_COLUMNS)
+        for b in range(a["labels"].shape[0] if batch else 1):
+            valid = a["valid"][b] if batch else a["valid"]
+            for g in np.flatnonzero(valid):
+                at = (b, g) if batch else (g,)
+                X = a["points3d"][at]
+                bpe = float(a["bpe"][at])
+                writer.writerow(
+                    [
+                        b,
+                        int(g),
+                        *(repr(float(v)) for v in X),
+                        repr(math.sqrt(bpe) if bpe >= 0 else math.nan),
+                        int(a["n_views"][at]),
+                    ]
+                )
+
+
+# Helpers -----------------------------------------------------------------------------------
+
+
+def _host(assoc: Any) -> dict[str, np.ndarray]:
+    missing = [k for k in ASSOCIATION_FIELDS if not hasattr(assoc, k)]
+    if missing:
+        raise ValueError(f"expected a cdog_jax.Association; {type(assoc).__name__} has no {', '.join(missing)}")
+    return {k: np.asarray(getattr(assoc, k)) for k in ASSOCIATION_FIELDS}
+
+
+def _scene(assoc: Any, b: int) -> Any:
+    """Scene ``b`` of a batched result, as a plain object with the same fields."""
+    return SimpleNamespace(**{k: np.asarray(getattr(assoc, k))[b] for k in ASSOCIATION_FIELDS})
+
+
+def _num(v: Any) -> float | None:
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def _host_rig(rig: Any, M: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    K, R, t = (np.asarray(x, np.float64) for x in (rig.K, rig.R, rig.t))
+    if K.shape != (M, 3, 3) or R.shape != (M, 3, 3) or t.shape != (M, 3):
+        raise ValueError(f"rig must have K, R (M, 3, 3) and t (M, 3) with M={M} like the result; got K {K.shape}")
+    return K, R, t
+
+
+def _member_errors(cams, X: np.ndarray, views: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """Pixel distance between each member ``xy (k, 2)`` and the projection of ``X`` in its view
+    (dividing by the third homogeneous coordinate, whatever its sign: SPEC §1)."""
+    K, R, t = (c[views] for c in cams)
+    h = np.einsum("kij,kj->ki", K, np.einsum("kij,j->ki", R, X) + t)  # (k, 3)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.linalg.norm(h[:, :2] / h[:, 2:] - xy, axis=-1)
+
+
+def _check_records(obj: Any, where: str) -> None:
+    if not isinstance(obj, dict) or "groups" not in obj or "unassigned" not in obj:
+        raise ValueError(f'{where}: expected an object with "groups" and "unassigned"')
+    for g, group in enumerate(obj["groups"]):
+        for key in ("members", "point3d", "n_views"):
+            if not isinstance(group, dict) or key not in group:
+                raise ValueError(f'{where}, group {g}: missing key "{key}"')
+        if not isinstance(group["point3d"], list) or len(group["point3d"]) != 3:
+            raise ValueError(f'{where}, group {g}: "point3d" must be [X, Y, Z]')
+        for k, r in enumerate(group["members"]):
+            if not isinstance(r, list) or len(r) not in (4, 5):
+                raise ValueError(f"{where}, group {g}, member {k}: expected [view, slot, x, y(, confidence)]; got {r!r}")
+    for k, r in enumerate(obj["unassigned"]):
+        if not isinstance(r, list) or len(r) not in (4, 5):
+            raise ValueError(f"{where}, unassigned {k}: expected [view, slot, x, y(, confidence)]; got {r!r}")
