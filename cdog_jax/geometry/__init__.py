@@ -1,7 +1,10 @@
-"""Cameras, epipolar geometry, triangulation (SPEC §1, §2.1), and a camera parameterisation
+"""Cameras, lens distortion, epipolar geometry, triangulation (SPEC §1, §2.1), a rig
+summary with sanity warnings (``describe_rig``), and a camera parameterisation
 for optimisation (axis-angle rotations, intrinsics)."""
 
 from ._camera import Rig as Rig, camera_points as camera_points, in_front as in_front, rig_from_arrays as rig_from_arrays
+from ._describe import RigDescription as RigDescription, describe_rig as describe_rig
+from ._distortion import distort_pixels as distort_pixels, undistort_pixels as undistort_pixels
 from ._epipolar import (
     epipolar_distances as epipolar_distances,
     essential_from_rig as essential_from_rig,

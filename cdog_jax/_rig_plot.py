@@ -1,0 +1,109 @@
+"""A 3D picture of a rig: camera centres, small view frusta, labels and optional points.
+
+Host-side only (NumPy), and headless: without ``ax`` the figure is a plain
+:class:`matplotlib.figure.Figure` bound to the Agg canvas, so pyplot's global state and the
+user's backend are never touched. Save it with ``ax.figure.savefig(path)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .geometry._camera import Rig
+
+_CAMERA_COLOR = "0.2"
+_POINT_COLOR = "tab:blue"
+
+
+def _frustum_corners(K: np.ndarray, R: np.ndarray, t: np.ndarray, size: np.ndarray, depth: float) -> np.ndarray:
+    """World coordinates ``(M, 4, 3)`` of the image corners ``(0,0), (w,0), (w,h), (0,h)``
+    of every view pushed out to camera depth ``depth`` (scene units); ``size (M, 2)``."""
+    w, h = size[:, 0], size[:, 1]
+    zero = np.zeros_like(w)
+    px = np.stack([np.stack([zero, zero], -1), np.stack([w, zero], -1), np.stack([w, h], -1), np.stack([zero, h], -1)], 1)
+    ray = np.einsum("mij,mcj->mci", np.linalg.inv(K), np.concatenate([px, np.ones_like(px[..., :1])], -1))  # (M, 4, 3)
+    # Scale each ray to depth `depth` in front (K[2,2] may be -1, so the sign comes from z).
+    X_cam = ray * (depth / ray[..., 2:3])
+    return np.einsum("mji,mcj->mci", R, X_cam - t[:, None, :])
+
+
+def plot_rig(rig: Rig, *, ax=None, points=None, names=None, image_size=None, frustum_depth=None):
+    """Draw the cameras of one rig in 3D, in world coordinates with equal aspect.
+
+    Args:
+        rig: one unbatched rig of ``M`` views.
+        ax: a matplotlib 3D axes to draw into; default: a new Agg figure.
+        points: optional ``(N, 3)`` world points (scene units), drawn as dots; non-finite
+            rows are skipped.
+        names: optional ``M`` view labels (default ``"0" … "M-1"``).
+        image_size: ``(width, height)`` in pixels, shared, or ``(M, 2)`` per view, for the
+            frusta; default: twice the principal point of ``K / K[2,2]``.
+        frustum_depth: depth of the frusta (scene units); default 12 % of the scene extent.
+
+    Returns:
+        The matplotlib ``Axes3D``; each frustum is one line whose data starts at the
+        camera centre (``ax.lines[m]`` for view ``m``).
+    """
+    K, R, t = (np.asarray(a, dtype=np.float64) for a in (rig.K, rig.R, rig.t))
+    if K.ndim != 3 or K.shape[1:] != (3, 3):
+        raise ValueError(f"plot_rig needs one unbatched rig, K of shape (M, 3, 3); got {K.shape}")
+    M = K.shape[0]
+    names = [str(m) for m in range(M)] if names is None else [str(n) for n in names]
+    if len(names) != M:
+        raise ValueError(f"names must hold M={M} entries; got {len(names)}")
+    if image_size is None:
+        Kn = K / K[:, 2:3, 2:3]
+        size = np.abs(2.0 * Kn[:, :2, 2])
+        size = np.where(size > 0, size, np.abs(Kn[:, [0, 1], [0, 1]]))  # principal point at 0: use f
+    else:
+        size = np.asarray(image_size, dtype=np.float64)
+        size = np.broadcast_to(size, (M, 2)) if size.shape == (2,) else size
+        if size.shape != (M, 2):
+            raise ValueError(f"image_size must be (width, height) or shape (M, 2) with M={M}; got {size.shape}")
+    pts = np.zeros((0, 3)) if points is None else np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    pts = pts[np.isfinite(pts).all(axis=1)]
+
+    centers = -np.einsum("mji,mj->mi", R, t)
+    cloud = np.concatenate([centers, pts])
+    extent = float(np.max(np.ptp(cloud, axis=0))) if len(cloud) > 1 else 0.0
+    if frustum_depth is None:
+        frustum_depth = 0.12 * extent if extent > 0 else 1.0
+    corners = _frustum_corners(K, R, t, size, float(frustum_depth))  # (M, 4, 3)
+
+    if ax is None:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        fig = Figure(figsize=(7.0, 6.0), dpi=100)
+        FigureCanvasAgg(fig)
+        ax = fig.add_subplot(projection="3d")
+
+    for m in range(M):
+        c0, c1, c2, c3 = corners[m]
+        C = centers[m]
+        # One polyline through all 8 edges: the image rectangle and the 4 rays to its corners.
+        path = np.stack([C, c0, c1, c2, c3, c0, C, c1, C, c2, C, c3])
+        ax.plot(*path.T, color=_CAMERA_COLOR, lw=0.9)
+    for m in range(M):
+        # Mark the image's top edge (y = 0) so that the roll of each camera can be read.
+        top = 0.5 * (corners[m, 0] + corners[m, 1])
+        ax.plot(*np.stack([corners[m, 0], top + 0.25 * (top - corners[m, 3]), corners[m, 1]]).T, color="tab:red", lw=0.9)
+    ax.scatter(*centers.T, s=30, c=_CAMERA_COLOR, marker="o", depthshade=False, label="camera centre")
+    for m in range(M):
+        ax.text(*centers[m], f" {names[m]}", fontsize=8, color=_CAMERA_COLOR)
+    if len(pts):
+        ax.scatter(*pts.T, s=8, c=_POINT_COLOR, depthshade=False, label="points")
+
+    # Equal aspect: a cube of limits around everything drawn, and a cubic box.
+    everything = np.concatenate([cloud, corners.reshape(-1, 3)])
+    lo, hi = everything.min(axis=0), everything.max(axis=0)
+    mid, half = 0.5 * (lo + hi), 0.5 * max(float(np.max(hi - lo)), 1e-9) * 1.05
+    ax.set_xlim(mid[0] - half, mid[0] + half)
+    ax.set_ylim(mid[1] - half, mid[1] + half)
+    ax.set_zlim(mid[2] - half, mid[2] + half)
+    ax.set_box_aspect((1.0, 1.0, 1.0))
+    ax.set_xlabel("X (scene units)")
+    ax.set_ylabel("Y (scene units)")
+    ax.set_zlabel("Z (scene units)")
+    ax.set_title(f"Rig: {M} cameras (frusta to depth {frustum_depth:.3g}; red tick = image top)", fontsize=10)
+    return ax

@@ -1,0 +1,170 @@
+"""Lens distortion: OpenCV's radial + tangential model, ``dist = (k1, k2, p1, p2, k3)``.
+
+Distortion acts on normalised camera coordinates ``(X/Z, Y/Z)``. With a general
+upper-triangular ``K`` (SPEC §1: ``K[2,2]`` may be -1), ``K / K[2,2]`` maps ``(X/Z, Y/Z, 1)``
+to the same pixel as ``K``, so we normalise with ``K / K[2,2]`` (the same as applying
+``K⁻¹`` and dividing by the third coordinate). For ``r² = x² + y²``::
+
+    radial = 1 + k1 r² + k2 r⁴ + k3 r⁶
+    x_d = x radial + 2 p1 x y + p2 (r² + 2 x²)
+    y_d = y radial + p1 (r² + 2 y²) + 2 p2 x y
+
+Every function takes one scene's ``(M, …)`` arrays; extra leading axes ``*B`` are allowed
+if all three arguments carry them, and ``jax.vmap`` works as usual.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+from jax import lax
+
+from .._types import Array, Float
+
+
+def _check(K, dist, xy) -> None:
+    if K.shape[-2:] != (3, 3):
+        raise ValueError(f"K must have shape (M, 3, 3); got {K.shape}")
+    M = K.shape[-3]
+    if dist.shape[-2:] != (M, 5):
+        raise ValueError(f"dist must have shape (M, 5) = (k1, k2, p1, p2, k3) per view with M={M}; got {dist.shape}")
+    if xy.ndim < 3 or xy.shape[-3] != M or xy.shape[-1] != 2:
+        raise ValueError(f"xy must have shape (M, P, 2) with M={M} from K; got {xy.shape}")
+
+
+def _intrinsics(K):
+    """``(fx, s, cx, fy, cy)`` of ``K / K[2,2]``, each ``(*B, M, 1)`` (broadcasts over P)."""
+    Kn = K / K[..., 2:3, 2:3]
+    return tuple(Kn[..., i, j][..., None] for i, j in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2)))
+
+
+def _normalise(K, xy):
+    """Pixels ``(*B, M, P, 2)`` → normalised coordinates ``(x, y)``, each ``(*B, M, P)``."""
+    fx, s, cx, fy, cy = _intrinsics(K)
+    y = (xy[..., 1] - cy) / fy
+    x = (xy[..., 0] - cx - s * y) / fx
+    return x, y
+
+
+def _shift_pixels(K, xy, dx, dy):
+    """``xy (*B, M, P, 2)`` moved by the normalised offset ``(dx, dy)`` (each ``(*B, M, P)``).
+
+    Adding the offset to the input pixel, rather than mapping the new normalised point back
+    through ``K``, keeps the pixel's own precision and makes zero distortion exactly the
+    identity.
+    """
+    fx, s, _, fy, _ = _intrinsics(K)
+    return xy + jnp.stack([fx * dx + s * dy, fy * dy], axis=-1)
+
+
+def _coefficients(dist):
+    """``(k1, k2, p1, p2, k3)``, each ``(*B, M, 1)``."""
+    return tuple(dist[..., i][..., None] for i in range(5))
+
+
+def _displacement(dist, x, y):
+    """OpenCV's model as an offset: ``distorted − ideal`` of the normalised point ``(x, y)``.
+
+    Exactly 0 for zero coefficients, whatever the rounding of ``(x, y)``.
+    """
+    k1, k2, p1, p2, k3 = _coefficients(dist)
+    r2 = x * x + y * y
+    radial_m1 = r2 * (k1 + r2 * (k2 + r2 * k3))  # radial − 1
+    dx = x * radial_m1 + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+    dy = y * radial_m1 + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+    return dx, dy
+
+
+def _newton_step(dist, xd, yd, ox, oy):
+    """One Newton step on the offset ``o = ideal − distorted`` (normalised) solving
+    ``o + displacement(x_d + o) = 0``, with the analytic 2×2 Jacobian ``I + ∂displacement``.
+
+    Where the Jacobian is (nearly) singular or the step is not finite, the offset stays
+    put, so garbage in padded slots can never turn into NaN.
+    """
+    k1, k2, p1, p2, k3 = _coefficients(dist)
+    x, y = xd + ox, yd + oy
+    r2 = x * x + y * y
+    radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    g = k1 + r2 * (2 * k2 + 3 * k3 * r2)  # d radial / d r²
+    dx, dy = _displacement(dist, x, y)
+    ex, ey = ox + dx, oy + dy
+    j11 = radial + 2 * x * x * g + 2 * p1 * y + 6 * p2 * x
+    j12 = 2 * x * y * g + 2 * p1 * x + 2 * p2 * y  # the Jacobian is symmetric: j21 = j12
+    j22 = radial + 2 * y * y * g + 6 * p1 * y + 2 * p2 * x
+    det = j11 * j22 - j12 * j12
+    ok = jnp.abs(det) > jnp.finfo(det.dtype).eps
+    inv_det = 1 / jnp.where(ok, det, 1.0)
+    step_x = (j22 * ex - j12 * ey) * inv_det
+    step_y = (j11 * ey - j12 * ex) * inv_det
+    ok = ok & jnp.isfinite(step_x) & jnp.isfinite(step_y)
+    return jnp.where(ok, ox - step_x, ox), jnp.where(ok, oy - step_y, oy)
+
+
+def distort_pixels(
+    K: Float[Array, "*B M 3 3"], dist: Float[Array, "*B M 5"], xy: Float[Array, "*B M P 2"]
+) -> Float[Array, "*B M P 2"]:
+    """Ideal (undistorted) pixels → distorted pixels, OpenCV's model, per view.
+
+    Args:
+        K: ``(M, 3, 3)`` intrinsics, general upper-triangular (``K[2,2]`` may be -1).
+        dist: ``(M, 5)`` coefficients ``(k1, k2, p1, p2, k3)`` of every view.
+        xy: ``(M, P, 2)`` ideal pixels.
+
+    Returns:
+        ``(M, P, 2)`` distorted pixels (what a real camera records). Zero ``dist`` returns
+        ``xy`` exactly.
+    """
+    _check(K, dist, xy)
+    x, y = _normalise(K, xy)
+    return _shift_pixels(K, xy, *_displacement(dist, x, y))
+
+
+def undistort_pixels(
+    K: Float[Array, "*B M 3 3"],
+    dist: Float[Array, "*B M 5"],
+    xy: Float[Array, "*B M P 2"],
+    *,
+    iterations: int = 20,
+) -> Float[Array, "*B M P 2"]:
+    """Distorted pixels → ideal pixels: the inverse of :func:`distort_pixels`.
+
+    Solved per point in normalised coordinates with ``iterations`` (static) Newton steps
+    from the distorted point itself, then one differentiable Newton step that carries the
+    gradients (implicit-function derivative) w.r.t. ``K``, ``dist`` and ``xy``.
+
+    Args:
+        K: ``(M, 3, 3)`` intrinsics, general upper-triangular (``K[2,2]`` may be -1).
+        dist: ``(M, 5)`` coefficients ``(k1, k2, p1, p2, k3)`` of every view.
+        xy: ``(M, P, 2)`` distorted (recorded) pixels; padded slots may hold anything
+            finite (e.g. 0) and stay finite.
+        iterations: number of Newton steps (a Python int, static under ``jit``).
+
+    Returns:
+        ``(M, P, 2)`` ideal pixels, those that :func:`distort_pixels` maps onto ``xy``.
+    """
+    _check(K, dist, xy)
+    if not isinstance(iterations, int) or iterations < 0:
+        raise ValueError(f"iterations must be a non-negative Python int; got {iterations!r}")
+    xd, yd = _normalise(K, xy)
+
+    # Newton with the 2×2 Jacobian rather than OpenCV's fixed point x ← (x_d − tangential) /
+    # radial: the fixed point converges linearly with the factor |r ρ'(r) / ρ(r)| (ρ = radial),
+    # which tends to 1 where the model nears its fold (dr_d/dr → 0). Measured to 1e-3 px at an
+    # f = 400 image corner (r = 1): k1 = -0.3 needs 68 fixed-point steps and 5 Newton steps;
+    # k1 = -0.3, k2 = 0.1 at f = 500: 9 and 3. Newton converges quadratically wherever the
+    # model is invertible (det J > 0), so 20 steps leave only rounding in float32 and float64.
+    # Unknown: the offset o = ideal − distorted, starting at 0, so that zero distortion is
+    # exactly the identity. The loop runs on constants (stop_gradient): differentiating
+    # through the unrolled steps would be costly and only approximate the derivative.
+    dist_c, xd_c, yd_c = (lax.stop_gradient(a) for a in (dist, xd, yd))
+
+    def body(_, o):
+        return _newton_step(dist_c, xd_c, yd_c, *o)
+
+    zero = jnp.zeros_like(xd_c)
+    ox, oy = lax.fori_loop(0, iterations, body, (zero, zero))
+    # At the solution o* one more Newton step, o* − J⁻¹ (o* + displacement(x_d + o*)), is the
+    # identity in value, and its derivative w.r.t. (dist, x_d) is exactly the implicit-function
+    # derivative (the terms multiplied by the residual vanish).
+    ox, oy = _newton_step(dist, xd, yd, lax.stop_gradient(ox), lax.stop_gradient(oy))
+    return _shift_pixels(K, xy, ox, oy)
