@@ -10,6 +10,9 @@ Subcommands:
                results, figures (``cdog_jax/benchmark/_command.py``).
     calibrate  perturb the built-in rig, refine it from associations, before/after table and
                a convergence figure (``cdog_jax/_calibrate_command.py``).
+    associate  your rig file and detections file → groups, 3D points (JSON/NPZ/CSV), figure.
+    rig        describe a rig file (centres, directions, baselines, warnings), draw it
+               (both in ``cdog_jax/_associate_command.py``).
 """
 
 from __future__ import annotations
@@ -193,7 +196,13 @@ def _add_calibrate(subparsers) -> None:
     add_parser(subparsers)
 
 
-_SUBCOMMANDS = (_add_demo, _add_benchmark, _add_calibrate)
+def _add_associate_and_rig(subparsers) -> None:
+    from ._associate_command import add_parsers
+
+    add_parsers(subparsers)
+
+
+_SUBCOMMANDS = (_add_demo, _add_benchmark, _add_calibrate, _add_associate_and_rig)
 
 
 def build_parser() -> argparse.ArgumentParser:

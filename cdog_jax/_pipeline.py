@@ -34,6 +34,7 @@ from .refine._outliers import remove_outliers
 from .refine._attach import leftover_nodes
 from .refine._recovery import recover_leftovers
 from .refine._second_association import second_association
+from ._postprocess import finish_groups, undistorted
 
 
 def _gather_groups(groups, per_node):
@@ -222,6 +223,9 @@ def associate(
     config: Config = Config.paper(),
     sigma: float | str = 1.0,
     thresholds: Thresholds | None = None,
+    dist: ArrayLike | None = None,
+    weights: ArrayLike | None = None,
+    min_views: int = 2,
 ) -> Association:
     """Associate the detections of one scene and triangulate every group.
 
@@ -232,6 +236,12 @@ def associate(
         config: structure and default thresholds (``Config.paper()``, ``Config.reference()``).
         sigma: 2D noise std in pixels, or ``"auto"`` to estimate it (ALGORITHM.md §0.1).
         thresholds: overrides the config's numeric thresholds (for sweeps; arrays welcome).
+        dist: optional ``(M, 5)`` OpenCV distortion ``(k1, k2, p1, p2, k3)`` per view; ``xy``
+            are then the distorted (as-detected) pixels and are undistorted first. The
+            result's points and errors refer to the undistorted (pinhole) pixels.
+        weights: optional ``(M, P)`` non-negative weights (e.g. detector confidence) of the
+            members' DLT equations when the final points are triangulated.
+        min_views: keep only groups seen in at least this many views (≥ 2).
 
     Returns:
         An :class:`Association` (labels, groups, points, errors).
@@ -240,16 +250,73 @@ def associate(
     check_observations(xy, mask, rig.num_views)
     dtype = _float_dtype(xy)
     static, th = _prepare(config, sigma, thresholds, dtype)
-    return _associate_jit(rig, jnp.asarray(xy, dtype), jnp.asarray(mask), th, config=static)
+    xy, mask = jnp.asarray(xy, dtype), jnp.asarray(mask)
+    extras = _check_extras(dist, weights, min_views, mask.shape, dtype)
+    if extras is None:
+        return _associate_jit(rig, xy, mask, th, config=static)
+    return _associate_extras_jit(rig, xy, mask, th, *extras, config=static)
+
+
+def _check_extras(dist, weights, min_views, mask_shape, dtype):
+    """Checked ``(dist, weights, min_views)`` as arrays, or None when all are defaults
+    (then the plain pipeline runs)."""
+    if not isinstance(min_views, (int, np.integer)) or isinstance(min_views, bool) or min_views < 2:
+        raise ValueError(f"min_views must be an int >= 2 (a group needs two views); got {min_views!r}")
+    if dist is None and weights is None and min_views == 2:
+        return None
+    M = mask_shape[-2]
+    if dist is not None:
+        dist_h = np.asarray(dist)
+        if dist_h.shape != (M, 5):
+            raise ValueError(f"dist must have shape (M, 5) = ({M}, 5), OpenCV (k1, k2, p1, p2, k3) per view; got {dist_h.shape}")
+        if not np.isfinite(dist_h).all():
+            view = int(np.argwhere(~np.isfinite(dist_h))[0, 0])
+            raise ValueError(f"dist of view {view} has non-finite entries")
+        dist = jnp.asarray(dist, dtype)
+    if weights is not None:
+        w_h = np.asarray(weights)
+        if w_h.shape != tuple(mask_shape):
+            raise ValueError(f"weights must have the shape of mask {tuple(mask_shape)}; got {w_h.shape}")
+        bad = ~(np.isfinite(w_h) & (w_h >= 0))
+        if bad.any():
+            where = ", ".join(str(int(i)) for i in np.argwhere(bad)[0])
+            raise ValueError(f"weights must be finite and >= 0; got {float(w_h[bad][0])!r} at index ({where})")
+        weights = jnp.asarray(weights, dtype)
+    return dist, weights, np.asarray(min_views, np.int32)
+
+
+def _associate_one(rig, xy, mask, th, dist, weights, min_views, config):
+    """One scene with undistortion before and :func:`finish_groups` after the pipeline;
+    ``dist``/``weights`` may be None (static absence)."""
+    if dist is not None:
+        xy = undistorted(rig, xy, mask, dist)
+    result = associate_traced(rig, xy, mask, th, config)
+    return finish_groups(rig, jnp.where(mask[..., None], xy, 0.0), result, weights, min_views)
+
+
+@partial(jax.jit, static_argnames=("config",))
+def _associate_extras_jit(rig, xy, mask, th, dist, weights, min_views, *, config):
+    return _associate_one(rig, xy, mask, th, dist, weights, min_views, config)
 
 
 @partial(jax.jit, static_argnames=("config", "batch_size", "shared_rig"))
-def _associate_batch_jit(rig, xy, mask, th, *, config, batch_size, shared_rig):
+def _associate_batch_jit(rig, xy, mask, th, extras, *, config, batch_size, shared_rig):
+    if extras is None:
+        run = lambda r, x, m, t, e: associate_traced(r, x, m, t, config)  # noqa: E731
+    else:
+        run = lambda r, x, m, t, e: _associate_one(r, x, m, t, e[0], e[1], e[2], config)  # noqa: E731
+    # dist and min_views are shared by all scenes; weights are per scene.
+    shared = None if extras is None else (extras[0], None, extras[2])
+    per_scene = None if extras is None else extras[1]
     if shared_rig:
-        one = lambda a: associate_traced(rig, *a, config)  # noqa: E731
-        return jax.lax.map(one, (xy, mask, th), batch_size=batch_size)
-    one = lambda a: associate_traced(a[0], *a[1:], config)  # noqa: E731
-    return jax.lax.map(one, (rig, xy, mask, th), batch_size=batch_size)
+        one = lambda a: run(rig, a[0], a[1], a[2], _join(shared, a[3]))  # noqa: E731
+        return jax.lax.map(one, (xy, mask, th, per_scene), batch_size=batch_size)
+    one = lambda a: run(a[0], a[1], a[2], a[3], _join(shared, a[4]))  # noqa: E731
+    return jax.lax.map(one, (rig, xy, mask, th, per_scene), batch_size=batch_size)
+
+
+def _join(shared, weights):
+    return None if shared is None else (shared[0], weights, shared[2])
 
 
 def associate_batch(
@@ -261,13 +328,17 @@ def associate_batch(
     sigma: float | str | Float[Array, " B"] = 1.0,
     thresholds: Thresholds | None = None,
     batch_size: int = 16,
+    dist: ArrayLike | None = None,
+    weights: ArrayLike | None = None,
+    min_views: int = 2,
 ) -> Association:
     """:func:`associate` for ``B`` scenes in one compiled call.
 
     The rig is shared (``K (M, 3, 3)``) or per scene (``K (B, M, 3, 3)``); ``sigma`` and the
     thresholds may be scalars or ``(B,)`` arrays. Scenes run ``batch_size`` at a time
     (vmapped inside ``lax.map``), which bounds memory. Every field of the result gains a
-    leading ``B`` axis.
+    leading ``B`` axis. ``dist (M, 5)`` and ``min_views`` are shared by all scenes,
+    ``weights (B, M, P)`` are per scene (see :func:`associate`).
     """
     shared = rig.K.ndim == 3
     check_rig(rig, batched=not shared)
@@ -278,6 +349,10 @@ def associate_batch(
     dtype = _float_dtype(xy)
     static, th = _prepare(config, sigma, thresholds, dtype)
     th = Thresholds(*(jnp.broadcast_to(v, (B,)) for v in th))
+    if dist is not None and not shared:
+        raise ValueError("dist needs a shared rig (K of shape (M, 3, 3)); undistort per-scene rigs yourself")
+    extras = _check_extras(dist, weights, min_views, tuple(np.shape(mask)), dtype)
     return _associate_batch_jit(
-        rig, jnp.asarray(xy, dtype), jnp.asarray(mask), th, config=static, batch_size=min(batch_size, B), shared_rig=shared
+        rig, jnp.asarray(xy, dtype), jnp.asarray(mask), th, extras,
+        config=static, batch_size=min(batch_size, B), shared_rig=shared,
     )

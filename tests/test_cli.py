@@ -76,7 +76,7 @@ def test_calibrate_quick_end_to_end(tmp_path, capsys):
     out = tmp_path / "calibration.png"
     assert main(["calibrate", "--quick", "--out", out]) == 0
     text = capsys.readouterr().out
-    row = next(line for line in text.splitlines() if line.startswith("| medium"))
+    row = next(line for line in text.splitlines() if line.startswith("| large"))
     cells = [c.strip() for c in row.strip("|").split("|")]
     bpe_before, bpe_after = (float(v) for v in cells[4].split(" → "))
     pg_before, pg_after = (float(v) for v in cells[5].split(" (")[0].split(" → "))

@@ -12,6 +12,7 @@ import os
 import time
 
 from .._config import Config
+from ..io._rig_files import FORMATS
 
 METHODS = {
     "paper": lambda: Config.paper(),
@@ -47,7 +48,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--buckets", type=int, nargs="+", help="slot capacities (default: fitted to the counts)")
     p.add_argument("--rig", help="run on this rig instead of the built-in one: an EasyVis folder, .json or .npz")
-    p.add_argument("--rig-format", default="auto", choices=("auto", "easyvis", "json", "npz"))
+    p.add_argument("--rig-format", default="auto", choices=("auto", *FORMATS), help="rig file format (default: from the path)")
     p.add_argument(
         "--box", type=float, nargs=6, metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"),
         help="3D sampling box (scene units; default: the built-in rig's, or for --rig the region ≥ 2 views see)",

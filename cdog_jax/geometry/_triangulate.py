@@ -60,7 +60,7 @@ def solve_normal_3x3(
 
 
 def triangulate(
-    rig: Rig, xy: Float[Array, "*S M 2"], mask: Bool[Array, "*S M"]
+    rig: Rig, xy: Float[Array, "*S M 2"], mask: Bool[Array, "*S M"], weights: Float[Array, "*S M"] | None = None
 ) -> tuple[Float[Array, "*S 3"], Bool[Array, "*S"]]:
     """Multi-view DLT of any batch of tracks, without association; jit/vmap friendly.
 
@@ -68,6 +68,9 @@ def triangulate(
         rig: ``M`` cameras.
         xy: ``(*S, M, 2)`` pixels of each track in every view (anything where masked).
         mask: ``(*S, M)`` bool, the views that observe the track.
+        weights: optional ``(*S, M)`` non-negative weight of each view's equations (e.g.
+            detector confidence): the normal equations become ``Σ_v w_v N_v``. A view with
+            weight 0 counts as unobserved.
 
     Returns:
         ``points (*S, 3)`` (scene units, 0 where undetermined) and ``ok (*S,)``: the point is
@@ -75,6 +78,8 @@ def triangulate(
     """
     N, r, origin = dlt_blocks(rig, xy)
     w = mask.astype(N.dtype)
+    if weights is not None:
+        w = jnp.where(mask, weights.astype(N.dtype), 0.0)
     X, ok = solve_normal_3x3(jnp.einsum("...m,...mij->...ij", w, N), jnp.einsum("...m,...mi->...i", w, r))
     return jnp.where(ok[..., None], X + lift(origin, X.ndim), 0.0), ok
 

@@ -1,0 +1,70 @@
+"""What happens around the association of one scene when the input is real data: lens
+undistortion before it, and after it confidence-weighted triangulation and a minimum
+number of views per group. Pure, traced functions (jit/vmap them), used by
+:func:`cdog_jax.associate` and :func:`cdog_jax.associate_batch`.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from ._result import Association
+from ._types import Array, Bool, Float, Int
+from .geometry._camera import Rig
+from .geometry._distortion import undistort_pixels
+from .geometry._projection import reprojection_errors
+from .geometry._triangulate import triangulate
+from .graph._groups import compact_groups, labels_from_groups
+
+
+def undistorted(rig: Rig, xy: Float[Array, "M P 2"], mask: Bool[Array, "M P"], dist: Float[Array, "M 5"]) -> Float[Array, "M P 2"]:
+    """Detections ``xy (M, P, 2)`` (pixels, as the lens saw them) mapped to the ideal pinhole
+    pixels of ``rig`` through OpenCV distortion ``dist (M, 5)``; padding stays 0."""
+    return jnp.where(mask[..., None], undistort_pixels(rig.K, dist, jnp.where(mask[..., None], xy, 0.0)), 0.0)
+
+
+def finish_groups(
+    rig: Rig,
+    xy: Float[Array, "M P 2"],
+    result: Association,
+    weights: Float[Array, "M P"] | None,
+    min_views: Int[Array, ""],
+) -> Association:
+    """``result`` with groups of fewer than ``min_views`` views dropped (their detections
+    become unassigned) and, when ``weights (M, P)`` is given (e.g. detector confidence, ≥ 0),
+    every point re-triangulated by DLT with each member's equation scaled by its weight.
+
+    BPE and the mean error stay the plain (unweighted) means over members (SPEC §2.4);
+    ``xy`` are the pixels the association used (undistorted). Groups are compacted to the
+    front again and the labels rebuilt, as :func:`cdog_jax.associate` returns them.
+    """
+    M, P = xy.shape[0], xy.shape[1]
+    keep = result.valid & (result.n_views >= min_views)
+    groups = jnp.where(keep[:, None], result.groups, -1)
+    member = keep[:, None] & (groups >= 0)  # (G, M)
+    view = jnp.arange(M, dtype=jnp.int32)[None, :]
+    slot = jnp.clip(groups, 0, P - 1)
+    xy_g = xy[view, slot]  # (G, M, 2)
+    X = result.points3d
+    if weights is not None:
+        w_g = jnp.where(member, weights[view, slot], 0.0)
+        X_w, ok = triangulate(rig, xy_g, member, weights=w_g)
+        X = jnp.where(ok[:, None], X_w, X)  # all-zero weights: keep the unweighted point
+    err = reprojection_errors(rig, X, xy_g)  # (G, M)
+    w = member.astype(err.dtype)
+    n = jnp.maximum(jnp.sum(w, axis=1), 1.0)
+    bpe = jnp.sum(w * err * err, axis=1) / n
+    err_px = jnp.sum(w * err, axis=1) / n
+    groups, keep, order = compact_groups(groups, keep)
+    return Association(
+        labels=labels_from_groups(groups, keep, P),
+        groups=groups,
+        valid=keep,
+        points3d=jnp.where(keep[:, None], X[order], 0.0),
+        bpe=jnp.where(keep, bpe[order], 0.0),
+        err_px=jnp.where(keep, err_px[order], 0.0),
+        n_views=jnp.sum(groups >= 0, dtype=jnp.int32, axis=1),
+        num_groups=jnp.sum(keep, dtype=jnp.int32),
+        sigma_px=result.sigma_px,
+        tau_px=result.tau_px,
+    )
