@@ -43,6 +43,8 @@ class Thresholds(NamedTuple):
     jump_floor_sigma: Float[Array, ""]
     second_frac: Float[Array, ""]  # second association: attach if mean cost < frac * tau
     recover_frac: Float[Array, ""]  # recovery: attach if reprojection error < frac * tau
+    support_frac: Float[Array, ""]  # support filter: a detection within frac * tau explains a view
+    support_max_missing: Float[Array, ""]  # support filter: max share of unexplained views
 
 
 _NUMERIC = tuple(f for f in Thresholds._fields if f != "sigma_px")
@@ -66,6 +68,7 @@ class Config:
     second_association: bool = False
     recover: bool = False  # attach leftovers to groups by reprojection (beyond the paper)
     regroup: bool = False  # run Alg. 1-3 again on what is left (beyond the paper)
+    support_filter: bool = False  # drop groups that views seeing their point do not detect
     bpe_filter: bool = True
     refine: bool = False
     sigma_mode: SigmaMode = "given"
@@ -86,6 +89,8 @@ class Config:
     jump_floor_sigma: float = 3.0
     second_frac: float = 0.5
     recover_frac: float = 1.0
+    support_frac: float = 3.0
+    support_max_missing: float = 0.5
 
     def __post_init__(self):
         choices = {

@@ -124,6 +124,8 @@ def associate_traced(
         thresholds: numeric thresholds and σ (traced; see ``Config.thresholds``).
         config: structural configuration (static under ``jit``).
     """
+    from .refine._support import support_keep  # beyond the paper (Config.support_filter)
+
     th = Thresholds(*(jnp.asarray(v) for v in thresholds))  # NumPy scalars when called eagerly
     M, P = mask.shape
     xy = jnp.where(mask[..., None], xy, 0.0)  # padding is neutral from here on
@@ -154,6 +156,8 @@ def associate_traced(
     member, xy_g, X, (bpe, err_px) = fit(groups, gvalid)
     if config.bpe_filter:
         gvalid = bpe_jump_keep(bpe, gvalid, sigma, th, config.jump_min_gaps)
+    if config.support_filter:  # beyond the paper: groups of clutter
+        gvalid = support_keep(rig, xy, mask, X, member, gvalid, tau, th)
     groups = jnp.where(gvalid[:, None], groups, -1)
 
     # Beyond the paper: attach leftovers by reprojection, then group what is still left.
@@ -167,6 +171,9 @@ def associate_traced(
         groups, gvalid = _merge_groups(groups, gvalid, new_groups, new_valid)
     if config.recover or config.regroup:
         member, xy_g, X, (bpe, err_px) = fit(groups, gvalid)
+        if config.support_filter:  # the regrouped and the grown groups
+            gvalid = support_keep(rig, xy, mask, X, member, gvalid, tau, th)
+            member = member & gvalid[:, None]
 
     if config.refine:
         X = refine_points(rig, X, xy_g, member, config.refine_max_steps)

@@ -1,0 +1,253 @@
+"""Robustness of C-DOG to missed detections and to clutter (SPEC §3, beyond the paper).
+
+Question: how do PG-F1, mP-F1 and G-F1 fall when detections are missed (drop rate 0, 5, 10,
+20, 30 %) or when false detections are added (Poisson clutter, mean 0, 2, 5, 10, 20 points
+per view), at σ = 1 px, for ``Config.paper()``, ``Config.reference()`` and
+``Config.extended()``; and what does the visibility-support filter
+(``support_filter=True``, off in every preset) change for ``paper()`` and ``extended()``?
+
+Method: built-in 10-camera rig (``cdog_jax.synthetic.default_rig()``), σ = 1 px; for every
+level, ``--scenes`` scenes of each point count in ``--counts`` (default 20, 60, 100). One
+batch of scenes is drawn with :func:`cdog_jax.synthetic.generate_scenes` (per-scene, traced
+drop and clutter rates; ``capacity`` = the largest count, ``clutter_capacity`` = 44 so that
+a Poisson(20) count is clipped with probability ≈ 10⁻⁶; the clipped count is checked). The
+two sweeps share the level (0 %, 0). Which points exist is decided before the drops (a
+point visible in ≥ 2 views), so every drop rate keeps the same points, and a point may
+be left with one detection (then it is no ground-truth group, SPEC §5). Each config
+associates the whole batch in one compiled :func:`cdog_jax.associate_batch` call (σ given,
+the rates only change the data, so nothing recompiles); the metrics are
+:func:`cdog_jax.metrics.scene_metrics` vmapped, means over scenes as
+:func:`cdog_jax.metrics.mean_metrics`. "G-F1 truth" is the G-F1 of the true grouping (one
+group per ground-truth group, everything else unassigned): every unassigned detection is a
+singleton prediction (SPEC §5), so clutter and points seen once keep G-F1 below 1 even for
+the truth (its PG-F1 and mP-F1 are 1). A method can score above it by hiding clutter inside
+correct groups (a group stays a G- match while its majority is right).
+
+``--stages`` adds the per-stage view of ``experiments/stage_ablation.py`` (cumulative
+configs) at the largest drop rate and the largest clutter level: how many ground-truth
+groups survive each stage (PG-R) and how precise the groups are (PG-P).
+
+Usage::
+
+    python experiments/robustness.py [--counts 20 60 100] [--scenes 8] [--stages]
+        [--figure experiments/figures/robustness.png] [--json out.json] [--quick]
+
+Writes the two-panel figure (``--figure``), optionally the numbers as JSON (``--json``), and
+prints Markdown tables.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from cdog_jax import Config, associate_batch
+from cdog_jax.metrics import scene_metrics
+from cdog_jax.synthetic import default_rig, generate_scenes
+
+SIGMA = 1.0
+DROP_RATES = (0.0, 0.05, 0.1, 0.2, 0.3)
+CLUTTER_RATES = (0.0, 2.0, 5.0, 10.0, 20.0)
+CLUTTER_CAPACITY = 44  # > 20 + 5 √20: P(Poisson(20) ≥ 44) ≈ 1e-6
+FIELDS = ("pg_f1", "mp_f1", "g_f1", "pg_p", "pg_r", "num_unassigned")
+CONFIGS = {
+    "paper": Config.paper(),
+    "reference": Config.reference(),
+    "extended": Config.extended(),
+    # The improvement: drop groups that views seeing their point do not detect.
+    "paper+support": Config.paper(support_filter=True),
+    "extended+support": Config.extended(support_filter=True),
+}
+STAGES = {
+    "graph + split": Config.paper(prune_scope="none", iqr=False, bpe_filter=False),
+    "+ δ-pruning": Config.paper(iqr=False, bpe_filter=False),
+    "+ IQR": Config.paper(bpe_filter=False),
+    "+ BPE filter = paper()": Config.paper(),
+    "+ union adjacency": Config.paper(adjacency="union"),
+    "+ recovery": Config.paper(adjacency="union", recover=True, recover_frac=2.0),
+    "+ regroup = extended()": Config.extended(),
+    "+ support filter": Config.extended(support_filter=True),
+}
+
+_metrics_batch = jax.jit(jax.vmap(scene_metrics, in_axes=(None, 0, 0)))
+
+
+def levels():
+    """The (drop rate, clutter rate) levels: the drop sweep, then the clutter sweep (the
+    clean level is shared)."""
+    return [(d, 0.0) for d in DROP_RATES] + [(0.0, c) for c in CLUTTER_RATES[1:]]
+
+
+def make_scenes(rig, counts, scenes, seed):
+    """One batch: every level × count × scene; returns the scenes and their (drop, clutter)."""
+    lv = levels()
+    drop = np.repeat([d for d, _ in lv], len(counts) * scenes)
+    clutter = np.repeat([c for _, c in lv], len(counts) * scenes)
+    count = np.tile(np.repeat(counts, scenes), len(lv))
+    batch = generate_scenes(
+        jax.random.PRNGKey(seed),
+        rig,
+        jnp.asarray(count, jnp.int32),
+        jnp.full(count.shape, SIGMA, jnp.float32),
+        capacity=int(max(counts)),
+        drop_rate=jnp.asarray(drop, jnp.float32),
+        clutter_rate=jnp.asarray(clutter, jnp.float32),
+        clutter_capacity=CLUTTER_CAPACITY,
+    )
+    return batch, drop, clutter, count
+
+
+def truth_g_f1(batch):
+    """G-F1 of the perfect association per scene: 2 gt / (2 gt + singletons)."""
+    inst, mask = np.asarray(batch.instance), np.asarray(batch.mask)
+    out = []
+    for b in range(inst.shape[0]):
+        ids = inst[b][mask[b] & (inst[b] >= 0)]
+        n = np.bincount(ids, minlength=1) if ids.size else np.zeros(1, int)
+        gt = int(np.sum(n >= 2))
+        singles = int(mask[b].sum()) - int(n[n >= 2].sum())
+        out.append(2 * gt / (2 * gt + singles) if gt else 0.0)
+    return np.asarray(out)
+
+
+def evaluate(rig, batch, configs, log=print):
+    """Per-scene metrics ``{name: {field: (S,)}}`` of every config, one compiled call each."""
+    out = {}
+    for name, config in configs.items():
+        t0 = time.perf_counter()
+        assoc = associate_batch(rig, batch.xy, batch.mask, config=config, sigma=SIGMA, batch_size=8)
+        m = _metrics_batch(rig, assoc, batch)
+        out[name] = {f: np.asarray(getattr(m, f), np.float64) for f in FIELDS}
+        log(f"  {name}: {time.perf_counter() - t0:.1f} s (compile included)")
+    return out
+
+
+def summarise(per_scene, drop, clutter, g_max):
+    """Rows ``{drop, clutter, g_f1_max, <config>: {field: mean}}`` per level."""
+    rows = []
+    for d, c in levels():
+        at = (drop == d) & (clutter == c)
+        row = {"drop_rate": d, "clutter_rate": c, "num_scenes": int(at.sum()), "g_f1_max": float(g_max[at].mean())}
+        for name, fields in per_scene.items():
+            row[name] = {f: float(v[at].mean()) for f, v in fields.items()}
+        rows.append(row)
+    return rows
+
+
+def run(*, counts=(20, 60, 100), scenes=8, seed=0, stages=False, configs=tuple(CONFIGS), log=print):
+    rig = default_rig()
+    counts = tuple(int(c) for c in counts)
+    t_all = time.perf_counter()
+    batch, drop, clutter, count = make_scenes(rig, counts, scenes, seed)
+    num_clutter = np.asarray(batch.num_clutter)
+    clipped = int(np.sum(num_clutter >= CLUTTER_CAPACITY))
+    log(f"{drop.size} scenes ({len(levels())} levels × {len(counts)} counts × {scenes}); "
+        f"views with clipped clutter: {clipped}")
+    per_scene = evaluate(rig, batch, {name: CONFIGS[name] for name in configs}, log=log)
+    out = {
+        "sigma_px": SIGMA,
+        "counts": list(counts),
+        "scenes_per_cell": scenes,
+        "seed": seed,
+        "clutter_capacity": CLUTTER_CAPACITY,
+        "clipped_views": clipped,
+        "mean_clutter": {str(c): float(num_clutter[clutter == c].mean()) for c in CLUTTER_RATES},
+        "configs": list(configs),
+        "rows": summarise(per_scene, drop, clutter, truth_g_f1(batch)),
+    }
+    if stages:
+        worst = (drop == max(DROP_RATES)) | (clutter == max(CLUTTER_RATES)) | ((drop == 0) & (clutter == 0))
+        sub = jax.tree.map(lambda a: a[worst], batch)
+        st = evaluate(rig, sub, STAGES, log=log)
+        rows = []
+        for d, c in ((0.0, 0.0), (max(DROP_RATES), 0.0), (0.0, max(CLUTTER_RATES))):
+            at = (drop[worst] == d) & (clutter[worst] == c)
+            for name, fields in st.items():
+                rows.append({"drop_rate": d, "clutter_rate": c, "stage": name,
+                             **{f: float(v[at].mean()) for f, v in fields.items()}})
+        out["stages"] = rows
+    out["total_seconds"] = time.perf_counter() - t_all
+    return out
+
+
+def markdown_tables(out: dict) -> str:
+    names = out["configs"]
+    head = ["drop (%)", "clutter / view"] + [f"{n} {lab}" for n in names for lab in ("PG-F1", "mP-F1", "G-F1")]
+    head.append("G-F1 truth")
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in out["rows"]:
+        cells = [f"{100 * r['drop_rate']:g}", f"{r['clutter_rate']:g}"]
+        cells += [f"{r[n][f]:.3f}" for n in names for f in ("pg_f1", "mp_f1", "g_f1")]
+        cells.append(f"{r['g_f1_max']:.3f}")
+        lines.append("| " + " | ".join(cells) + " |")
+    if "stages" in out:
+        lines += ["", "| drop (%) | clutter / view | stages | PG-R | PG-P | PG-F1 | G-F1 | unassigned / scene |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for r in out["stages"]:
+            lines.append(f"| {100 * r['drop_rate']:g} | {r['clutter_rate']:g} | {r['stage']} | {r['pg_r']:.3f} | "
+                         f"{r['pg_p']:.3f} | {r['pg_f1']:.3f} | {r['g_f1']:.3f} | {r['num_unassigned']:.1f} |")
+    return "\n".join(lines)
+
+
+def figure(out: dict, path: str):
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(11, 4.2), layout="constrained")
+    axes = fig.subplots(1, 2, sharey=True)
+    styles = {"pg_f1": "-", "mp_f1": "--", "g_f1": ":"}
+    labels = {"pg_f1": "PG-F1", "mp_f1": "mP-F1", "g_f1": "G-F1"}
+    colors = dict(zip(out["configs"], ("C0", "C1", "C2", "C3", "C4", "C5")))
+    rows = out["rows"]
+    sweeps = (
+        ([r for r in rows if r["clutter_rate"] == 0], "drop_rate", 100.0, "missed detections: drop rate (%)"),
+        ([r for r in rows if r["drop_rate"] == 0], "clutter_rate", 1.0, "clutter: mean false detections per view"),
+    )
+    for ax, (sel, key, scale, xlabel) in zip(axes, sweeps):
+        x = [scale * r[key] for r in sel]
+        for name in out["configs"]:
+            for f, ls in styles.items():
+                ax.plot(x, [r[name][f] for r in sel], ls, marker="o", ms=3, color=colors[name],
+                        label=f"{name} {labels[f]}")
+        ax.plot(x, [r["g_f1_max"] for r in sel], color="0.5", lw=1, label="G-F1 of the true grouping")
+        ax.set_xlabel(xlabel)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("score (mean over scenes, 0–1)")
+    axes[0].set_title(f"σ = {out['sigma_px']:g} px, no clutter")
+    axes[1].set_title(f"σ = {out['sigma_px']:g} px, no drops")
+    axes[1].legend(fontsize=7, ncol=2, loc="lower left")
+    fig.savefig(path, dpi=120)
+    return fig
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--counts", type=int, nargs="+", default=[20, 60, 100])
+    parser.add_argument("--scenes", type=int, default=8, help="scenes per (level, count)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--stages", action="store_true", help="per-stage table at the worst levels")
+    parser.add_argument("--configs", nargs="+", choices=list(CONFIGS), default=list(CONFIGS))
+    parser.add_argument("--quick", action="store_true", help="tiny run: paper() only, counts 8, 1 scene each")
+    parser.add_argument("--figure", default=os.path.join("experiments", "figures", "robustness.png"))
+    parser.add_argument("--json", default=None, help="also write the numbers here")
+    args = parser.parse_args(argv)
+    if args.quick:
+        args.counts, args.scenes, args.configs = [8], 1, ["paper"]
+    out = run(counts=args.counts, scenes=args.scenes, seed=args.seed, stages=args.stages, configs=args.configs)
+    os.makedirs(os.path.dirname(os.path.abspath(args.figure)), exist_ok=True)
+    figure(out, args.figure)
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(out, f, indent=1)
+    print(markdown_tables(out))
+    print(f"\ntotal {out['total_seconds']:.1f} s; wrote {args.figure}" + (f" and {args.json}" if args.json else ""))
+    return out
+
+
+if __name__ == "__main__":
+    main()

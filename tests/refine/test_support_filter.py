@@ -1,0 +1,75 @@
+"""Visibility-support filter (Config.support_filter, beyond the paper), hand-built cases."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from cdog_jax import Config, associate
+from cdog_jax.refine._support import support_keep
+from helpers import project_np, ring_rig
+
+RIG = ring_rig(5)  # 5 views around the origin, all see the box near the origin
+M, P = 5, 4
+
+
+def _points():
+    return np.array([[0.1, 0.0, 0.1], [-0.2, 0.15, 0.0], [0.05, -0.2, -0.1], [0.2, 0.2, 0.2]], np.float32)
+
+
+def test_support_keep_hand_built():
+    X = _points()  # (4, 3), each seen by all 5 views
+    pix, seen = project_np(RIG, X)  # (M, 4, 2), (M, 4)
+    assert seen.all()
+    # Two detections at opposite image corners per view make the detection area the image.
+    corners = np.broadcast_to(np.array([[5.0, 5.0], [635.0, 475.0]]), (M, 2, 2))
+    xy, mask = np.concatenate([pix, corners], axis=1).astype(np.float32), np.ones((M, P + 2), bool)
+    th = Config.paper().thresholds(1.0)
+    tau = jnp.asarray(2.0 * np.sqrt(2.0), jnp.float32)
+    # group 0: point 0 in all views (nothing missing); group 1: point 1 in views 0, 1 only,
+    # and the other views do detect it: nothing missing either; group 2: point 2's
+    # detections are removed from views 2, 3, 4 (3 missing of 5 > 0.5): dropped;
+    # group 3: point 3 with views 3, 4 missing (2 of 5): kept.
+    mask[2:, 2] = False
+    mask[3:, 3] = False
+    member = np.array([[1, 1, 1, 1, 1], [1, 1, 0, 0, 0], [1, 1, 0, 0, 0], [1, 1, 1, 0, 0]], bool)
+    valid = np.ones(4, bool)
+    keep = jax.jit(support_keep)(RIG, jnp.asarray(xy), jnp.asarray(mask), jnp.asarray(X), jnp.asarray(member), jnp.asarray(valid), tau, th)
+    np.testing.assert_array_equal(np.asarray(keep), [True, True, False, True])
+    # A stricter share drops group 3 too; a looser one keeps group 2.
+    strict = th._replace(support_max_missing=np.float32(0.3))
+    loose = th._replace(support_max_missing=np.float32(0.6))
+    args = (RIG, jnp.asarray(xy), jnp.asarray(mask), jnp.asarray(X), jnp.asarray(member), jnp.asarray(valid), tau)
+    np.testing.assert_array_equal(np.asarray(support_keep(*args, strict)), [True, True, False, False])
+    np.testing.assert_array_equal(np.asarray(support_keep(*args, loose)), [True, True, True, True])
+    # A point behind a member camera is dropped; an invalid group stays invalid.
+    behind = X.copy()
+    cam0 = -np.asarray(RIG.R)[0].T @ np.asarray(RIG.t)[0]
+    behind[0] = cam0 - 1.0 * np.asarray(RIG.R)[0][2]  # 1 unit behind camera 0 along its axis
+    keep = support_keep(RIG, jnp.asarray(xy), jnp.asarray(mask), jnp.asarray(behind), jnp.asarray(member), jnp.asarray([True, False, True, True]), tau, th)
+    np.testing.assert_array_equal(np.asarray(keep), [False, False, False, True])
+
+
+def test_pipeline_drops_a_two_view_ghost():
+    # Four real points seen by all views, plus a "ghost": two detections in views 0 and 1
+    # at the projections of a 3D point that views 2-4 also see but do not detect (what a
+    # clutter pair consistent with the epipolar geometry looks like). paper() keeps the
+    # pair as a group; with the support filter it is left unassigned, the rest unchanged.
+    X = _points()
+    ghost = np.array([0.0, 0.0, 0.0], np.float32)  # inside every view's detection area
+    xy = np.zeros((M, P + 1, 2), np.float32)
+    mask = np.zeros((M, P + 1), bool)
+    xy[:, :P], seen = project_np(RIG, X)
+    assert seen.all()
+    mask[:, :P] = True
+    ghost_xy, ghost_seen = project_np(RIG, ghost[None])
+    assert ghost_seen.all()
+    xy[:2, P] = ghost_xy[:2, 0]
+    mask[:2, P] = True
+    base = associate(RIG, xy, mask, config=Config.paper(), sigma=1.0)
+    filt = associate(RIG, xy, mask, config=Config.paper(support_filter=True), sigma=1.0)
+    lb, lf = np.asarray(base.labels), np.asarray(filt.labels)
+    assert int(base.num_groups) == 5 and lb[0, P] >= 0 and lb[0, P] == lb[1, P]
+    assert int(filt.num_groups) == 4 and lf[0, P] == lf[1, P] == -1
+    np.testing.assert_array_equal(lf[:, :P] >= 0, True)
+    for i in range(P):  # the real points: one group each, all views
+        assert len(set(lf[:, i])) == 1
