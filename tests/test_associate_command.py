@@ -1,0 +1,153 @@
+"""`cdog-jax associate` and `cdog-jax rig` end to end, in a temporary folder: a generated
+rig written in every rig format, a detections file, association, output read back."""
+
+import csv
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import cdog_jax
+from cdog_jax._cli import main
+from cdog_jax.geometry import distort_pixels
+from cdog_jax.io import (
+    load_association_json,
+    save_rig_anipose,
+    save_rig_colmap,
+    save_rig_easymocap,
+    save_rig_easyvis,
+    save_rig_json,
+    save_rig_npz,
+)
+from cdog_jax.synthetic import IMAGE_SIZE, default_rig, generate_scene
+
+SIGMA = 0.5
+DIST = np.array([-0.2, 0.05, 5e-4, -5e-4, 0.0])
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    """The default rig, one scene, its detections file (per-view lists, confidences), and
+    the association of the same lists done in Python."""
+    folder = tmp_path_factory.mktemp("associate_cli")
+    rig = default_rig()
+    scene = generate_scene(jax.random.PRNGKey(5), rig, 12, SIGMA, capacity=12)
+    xy, mask = np.asarray(scene.xy, np.float64), np.asarray(scene.mask)
+    conf = np.random.default_rng(0).uniform(0.5, 1.0, mask.shape)
+    views = [[[*xy[m, i], conf[m, i]] for i in range(mask.shape[1]) if mask[m, i]] for m in range(mask.shape[0])]
+    points = folder / "detections.json"
+    points.write_text(json.dumps({"views": views}))
+    # The file's slots are the scene's detections packed to the front of each view.
+    P = max(len(v) for v in views)
+    xy_file = np.zeros((mask.shape[0], P, 2))
+    mask_file = np.zeros((mask.shape[0], P), bool)
+    for m, v in enumerate(views):
+        xy_file[m, : len(v)] = np.asarray(v)[:, :2] if v else 0.0
+        mask_file[m, : len(v)] = True
+    expected = cdog_jax.associate(rig, jnp.asarray(xy_file, jnp.float32), jnp.asarray(mask_file), sigma=SIGMA)
+    return folder, rig, points, views, expected
+
+
+def _points(expected):
+    n = int(expected.num_groups)
+    return np.asarray(expected.points3d)[:n]
+
+
+WRITERS = {
+    "easyvis": lambda p, rig: save_rig_easyvis(p, rig),
+    "json": lambda p, rig: save_rig_json(p, rig, image_size=IMAGE_SIZE),
+    "npz": lambda p, rig: save_rig_npz(p, rig, image_size=IMAGE_SIZE),
+    "anipose": lambda p, rig: save_rig_anipose(p, rig, image_size=IMAGE_SIZE),
+    "colmap": lambda p, rig: save_rig_colmap(p, rig, image_size=IMAGE_SIZE),
+    "easymocap": lambda p, rig: save_rig_easymocap(p, rig),
+}
+NAMES = {"easyvis": "rig_ev", "json": "rig.json", "npz": "rig.npz", "anipose": "calibration.toml", "colmap": "colmap", "easymocap": "easymocap"}
+
+
+@pytest.mark.parametrize("fmt", list(WRITERS))
+def test_associate_from_every_rig_format(data, fmt, capsys):
+    folder, rig, points, views, expected = data
+    rig_path = folder / NAMES[fmt]
+    WRITERS[fmt](rig_path, rig)
+    out = folder / f"groups_{fmt}.json"
+    assert main(["associate", "--rig", rig_path, "--points", points, "--sigma", str(SIGMA), "--out", out]) == 0
+    text = capsys.readouterr().out
+    assert f"3D points: {int(expected.num_groups)}" in text
+    records = load_association_json(out)
+    got = np.array([g["point3d"] for g in records["groups"]])
+    np.testing.assert_allclose(got, _points(expected), atol=1e-3)
+    # Every detection of the file appears once, in a group or as unassigned.
+    listed = [(r[0], r[1]) for g in records["groups"] for r in g["members"]] + [(r[0], r[1]) for r in records["unassigned"]]
+    assert sorted(listed) == sorted((m, i) for m, v in enumerate(views) for i in range(len(v)))
+
+
+def test_associate_frames_csv_npz_weights_min_views_plot(data, capsys):
+    folder, rig, points, views, expected = data
+    rig_path = folder / "rig_frames.json"
+    save_rig_json(rig_path, rig, image_size=IMAGE_SIZE)
+    frames = folder / "frames.json"
+    frames.write_text(json.dumps({"frames": [{"views": views}, {"views": views[::-1][::-1]}]}))
+    out_csv, out_npz, fig = folder / "points.csv", folder / "groups.npz", folder / "frame0.png"
+    common = ["associate", "--rig", rig_path, "--points", frames, "--sigma", str(SIGMA)]
+    assert main([*common, "--min-views", "3", "--confidence-weights", "--out", out_csv, "--plot", fig]) == 0
+    text = capsys.readouterr().out
+    assert "2 frame(s)" in text and fig.stat().st_size > 10_000
+    with open(out_csv) as f:
+        rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
+    n3 = int((np.asarray(expected.n_views) >= 3)[: int(expected.num_groups)].sum())
+    assert len(rows) == 2 * n3  # two identical frames
+    assert all(int(r["n_views"]) >= 3 for r in rows)
+    assert main([*common, "--out", out_npz]) == 0
+    with np.load(out_npz) as npz:
+        np.testing.assert_array_equal(npz["num_groups"], [int(expected.num_groups)] * 2)
+
+
+def test_associate_undistorts_with_the_rig_distortion(data, capsys):
+    folder, rig, points, views, expected = data
+    dist = np.tile(DIST, (rig.num_views, 1))
+    rig_path = folder / "lens.toml"
+    save_rig_anipose(rig_path, rig, image_size=IMAGE_SIZE, dist=dist)
+    lens_views = []
+    for m, v in enumerate(views):
+        if not v:
+            lens_views.append([])
+            continue
+        xy = jnp.asarray(np.asarray(v)[None, :, :2], jnp.float32)
+        d = distort_pixels(rig.K[m : m + 1], jnp.asarray(dist[m : m + 1], jnp.float32), xy)[0]
+        lens_views.append(np.asarray(d, np.float64).tolist())
+    lens_points = folder / "lens_detections.json"
+    lens_points.write_text(json.dumps({"views": lens_views}))
+    out = folder / "lens_groups.json"
+    assert main(["associate", "--rig", rig_path, "--points", lens_points, "--sigma", str(SIGMA), "--out", out]) == 0
+    assert "with lens distortion" in capsys.readouterr().out
+    got = np.array([g["point3d"] for g in load_association_json(out)["groups"]])
+    np.testing.assert_allclose(got, _points(expected), atol=2e-3)
+
+
+def test_rig_command_describes_and_plots(data, capsys):
+    folder, rig, points, views, expected = data
+    rig_path = folder / "described.json"
+    save_rig_json(rig_path, rig, image_size=IMAGE_SIZE)
+    fig = folder / "rig.png"
+    assert main(["rig", rig_path, "--points", points, "--plot", fig]) == 0
+    text = capsys.readouterr().out
+    assert "baseline" in text.lower() and "No warnings." in text
+    assert fig.stat().st_size > 10_000
+    # A rig given camera→world (R transposed, t = centre) is flagged.
+    wrong = cdog_jax.Rig(rig.K, jnp.swapaxes(rig.R, -1, -2), rig.centers)
+    wrong_path = folder / "wrong.json"
+    save_rig_json(wrong_path, wrong, image_size=IMAGE_SIZE)
+    assert main(["rig", wrong_path, "--points", points]) == 0
+    assert "camera→world" in capsys.readouterr().out
+
+
+def test_associate_refuses_bad_input_before_any_work(data, tmp_path):
+    folder, rig, points, views, expected = data
+    rig_path = tmp_path / "three.json"
+    save_rig_json(rig_path, rig.select([0, 1, 2]))
+    with pytest.raises(ValueError, match=r"detections\.json.*3.*10|10.*3"):
+        main(["associate", "--rig", rig_path, "--points", points])
+    with pytest.raises(SystemExit, match=r"extension must be one of"):
+        main(["associate", "--rig", folder / "rig.json", "--points", points, "--out", tmp_path / "x.txt"])
