@@ -152,7 +152,7 @@ def run_associate(args: argparse.Namespace) -> int:
         if ext == ".json":
             save_association_json(args.out, assoc, xy, mask, confidence=conf)
         elif ext == ".npz":
-            save_association_npz(args.out, assoc, xy, mask, confidence=conf)
+            save_association_npz(args.out, assoc, xy=xy, mask=mask, confidence=conf)
         else:
             save_association_csv(args.out, assoc)
         lines.append(f"Wrote {args.out}")

@@ -9,11 +9,12 @@ import pytest
 import cdog_jax
 import cdog_jax.geometry
 import cdog_jax.graph
+import cdog_jax.io
 import cdog_jax.metrics
 import cdog_jax.refine
 import cdog_jax.synthetic
 
-MODULES = [cdog_jax, cdog_jax.geometry, cdog_jax.graph, cdog_jax.refine, cdog_jax.synthetic, cdog_jax.metrics]
+MODULES = [cdog_jax, cdog_jax.geometry, cdog_jax.graph, cdog_jax.io, cdog_jax.refine, cdog_jax.synthetic, cdog_jax.metrics]
 PUBLIC = sorted(
     {
         (mod.__name__, name): obj

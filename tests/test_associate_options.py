@@ -104,3 +104,13 @@ def test_option_errors(scene_and_plain, kwargs, message):
     rig, scene, _ = scene_and_plain
     with pytest.raises(ValueError, match=message):
         cdog_jax.associate(rig, scene.xy, scene.mask, sigma=0.5, **kwargs)
+
+
+def test_rig_checks_fewer_than_two_views_and_non_finite_K():
+    rig = default_rig()
+    with pytest.raises(ValueError, match=r"the rig must have at least 2 views; got 1"):
+        cdog_jax.associate(rig.select([0]), np.zeros((1, 3, 2), np.float32), np.ones((1, 3), bool))
+    K = np.array(rig.K)
+    K[3, 0, 0] = np.inf
+    with pytest.raises(ValueError, match=r"K of view 3 has non-finite entries"):
+        cdog_jax.rig_from_arrays(K, rig.R, rig.t)

@@ -60,7 +60,7 @@ def solve_normal_3x3(
 
 
 def triangulate(
-    rig: Rig, xy: Float[Array, "*S M 2"], mask: Bool[Array, "*S M"], weights: Float[Array, "*S M"] | None = None
+    rig: Rig, xy: Float[Array, "*S M 2"], mask: Bool[Array, "*S M"], *, weights: Float[Array, "*S M"] | None = None
 ) -> tuple[Float[Array, "*S 3"], Bool[Array, "*S"]]:
     """Multi-view DLT of any batch of tracks, without association; jit/vmap friendly.
 

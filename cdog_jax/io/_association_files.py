@@ -142,7 +142,7 @@ def load_association_json(path: PathLike) -> dict:
     return data
 
 
-def save_association_npz(path: PathLike, assoc: Any, xy: Any = None, mask: Any = None, *, confidence: Any = None) -> None:
+def save_association_npz(path: PathLike, assoc: Any, *, xy: Any = None, mask: Any = None, confidence: Any = None) -> None:
     """Write every :class:`cdog_jax.Association` field as an array (``labels``, ``groups``,
     ``valid``, ``points3d``, ``bpe`` (px²), ``err_px``, ``n_views``, ``num_groups``,
     ``sigma_px``, ``tau_px``; with a leading ``B`` for a batch), plus ``xy``, ``mask`` and

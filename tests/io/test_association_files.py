@@ -106,7 +106,7 @@ def test_confidence_and_rig_columns(result):
 def test_npz_round_trip(result, tmp_path):
     _, xy, mask, assoc = result
     path = tmp_path / "assoc.npz"
-    save_association_npz(path, assoc, xy, mask)
+    save_association_npz(path, assoc, xy=xy, mask=mask)
     with np.load(path) as npz:
         for k in ("labels", "groups", "valid", "points3d", "bpe", "err_px", "n_views", "num_groups", "sigma_px", "tau_px"):
             np.testing.assert_array_equal(npz[k], np.asarray(getattr(assoc, k)))
