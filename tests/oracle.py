@@ -39,6 +39,7 @@ __all__ = [
     "second_association",
     "group_bpe",
     "bpe_jump_keep",
+    "support_keep",
     "oracle_associate",
     "look_at",
     "make_rig",
@@ -634,6 +635,36 @@ def recover_leftovers(K, R, t, xy, mask, groups, gvalid, pts, tau, frac):
     return groups
 
 
+def support_keep(K, R, t, xy, mask, groups, gvalid, pts, tau, frac, max_missing):
+    """Visibility support (§8d, beyond the paper; ``Config.support_filter``): keep a valid
+    group unless its point is behind a member camera, or more than ``max_missing`` of the
+    views that should see it are *missing*: a non-member view where the point is in front,
+    projects inside the bounding box of the view's detections, and no detection lies
+    closer than ``frac · τ`` pixels."""
+    K, R, t, xy = (np.asarray(a, np.float64) for a in (K, R, t, xy))
+    M = mask.shape[0]
+    radius = frac * tau
+    keep = np.asarray(gvalid, bool).copy()
+    for g in np.flatnonzero(keep):
+        X = pts[g]
+        pix = project(K, R, t, X)
+        n_member, n_missing, behind = 0, 0, False
+        for m in range(M):
+            front = (R[m] @ X + t[m])[2] > 0
+            if groups[g, m] >= 0:
+                n_member += 1
+                behind |= not front
+                continue
+            det = xy[m][mask[m]]
+            if not front or len(det) == 0:
+                continue
+            inside = np.all(det.min(0) <= pix[m]) and np.all(pix[m] <= det.max(0))
+            near = np.any(np.sum((det - pix[m]) ** 2, axis=1) < radius * radius)
+            n_missing += int(inside and not near)
+        keep[g] = not behind and n_missing <= max_missing * (n_member + n_missing)
+    return keep
+
+
 def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
     """The whole pipeline of docs/ALGORITHM.md on one scene, in float64 NumPy.
 
@@ -695,6 +726,10 @@ def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
         )
         groups[~keep] = -1
         gvalid = keep
+    if getattr(cfg, "support_filter", False):  # §8d
+        keep = support_keep(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg.support_frac, cfg.support_max_missing)
+        groups[~keep] = -1
+        gvalid = keep
     stages["labels_bpe"] = _group_labels(groups, gvalid, M, P)
 
     # §8b recovery by reprojection, §8c regrouping of leftovers
@@ -716,6 +751,10 @@ def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
             gvalid[g] = True
     if cfg.recover or cfg.regroup:
         pts, bpe, err = group_bpe(K, R, t, xy, groups, gvalid)
+        if getattr(cfg, "support_filter", False):  # §8d on the grown and regrouped groups
+            keep = support_keep(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg.support_frac, cfg.support_max_missing)
+            groups[~keep] = -1
+            gvalid = keep
     stages["labels_recovered"] = _group_labels(groups, gvalid, M, P)
 
     # §11 output: valid groups first, in the order of §5
