@@ -44,7 +44,9 @@ class Thresholds(NamedTuple):
     second_frac: Float[Array, ""]  # second association: attach if mean cost < frac * tau
     recover_frac: Float[Array, ""]  # recovery: attach if reprojection error < frac * tau
     support_frac: Float[Array, ""]  # support filter: a detection within frac * tau explains a view
-    support_max_missing: Float[Array, ""]  # support filter: max share of unexplained views
+    support_alpha: Float[Array, ""]  # support filter: drop if P(that many misses) < alpha
+    support_min_rate: Float[Array, ""]  # support filter: floor of the estimated miss rate
+    support_ref_views: Float[Array, ""]  # support filter: members of the groups that estimate it
 
 
 _NUMERIC = tuple(f for f in Thresholds._fields if f != "sigma_px")
@@ -90,7 +92,9 @@ class Config:
     second_frac: float = 0.5
     recover_frac: float = 1.0
     support_frac: float = 3.0
-    support_max_missing: float = 0.5
+    support_alpha: float = 0.01
+    support_min_rate: float = 0.02
+    support_ref_views: float = 4.0
 
     def __post_init__(self):
         choices = {

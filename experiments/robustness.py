@@ -17,7 +17,7 @@ be left with one detection (then it is no ground-truth group, SPEC §5). Each co
 associates the whole batch in one compiled :func:`cdog_jax.associate_batch` call (σ given,
 the rates only change the data, so nothing recompiles); the metrics are
 :func:`cdog_jax.metrics.scene_metrics` vmapped, means over scenes as
-:func:`cdog_jax.metrics.mean_metrics`. "G-F1 truth" is the G-F1 of the true grouping (one
+:func:`cdog_jax.metrics.mean_metrics`. "truth G-F1" is the G-F1 of the true grouping (one
 group per ground-truth group, everything else unassigned): every unassigned detection is a
 singleton prediction (SPEC §5), so clutter and points seen once keep G-F1 below 1 even for
 the truth (its PG-F1 and mP-F1 are 1). A method can score above it by hiding clutter inside
@@ -177,50 +177,61 @@ def run(*, counts=(20, 60, 100), scenes=8, seed=0, stages=False, configs=tuple(C
 
 
 def markdown_tables(out: dict) -> str:
+    """One table per score (PG-F1, mP-F1, G-F1; rows: levels, columns: configs), then the
+    per-stage table when there is one."""
     names = out["configs"]
-    head = ["drop (%)", "clutter / view"] + [f"{n} {lab}" for n in names for lab in ("PG-F1", "mP-F1", "G-F1")]
-    head.append("G-F1 truth")
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for r in out["rows"]:
-        cells = [f"{100 * r['drop_rate']:g}", f"{r['clutter_rate']:g}"]
-        cells += [f"{r[n][f]:.3f}" for n in names for f in ("pg_f1", "mp_f1", "g_f1")]
-        cells.append(f"{r['g_f1_max']:.3f}")
-        lines.append("| " + " | ".join(cells) + " |")
+    lines = []
+    for f, label in (("pg_f1", "PG-F1"), ("mp_f1", "mP-F1"), ("g_f1", "G-F1")):
+        head = ["drop (%)", "clutter / view"] + [f"{n} {label}" for n in names]
+        if f == "g_f1":
+            head.append("truth G-F1")
+        lines += ["", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        for r in out["rows"]:
+            cells = [f"{100 * r['drop_rate']:g}", f"{r['clutter_rate']:g}"] + [f"{r[n][f]:.3f}" for n in names]
+            if f == "g_f1":
+                cells.append(f"{r['g_f1_max']:.3f}")
+            lines.append("| " + " | ".join(cells) + " |")
     if "stages" in out:
         lines += ["", "| drop (%) | clutter / view | stages | PG-R | PG-P | PG-F1 | G-F1 | unassigned / scene |",
                   "|---|---|---|---|---|---|---|---|"]
         for r in out["stages"]:
             lines.append(f"| {100 * r['drop_rate']:g} | {r['clutter_rate']:g} | {r['stage']} | {r['pg_r']:.3f} | "
                          f"{r['pg_p']:.3f} | {r['pg_f1']:.3f} | {r['g_f1']:.3f} | {r['num_unassigned']:.1f} |")
-    return "\n".join(lines)
+    return "\n".join(lines[1:])
 
 
 def figure(out: dict, path: str):
+    """Two panels (vs drop rate, vs clutter): colour = config, line style = score."""
     from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
 
-    fig = Figure(figsize=(11, 4.2), layout="constrained")
+    fig = Figure(figsize=(11, 4.6), layout="constrained")
     axes = fig.subplots(1, 2, sharey=True)
-    styles = {"pg_f1": "-", "mp_f1": "--", "g_f1": ":"}
-    labels = {"pg_f1": "PG-F1", "mp_f1": "mP-F1", "g_f1": "G-F1"}
+    styles = {"pg_f1": ("-", "PG-F1"), "mp_f1": ("--", "mP-F1"), "g_f1": (":", "G-F1")}
     colors = dict(zip(out["configs"], ("C0", "C1", "C2", "C3", "C4", "C5")))
     rows = out["rows"]
     sweeps = (
         ([r for r in rows if r["clutter_rate"] == 0], "drop_rate", 100.0, "missed detections: drop rate (%)"),
-        ([r for r in rows if r["drop_rate"] == 0], "clutter_rate", 1.0, "clutter: mean false detections per view"),
+        ([r for r in rows if r["drop_rate"] == 0], "clutter_rate", 1.0,
+         "clutter: mean false detections per view (Poisson mean)"),
     )
     for ax, (sel, key, scale, xlabel) in zip(axes, sweeps):
         x = [scale * r[key] for r in sel]
         for name in out["configs"]:
-            for f, ls in styles.items():
-                ax.plot(x, [r[name][f] for r in sel], ls, marker="o", ms=3, color=colors[name],
-                        label=f"{name} {labels[f]}")
-        ax.plot(x, [r["g_f1_max"] for r in sel], color="0.5", lw=1, label="G-F1 of the true grouping")
+            for f, (ls, _) in styles.items():
+                ax.plot(x, [r[name][f] for r in sel], ls, marker="o", ms=3, color=colors[name])
+        ax.plot(x, [r["g_f1_max"] for r in sel], color="0.4", lw=1.2, ls=(0, (1, 3)))
         ax.set_xlabel(xlabel)
         ax.grid(alpha=0.3)
-    axes[0].set_ylabel("score (mean over scenes, 0–1)")
+    axes[0].set_ylabel("score, mean over scenes (0–1)")
     axes[0].set_title(f"σ = {out['sigma_px']:g} px, no clutter")
-    axes[1].set_title(f"σ = {out['sigma_px']:g} px, no drops")
-    axes[1].legend(fontsize=7, ncol=2, loc="lower left")
+    axes[1].set_title(f"σ = {out['sigma_px']:g} px, no missed detections")
+    by_config = [Line2D([], [], color=colors[n], lw=2, label=n) for n in out["configs"]]
+    by_score = [Line2D([], [], color="k", ls=ls, label=lab) for ls, lab in styles.values()]
+    by_score.append(Line2D([], [], color="0.4", lw=1.2, ls=(0, (1, 3)), label="G-F1 of the true grouping"))
+    # The lower part of the drop panel is empty: both legends go there.
+    axes[0].add_artist(axes[0].legend(handles=by_config, fontsize=8, loc="lower left", title="config", title_fontsize=8))
+    axes[0].legend(handles=by_score, fontsize=8, loc="lower right", title="score", title_fontsize=8)
     fig.savefig(path, dpi=120)
     return fig
 

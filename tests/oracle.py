@@ -635,33 +635,46 @@ def recover_leftovers(K, R, t, xy, mask, groups, gvalid, pts, tau, frac):
     return groups
 
 
-def support_keep(K, R, t, xy, mask, groups, gvalid, pts, tau, frac, max_missing):
-    """Visibility support (§8d, beyond the paper; ``Config.support_filter``): keep a valid
-    group unless its point is behind a member camera, or more than ``max_missing`` of the
-    views that should see it are *missing*: a non-member view where the point is in front,
-    projects inside the bounding box of the view's detections, and no detection lies
-    closer than ``frac · τ`` pixels."""
+def support_keep(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg):
+    """Visibility support (§8d, beyond the paper; ``Config.support_filter``).
+
+    A view is *missing* for a valid group when it is not a member view, the group's point is
+    in front of it, projects inside the bounding box of the view's detections, and no
+    detection lies closer than ``support_frac · τ`` pixels. With ``q`` = the share of
+    missing views over the groups with ≥ ``support_ref_views`` members whose point is in
+    front of all their cameras (at least ``support_min_rate``), a group of ``n`` members and
+    ``k ≥ 1`` missing views is dropped when ``P(Bin(n + k, q) ≥ k) < support_alpha``, and
+    any group whose point is behind a member camera is dropped."""
     K, R, t, xy = (np.asarray(a, np.float64) for a in (K, R, t, xy))
     M = mask.shape[0]
-    radius = frac * tau
-    keep = np.asarray(gvalid, bool).copy()
-    for g in np.flatnonzero(keep):
+    radius = cfg.support_frac * tau
+    gvalid = np.asarray(gvalid, bool)
+    n_mem, n_miss, behind = {}, {}, {}
+    for g in np.flatnonzero(gvalid):
         X = pts[g]
         pix = project(K, R, t, X)
-        n_member, n_missing, behind = 0, 0, False
+        n_mem[g], n_miss[g], behind[g] = 0, 0, False
         for m in range(M):
             front = (R[m] @ X + t[m])[2] > 0
             if groups[g, m] >= 0:
-                n_member += 1
-                behind |= not front
+                n_mem[g] += 1
+                behind[g] |= not front
                 continue
             det = xy[m][mask[m]]
             if not front or len(det) == 0:
                 continue
             inside = np.all(det.min(0) <= pix[m]) and np.all(pix[m] <= det.max(0))
             near = np.any(np.sum((det - pix[m]) ** 2, axis=1) < radius * radius)
-            n_missing += int(inside and not near)
-        keep[g] = not behind and n_missing <= max_missing * (n_member + n_missing)
+            n_miss[g] += int(inside and not near)
+    ref = [g for g in n_mem if not behind[g] and n_mem[g] >= cfg.support_ref_views]
+    total = sum(n_mem[g] + n_miss[g] for g in ref)
+    q = sum(n_miss[g] for g in ref) / total if total else 0.0
+    q = min(max(q, cfg.support_min_rate, 1e-6), 1.0 - 1e-6)
+    keep = gvalid.copy()
+    for g in n_mem:
+        k, T = n_miss[g], n_mem[g] + n_miss[g]
+        tail = sum(math.comb(T, j) * q**j * (1.0 - q) ** (T - j) for j in range(k, T + 1))
+        keep[g] = not behind[g] and (k == 0 or tail >= cfg.support_alpha)
     return keep
 
 
@@ -727,7 +740,7 @@ def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
         groups[~keep] = -1
         gvalid = keep
     if getattr(cfg, "support_filter", False):  # §8d
-        keep = support_keep(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg.support_frac, cfg.support_max_missing)
+        keep = support_keep(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg)
         groups[~keep] = -1
         gvalid = keep
     stages["labels_bpe"] = _group_labels(groups, gvalid, M, P)
@@ -752,7 +765,7 @@ def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
     if cfg.recover or cfg.regroup:
         pts, bpe, err = group_bpe(K, R, t, xy, groups, gvalid)
         if getattr(cfg, "support_filter", False):  # §8d on the grown and regrouped groups
-            keep = support_keep(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg.support_frac, cfg.support_max_missing)
+            keep = support_keep(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg)
             groups[~keep] = -1
             gvalid = keep
     stages["labels_recovered"] = _group_labels(groups, gvalid, M, P)

@@ -29,4 +29,4 @@ def test_robustness_quick(tmp_path, capsys):
     clean = out["rows"][0]
     assert clean["drop_rate"] == clean["clutter_rate"] == 0.0 and clean["g_f1_max"] == 1.0
     table = capsys.readouterr().out
-    assert "| drop (%) | clutter / view |" in table and "G-F1 truth" in table
+    assert "| drop (%) | clutter / view | paper PG-F1 |" in table and "truth G-F1" in table

@@ -9,11 +9,10 @@ from cdog_jax import Config
 from test_pipeline_vs_oracle import VARIANT_SCENES, _check_float64
 
 SUPPORT = {
-    # After the BPE filter only; and after recovery + regroup as well. Stricter than the
-    # defaults so that groups are dropped (in 10 and 8 of the 12 scenes; the
-    # defaults drop none of these scenes' groups).
-    "paper_support": Config.paper(support_filter=True, support_max_missing=0.2),
-    "extended_support_strict": Config.extended(support_filter=True, support_max_missing=0.3, support_frac=2.0),
+    # After the BPE filter only; and after recovery + regroup as well. Stricter than
+    # the defaults (larger alpha), so that groups are dropped (in 10 and 4 of 12 scenes).
+    "paper_support": Config.paper(support_filter=True, support_alpha=0.2),
+    "extended_support_strict": Config.extended(support_filter=True, support_alpha=0.1, support_min_rate=0.05, support_ref_views=3.0, support_frac=2.0),
 }
 
 

@@ -5,15 +5,20 @@ of clutter and a stray detection, triangulates to a point that other views shoul
 where they hold no detection. For every group, a view is *missing* when it is not a member
 view, the group's point is in front of its camera and projects inside the view's
 detection area, and no detection of the view lies within ``support_frac · τ`` pixels of the
-projection. A group is dropped when its missing views are more than ``support_max_missing``
-of the views that should see it (members + missing), or when its point is behind one of its
-member cameras.
+projection. Missed detections make real points miss views too, so the test is a binomial
+one: with ``q`` the scene's miss rate, estimated as the share of missing views over the
+groups with ≥ ``support_ref_views`` members (at least ``support_min_rate``), a group of
+``n`` members and ``k`` missing views is dropped when ``P(Bin(n + k, q) ≥ k) <
+support_alpha``, i.e. when that many misses are implausible at that rate; and when its point
+is behind one of its member cameras. Without drops ``q`` is about 0 and one or two missing
+views already drop a group; at a 30 % miss rate a 2-view group may miss up to 4 views.
 
 The pipeline is not told the image size: a view's detection area is the bounding box of
 its valid detections (with clutter it is about the whole image; without it, the region
 where points are seen). Views without a detection never count as missing.
 """
 
+import jax
 import jax.numpy as jnp
 
 from .._config import Thresholds
@@ -58,9 +63,28 @@ def support_keep(
         X: ``(G, 3)`` each group's triangulated point; ``member (G, M)`` its member views.
         valid: ``(G,)`` groups to test; the result is a subset.
     """
+    M = mask.shape[0]
+    dtype = xy.dtype
     member = member & valid[:, None]
     missing, in_front = missing_views(rig, xy, mask, X, member, th.support_frac * tau_px)
-    n_missing = jnp.sum(missing, axis=1, dtype=jnp.int32).astype(xy.dtype)
-    n_member = jnp.sum(member, axis=1, dtype=jnp.int32).astype(xy.dtype)
+    k = jnp.sum(missing, axis=1, dtype=jnp.int32).astype(dtype)  # (G,) missing views
+    T = k + jnp.sum(member, axis=1, dtype=jnp.int32).astype(dtype)  # (G,) views that should detect
     behind = jnp.any(member & ~in_front, axis=1)
-    return valid & ~behind & (n_missing <= th.support_max_missing * (n_member + n_missing))
+
+    # Miss rate of the scene, from the groups large enough to be trusted.
+    ref = valid & ~behind & (T - k >= th.support_ref_views)
+    k_ref, T_ref = jnp.sum(jnp.where(ref, k, 0.0)), jnp.sum(jnp.where(ref, T, 0.0))
+    q = jnp.where(T_ref > 0, k_ref / jnp.where(T_ref > 0, T_ref, 1.0), 0.0)
+    q = jnp.clip(jnp.maximum(q, th.support_min_rate), 1e-6, 1.0 - 1e-6)
+
+    # P(Bin(T, q) >= k): a sum of the binomial pmf over j = k … T ≤ M.
+    j = jnp.arange(M + 1, dtype=dtype)[None, :]  # (1, M + 1)
+    Tc, kc = T[:, None], k[:, None]
+    j_ok = j <= Tc
+    jT = jnp.where(j_ok, j, 0.0)
+    log_pmf = (
+        jax.lax.lgamma(Tc + 1.0) - jax.lax.lgamma(jT + 1.0) - jax.lax.lgamma(Tc - jT + 1.0)
+        + jT * jnp.log(q) + (Tc - jT) * jnp.log1p(-q)
+    )
+    tail = jnp.sum(jnp.where(j_ok & (j >= kc), jnp.exp(log_pmf), 0.0), axis=1)  # (G,)
+    return valid & ~behind & ((k == 0) | (tail >= th.support_alpha))

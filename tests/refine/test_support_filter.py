@@ -25,28 +25,38 @@ def test_support_keep_hand_built():
     xy, mask = np.concatenate([pix, corners], axis=1).astype(np.float32), np.ones((M, P + 2), bool)
     th = Config.paper().thresholds(1.0)
     tau = jnp.asarray(2.0 * np.sqrt(2.0), jnp.float32)
-    # group 0: point 0 in all views (nothing missing); group 1: point 1 in views 0, 1 only,
-    # and the other views do detect it: nothing missing either; group 2: point 2's
-    # detections are removed from views 2, 3, 4 (3 missing of 5 > 0.5): dropped;
-    # group 3: point 3 with views 3, 4 missing (2 of 5): kept.
+    # group 0: point 0 in all views (nothing missing; the only group with >= 4 members, so
+    # the estimated miss rate is 0, floored at support_min_rate = 0.02); group 1: point 1
+    # in views 0, 1 only, and the other views do detect it: nothing missing either;
+    # group 2: point 2's detections are removed from views 2, 3, 4: 3 missing of 5,
+    # P(Bin(5, 0.02) >= 3) ≈ 8e-5 < 0.01: dropped; group 3: point 3 without views 3, 4:
+    # P(Bin(5, 0.02) >= 2) ≈ 0.0038: dropped.
     mask[2:, 2] = False
     mask[3:, 3] = False
     member = np.array([[1, 1, 1, 1, 1], [1, 1, 0, 0, 0], [1, 1, 0, 0, 0], [1, 1, 1, 0, 0]], bool)
     valid = np.ones(4, bool)
-    keep = jax.jit(support_keep)(RIG, jnp.asarray(xy), jnp.asarray(mask), jnp.asarray(X), jnp.asarray(member), jnp.asarray(valid), tau, th)
-    np.testing.assert_array_equal(np.asarray(keep), [True, True, False, True])
-    # A stricter share drops group 3 too; a looser one keeps group 2.
-    strict = th._replace(support_max_missing=np.float32(0.3))
-    loose = th._replace(support_max_missing=np.float32(0.6))
     args = (RIG, jnp.asarray(xy), jnp.asarray(mask), jnp.asarray(X), jnp.asarray(member), jnp.asarray(valid), tau)
-    np.testing.assert_array_equal(np.asarray(support_keep(*args, strict)), [True, True, False, False])
-    np.testing.assert_array_equal(np.asarray(support_keep(*args, loose)), [True, True, True, True])
-    # A point behind a member camera is dropped; an invalid group stays invalid.
+    keep = jax.jit(support_keep)(*args, th)
+    np.testing.assert_array_equal(np.asarray(keep), [True, True, False, False])
+    # At a miss rate of 0.1, 2 misses of 5 are plausible (0.081), 3 are not (0.0086); at 0.3
+    # both are (0.47, 0.16); with alpha = 1e-5 both pass too.
+    for changes, expected in (
+        (dict(support_min_rate=0.1), [True, True, False, True]),
+        (dict(support_min_rate=0.3), [True, True, True, True]),
+        (dict(support_alpha=1e-5), [True, True, True, True]),
+    ):
+        th2 = th._replace(**{k: np.float32(v) for k, v in changes.items()})
+        np.testing.assert_array_equal(np.asarray(support_keep(*args, th2)), expected, err_msg=str(changes))
+    # The miss rate is estimated from the groups with >= support_ref_views members: with
+    # every group as a reference (ref views 2), q = 5 / 17 and nothing is dropped.
+    th3 = th._replace(support_ref_views=np.float32(2.0))
+    np.testing.assert_array_equal(np.asarray(support_keep(*args, th3)), [True, True, True, True])
+    # A point behind a member camera is dropped whatever alpha; an invalid group stays invalid.
     behind = X.copy()
     cam0 = -np.asarray(RIG.R)[0].T @ np.asarray(RIG.t)[0]
     behind[0] = cam0 - 1.0 * np.asarray(RIG.R)[0][2]  # 1 unit behind camera 0 along its axis
-    keep = support_keep(RIG, jnp.asarray(xy), jnp.asarray(mask), jnp.asarray(behind), jnp.asarray(member), jnp.asarray([True, False, True, True]), tau, th)
-    np.testing.assert_array_equal(np.asarray(keep), [False, False, False, True])
+    keep = support_keep(RIG, jnp.asarray(xy), jnp.asarray(mask), jnp.asarray(behind), jnp.asarray(member), jnp.asarray([True, False, True, True]), tau, th._replace(support_alpha=np.float32(1e-5)))
+    np.testing.assert_array_equal(np.asarray(keep), [False, False, True, True])
 
 
 def test_pipeline_drops_a_two_view_ghost():
