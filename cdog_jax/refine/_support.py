@@ -10,8 +10,9 @@ one: with ``q`` the scene's miss rate, estimated as the share of missing views o
 groups with ≥ ``support_ref_views`` members (at least ``support_min_rate``), a group of
 ``n`` members and ``k`` missing views is dropped when ``P(Bin(n + k, q) ≥ k) <
 support_alpha``, i.e. when that many misses are implausible at that rate; and when its point
-is behind one of its member cameras. Without drops ``q`` is about 0 and one or two missing
-views already drop a group; at a 30 % miss rate a 2-view group may miss up to 4 views.
+is behind one of its member cameras. Without drops ``q`` is about 0 (floored at 0.02) and
+two missing views already drop a small group (2 members: P ≈ 0.002); at ``q = 0.25`` a
+2-view group is kept with up to 5 missing views (P(Bin(7, 0.25) ≥ 5) ≈ 0.013).
 
 The pipeline is not told the image size: a view's detection area is the bounding box of
 its valid detections (with clutter it is about the whole image; without it, the region
