@@ -34,6 +34,7 @@ from .refine._outliers import remove_outliers
 from .refine._attach import leftover_nodes
 from .refine._recovery import recover_leftovers
 from .refine._second_association import second_association
+from .refine._support import support_keep
 from ._postprocess import finish_groups, undistorted
 
 
@@ -124,8 +125,6 @@ def associate_traced(
         thresholds: numeric thresholds and σ (traced; see ``Config.thresholds``).
         config: structural configuration (static under ``jit``).
     """
-    from .refine._support import support_keep  # beyond the paper (Config.support_filter)
-
     th = Thresholds(*(jnp.asarray(v) for v in thresholds))  # NumPy scalars when called eagerly
     M, P = mask.shape
     xy = jnp.where(mask[..., None], xy, 0.0)  # padding is neutral from here on
