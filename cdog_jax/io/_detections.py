@@ -30,6 +30,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from ._rig_files import open_npz
+
 PathLike = str | os.PathLike  # a file name
 
 MISSING = ("auto", "nan", "sentinel", "confidence")
@@ -228,13 +230,7 @@ def _read_json(path: str) -> tuple[list, bool]:
 
 
 def _read_npz(path: str, num_views, capacity, image_size, missing) -> Detections:
-    try:
-        npz = np.load(path, allow_pickle=False)
-    except (ValueError, OSError) as e:
-        if isinstance(e, FileNotFoundError):
-            raise
-        raise ValueError(f"{path}: not a readable .npz file ({e})") from e
-    with npz:
+    with open_npz(path) as npz:
         if "xy" not in npz.files:
             raise ValueError(f'{path}: missing array "xy" (expected xy (M, P, 2) and mask (M, P), or a frame axis first)')
         arrays = {k: npz[k] for k in ("xy", "mask", "confidence") if k in npz.files}

@@ -302,14 +302,19 @@ def _read_json(path: str):
     return _Views(np.stack(K), np.stack(R), np.stack(t), _tile_size(image_size, len(K)), dist)
 
 
-def _read_npz(path: str):
+def open_npz(path: str):
+    """``np.load`` of an ``.npz`` without pickles; an unreadable file raises ``ValueError``
+    naming it (a missing one stays ``FileNotFoundError``)."""
     try:
-        npz = np.load(path, allow_pickle=False)
+        return np.load(path, allow_pickle=False)
     except (ValueError, OSError) as e:
         if isinstance(e, FileNotFoundError):
             raise
         raise ValueError(f"{path}: not a readable .npz file ({e})") from e
-    with npz:
+
+
+def _read_npz(path: str):
+    with open_npz(path) as npz:
         for key in ("K", "R", "t"):
             if key not in npz.files:
                 raise ValueError(f'{path}: missing array "{key}" (expected K (M, 3, 3), R (M, 3, 3), t (M, 3))')
