@@ -64,7 +64,7 @@ def test_batch_equals_loop_shared_and_per_scene_rig():
 
 
 def test_jit_equals_eager():
-    xy, mask, _, _ = random_scene(RIG, 6, 8, sigma=1.0, seed=5)
+    xy, mask, _, _ = random_scene(RIG, 4, 5, sigma=1.0, seed=5)
     cfg = Config.paper()
     th = cfg.thresholds(1.0)
     jitted = associate(RIG, xy, mask, config=cfg, sigma=1.0)
