@@ -20,11 +20,11 @@ from ._types import Array, ArrayLike, Bool, Float
 from ._validate import check_observations, check_rig
 from .geometry._camera import Rig
 from .geometry._epipolar import epipolar_distances
-from .geometry._projection import reprojection_errors
+from .geometry._projection import group_errors
 from .geometry._triangulate import dlt_blocks, solve_normal_3x3
 from .graph._adjacency import adjacency_from_edges, alive_edges, nearest_neighbour_edges
 from .graph._components import component_view_counts, connected_components
-from .graph._groups import compact_groups, groups_from_labels, labels_from_groups
+from .graph._groups import compact_groups, gather_groups, groups_from_labels, labels_from_groups
 from .graph._overlap import edge_overlap, remove_edges
 from .graph._sigma import estimate_sigma
 from .graph._split import split_conflicts
@@ -38,26 +38,12 @@ from .refine._support import support_keep
 from ._postprocess import finish_groups, undistorted
 
 
-def _gather_groups(groups, per_node):
-    """``per_node (M, P, ...)`` gathered to ``(G, M, ...)`` at the group slots (slot 0 where
-    the group has no member; callers mask)."""
-    M = groups.shape[1]
-    return per_node[jnp.arange(M, dtype=jnp.int32)[None, :], jnp.maximum(groups, 0)]
-
-
 def _group_fit(rig, xy_g, member, N_g, r_g, origin):
     """Multi-view DLT point, per-member reprojection errors, BPE (px²) and mean error (px)."""
     w = member.astype(N_g.dtype)
     X, ok = solve_normal_3x3(jnp.einsum("gm,gmij->gij", w, N_g), jnp.einsum("gm,gmi->gi", w, r_g))
     X = jnp.where(ok[:, None], X + origin[None, :], 0.0)
-    return X, _errors(rig, X, xy_g, member)
-
-
-def _errors(rig, X, xy_g, member):
-    err = reprojection_errors(rig, X, xy_g)  # (G, M)
-    w = member.astype(err.dtype)
-    n = jnp.maximum(jnp.sum(w, axis=1), 1.0)
-    return jnp.sum(w * err * err, axis=1) / n, jnp.sum(w * err, axis=1) / n
+    return X, group_errors(rig, X, xy_g, member)
 
 
 def _graph_groups(d, valid, tau, th, config):
@@ -89,10 +75,10 @@ def _iqr(rig, xy, groups, gvalid, blocks, th, config):
     N_node, r_node, origin = blocks
     member = remove_outliers(
         rig,
-        _gather_groups(groups, N_node),
-        _gather_groups(groups, r_node),
+        gather_groups(groups, N_node),
+        gather_groups(groups, r_node),
         origin,
-        _gather_groups(groups, xy),
+        gather_groups(groups, xy),
         gvalid[:, None] & (groups >= 0),
         th,
         config,
@@ -146,8 +132,8 @@ def associate_traced(
 
     def fit(groups, gvalid):
         member = gvalid[:, None] & (groups >= 0)
-        xy_g = _gather_groups(groups, xy)
-        N_g, r_g = _gather_groups(groups, blocks[0]), _gather_groups(groups, blocks[1])
+        xy_g = gather_groups(groups, xy)
+        N_g, r_g = gather_groups(groups, blocks[0]), gather_groups(groups, blocks[1])
         X, errors = _group_fit(rig, xy_g, member, N_g, r_g, origin)
         return member, xy_g, X, errors
 
@@ -176,7 +162,7 @@ def associate_traced(
 
     if config.refine:
         X = refine_points(rig, X, xy_g, member, config.refine_max_steps)
-        bpe, err_px = _errors(rig, X, xy_g, member)
+        bpe, err_px = group_errors(rig, X, xy_g, member)
 
     groups = jnp.where(member, groups, -1)
     groups, gvalid, order = compact_groups(groups, gvalid)

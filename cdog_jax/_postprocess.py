@@ -12,9 +12,9 @@ from ._result import Association
 from ._types import Array, Bool, Float, Int
 from .geometry._camera import Rig
 from .geometry._distortion import undistort_pixels
-from .geometry._projection import reprojection_errors
+from .geometry._projection import group_errors
 from .geometry._triangulate import triangulate
-from .graph._groups import compact_groups, labels_from_groups
+from .graph._groups import compact_groups, gather_groups, labels_from_groups
 
 
 def undistorted(rig: Rig, xy: Float[Array, "M P 2"], mask: Bool[Array, "M P"], dist: Float[Array, "M 5"]) -> Float[Array, "M P 2"]:
@@ -38,23 +38,17 @@ def finish_groups(
     ``xy`` are the pixels the association used (undistorted). Groups are compacted to the
     front again and the labels rebuilt, as :func:`cdog_jax.associate` returns them.
     """
-    M, P = xy.shape[0], xy.shape[1]
+    P = xy.shape[1]
     keep = result.valid & (result.n_views >= min_views)
     groups = jnp.where(keep[:, None], result.groups, -1)
     member = keep[:, None] & (groups >= 0)  # (G, M)
-    view = jnp.arange(M, dtype=jnp.int32)[None, :]
-    slot = jnp.clip(groups, 0, P - 1)
-    xy_g = xy[view, slot]  # (G, M, 2)
+    xy_g = gather_groups(groups, xy)  # (G, M, 2)
     X = result.points3d
     if weights is not None:
-        w_g = jnp.where(member, weights[view, slot], 0.0)
+        w_g = jnp.where(member, gather_groups(groups, weights), 0.0)
         X_w, ok = triangulate(rig, xy_g, member, weights=w_g)
         X = jnp.where(ok[:, None], X_w, X)  # all-zero weights: keep the unweighted point
-    err = reprojection_errors(rig, X, xy_g)  # (G, M)
-    w = member.astype(err.dtype)
-    n = jnp.maximum(jnp.sum(w, axis=1), 1.0)
-    bpe = jnp.sum(w * err * err, axis=1) / n
-    err_px = jnp.sum(w * err, axis=1) / n
+    bpe, err_px = group_errors(rig, X, xy_g, member)
     groups, keep, order = compact_groups(groups, keep)
     return Association(
         labels=labels_from_groups(groups, keep, P),

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .geometry._camera import Rig
+from .geometry._describe import host_views, image_sizes
 
 _CAMERA_COLOR = "0.2"
 _POINT_COLOR = "tab:blue"
@@ -44,22 +45,13 @@ def plot_rig(rig: Rig, *, ax=None, points=None, names=None, image_size=None, fru
         The matplotlib ``Axes3D``; each frustum is one line whose data starts at the
         camera centre (``ax.lines[m]`` for view ``m``).
     """
-    K, R, t = (np.asarray(a, dtype=np.float64) for a in (rig.K, rig.R, rig.t))
-    if K.ndim != 3 or K.shape[1:] != (3, 3):
-        raise ValueError(f"plot_rig needs one unbatched rig, K of shape (M, 3, 3); got {K.shape}")
+    K, R, t, names = host_views(rig, names, "plot_rig")
     M = K.shape[0]
-    names = [str(m) for m in range(M)] if names is None else [str(n) for n in names]
-    if len(names) != M:
-        raise ValueError(f"names must hold M={M} entries; got {len(names)}")
-    if image_size is None:
+    size = image_sizes(image_size, M)
+    if size is None:
         Kn = K / K[:, 2:3, 2:3]
         size = np.abs(2.0 * Kn[:, :2, 2])
         size = np.where(size > 0, size, np.abs(Kn[:, [0, 1], [0, 1]]))  # principal point at 0: use f
-    else:
-        size = np.asarray(image_size, dtype=np.float64)
-        size = np.broadcast_to(size, (M, 2)) if size.shape == (2,) else size
-        if size.shape != (M, 2):
-            raise ValueError(f"image_size must be (width, height) or shape (M, 2) with M={M}; got {size.shape}")
     pts = np.zeros((0, 3)) if points is None else np.asarray(points, dtype=np.float64).reshape(-1, 3)
     pts = pts[np.isfinite(pts).all(axis=1)]
 

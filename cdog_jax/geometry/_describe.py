@@ -94,14 +94,8 @@ def describe_rig(rig: Rig, *, xy=None, mask=None, image_size=None, names=None, d
     Returns:
         A :class:`RigDescription`; ``str()`` of it is the text of :meth:`Rig.describe`.
     """
-    K, R, t = (np.asarray(a, dtype=np.float64) for a in (rig.K, rig.R, rig.t))
-    if K.ndim != 3 or K.shape[1:] != (3, 3):
-        raise ValueError(f"describe needs one unbatched rig, K of shape (M, 3, 3); got {K.shape}")
-    M = K.shape[0]
-    names = [str(m) for m in range(M)] if names is None else [str(n) for n in names]
-    if len(names) != M:
-        raise ValueError(f"names must hold M={M} entries; got {len(names)}")
-    sizes = _image_sizes(image_size, M)
+    K, R, t, names = host_views(rig, names, "describe")
+    sizes = image_sizes(image_size, K.shape[0])
     if xy is not None and dist is not None:
         xy = _undistorted(K, xy, mask, dist, rig.K.dtype)
     desc, pointing = _describe(K, R, t, xy, mask, sizes, names)
@@ -240,7 +234,20 @@ def _describe(K, R, t, xy, mask, sizes, names) -> tuple[RigDescription, int]:
     ), pointing
 
 
-def _image_sizes(image_size, M: int) -> np.ndarray | None:
+def host_views(rig: Rig, names, what: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+    """One unbatched rig as float64 host ``K, R (M, 3, 3)``, ``t (M, 3)`` and ``M`` view
+    names (default ``"0" … "M-1"``); ``what`` names the caller in errors."""
+    K, R, t = (np.asarray(a, dtype=np.float64) for a in (rig.K, rig.R, rig.t))
+    if K.ndim != 3 or K.shape[1:] != (3, 3):
+        raise ValueError(f"{what} needs one unbatched rig, K of shape (M, 3, 3); got {K.shape}")
+    M = K.shape[0]
+    names = [str(m) for m in range(M)] if names is None else [str(n) for n in names]
+    if len(names) != M:
+        raise ValueError(f"names must hold M={M} entries; got {len(names)}")
+    return K, R, t, names
+
+
+def image_sizes(image_size, M: int) -> np.ndarray | None:
     """``(M, 2)`` float image sizes from None, ``(w, h)`` or ``(M, 2)``."""
     if image_size is None:
         return None

@@ -28,3 +28,14 @@ def reprojection_errors(
     # sqrt has an infinite derivative at 0: exact reprojections are common (σ = 0).
     pos = sq > 0
     return jnp.where(pos, jnp.sqrt(jnp.where(pos, sq, 1.0)), 0.0)
+
+
+def group_errors(
+    rig: Rig, X: Float[Array, "G 3"], xy_g: Float[Array, "G M 2"], member: Bool[Array, "G M"]
+) -> tuple[Float[Array, " G"], Float[Array, " G"]]:
+    """Per group, the BPE ``mean_m ‖π_m(X) − x_m‖²`` (px²) and the mean reprojection distance
+    (px) over the member views ``member (G, M)``; 0 for a group without members."""
+    err = reprojection_errors(rig, X, xy_g)  # (G, M)
+    w = member.astype(err.dtype)
+    n = jnp.maximum(jnp.sum(w, axis=1), 1.0)
+    return jnp.sum(w * err * err, axis=1) / n, jnp.sum(w * err, axis=1) / n

@@ -40,3 +40,10 @@ def compact_groups(groups: Int[Array, "G M"], valid: Bool[Array, " G"]) -> tuple
     (``order[k]`` = old index of new group k)."""
     order = jnp.argsort(jnp.where(valid, 0, 1), stable=True).astype(jnp.int32)
     return groups[order], valid[order], order
+
+
+def gather_groups(groups: Int[Array, "G M"], per_node: Array) -> Array:
+    """``per_node (M, P, ...)`` gathered to ``(G, M, ...)`` at the group slots (slot 0 where
+    the group has no member; callers mask)."""
+    M = groups.shape[1]
+    return per_node[jnp.arange(M, dtype=jnp.int32)[None, :], jnp.maximum(groups, 0)]

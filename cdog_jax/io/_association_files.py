@@ -23,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from ._rig_files import read_json
+
 PathLike = str | os.PathLike  # a file name
 
 # Every field of cdog_jax.Association, as written to NPZ.
@@ -127,11 +129,7 @@ def load_association_json(path: PathLike) -> dict:
     for a missing key or a malformed member row.
     """
     path = os.fspath(path)
-    with open(path, encoding="utf-8") as f:
-        try:
-            data = json.load(f)
-        except json.JSONDecodeError as e:
-            raise ValueError(f"{path}: not valid JSON ({e})") from e
+    data = read_json(path)
     if isinstance(data, dict) and "frames" in data:
         if not isinstance(data["frames"], list):
             raise ValueError(f'{path}: "frames" must be a list of result objects')

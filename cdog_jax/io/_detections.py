@@ -24,13 +24,12 @@ list of frames), the view and the detection index. Padded slots hold ``xy = 0`` 
 
 from __future__ import annotations
 
-import json
 import os
 from typing import Any, NamedTuple
 
 import numpy as np
 
-from ._rig_files import open_npz
+from ._rig_files import open_npz, read_json
 
 PathLike = str | os.PathLike  # a file name
 
@@ -209,11 +208,7 @@ def _check_options(missing: str, capacity: int | None, num_views: int | None, im
 
 def _read_json(path: str) -> tuple[list, bool]:
     """The views of every frame, and whether the file held a list of frames."""
-    with open(path, encoding="utf-8") as f:
-        try:
-            data = json.load(f)
-        except json.JSONDecodeError as e:
-            raise ValueError(f"{path}: not valid JSON ({e})") from e
+    data = read_json(path)
     if isinstance(data, dict) and "frames" in data:
         frames = data["frames"]
         if not isinstance(frames, list) or not frames:

@@ -268,12 +268,17 @@ def _read_literal(file: str, shape: tuple[int, ...]) -> np.ndarray:
     return _to_array(value, shape, file)
 
 
-def _read_json(path: str):
+def read_json(path: str) -> Any:
+    """The parsed JSON file; invalid JSON raises ``ValueError`` naming the file."""
     with open(path, encoding="utf-8") as f:
         try:
-            data = json.load(f)
+            return json.load(f)
         except json.JSONDecodeError as e:
             raise ValueError(f"{path}: not valid JSON ({e})") from e
+
+
+def _read_json(path: str):
+    data = read_json(path)
     if not isinstance(data, dict) or "views" not in data:
         raise ValueError(f'{path}: missing key "views" (expected {{"views": [{{"K", "R", "t"}}, …]}})')
     views = data["views"]

@@ -18,6 +18,7 @@ from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..geometry._projection import project
 from ..geometry._triangulate import dlt_blocks, solve_normal_3x3
+from ..graph._groups import gather_groups
 
 Loss = Literal["l2", "huber", "cauchy"]
 _LOSSES = ("l2", "huber", "cauchy")
@@ -55,8 +56,7 @@ def _group_terms(rig, xy, groups, valid, loss, scale_px, points3d):
         raise ValueError(f"points3d must have shape (G={G}, 3); got {points3d.shape}")
 
     member = valid[:, None] & (groups >= 0) & (groups < P)  # (G, M)
-    slots = jnp.clip(groups, 0, P - 1)
-    xy_g = xy[jnp.arange(M, dtype=jnp.int32)[None, :], slots]  # (G, M, 2)
+    xy_g = gather_groups(groups, xy)  # (G, M, 2); out-of-range slots are clamped, then masked
     # Non-members read slot 0 of their view; zero them so that garbage cannot leak (a
     # where also passes a zero gradient, never 0 * NaN).
     xy_g = jnp.where(member[..., None], xy_g, 0.0)

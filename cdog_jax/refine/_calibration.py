@@ -37,6 +37,7 @@ from ..geometry._camera import Rig
 from ..geometry._parameters import CameraParams, params_from_rig, rig_from_params, so3_exp, so3_log
 from ..geometry._projection import project
 from ..geometry._triangulate import triangulate
+from ..graph._groups import gather_groups
 from ._bpe_loss import _LOSSES, Loss, _rho, group_bpe
 
 
@@ -233,9 +234,9 @@ def _select_groups(rig, xy, groups, valid, max_groups):
     Returns ``xy_g (K, M, 2)``, ``member (K, M)`` (False on unused rows) and the DLT points
     ``X (K, 3)`` with the starting rig.
     """
-    M, P = xy.shape[0], xy.shape[1]
+    P = xy.shape[1]
     member = valid[:, None] & (groups >= 0) & (groups < P)  # (G, M)
-    xy_g = xy[jnp.arange(M, dtype=jnp.int32)[None, :], jnp.clip(groups, 0, P - 1)]  # (G, M, 2)
+    xy_g = gather_groups(groups, xy)  # (G, M, 2); out-of-range slots are clamped, then masked
     xy_g = jnp.where(member[..., None], xy_g, 0.0)
     X, ok = triangulate(rig, xy_g, member)
     n_views = jnp.sum(member, axis=1, dtype=jnp.int32)
