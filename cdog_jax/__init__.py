@@ -3,6 +3,7 @@
 from ._config import Config as Config, Thresholds as Thresholds
 from ._pipeline import associate as associate, associate_batch as associate_batch, associate_traced as associate_traced
 from ._result import Association as Association
+from ._status import Status as Status, check_status as check_status, status_messages as status_messages
 from ._rig_plot import plot_rig as plot_rig
 from .geometry import Rig as Rig, project as project, rig_from_arrays as rig_from_arrays, triangulate as triangulate
 

@@ -178,6 +178,7 @@ def associate_traced(
         num_groups=jnp.sum(gvalid, dtype=jnp.int32),
         sigma_px=jnp.asarray(sigma, xy.dtype),
         tau_px=jnp.asarray(tau, xy.dtype),
+        status=jnp.int32(0),
     )
 
 

@@ -61,4 +61,5 @@ def finish_groups(
         num_groups=jnp.sum(keep, dtype=jnp.int32),
         sigma_px=result.sigma_px,
         tau_px=result.tau_px,
+        status=result.status,
     )

@@ -22,6 +22,8 @@ class Association(eqx.Module):
         num_groups: ``()`` int32 count of valid groups.
         sigma_px: ``()`` the noise level used (given, or estimated when ``sigma="auto"``).
         tau_px: ``()`` the epipolar gate used.
+        status: ``()`` int32 bit flags of :class:`cdog_jax.Status` (0: nothing to report;
+            e.g. a loop that stopped at its bound, or σ estimated by its fallback).
     """
 
     labels: Int[Array, "M P"]
@@ -34,3 +36,4 @@ class Association(eqx.Module):
     num_groups: Int[Array, ""]
     sigma_px: Float[Array, ""]
     tau_px: Float[Array, ""]
+    status: Int[Array, ""]

@@ -28,7 +28,7 @@ from ._rig_files import read_json
 PathLike = str | os.PathLike  # a file name
 
 # Every field of cdog_jax.Association, as written to NPZ.
-ASSOCIATION_FIELDS = ("labels", "groups", "valid", "points3d", "bpe", "err_px", "n_views", "num_groups", "sigma_px", "tau_px")
+ASSOCIATION_FIELDS = ("labels", "groups", "valid", "points3d", "bpe", "err_px", "n_views", "num_groups", "sigma_px", "tau_px", "status")
 CSV_COLUMNS = ("frame", "group", "x", "y", "z", "bpe_px", "n_views")
 CSV_NOTE = "# bpe_px = sqrt(BPE in px^2): RMS reprojection error over the group's member views, pixels; x, y, z in scene units"
 

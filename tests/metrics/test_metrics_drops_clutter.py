@@ -41,7 +41,7 @@ def case(detections, labels):
         labels=jnp.asarray(lab), groups=jnp.asarray(groups), valid=jnp.asarray(valid),
         points3d=jnp.zeros((G, 3)), bpe=jnp.zeros((G,)), err_px=jnp.zeros((G,)),
         n_views=jnp.asarray((groups >= 0).sum(1).astype(np.int32)), num_groups=jnp.asarray(int(valid.sum()), jnp.int32),
-        sigma_px=jnp.asarray(0.0), tau_px=jnp.asarray(0.0),
+        sigma_px=jnp.asarray(0.0), tau_px=jnp.asarray(0.0), status=jnp.int32(0),
     )
     return metrics(RIG, assoc, scene)
 

@@ -86,6 +86,7 @@ def make_assoc(labels, points3d=None, valid=None):
         num_groups=jnp.asarray(int(np.sum(valid)), jnp.int32),
         sigma_px=jnp.asarray(0.0, jnp.float32),
         tau_px=jnp.asarray(0.0, jnp.float32),
+        status=jnp.int32(0),
     )
 
 

@@ -150,7 +150,7 @@ def _truth_association(scene):
         labels=jnp.asarray(labels), groups=jnp.asarray(groups), valid=jnp.asarray(valid),
         points3d=jnp.asarray(pts), bpe=jnp.zeros((G,)), err_px=jnp.zeros((G,)),
         n_views=jnp.asarray((groups >= 0).sum(1).astype(np.int32)), num_groups=jnp.asarray(len(ids), jnp.int32),
-        sigma_px=jnp.asarray(0.0), tau_px=jnp.asarray(0.0),
+        sigma_px=jnp.asarray(0.0), tau_px=jnp.asarray(0.0), status=jnp.int32(0),
     ), len(ids)
 
 
