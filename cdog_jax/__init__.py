@@ -8,3 +8,7 @@ from ._rig_plot import plot_rig as plot_rig
 from .geometry import Rig as Rig, project as project, rig_from_arrays as rig_from_arrays, triangulate as triangulate
 
 __version__ = "0.1.0"
+
+from ._compile_cache import enable_compilation_cache as _enable_compilation_cache  # noqa: E402
+
+_enable_compilation_cache()  # compiled programs persist across processes (CDOG_JAX_CACHE=0: off)

@@ -1,5 +1,16 @@
-import jax
-import pytest
+import os
+import shutil
+import tempfile
+
+# Compiled programs persist for this run only: a fresh folder, removed at the end. Programs
+# dropped by _release_compiled_programs, built by new jit wrappers of the same function, or
+# compiled in child processes (command-line tests) are then loaded instead of compiled.
+_COMPILE_CACHE = tempfile.mkdtemp(prefix="cdog_jax_test_cache_")
+os.environ["CDOG_JAX_CACHE_DIR"] = _COMPILE_CACHE
+os.environ.pop("CDOG_JAX_CACHE", None)
+
+import jax  # noqa: E402
+import pytest  # noqa: E402
 
 jax.config.update("jax_numpy_rank_promotion", "raise")
 jax.config.update("jax_numpy_dtype_promotion", "strict")
@@ -17,7 +28,6 @@ def getkey():
     return _getkey
 
 
-import os  # noqa: E402
 import sys  # noqa: E402
 
 # Test modules live in sub-folders without __init__.py; make tests/helpers.py importable.
@@ -50,3 +60,7 @@ def _release_compiled_programs():
         import gc
 
         gc.collect()
+
+
+def pytest_sessionfinish(session, exitstatus):
+    shutil.rmtree(_COMPILE_CACHE, ignore_errors=True)
