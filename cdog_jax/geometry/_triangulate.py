@@ -12,6 +12,7 @@ import jax.numpy as jnp
 
 from .._types import Array, Bool, Float, lift
 from ._camera import Rig
+from ._checks import check_tracks
 from ._homogeneous import homogeneous_from_points
 
 
@@ -76,6 +77,7 @@ def triangulate(
         ``points (*S, 3)`` (scene units, 0 where undetermined) and ``ok (*S,)``: the point is
         determined (≥ 2 views with parallax).
     """
+    check_tracks(rig, xy, mask, weights, "triangulate")
     N, r, origin = dlt_blocks(rig, xy)
     w = mask.astype(N.dtype)
     if weights is not None:
