@@ -6,6 +6,7 @@ The tests run with jaxtyping+beartype on every annotated function, which would r
 of these arguments first; ``plain(f)`` is ``f`` without that wrapper, as users call it."""
 
 import inspect
+import re
 import math
 
 import jax.numpy as jnp
@@ -222,3 +223,75 @@ def test_triangulate_refuses_a_batched_rig(scene):
     rig2 = Rig(*(jnp.stack([a] * 2) for a in (rig.K, rig.R, rig.t)))
     with pytest.raises(ValueError, match=r"triangulate: rig.K must have shape \(M, 3, 3\) \(one rig; vmap over many\); got \(2, 3, 3, 3\)"):
         plain(cdog_jax.geometry.triangulate)(rig2, jnp.asarray(np.swapaxes(xy, 0, 1)), jnp.asarray(mask.T))
+
+
+# --- argument types of public functions ------------------------------------------------------
+
+import cdog_jax.benchmark  # noqa: E402
+import cdog_jax.io  # noqa: E402
+import cdog_jax.metrics  # noqa: E402
+import cdog_jax.refine  # noqa: E402
+import cdog_jax.synthetic  # noqa: E402
+
+_RIG = ring_rig(3)
+_XY = jnp.zeros((3, 4, 2), jnp.float32)
+_MASK = jnp.ones((3, 4), bool)
+_PATH_MSG = "a path (str or os.PathLike)"
+_ARRAY_MSG = r"an array \(jax.Array, numpy.ndarray, list or number\)"
+_TH = Config().thresholds(1.0)
+
+# (function, arguments, keyword arguments, the expected message)
+WRONG_TYPES = [
+    (cdog_jax.associate, (_XY, _RIG, _MASK), {}, "associate: rig must be Rig; got ArrayImpl of shape (3, 4, 2)"),
+    (cdog_jax.associate, (_RIG, _XY, _MASK), {"thresholds": Config()}, "associate: thresholds must be Thresholds or None; got Config"),
+    (cdog_jax.associate_batch, (_XY, _RIG, _MASK), {}, "associate_batch: rig must be Rig; got ArrayImpl"),
+    (cdog_jax.associate_batch, (_RIG, _XY[None], _MASK[None]), {"batch_size": 2.5}, "associate_batch: batch_size must be an int; got float 2.5"),
+    (cdog_jax.associate_traced, (_RIG, _XY, _MASK, Config(), _TH), {}, "associate_traced: thresholds must be Thresholds; got Config"),
+    (cdog_jax.triangulate, (_XY, _RIG, _MASK), {}, "triangulate: rig must be Rig; got ArrayImpl"),
+    (cdog_jax.project, ("points.npy", _RIG), {}, "project: rig must be Rig; got str 'points.npy'"),
+    (cdog_jax.project, (_RIG, _RIG), {}, f"project: X_world must be {_ARRAY_MSG}; got Rig"),
+    (cdog_jax.plot_rig, ("rig.json",), {}, "plot_rig: rig must be Rig; got str 'rig.json'"),
+    (cdog_jax.rig_from_arrays, (_RIG.K, _RIG.R, None), {}, f"rig_from_arrays: t must be {_ARRAY_MSG}; got None"),
+    (cdog_jax.geometry.describe_rig, ("rig.json",), {}, "describe_rig: rig must be Rig; got str"),
+    (cdog_jax.geometry.fundamental_from_rig, (_RIG.K,), {}, "fundamental_from_rig: rig must be Rig; got ArrayImpl"),
+    (cdog_jax.geometry.epipolar_distances, (_RIG, _MASK, "xy"), {}, f"epipolar_distances: mask must be {_ARRAY_MSG}; got str 'xy'"),
+    (cdog_jax.geometry.undistort_pixels, (_RIG.K, jnp.zeros((3, 5)), _XY), {"iterations": 2.0}, "undistort_pixels: iterations must be an int; got float 2.0"),
+    (cdog_jax.geometry.params_from_rig, (_RIG.K,), {}, "params_from_rig: rig must be Rig; got ArrayImpl"),
+    (cdog_jax.geometry.rig_from_params, (_RIG,), {}, "rig_from_params: params must be CameraParams; got Rig"),
+    (cdog_jax.io.save_rig_json, (_RIG, "rig.json"), {}, f"save_rig_json: path must be {_PATH_MSG}; got Rig"),
+    (cdog_jax.io.save_rig_npz, ("rig.npz", "rig.json"), {}, "save_rig_npz: rig must be Rig; got str 'rig.json'"),
+    (cdog_jax.io.save_rig_easyvis, (_RIG, "folder"), {}, f"save_rig_easyvis: folder must be {_PATH_MSG}; got Rig"),
+    (cdog_jax.io.save_rig_anipose, (_RIG, "calibration.toml"), {}, f"save_rig_anipose: path must be {_PATH_MSG}; got Rig"),
+    (cdog_jax.io.save_rig_colmap, (_RIG, "folder"), {"image_size": (640, 480)}, f"save_rig_colmap: folder must be {_PATH_MSG}; got Rig"),
+    (cdog_jax.io.save_rig_easymocap, (_RIG, "folder"), {}, f"save_rig_easymocap: folder must be {_PATH_MSG}; got Rig"),
+    (cdog_jax.io.load_rig, (_RIG,), {}, f"load_rig: path must be {_PATH_MSG}; got Rig"),
+    (cdog_jax.io.load_detections, (None,), {}, f"load_detections: path must be {_PATH_MSG}; got None"),
+    (cdog_jax.io.detections_from_lists, ("view0",), {}, "detections_from_lists: views must be list or tuple; got str 'view0'"),
+    (cdog_jax.io.save_association_json, (_RIG, "out.json", _XY, _MASK), {}, f"save_association_json: path must be {_PATH_MSG}; got Rig"),
+    (cdog_jax.io.save_association_csv, ("out.csv", _XY), {}, "save_association_csv: assoc must be Association; got ArrayImpl"),
+    (cdog_jax.io.save_association_npz, ("out.npz", "result"), {}, "save_association_npz: assoc must be Association; got str 'result'"),
+    (cdog_jax.io.load_association_json, (3,), {}, f"load_association_json: path must be {_PATH_MSG}; got int 3"),
+    (cdog_jax.io.association_records, (_XY, _XY, _MASK), {}, "association_records: assoc must be Association; got ArrayImpl"),
+    (cdog_jax.synthetic.default_rig, (), {"num_views": 2.0}, "default_rig: num_views must be an int; got float 2.0"),
+    (cdog_jax.synthetic.negate_intrinsics, ([0], _RIG), {}, "negate_intrinsics: rig must be Rig; got list"),
+    (cdog_jax.synthetic.generate_scene, (_RIG, jnp.zeros(2, jnp.uint32), 5, 1.0), {"capacity": 8}, f"generate_scene: key must be {_ARRAY_MSG}; got Rig"),
+    (cdog_jax.synthetic.visible_box, ((640, 480), _RIG), {}, "visible_box: rig must be Rig; got tuple"),
+    (cdog_jax.metrics.scene_metrics, (_RIG, _XY, _XY), {}, "scene_metrics: result must be Association; got ArrayImpl"),
+    (cdog_jax.metrics.mean_metrics, ({},), {}, "mean_metrics: metrics must be Metrics; got dict"),
+    (cdog_jax.benchmark.sweep, ("grid", _RIG), {}, "sweep: rig must be Rig; got str 'grid'"),
+    (cdog_jax.benchmark.save_results, ("out", "result"), {}, "save_results: result must be SweepResult; got str 'out'"),
+    (cdog_jax.benchmark.load_results, (None,), {}, f"load_results: directory must be {_PATH_MSG}; got None"),
+    (cdog_jax.benchmark.summary_table, ("results",), {}, "summary_table: result must be SweepResult; got str"),
+    (cdog_jax.refine.rig_errors, (_RIG, _RIG.K), {}, "rig_errors: reference must be Rig; got ArrayImpl"),
+    (cdog_jax.refine.align_rigs, ("rig.json", _RIG), {}, "align_rigs: rig must be Rig; got str"),
+    (cdog_jax.refine.calibrate, (_RIG, _XY[None], _MASK[None]), {"thresholds": Config(), "config": _TH}, "calibrate: thresholds must be Thresholds; got Config"),
+    (cdog_jax.refine.bpe, (_XY, _RIG, jnp.zeros((2, 3), jnp.int32), jnp.ones(2, bool)), {}, "bpe: rig must be Rig; got ArrayImpl"),
+]
+
+
+@pytest.mark.parametrize("fn, args, kwargs, message", WRONG_TYPES, ids=[f"{c[0].__name__}-{i}" for i, c in enumerate(WRONG_TYPES)])
+def test_public_functions_name_the_expected_and_received_types(fn, args, kwargs, message):
+    with pytest.raises(TypeError, match=re.escape(message) if "\\(" not in message else message):
+        plain(fn)(*args, **kwargs)
+    with pytest.raises(TypeError):  # the test-time type checker (where annotated) or the check
+        fn(*args, **kwargs)

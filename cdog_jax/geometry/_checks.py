@@ -9,7 +9,7 @@ from .._expect import ARRAY, expect_args
 from ._camera import Rig
 
 
-def check_tracks(rig: Rig, xy, mask, weights, function: str) -> None:
+def check_tracks(rig, xy, mask, weights, function: str) -> None:
     """``rig`` unbatched with ``M`` views; ``xy (*S, M, 2)``, bool ``mask (*S, M)`` and
     ``weights`` (when given) of the mask's shape."""
     expect_args(function, rig=(rig, Rig), xy=(xy, ARRAY), mask=(mask, ARRAY))
