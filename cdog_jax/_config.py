@@ -52,6 +52,77 @@ class Thresholds(NamedTuple):
 _NUMERIC = tuple(f for f in Thresholds._fields if f != "sigma_px")
 
 
+class Range(NamedTuple):
+    """Allowed values of a numeric field: finite, ``low <= v`` (``<`` if ``low_open``) and
+    ``v <= high`` (``<`` if ``high_open``)."""
+
+    low: float = 0.0
+    high: float = float("inf")
+    low_open: bool = False
+    high_open: bool = False
+
+    def ok(self, value) -> np.ndarray:
+        """Elementwise: ``value`` (a number or an array) is allowed."""
+        value = np.asarray(value, np.float64)
+        above = value > self.low if self.low_open else value >= self.low
+        below = value < self.high if self.high_open else value <= self.high
+        return np.asarray(np.isfinite(value) & above & below)
+
+    def describe(self) -> str:
+        lo, hi = "(" if self.low_open else "[", ")" if self.high_open or self.high == float("inf") else "]"
+        return f"finite and in {lo}{self.low:g}, {self.high:g}{hi}"
+
+
+# Every numeric field of Config and Thresholds (σ included): a new field adds its line.
+RANGES: dict[str, Range] = {
+    "sigma_px": Range(),
+    "alpha_tau": Range(),
+    "tau_min_px": Range(),
+    "delta": Range(0.0, 1.0, low_open=True),  # θ ≥ δ keeps an edge; δ = 0 would keep all
+    "iqr_alpha": Range(),
+    "iqr_floor_px": Range(),
+    "iqr_min_px": Range(),
+    "iqr_force_px": Range(),
+    "jump_kappa": Range(),
+    "jump_floor_px2": Range(),
+    "jump_floor_sigma": Range(),
+    "second_frac": Range(),
+    "recover_frac": Range(),
+    "support_frac": Range(),
+    "support_alpha": Range(0.0, 1.0),  # a probability
+    "support_min_rate": Range(0.0, 1.0),  # a miss rate
+    "support_ref_views": Range(),
+}
+
+
+def check_number(value, name: str, where: str) -> None:
+    """Raise unless ``value`` (a real number) is in ``RANGES[name]``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{where}.{name} must be a real number; got {type(value).__name__} {value!r}")
+    allowed = RANGES.get(name, Range(-float("inf")))
+    if not allowed.ok(value):
+        raise ValueError(f"{where}.{name} must be {allowed.describe()}; got {value!r}")
+
+
+def check_thresholds(th: "Thresholds", *, skip: tuple[str, ...] = ("sigma_px",)) -> None:
+    """Raise if a concrete value of ``th`` (scalars or arrays) is outside its range; names
+    the field, the value and, for arrays, the index. Traced values are not checked."""
+    if not isinstance(th, Thresholds):
+        raise TypeError(f"thresholds must be a Thresholds (from Config.thresholds()); got {type(th).__name__}")
+    for name, value in zip(Thresholds._fields, th):
+        if name in skip or isinstance(value, jax.core.Tracer):
+            continue
+        host = np.asarray(value)
+        if host.dtype == np.bool_ or not (np.issubdtype(host.dtype, np.floating) or np.issubdtype(host.dtype, np.integer)):
+            raise TypeError(f"thresholds.{name} must be real numbers; got dtype {host.dtype}")
+        allowed = RANGES.get(name, Range(-float("inf")))
+        ok = allowed.ok(host)
+        if not ok.all():
+            where = tuple(int(i) for i in np.argwhere(~ok)[0])
+            at = f" at index {where}" if where else ""
+            raise ValueError(f"thresholds.{name} must be {allowed.describe()}; got {host[where].item()!r}{at}")
+
+
 @dataclasses.dataclass(frozen=True)
 class Config:
     """How to associate. Structural fields change the compiled program; numeric ones do not.
@@ -109,8 +180,13 @@ class Config:
                 raise ValueError(f"Config.{name} must be one of {allowed}; got {getattr(self, name)!r}")
         for name in ("max_split_iters", "max_iqr_iters", "refine_max_steps", "jump_min_gaps"):
             value = getattr(self, name)
-            if not isinstance(value, int) or value < 1:
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
                 raise ValueError(f"Config.{name} must be a positive int; got {value!r}")
+        for field in dataclasses.fields(self):
+            if field.type == "bool" and not isinstance(getattr(self, field.name), bool):
+                raise TypeError(f"Config.{field.name} must be True or False; got {getattr(self, field.name)!r}")
+        for name in _NUMERIC:
+            check_number(getattr(self, name), name, "Config")
 
     @classmethod
     def paper(cls, **overrides) -> "Config":
@@ -148,6 +224,7 @@ class Config:
         return cls(**base)
 
     def replace(self, **changes) -> "Config":
+        """A copy with ``changes`` applied; checked like a new Config."""
         return dataclasses.replace(self, **changes)
 
     def thresholds(self, sigma_px=0.0, *, dtype=None) -> Thresholds:
@@ -165,6 +242,20 @@ class Config:
         """This config with its numeric fields reset to the defaults: the part a jit key needs."""
         defaults = Config()
         return dataclasses.replace(self, **{name: getattr(defaults, name) for name in _NUMERIC})
+
+
+PRESETS = ("paper", "extended", "reference")
+
+
+def config_from(config, function: str) -> Config:
+    """A :class:`Config`, or the preset it names (``"paper"``, ``"extended"``, ``"reference"``)."""
+    if isinstance(config, Config):
+        return config
+    if isinstance(config, str):
+        if config not in PRESETS:
+            raise ValueError(f"{function}: config must be a Config or a preset name {PRESETS}; got {config!r}")
+        return getattr(Config, config)()
+    raise TypeError(f"{function}: config must be a Config or a preset name {PRESETS}; got {type(config).__name__}")
 
 
 def tau_px(th: Thresholds, sigma_px: Float[Array, ""]) -> Float[Array, ""]:

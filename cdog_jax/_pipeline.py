@@ -14,10 +14,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._config import Config, Thresholds, tau_px
+from ._config import Config, Thresholds, check_thresholds, config_from, tau_px
+from ._expect import INT, expect, expect_args
 from ._result import Association
 from ._types import Array, ArrayLike, Bool, Float
-from ._validate import check_observations, check_rig
+from ._validate import as_array, check_batch_rig, check_observations, check_rig, check_sigma, check_threshold_shapes
 from .geometry._camera import Rig
 from .geometry._epipolar import epipolar_distances
 from .geometry._projection import group_errors
@@ -111,6 +112,7 @@ def associate_traced(
         thresholds: numeric thresholds and σ (traced; see ``Config.thresholds``).
         config: structural configuration (static under ``jit``).
     """
+    expect_args("associate_traced", rig=(rig, Rig), thresholds=(thresholds, Thresholds), config=(config, Config))
     th = Thresholds(*(jnp.asarray(v) for v in thresholds))  # NumPy scalars when called eagerly
     M, P = mask.shape
     xy = jnp.where(mask[..., None], xy, 0.0)  # padding is neutral from here on
@@ -186,9 +188,10 @@ _associate_jit = jax.jit(associate_traced, static_argnames=("config",))
 
 
 def _prepare(config: Config, sigma, thresholds: Thresholds | None, dtype):
+    """Static config and traced thresholds; ``sigma`` and ``thresholds`` are checked."""
+    if thresholds is not None:
+        check_thresholds(thresholds)
     if isinstance(sigma, str):
-        if sigma != "auto":
-            raise ValueError(f'sigma must be a number, an array or "auto"; got {sigma!r}')
         config = config.replace(sigma_mode="auto")
         sigma = 0.0
     elif config.sigma_mode == "auto":
@@ -213,7 +216,7 @@ def associate(
     xy: ArrayLike,  # (M, P, 2); checked eagerly with a clear message
     mask: ArrayLike,  # (M, P) bool
     *,
-    config: Config = Config.paper(),
+    config: Config | str = Config.paper(),
     sigma: float | str = 1.0,
     thresholds: Thresholds | None = None,
     dist: ArrayLike | None = None,
@@ -226,7 +229,8 @@ def associate(
         rig: the cameras (``M`` views).
         xy: ``(M, P, 2)`` detections (pixels); ``P`` is a padded capacity.
         mask: ``(M, P)`` bool, True where a slot holds a detection.
-        config: structure and default thresholds (``Config.paper()``, ``Config.reference()``).
+        config: structure and default thresholds (``Config.paper()``, ``Config.reference()``),
+            or a preset's name: ``"paper"``, ``"extended"``, ``"reference"``.
         sigma: 2D noise std in pixels, or ``"auto"`` to estimate it (ALGORITHM.md §0.1).
         thresholds: overrides the config's numeric thresholds (for sweeps; arrays welcome).
         dist: optional ``(M, 5)`` OpenCV distortion ``(k1, k2, p1, p2, k3)`` per view; ``xy``
@@ -236,11 +240,22 @@ def associate(
             members' DLT equations when the final points are triangulated.
         min_views: keep only groups seen in at least this many views (≥ 2).
 
+    ``xy`` may be float32 or float64 (integers are converted to the default float dtype);
+    float16, bfloat16, complex and bool are refused. ``sigma`` must be finite, ``>= 0`` and
+    at most the image diagonal: twice the largest principal point of ``rig.K``, or the
+    detections' extent ``hypot(max |x|, max |y|)`` where that is larger.
+
     Returns:
         An :class:`Association` (labels, groups, points, errors).
     """
+    expect_args("associate", rig=(rig, Rig), thresholds=(thresholds, (Thresholds, type(None))))
+    config = config_from(config, "associate")
+    xy, mask = as_array(xy), as_array(mask)
     check_rig(rig)
     check_observations(xy, mask, rig.num_views)
+    check_sigma(sigma, rig, xy, mask)
+    if thresholds is not None:
+        check_threshold_shapes(thresholds, None)
     dtype = _float_dtype(xy)
     static, th = _prepare(config, sigma, thresholds, dtype)
     xy, mask = jnp.asarray(xy, dtype), jnp.asarray(mask)
@@ -317,7 +332,7 @@ def associate_batch(
     xy: ArrayLike,  # (B, M, P, 2); checked eagerly
     mask: ArrayLike,  # (B, M, P) bool
     *,
-    config: Config = Config.paper(),
+    config: Config | str = Config.paper(),
     sigma: float | str | Float[Array, " B"] = 1.0,
     thresholds: Thresholds | None = None,
     batch_size: int = 16,
@@ -331,14 +346,23 @@ def associate_batch(
     thresholds may be scalars or ``(B,)`` arrays. Scenes run ``batch_size`` at a time
     (vmapped inside ``lax.map``), which bounds memory. Every field of the result gains a
     leading ``B`` axis. ``dist (M, 5)`` and ``min_views`` are shared by all scenes,
-    ``weights (B, M, P)`` are per scene (see :func:`associate`).
+    ``weights (B, M, P)`` are per scene. Inputs are checked as in :func:`associate`; an
+    error names the scene.
     """
+    expect_args("associate_batch", rig=(rig, Rig), thresholds=(thresholds, (Thresholds, type(None))))
+    expect(batch_size, INT, "batch_size", "associate_batch")
+    config = config_from(config, "associate_batch")
+    xy, mask = as_array(xy), as_array(mask)
     shared = rig.K.ndim == 3
     check_rig(rig, batched=not shared)
     check_observations(xy, mask, rig.num_views, batched=True)
     if batch_size < 1:
         raise ValueError(f"batch_size must be >= 1; got {batch_size}")
     B = xy.shape[0]
+    check_batch_rig(rig, B)
+    check_sigma(sigma, rig, xy, mask, num_scenes=B)
+    if thresholds is not None:
+        check_threshold_shapes(thresholds, B)
     dtype = _float_dtype(xy)
     static, th = _prepare(config, sigma, thresholds, dtype)
     th = Thresholds(*(jnp.broadcast_to(v, (B,)) for v in th))

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._expect import expect_args
 from .geometry._camera import Rig
 from .geometry._describe import host_views, image_sizes
 
@@ -45,6 +46,7 @@ def plot_rig(rig: Rig, *, ax=None, points=None, names=None, image_size=None, fru
         The matplotlib ``Axes3D``; each frustum is one line whose data starts at the
         camera centre (``ax.lines[m]`` for view ``m``).
     """
+    expect_args("plot_rig", rig=(rig, Rig))
     K, R, t, names = host_views(rig, names, "plot_rig")
     M = K.shape[0]
     size = image_sizes(image_size, M)

@@ -6,8 +6,8 @@ from typing import Union
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int, UInt
 
-# Public entry points accept NumPy arrays too; internals take jax Arrays.
-ArrayLike = Union[Array, np.ndarray]
+# Public entry points accept NumPy arrays and nested lists too; internals take jax Arrays.
+ArrayLike = Union[Array, np.ndarray, list, tuple]
 
 Scalar = Float[Array, ""]
 Mat3 = Float[Array, "M 3 3"]

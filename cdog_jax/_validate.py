@@ -6,7 +6,10 @@ Messages say what was expected, what arrived and where (view and slot). Inside `
 
 from __future__ import annotations
 
+import numbers
+
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from .geometry._camera import Rig, check_rig_values
@@ -55,6 +58,7 @@ def check_observations(xy, mask, num_views: int, batched: bool = False) -> None:
         raise ValueError(f"mask must have shape {xy_shape[:-1]} to match xy {xy_shape}; got {mask_shape}")
     if np.dtype(getattr(mask, "dtype", np.asarray(mask).dtype)) != np.bool_:
         raise ValueError(f"mask must be boolean; got dtype {np.asarray(mask).dtype}")
+    check_pixel_dtype(xy.dtype if hasattr(xy, "dtype") else np.asarray(xy).dtype, "xy")
     if _is_concrete(xy, mask):
         xy_h, mask_h = np.asarray(xy), np.asarray(mask)
         bad = mask_h & ~np.isfinite(xy_h).all(axis=-1)
@@ -62,3 +66,106 @@ def check_observations(xy, mask, num_views: int, batched: bool = False) -> None:
             where = tuple(int(i) for i in np.argwhere(bad)[0])
             label = "scene {}, view {}, slot {}" if batched else "view {}, slot {}"
             raise ValueError(f"xy is not finite at {label.format(*where)} although mask is True there")
+
+
+def check_pixel_dtype(dtype, name: str) -> None:
+    """Pixels are float32 or float64; integers are accepted (the caller converts them to the
+    default float dtype). float16/bfloat16 cannot hold a pixel position to a useful
+    precision (steps of 0.5 px at 1000 px): every epipolar distance is then wrong."""
+    dtype = np.dtype(dtype)
+    if jnp.issubdtype(dtype, jnp.integer) and dtype != np.bool_:
+        return
+    if not jnp.issubdtype(dtype, jnp.floating):
+        raise ValueError(f"{name} must hold real pixel coordinates (float32 or float64); got dtype {dtype}")
+    if jnp.finfo(dtype).bits < 32:
+        raise ValueError(f"{name} has dtype {dtype}, too coarse for pixel coordinates; use float32 or float64")
+
+
+def as_array(value):
+    """Lists and other array-likes as NumPy arrays; JAX and NumPy arrays as they are."""
+    return value if isinstance(value, (jax.Array, np.ndarray)) else np.asarray(value)
+
+
+def _image_diagonal_from_K(K) -> float:
+    """Twice the largest principal point ``K[:2, 2] / K[2, 2]`` over all views (pixels): the
+    image diagonal when the principal point is near the image centre."""
+    K = np.asarray(K, np.float64).reshape(-1, 3, 3)
+    center = K[:, :2, 2] / K[:, 2:, 2]
+    return float(2.0 * np.max(np.hypot(center[:, 0], center[:, 1])))
+
+
+def _detections_extent(xy, mask) -> float:
+    """``hypot(max |x|, max |y|)`` over the detections (pixels), 0 without detections."""
+    xy_h, mask_h = np.asarray(xy), np.asarray(mask)
+    if not mask_h.any():
+        return 0.0
+    return float(np.hypot(*np.abs(xy_h[mask_h]).max(axis=0)))
+
+
+def check_sigma(sigma, rig: Rig, xy, mask, num_scenes: int | None = None) -> None:
+    """σ is ``"auto"`` or a finite number ``0 <= σ <= D`` pixels (a ``(B,)`` array per scene
+    when ``num_scenes`` is given); raises naming the value (and scene).
+
+    ``D`` bounds any plausible detection noise by the image size, which ``associate`` is
+    not given: the larger of twice the largest principal point of ``rig.K`` (the image
+    diagonal when the principal point is central) and ``hypot(max |x|, max |y|)`` of the
+    detections. Traced values are not checked.
+    """
+    if isinstance(sigma, str):
+        if sigma != "auto":
+            raise ValueError(f'sigma must be a number (pixels), an array or "auto"; got {sigma!r}')
+        return
+    if sigma is None or isinstance(sigma, (bool, np.bool_)) or not (
+        isinstance(sigma, (numbers.Number, jax.Array, np.ndarray, np.generic, list, tuple))
+    ):
+        want = 'a number (pixels), a (B,) array or "auto"' if num_scenes is not None else 'a number (pixels) or "auto"'
+        raise TypeError(f"sigma must be {want}; got {type(sigma).__name__} {sigma!r}")
+    shape = tuple(np.shape(sigma))
+    if num_scenes is None and shape != ():
+        raise ValueError(f"sigma must be a scalar for one scene; got shape {shape} (use associate_batch for many)")
+    if num_scenes is not None and shape not in ((), (num_scenes,)):
+        raise ValueError(f"sigma must be a scalar or have shape (B,) = ({num_scenes},), one per scene; got shape {shape}")
+    if isinstance(sigma, jax.core.Tracer):
+        return
+    host = np.asarray(sigma)
+    if host.dtype == np.bool_ or not (np.issubdtype(host.dtype, np.floating) or np.issubdtype(host.dtype, np.integer)):
+        raise ValueError(f"sigma must be real; got dtype {host.dtype}")
+    host = host.astype(np.float64)
+    scene = lambda i: f" of scene {i}" if host.ndim else ""  # noqa: E731
+    bad = ~np.isfinite(host) | (host < 0)
+    if bad.any():
+        i = int(np.argwhere(bad.reshape(-1))[0, 0])
+        raise ValueError(f"sigma{scene(i)} must be a finite number >= 0 (pixels); got {float(host.reshape(-1)[i])!r}")
+    largest = float(host.max())
+    if isinstance(rig.K, jax.core.Tracer) or largest == 0.0:
+        return
+    bound_K = _image_diagonal_from_K(rig.K)
+    if largest <= bound_K:
+        return
+    bound_xy = _detections_extent(xy, mask) if _is_concrete(xy, mask) else 0.0
+    if largest <= bound_xy:
+        return
+    i = int(np.argmax(host.reshape(-1)))
+    if bound_K >= bound_xy:
+        bound = f"the image diagonal {bound_K:.1f} px (twice the largest principal point of rig.K)"
+    else:
+        bound = f"the detections' extent {bound_xy:.1f} px (hypot of the largest |x| and |y|)"
+    raise ValueError(f"sigma{scene(i)} = {largest!r} px is larger than {bound}; no detection noise can be that large")
+
+
+def check_threshold_shapes(thresholds, num_scenes: int | None) -> None:
+    """Each threshold is a scalar, or (for a batch) a ``(B,)`` array."""
+    allowed = ((),) if num_scenes is None else ((), (num_scenes,))
+    for name, value in zip(type(thresholds)._fields, thresholds):
+        if name != "sigma_px" and tuple(np.shape(value)) not in allowed:
+            want = "a scalar" if num_scenes is None else f"a scalar or shape (B,) = ({num_scenes},)"
+            raise ValueError(f"thresholds.{name} must be {want}; got shape {tuple(np.shape(value))}")
+
+
+def check_batch_rig(rig: Rig, num_scenes: int) -> None:
+    """A per-scene rig ``K (B, M, 3, 3)`` has one camera set per scene of ``xy``."""
+    if rig.K.ndim == 4 and rig.K.shape[0] != num_scenes:
+        raise ValueError(
+            f"the per-scene rig has {rig.K.shape[0]} scenes (rig.K shape {tuple(rig.K.shape)}) but xy has "
+            f"B={num_scenes}; pass one rig per scene, or a shared rig with K of shape (M, 3, 3)"
+        )

@@ -14,6 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._expect import ARRAY, INT, expect_args
 from ..synthetic._scene import Scene
 
 DRAW_CAPACITY = 130
@@ -153,6 +154,7 @@ def _fold_keys(base, milli, count, scene):
 def scene_keys(seed: int, sigma_milli_px, count, scene) -> jax.Array:
     """PRNG keys ``(S, 2)`` uint32 of grid scenes named by σ (integer milli-pixels,
     ``(S,)``), point count ``(S,)`` and scene index ``(S,)`` (see :meth:`Grid.keys`)."""
+    expect_args("scene_keys", seed=(seed, INT), sigma_milli_px=(sigma_milli_px, ARRAY), count=(count, ARRAY), scene=(scene, ARRAY))
     base = jax.random.PRNGKey(seed)
     arrays = (jnp.asarray(np.asarray(a, np.int32)) for a in (sigma_milli_px, count, scene))
     return _fold_keys(base, *arrays)
@@ -175,6 +177,7 @@ def compact_scene(scene: Scene, *, capacity: int) -> Scene:
         A ``Scene`` with ``xy (M, P', 2)``, ``mask (M, P')``, ``instance (M, P')`` (-1 in
         padding) and ``points3d (P', 3)``.
     """
+    expect_args("compact_scene", scene=(scene, Scene), capacity=(capacity, INT))
     if not isinstance(capacity, int) or capacity < 1:
         raise ValueError(f"capacity must be a Python int >= 1; got {capacity!r}")
     M, P = scene.mask.shape
@@ -197,6 +200,7 @@ def bucket_of(count, buckets: tuple[int, ...]) -> np.ndarray:
     Raises ``ValueError`` if a count exceeds the largest bucket or buckets are not
     strictly increasing positive ints.
     """
+    expect_args("bucket_of", count=(count, ARRAY), buckets=(buckets, (tuple, list)))
     buckets = tuple(buckets)
     if not buckets or any(not isinstance(b, int) or b < 1 for b in buckets) or list(buckets) != sorted(set(buckets)):
         raise ValueError(f"buckets must be strictly increasing positive ints; got {buckets}")

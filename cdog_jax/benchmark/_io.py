@@ -17,6 +17,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .._expect import PATH, expect_args
 from ..metrics._scores import mean_metrics
 from ._grid import Grid
 from ._sweep import SweepResult
@@ -33,6 +34,7 @@ def save_results(result: SweepResult, directory: str | os.PathLike) -> None:
     """Write ``result`` to ``directory`` (created if needed) as ``results.npz`` (all
     ``(S,)`` arrays and the rig), ``results.csv`` (one row per scene per config: config,
     σ, count, scene, every metric, time) and ``results.json`` (everything else)."""
+    expect_args("save_results", result=(result, SweepResult), directory=(directory, PATH))
     os.makedirs(directory, exist_ok=True)
     arrays = {k: getattr(result, k) for k in _SCENE_ARRAYS}
     arrays.update({f"rig/{k}": v for k, v in result.rig.items()})
@@ -71,6 +73,7 @@ def _cell(v) -> str:
 def load_results(directory: str | os.PathLike) -> SweepResult:
     """Read a folder written by :func:`save_results` back into a :class:`SweepResult`
     (arrays exactly as saved)."""
+    expect_args("load_results", directory=(directory, PATH))
     with open(os.path.join(directory, "results.json")) as f:
         meta = json.load(f)
     if meta.get("format") != FORMAT_VERSION:
@@ -117,6 +120,7 @@ def summary_table(result: SweepResult, *, sigmas: Sequence[float] = (0.0, 1.0, 3
     that σ as :func:`cdog_jax.metrics.mean_metrics` does (3DErr and BPE over scenes with
     a scored group); time is the mean per-scene estimate in milliseconds. σ values absent
     from the grid are skipped."""
+    expect_args("summary_table", result=(result, SweepResult))
     head = ["σ (px)", "method", *(c[0] for c in _COLUMNS)]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for sigma in sigmas:

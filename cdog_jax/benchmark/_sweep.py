@@ -42,6 +42,7 @@ import numpy as np
 from jax.experimental import io_callback
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
+from .._expect import expect_args
 from .._config import Config
 from .._pipeline import associate_traced
 from ..geometry._camera import Rig
@@ -318,6 +319,7 @@ def _bucket_done(bucket, _) -> np.ndarray:
 
 def print_progress(p: SweepProgress) -> None:
     """A ``progress`` callback for :func:`sweep` that prints one line per finished bucket."""
+    expect_args("print_progress", p=(p, SweepProgress))
     print(
         f"  bucket {p.bucket + 1}/{p.num_buckets} (capacity {p.capacity}) done: "
         f"{p.scenes_done}/{p.num_scenes} scenes, {p.elapsed_s:.1f} s",
@@ -443,6 +445,7 @@ def sweep(
     Returns:
         A :class:`SweepResult` with ``(S,)`` arrays in :meth:`Grid.flat` order.
     """
+    expect_args("sweep", rig=(rig, Rig), grid=(grid, Grid))
     configs = _check_configs(configs)
     mesh = default_mesh() if mesh is None else mesh
     if tuple(mesh.axis_names) != (AXIS,):

@@ -10,6 +10,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from .._expect import ARRAY, expect_args
 from .._types import Array, Bool, Float, lift
 
 
@@ -71,6 +72,7 @@ def rig_from_arrays(K, R, t, *, dtype=None) -> Rig:
     offending view for wrong shapes, non-finite values,
     a singular ``K`` or a rotation that is not orthonormal (tolerance 1e-3).
     """
+    expect_args("rig_from_arrays", K=(K, ARRAY), R=(R, ARRAY), t=(t, ARRAY))
     dtype = dtype or jnp.asarray(0.0).dtype
     K, R, t = (np.asarray(a, dtype=np.float64) for a in (K, R, t))
     if K.ndim != 3 or K.shape[1:] != (3, 3):
@@ -122,9 +124,11 @@ def affine_per_view(A: Float[Array, "M R 3"], b: Float[Array, "M R"], X: Float[A
 
 def camera_points(rig: Rig, X_world: Float[Array, "*S 3"]) -> Float[Array, "*S M 3"]:
     """World points in every camera frame: ``X_cam = R X + t``, shape ``(*S, M, 3)``."""
+    expect_args("camera_points", rig=(rig, Rig), X_world=(X_world, ARRAY))
     return affine_per_view(rig.R, rig.t, X_world)
 
 
 def in_front(rig: Rig, X_world: Float[Array, "*S 3"]) -> Bool[Array, "*S M"]:
     """Whether each point lies in front of each camera, ``(R X + t)_z > 0``."""
+    expect_args("in_front", rig=(rig, Rig), X_world=(X_world, ARRAY))
     return camera_points(rig, X_world)[..., 2] > 0

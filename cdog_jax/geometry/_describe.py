@@ -17,6 +17,7 @@ import dataclasses
 import jax.numpy as jnp
 import numpy as np
 
+from .._expect import expect_args
 from ._camera import Rig
 from ._distortion import undistort_pixels
 
@@ -94,6 +95,7 @@ def describe_rig(rig: Rig, *, xy=None, mask=None, image_size=None, names=None, d
     Returns:
         A :class:`RigDescription`; ``str()`` of it is the text of :meth:`Rig.describe`.
     """
+    expect_args("describe_rig", rig=(rig, Rig))
     K, R, t, names = host_views(rig, names, "describe")
     sizes = image_sizes(image_size, K.shape[0])
     if xy is not None and dist is not None:

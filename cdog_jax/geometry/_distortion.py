@@ -18,6 +18,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jax import lax
 
+from .._expect import ARRAY, INT, expect_args
 from .._types import Array, Float
 
 
@@ -114,6 +115,7 @@ def distort_pixels(
         ``(M, P, 2)`` distorted pixels (what a real camera records). Zero ``dist`` returns
         ``xy`` exactly.
     """
+    expect_args("distort_pixels", K=(K, ARRAY), dist=(dist, ARRAY), xy=(xy, ARRAY))
     _check(K, dist, xy)
     x, y = _normalise(K, xy)
     return _shift_pixels(K, xy, *_displacement(dist, x, y))
@@ -142,6 +144,7 @@ def undistort_pixels(
     Returns:
         ``(M, P, 2)`` ideal pixels, those that :func:`distort_pixels` maps onto ``xy``.
     """
+    expect_args("undistort_pixels", K=(K, ARRAY), dist=(dist, ARRAY), xy=(xy, ARRAY), iterations=(iterations, INT))
     _check(K, dist, xy)
     if not isinstance(iterations, int) or iterations < 0:
         raise ValueError(f"iterations must be a non-negative Python int; got {iterations!r}")

@@ -2,6 +2,7 @@
 
 import jax.numpy as jnp
 
+from .._expect import ARRAY, expect_args
 from .._types import Array, Bool, Float
 from ._camera import Rig
 from ._homogeneous import homogeneous_from_points
@@ -21,6 +22,7 @@ def skew(v: Float[Array, "*S 3"]) -> Float[Array, "*S 3 3"]:
 def essential_from_rig(rig: Rig) -> Float[Array, "M M 3 3"]:
     """``E (M, M, 3, 3)``, ``E[m, n] = [t_rel]_x R_rel`` with ``R_rel = R_n R_mᵀ``, ``t_rel = t_n − R_rel t_m``
     scaled to unit length: ``x̂_nᵀ E x̂_m = 0`` for normalised rays ``x̂ = K⁻¹ x``."""
+    expect_args("essential_from_rig", rig=(rig, Rig))
     R_rel = jnp.einsum("nij,mkj->mnik", rig.R, rig.R)  # R_n R_mᵀ, (M, M, 3, 3)
     t_rel = rig.t[None, :, :] - jnp.einsum("mnij,mj->mni", R_rel, rig.t)  # (M, M, 3)
     t_norm = jnp.sqrt(jnp.sum(t_rel * t_rel, axis=-1, keepdims=True))
@@ -37,6 +39,7 @@ def fundamental_from_rig(rig: Rig) -> Float[Array, "M M 3 3"]:
     ``F = K_n^{-T} [t_rel]_x R_rel K_m^{-1}`` scaled to unit Frobenius norm (0 on the diagonal
     ``m == n``). General K: no assumption on the sign of ``K[2,2]``.
     """
+    expect_args("fundamental_from_rig", rig=(rig, Rig))
     K_inv = jnp.linalg.inv(rig.K)  # (M, 3, 3)
     F = jnp.einsum("nji,mnjk,mkl->mnil", K_inv, essential_from_rig(rig), K_inv)
     norm = jnp.sqrt(jnp.sum(F * F, axis=(-2, -1), keepdims=True))
@@ -55,6 +58,7 @@ def epipolar_distances(
     term is O(1) in float32; the pixel line is ``l = K_n^{-T} l̂``, whose first two entries
     give the pixel-unit normaliser.
     """
+    expect_args("epipolar_distances", rig=(rig, Rig), xy=(xy, ARRAY), mask=(mask, ARRAY))
     M, P = mask.shape
     K_inv = jnp.linalg.inv(rig.K)
     rays = jnp.einsum("mab,mib->mia", K_inv, homogeneous_from_points(xy))  # (M, P, 3)

@@ -11,6 +11,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._expect import ARRAY, expect_args
 from .._types import Array, Float
 from ._camera import Rig
 
@@ -50,6 +51,7 @@ def so3_exp(rotvec: Float[Array, "*S 3"]) -> Float[Array, "*S 3 3"]:
     the latter written ``½ (sin(θ/2) / (θ/2))²`` to avoid cancellation. Values and
     gradients are finite everywhere; at ``w = 0``, ``∂R/∂w_k = [e_k]×``.
     """
+    expect_args("so3_exp", rotvec=(rotvec, ARRAY))
     s = jnp.sum(rotvec * rotvec, axis=-1)  # θ², (*S,)
     A = _sinc_sq(s)
     half = _sinc_sq(0.25 * s)
@@ -96,6 +98,7 @@ def so3_log(R: Float[Array, "*S 3 3"]) -> Float[Array, "*S 3"]:
     arbitrary (both represent the same rotation). Values and gradients are finite; the
     gradient is not meant to be used near ``θ = π``. Inputs should be orthonormal.
     """
+    expect_args("so3_log", R=(R, ARRAY))
     return _so3_log(R)
 
 
@@ -133,6 +136,7 @@ def params_from_rig(rig: Rig) -> CameraParams:
     (with negated focal lengths and principal point). ``K[1, 0]``, ``K[2, 0]`` and
     ``K[2, 1]`` are assumed 0 (upper-triangular K). ``R`` goes through :func:`so3_log`.
     """
+    expect_args("params_from_rig", rig=(rig, Rig))
     return _params_from_rig(rig)
 
 
@@ -149,6 +153,7 @@ def rig_from_params(params: CameraParams) -> Rig:
 
     Differentiable everywhere, ``rotvec = 0`` included.
     """
+    expect_args("rig_from_params", params=(params, CameraParams))
     return _rig_from_params(params)
 
 

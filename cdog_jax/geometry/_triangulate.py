@@ -10,8 +10,10 @@ well defined wherever the system is (no SVD).
 
 import jax.numpy as jnp
 
+from .._expect import ARRAY, expect_args
 from .._types import Array, Bool, Float, lift
 from ._camera import Rig
+from ._checks import check_tracks
 from ._homogeneous import homogeneous_from_points
 
 
@@ -23,6 +25,7 @@ def dlt_blocks(
     Returns ``(N, r, origin)``: solving ``(Σ N) X = −Σ r`` gives ``X + origin`` in world
     coordinates (scene units).
     """
+    expect_args("dlt_blocks", rig=(rig, Rig), xy=(xy, ARRAY))
     origin = jnp.mean(rig.centers, axis=0)  # (3,)
     t_shift = rig.t + jnp.einsum("mij,j->mi", rig.R, origin)  # (M, 3)
     rays = jnp.einsum("mab,...mb->...ma", jnp.linalg.inv(rig.K), homogeneous_from_points(xy))
@@ -76,6 +79,7 @@ def triangulate(
         ``points (*S, 3)`` (scene units, 0 where undetermined) and ``ok (*S,)``: the point is
         determined (≥ 2 views with parallax).
     """
+    check_tracks(rig, xy, mask, weights, "triangulate")
     N, r, origin = dlt_blocks(rig, xy)
     w = mask.astype(N.dtype)
     if weights is not None:
@@ -90,6 +94,7 @@ def triangulate_pairs(
     """Two-view DLT for every pair of one track's views from its per-view blocks
     ``N (M, 3, 3)``, ``r (M, 3)``: ``X (M, M, 3)`` with ``X[a, b]`` from views a and b, and
     ``ok (M, M)`` (False on the diagonal and for near-parallel rays)."""
+    expect_args("triangulate_pairs", N=(N, ARRAY), r=(r, ARRAY), origin=(origin, ARRAY))
     X, ok = solve_normal_3x3(N[:, None] + N[None, :], r[:, None] + r[None, :])
     ok = ok & ~jnp.eye(N.shape[0], dtype=bool)
     return X + lift(origin, X.ndim), ok

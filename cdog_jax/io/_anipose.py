@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from .._expect import PATH, expect_args
 from ..geometry._camera import Rig
 from ._rig_files import (
     PathLike,
@@ -121,6 +122,7 @@ def save_rig_anipose(
     zeros when ``None``), ``rotation`` (Rodrigues vector of ``R``) and ``translation``.
     Numbers are written with float64 ``repr``.
     """
+    expect_args("save_rig_anipose", path=(path, PATH), rig=(rig, Rig))
     K, R, t = _host_rig(rig)
     M = K.shape[0]
     K = _K_over_K22(K)

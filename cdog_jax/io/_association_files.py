@@ -23,12 +23,15 @@ from typing import Any
 
 import numpy as np
 
+from .._expect import ARRAY, PATH, Kind, expect_args
 from ._rig_files import read_json
 
 PathLike = str | os.PathLike  # a file name
 
 # Every field of cdog_jax.Association, as written to NPZ.
 ASSOCIATION_FIELDS = ("labels", "groups", "valid", "points3d", "bpe", "err_px", "n_views", "num_groups", "sigma_px", "tau_px", "status")
+# Any object with an Association's fields will do (e.g. one frame of a batch).
+_ASSOCIATION = Kind("an Association (or an object with its fields)", lambda v: all(hasattr(v, f) for f in ("groups", "valid", "points3d")))
 CSV_COLUMNS = ("frame", "group", "x", "y", "z", "bpe_px", "n_views")
 CSV_NOTE = "# bpe_px = sqrt(BPE in px^2): RMS reprojection error over the group's member views, pixels; x, y, z in scene units"
 
@@ -52,6 +55,7 @@ def association_records(assoc: Any, xy: Any, mask: Any, *, confidence: Any = Non
         [[view, slot, x, y], …], "num_views", "capacity", "sigma_px", "tau_px"}``. Only
         ``valid`` groups are listed; ``id`` is the group's row in ``assoc.groups``.
     """
+    expect_args("association_records", assoc=(assoc, _ASSOCIATION), xy=(xy, ARRAY), mask=(mask, ARRAY))
     a = _host(assoc)
     xy, mask = np.asarray(xy, np.float64), np.asarray(mask, bool)
     conf = None if confidence is None else np.asarray(confidence, np.float64)
@@ -104,6 +108,7 @@ def save_association_json(path: PathLike, assoc: Any, xy: Any, mask: Any, *, con
     or a batch (``labels (B, M, P)``, ``xy (B, M, P, 2)``, ``mask (B, M, P)``, from
     :func:`cdog_jax.associate_batch`) as ``{"frames": [one object per scene, …]}``.
     ``rig`` is shared by all scenes."""
+    expect_args("save_association_json", path=(path, PATH), assoc=(assoc, _ASSOCIATION), xy=(xy, ARRAY), mask=(mask, ARRAY))
     labels = np.asarray(assoc.labels)
     if labels.ndim == 3:
         B = labels.shape[0]
@@ -128,6 +133,7 @@ def load_association_json(path: PathLike) -> dict:
     ``{"frames": [such objects]}``. Raises ``ValueError`` naming the file, frame and group
     for a missing key or a malformed member row.
     """
+    expect_args("load_association_json", path=(path, PATH))
     path = os.fspath(path)
     data = read_json(path)
     if isinstance(data, dict) and "frames" in data:
@@ -145,6 +151,7 @@ def save_association_npz(path: PathLike, assoc: Any, *, xy: Any = None, mask: An
     ``valid``, ``points3d``, ``bpe`` (px²), ``err_px``, ``n_views``, ``num_groups``,
     ``sigma_px``, ``tau_px``; with a leading ``B`` for a batch), plus ``xy``, ``mask`` and
     ``confidence`` when given. Read it with ``np.load``."""
+    expect_args("save_association_npz", path=(path, PATH), assoc=(assoc, _ASSOCIATION))
     arrays = _host(assoc)
     for name, v in (("xy", xy), ("mask", mask), ("confidence", confidence)):
         if v is not None:
@@ -161,6 +168,7 @@ def save_association_csv(path: PathLike, assoc: Any) -> None:
     scene units. ``frame`` is the scene index of a batch (``labels (B, M, P)``), 0 for one
     scene. The file starts with a ``#`` comment line saying so (pandas: ``comment="#"``).
     """
+    expect_args("save_association_csv", path=(path, PATH), assoc=(assoc, _ASSOCIATION))
     a = _host(assoc)
     batch = a["labels"].ndim == 3
     with open(path, "w", encoding="utf-8", newline="") as f:

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from .._expect import PATH, expect_args
 from ..geometry._camera import Rig
 from ._rig_files import (
     PathLike,
@@ -201,6 +202,7 @@ def save_rig_colmap(
     (no COLMAP model holds them). ``image_size``: ``(w, h)`` or ``(M, 2)``, required.
     ``names`` (default ``"view_{m}"``) must have no whitespace.
     """
+    expect_args("save_rig_colmap", folder=(folder, PATH), rig=(rig, Rig))
     K, R, t = _host_rig(rig)
     M = K.shape[0]
     K = _K_over_K22(K)

@@ -29,6 +29,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from .._expect import ARRAY, PATH, expect_args
 from ._rig_files import open_npz, read_json
 
 PathLike = str | os.PathLike  # a file name
@@ -103,6 +104,7 @@ def load_detections(
         count other than ``num_views``, no views, fewer than 2 views with detections in a
         frame, a confidence outside [0, 1] or NaN, or a view over ``capacity``.
     """
+    expect_args("load_detections", path=(path, PATH))
     path = os.fspath(path)
     _check_options(missing, capacity, num_views, image_size)
     suffix = os.path.splitext(path)[1].lower()
@@ -132,6 +134,7 @@ def detections_from_lists(
     ``missing``, as in :func:`detections_from_array`) keeps its slot with ``mask = False``.
     The other options and the checks are those of :func:`load_detections`.
     """
+    expect_args("detections_from_lists", views=(views, (list, tuple)))
     _check_options(missing, capacity, num_views, image_size)
     where = _Where(None, False)
     a, present = _array_from_lists([views], where, num_views)
@@ -162,6 +165,7 @@ def detections_from_array(
         A :class:`Detections` (``frames`` is True for a 4-D ``a``). A row with one NaN
         coordinate, or an infinite one, raises ``ValueError`` naming frame, view and row.
     """
+    expect_args("detections_from_array", a=(a, ARRAY))
     _check_options(missing, capacity, num_views, image_size)
     where = _Where(None, np.ndim(a) == 4)
     rows, frames = _rows_from_array(a, where, "array")

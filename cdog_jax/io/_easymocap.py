@@ -25,6 +25,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from .._expect import PATH, expect_args
 from ..geometry._camera import Rig
 from ._rig_files import (
     PathLike,
@@ -218,6 +219,7 @@ def save_rig_easymocap(folder: PathLike, rig: Rig, *, dist: Any = None, names: A
     (default ``"{m:02d}"``) must be OpenCV keys: letters, digits, ``_`` and ``-``. Numbers
     are written with float64 ``repr``.
     """
+    expect_args("save_rig_easymocap", folder=(folder, PATH), rig=(rig, Rig))
     K, R, t = _host_rig(rig)
     M = K.shape[0]
     K = _K_over_K22(K)

@@ -27,6 +27,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from .._expect import PATH, expect_args
 from ..geometry._camera import Rig, rig_from_arrays
 
 PathLike = str | os.PathLike  # a folder or file name
@@ -100,6 +101,7 @@ def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigF
         (and view, camera, line or key) for an unreadable file, a missing view or key, a
         wrong shape, a non-finite number, a singular ``K`` or a ``R`` that is not a rotation.
     """
+    expect_args("load_rig", path=(path, PATH))
     from . import _anipose, _colmap, _easymocap  # they import this module's helpers
 
     path = os.fspath(path)
@@ -137,6 +139,7 @@ def save_rig_json(path: PathLike, rig: Rig, *, image_size: tuple[int, int] | Non
     and ``"dist": [5]`` (OpenCV ``k1, k2, p1, p2, k3``, ``dist (M, 5)``) when given.
     Numbers are written exactly (float64 ``repr``).
     """
+    expect_args("save_rig_json", path=(path, PATH), rig=(rig, Rig))
     K, R, t = _host_rig(rig)
     size = _check_image_size(image_size, "image_size")
     dist = _check_dist(dist, K.shape[0])
@@ -155,6 +158,7 @@ def save_rig_json(path: PathLike, rig: Rig, *, image_size: tuple[int, int] | Non
 def save_rig_npz(path: PathLike, rig: Rig, *, image_size: tuple[int, int] | None = None, dist: Any = None) -> None:
     """Write ``rig`` as NPZ: float64 ``K (M, 3, 3)``, ``R (M, 3, 3)``, ``t (M, 3)``, and
     ``dist (M, 5)`` and int ``image_size (2,)`` (width, height) when given."""
+    expect_args("save_rig_npz", path=(path, PATH), rig=(rig, Rig))
     K, R, t = _host_rig(rig)
     arrays = {"K": K, "R": R, "t": t}
     size = _check_image_size(image_size, "image_size")
@@ -174,6 +178,7 @@ def save_rig_easyvis(folder: PathLike, rig: Rig) -> None:
     The format has no image size and no distortion. Raises ``ValueError`` if the folder
     already holds a ``K/R/T{i}.txt`` with ``i >= M``, which would be read as an extra view.
     """
+    expect_args("save_rig_easyvis", folder=(folder, PATH), rig=(rig, Rig))
     K, R, t = _host_rig(rig)
     folder = os.fspath(folder)
     os.makedirs(folder, exist_ok=True)

@@ -37,6 +37,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from .._expect import expect_args
 from .._result import Association
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
@@ -113,6 +114,7 @@ def scene_metrics(rig: Rig, result: Association, scene: Scene) -> Metrics:
     Returns:
         A :class:`Metrics` of scalars; no field is NaN (see the module docstring for 0/0).
     """
+    expect_args("scene_metrics", rig=(rig, Rig), result=(result, Association), scene=(scene, Scene))
     M, P = scene.mask.shape
     if result.labels.shape != (M, P):
         raise ValueError(
@@ -219,6 +221,7 @@ def mean_metrics(metrics: Metrics) -> dict[str, float]:
         of scenes with a group; ``err3d`` and ``bpe_px`` are means over the scenes with
         ``num_err_groups > 0`` only, NaN when there is none.
     """
+    expect_args("mean_metrics", metrics=(metrics, Metrics))
     leaves = {f.name: np.asarray(getattr(metrics, f.name)).reshape(-1) for f in dataclasses.fields(Metrics)}
     with_err = leaves["num_err_groups"] > 0
     out = {}

@@ -9,6 +9,7 @@ it is discarded.
 import jax
 import jax.numpy as jnp
 
+from .._expect import ARRAY, INT, expect_args
 from .._config import Thresholds
 from .._types import Array, Bool, Float, Int
 
@@ -52,6 +53,7 @@ def bpe_jump_keep(
 ) -> Bool[Array, " G"]:
     """``(G,)``: which valid groups survive the jump rule, from ``bpe (G,)`` (px²) and
     ``valid (G,)``."""
+    expect_args("bpe_jump_keep", bpe=(bpe, ARRAY), valid=(valid, ARRAY), sigma_px=(sigma_px, ARRAY), th=(th, Thresholds), min_gaps=(min_gaps, INT))
     G = bpe.shape[0]
     if G < 2:
         return valid

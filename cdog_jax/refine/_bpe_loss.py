@@ -14,6 +14,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import ArrayLike, Real
 
+from .._expect import ARRAY, expect_args
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..geometry._projection import project
@@ -113,6 +114,7 @@ def group_bpe(
         ``(G,)`` per-group BPE; 0 for rows that are invalid, have fewer than 2 members, or
         (when triangulating) whose DLT is undetermined (near-parallel rays).
     """
+    expect_args("group_bpe", rig=(rig, Rig), xy=(xy, ARRAY), groups=(groups, ARRAY), valid=(valid, ARRAY))
     return _group_terms(rig, xy, groups, valid, loss=loss, scale_px=scale_px, points3d=points3d)[0]
 
 
@@ -133,6 +135,7 @@ def bpe(
     undetermined DLT are left out of the mean; 0 when no group counts. Works under ``jit``
     and ``vmap`` (e.g. ``jax.vmap(bpe, in_axes=(None, 0, 0, 0))`` over scenes).
     """
+    expect_args("bpe", rig=(rig, Rig), xy=(xy, ARRAY), groups=(groups, ARRAY), valid=(valid, ARRAY))
     per_group, active = _group_terms(rig, xy, groups, valid, loss=loss, scale_px=scale_px, points3d=points3d)
     count = jnp.sum(active.astype(per_group.dtype))
     return jnp.sum(per_group) / jnp.maximum(count, 1.0)

@@ -30,6 +30,7 @@ import jax.numpy as jnp
 import optimistix as optx
 from jaxtyping import ArrayLike, Real
 
+from .._expect import ARRAY, expect_args
 from .._config import Config, Thresholds
 from .._result import Association
 from .._types import Array, Bool, Float, Int
@@ -306,6 +307,7 @@ def refine_rig(
         The refined :class:`Rig` and a :class:`RefineInfo`. Jit with these options static;
         ``jax.vmap`` over rigs (``in_axes=(0, None, None, None)``) works.
     """
+    expect_args("refine_rig", rig=(rig, Rig), xy=(xy, ARRAY), groups=(groups, ARRAY), valid=(valid, ARRAY))
     _check_xy(rig, xy)
     S, M = xy.shape[0], xy.shape[1]
     if groups.ndim != 3 or groups.shape[0] != S or groups.shape[2] != M:
@@ -425,6 +427,7 @@ def calibrate(
         The rig after the last round and a :class:`CalibrationHistory`. Jit with ``config``,
         ``rounds`` and the static refine options in ``static_argnames``.
     """
+    expect_args("calibrate", rig=(rig, Rig), xy=(xy, ARRAY), mask=(mask, ARRAY), thresholds=(thresholds, Thresholds), config=(config, Config))
     if not isinstance(rounds, int) or rounds < 1:
         raise ValueError(f"rounds must be a Python int >= 1; got {rounds!r}")
     _check_xy(rig, xy)
@@ -506,6 +509,7 @@ def align_rigs(rig: Rig, reference: Rig) -> Rig:
     ``K`` unchanged, so pixels of correspondingly transformed points do not change. Needs
     ``M ≥ 3`` centres not on one line. ``K, R (M, 3, 3)``, ``t (M, 3)``.
     """
+    expect_args("align_rigs", rig=(rig, Rig), reference=(reference, Rig))
     return _align_rigs(rig, reference)
 
 
@@ -521,6 +525,7 @@ def rig_errors(rig: Rig, reference: Rig, *, align: bool = True) -> RigErrors:
     """Per-view errors ``(M,)`` of ``rig`` against ``reference`` (after :func:`align_rigs`
     unless ``align=False``): rotation (degrees), centre (scene units), relative focal,
     principal point (pixels). Intrinsics are compared with ``K`` normalised to ``K[2,2] = 1``."""
+    expect_args("rig_errors", rig=(rig, Rig), reference=(reference, Rig))
     return _rig_errors(rig, reference, align=align)
 
 

@@ -9,6 +9,7 @@ import jax
 import jax.numpy as jnp
 import optimistix as optx
 
+from .._expect import ARRAY, INT, expect_args
 from .._types import Array, Bool, Float
 from ..geometry._camera import Rig
 from ..geometry._projection import project
@@ -29,6 +30,7 @@ def refine_points(
 ) -> Float[Array, "G 3"]:
     """Refined points ``(G, 3)`` (scene units) from ``X0 (G, 3)``, ``xy_g (G, M, 2)`` and
     ``member (G, M)``; groups with < 2 members are unchanged."""
+    expect_args("refine_points", rig=(rig, Rig), X0=(X0, ARRAY), xy_g=(xy_g, ARRAY), member=(member, ARRAY), max_steps=(max_steps, INT))
     solver = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-6)
 
     def one(X, xy, mem):

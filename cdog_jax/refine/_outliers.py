@@ -10,6 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._expect import ARRAY, expect_args
 from .._config import Config, Thresholds
 from .._types import Array, Bool, Float
 from ..geometry._camera import Rig
@@ -21,6 +22,7 @@ def percentile_linear(values: Float[Array, " K"], count, q: float) -> Float[Arra
     """``()``: ``numpy.percentile`` (linear) at ``q`` (0–100) of the ``count`` smallest finite
     entries of ``values (K,)``; the others must be ``+inf``. Finite but meaningless if
     ``count == 0``."""
+    expect_args("percentile_linear", values=(values, ARRAY), count=(count, ARRAY))
     v = jnp.sort(values)
     pos = (q / 100.0) * jnp.maximum(count - 1, 0).astype(values.dtype)
     lo = jnp.floor(pos).astype(jnp.int32)
@@ -38,6 +40,7 @@ def node_scores(
     """Scores ``(M,)``: mean pair-reprojection error (pixels) of every member view of one
     group, and ``(M,)`` whether it is defined. ``N (M, 3, 3)``, ``r (M, 3)`` DLT blocks,
     ``xy_g (M, 2)``, ``member (M,)``; ``own`` counts each pair's own two errors too."""
+    expect_args("node_scores", rig=(rig, Rig), xy_g=(xy_g, ARRAY), member=(member, ARRAY))
     M = member.shape[0]
     pa, pb = np.triu_indices(M, k=1)  # the K = M(M-1)/2 unordered pairs a < b, static
     X, ok = solve_normal_3x3(N[pa] + N[pb], r[pa] + r[pb])  # (K, 3), (K,)
@@ -59,6 +62,7 @@ def iqr_outliers(
     score: Float[Array, " M"], member: Bool[Array, " M"], th: Thresholds, config: Config
 ) -> Bool[Array, " M"]:
     """Members whose score lies outside ``[max(0, Q1 − α IQR), Q3 + α IQR]``."""
+    expect_args("iqr_outliers", score=(score, ARRAY), member=(member, ARRAY), th=(th, Thresholds), config=(config, Config))
     if config.iqr_quartiles == "zero_pad":
         vals = jnp.concatenate([jnp.where(member, score, jnp.inf), jnp.zeros((1,), score.dtype)])
         count = jnp.sum(member, dtype=jnp.int32) + 1
@@ -106,6 +110,7 @@ def remove_outliers(
     groups changes (at most ``config.max_iqr_iters`` rounds). The static capacity ``G`` is
     far larger than the number of real groups, so this costs what the real groups cost.
     """
+    expect_args("remove_outliers", rig=(rig, Rig), th=(th, Thresholds), config=(config, Config))
     own = config.iqr_score == "include_own"
     G, M = member.shape
     C = min(IQR_CHUNK, G)

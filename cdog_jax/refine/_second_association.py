@@ -7,6 +7,7 @@ pass closest to it on average, distances ≥ τ counted three times, if that mea
 
 import jax.numpy as jnp
 
+from .._expect import ARRAY, expect_args
 from .._config import Thresholds
 from .._types import Array, Bool, Float, Int
 from ._attach import attach_cheapest, leftover_nodes
@@ -22,6 +23,7 @@ def second_association(
 ) -> Int[Array, "G M"]:
     """The group table ``(G, M)`` with leftover nodes attached. ``d (N, N)``: ``d[v, u]`` is
     the distance in u's image from u to the epipolar line of v (pixels)."""
+    expect_args("second_association", d=(d, ARRAY), groups=(groups, ARRAY), valid=(valid, ARRAY), node_valid=(node_valid, ARRAY), th=(th, Thresholds))
     G, M = groups.shape
     N = d.shape[0]
     P = N // M

@@ -10,6 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._expect import ARRAY, expect_args
 from .._types import Array, Float
 from ..geometry._camera import Rig
 from ..geometry._projection import project
@@ -30,6 +31,7 @@ def intrinsics_image_size(K: Float[Array, "*M 3 3"] | np.ndarray, *, multiple: i
     For the built-in rig this gives ``IMAGE_SIZE = (640, 480)``. Raises ``ValueError`` if
     the guess is not positive (a principal point far from the image centre).
     """
+    expect_args("intrinsics_image_size", K=(K, ARRAY))
     if not isinstance(multiple, int) or multiple < 1:
         raise ValueError(f"multiple must be a Python int >= 1; got {multiple!r}")
     K = np.asarray(K, dtype=np.float64)
@@ -83,6 +85,7 @@ def visible_box(
         ``(2, 3)`` float64 NumPy array. Raises ``ValueError`` when fewer than 1 % of the
         search cube's points are seen by ``min_views`` views (cameras with no common region).
     """
+    expect_args("visible_box", rig=(rig, Rig), image_size=(image_size, (tuple, list)))
     M = rig.K.shape[0] if rig.K.ndim == 3 else -1
     if M < 1:
         raise ValueError(f"visible_box takes one rig with K of shape (M, 3, 3); got {rig.K.shape}")

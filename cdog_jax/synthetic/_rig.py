@@ -11,6 +11,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
+from .._expect import ARRAY, INT, expect_args
 from ..geometry._camera import Rig
 
 IMAGE_SIZE: tuple[int, int] = (640, 480)
@@ -46,6 +47,7 @@ def look_at_rotation(center, target, *, up=(0.0, 0.0, 1.0)) -> np.ndarray:
     ``up`` is the world direction that should point up in the image; it must not be
     parallel to the viewing direction.
     """
+    expect_args("look_at_rotation", center=(center, ARRAY), target=(target, ARRAY))
     center, target, up = (np.asarray(a, dtype=np.float64) for a in (center, target, up))
     z = target - center
     z = z / np.linalg.norm(z)
@@ -85,6 +87,7 @@ def default_rig(*, num_views: int = 10, dtype=None) -> Rig:
         A :class:`Rig` of ``(num_views, …)`` arrays of ``dtype`` (default: JAX's default
         float, float32 unless x64 is enabled).
     """
+    expect_args("default_rig", num_views=(num_views, INT))
     if num_views < 1:
         raise ValueError(f"num_views must be >= 1; got {num_views}")
     dtype = dtype or jnp.asarray(0.0).dtype
@@ -122,6 +125,7 @@ def negate_intrinsics(rig: Rig, views) -> Rig:
     projection is divided by the third homogeneous coordinate. ``views`` is a sequence or
     an int array of view indices. For tests of general-``K`` handling.
     """
+    expect_args("negate_intrinsics", rig=(rig, Rig), views=(views, ARRAY))
     views = np.asarray(views, dtype=np.int32).reshape(-1)
     K = rig.K.at[..., views, :, :].multiply(-1)
     return Rig(K, rig.R, rig.t)

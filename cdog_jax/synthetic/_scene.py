@@ -9,6 +9,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import ArrayLike, PRNGKeyArray, Real
 
+from .._expect import ARRAY, expect_args
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..geometry._projection import project
@@ -110,6 +111,7 @@ def generate_scene(
     compile once per shape; it also works under an outer ``jit`` or ``vmap``. For a batch
     see :func:`generate_scenes`.
     """
+    expect_args("generate_scene", key=(key, ARRAY), rig=(rig, Rig), num_points=(num_points, ARRAY), sigma_px=(sigma_px, ARRAY))
     _check_static(capacity, image_size, oversample, clutter_capacity)
     if isinstance(num_points, int) and not 0 <= num_points <= capacity:
         raise ValueError(f"num_points must be in [0, capacity={capacity}]; got {num_points}")
@@ -152,6 +154,7 @@ def generate_scenes(
     Returns a :class:`Scene` whose fields have a leading ``B`` axis. Counts, noise levels
     and rates are traced, so a whole benchmark grid compiles once per ``(B, capacity)``.
     """
+    expect_args("generate_scenes", key=(key, ARRAY), rig=(rig, Rig), num_points=(num_points, ARRAY), sigma_px=(sigma_px, ARRAY))
     _check_static(capacity, image_size, oversample, clutter_capacity)
     _check_rates(drop_rate, clutter_rate)
     dtype = rig.K.dtype
