@@ -18,7 +18,8 @@ it and scores it with :func:`cdog_jax.metrics.scene_metrics`, all inside one ``j
   devices of all hosts, the inputs are placed with ``jax.device_put`` on the global mesh
   (every process computes the same grid arrays), each host runs its shards, and the
   output is replicated so every process gets the full :class:`SweepResult`; save it from
-  process 0 only (``jax.process_index() == 0``). Not tested here.
+  process 0 only (``jax.process_index() == 0``). Two CPU processes on localhost give
+  exactly the one-process result (tests/benchmark/test_distributed.py).
 
 Time per scene is an *estimate*: after the sweep, one chunk of each bucket (``TIMING_SCENES``
 scenes spread over the bucket, rounded up to a multiple of its batch size) is associated
