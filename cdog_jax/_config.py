@@ -114,6 +114,10 @@ class Config:
         for name, allowed in choices.items():
             if getattr(self, name) not in allowed:
                 raise ValueError(f"Config.{name} must be one of {allowed}; got {getattr(self, name)!r}")
+        if isinstance(self.min_parallax_deg, (int, float)) and not 0.0 <= self.min_parallax_deg < 90.0:
+            raise ValueError(f"Config.min_parallax_deg must be in [0, 90) degrees; got {self.min_parallax_deg!r}")
+        if isinstance(self.max_err_frac, (int, float)) and not self.max_err_frac > 0.0:
+            raise ValueError(f"Config.max_err_frac must be > 0 (a multiple of τ); got {self.max_err_frac!r}")
         for name in ("max_split_iters", "max_iqr_iters", "refine_max_steps", "jump_min_gaps"):
             value = getattr(self, name)
             if not isinstance(value, int) or value < 1:

@@ -56,7 +56,7 @@ def finish_groups(
         w_g = jnp.where(member, gather_groups(groups, weights), 0.0)
         X_w, ok = triangulate(rig, xy_g, member, weights=w_g)
         X = jnp.where(ok[:, None], X_w, X)  # fewer than 2 weighted views: the gate dissolves it
-    member, keep, X = validity_gate(rig, xy_g, member, X, result.tau_px, th.max_err_frac, th.min_parallax_deg, w_g)
+    member, keep, X = validity_gate(rig, xy_g, member, X, result.tau_px, th.max_err_frac, th.min_parallax_deg, weights=w_g)
     keep = keep & (jnp.sum(member, axis=1, dtype=jnp.int32) >= min_views)  # detaching may leave fewer
     member = member & keep[:, None]
     groups = jnp.where(member, groups, -1)

@@ -76,7 +76,7 @@ def conditioning_floor(dtype) -> float:
 def triangulate(
     rig: Rig,
     xy: Float[Array, "*S M 2"],
-    mask: Bool[Array, "*S M"] | None = None,
+    mask: Bool[Array, "*S M"] | None,
     *,
     weights: Float[Array, "*S M"] | None = None,
 ) -> tuple[Float[Array, "*S 3"], Bool[Array, "*S"]]:
@@ -87,8 +87,8 @@ def triangulate(
         xy: ``(*S, M, 2)`` pixels of each track in every view; masked entries may hold
             anything (NaN, ±inf, huge values): they are replaced before any arithmetic, so
             they change neither the point nor ``ok`` nor a gradient.
-        mask: ``(*S, M)`` bool, the views that observe the track; ``None``: the views whose
-            two coordinates are finite (NaN marks a missing view, as in anipose and
+        mask: ``(*S, M)`` bool, the views that observe the track; ``None`` (pass it
+            explicitly: ``triangulate(rig, xy, None)``): the views whose two coordinates are finite (NaN marks a missing view, as in anipose and
             DeepLabCut tracks).
         weights: optional ``(*S, M)`` non-negative weight of each view's equations (e.g.
             detector confidence): the normal equations become ``Σ_v w_v N_v``. A view with

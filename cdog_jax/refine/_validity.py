@@ -27,7 +27,7 @@ from ..geometry._projection import reprojection_errors
 from ..geometry._triangulate import dlt_blocks, solve_normal_3x3
 
 
-def counting_views(member: Bool[Array, "G M"], weights: Float[Array, "G M"] | None = None) -> Bool[Array, "G M"]:
+def counting_views(member: Bool[Array, "G M"], *, weights: Float[Array, "G M"] | None = None) -> Bool[Array, "G M"]:
     """``(G, M)``: the members whose DLT equations count (weight > 0; all members without
     ``weights``)."""
     return member if weights is None else member & (weights > 0)
@@ -120,6 +120,7 @@ def validity_gate(
     tau_px: Float[Array, ""],
     max_err_frac: Float[Array, ""],
     min_parallax_deg: Float[Array, ""],
+    *,
     weights: Float[Array, "G M"] | None = None,
 ) -> tuple[Bool[Array, "G M"], Bool[Array, " G"], Float[Array, "G 3"]]:
     """The groups ``member (G, M)`` (members' pixels ``xy_g (G, M, 2)``, points ``X (G, 3)``)
@@ -129,7 +130,7 @@ def validity_gate(
     bound = max_err_frac * tau_px
     member, X = detach_worst(rig, xy_g, member, w, X, bound)
     valid = (
-        (jnp.sum(counting_views(member, w), axis=1, dtype=jnp.int32) >= 2)
+        (jnp.sum(counting_views(member, weights=w), axis=1, dtype=jnp.int32) >= 2)
         & in_front_of_members(rig, X, member)
         & (max_parallax_deg(rig, X, member) >= min_parallax_deg)
         & errors_within(member_errors(rig, X, xy_g, member), bound)

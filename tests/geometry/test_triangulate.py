@@ -90,12 +90,12 @@ def test_mask_none_means_finite_entries_are_observed():
     X, tracks = _tracks(rig, 30, 4)
     tracks[:, 3] = np.nan  # anipose / DeepLabCut: NaN for a missing view
     tracks[::2, 2] = np.nan
-    p, ok = triangulate(rig, jnp.asarray(tracks, jnp.float32))
+    p, ok = triangulate(rig, jnp.asarray(tracks, jnp.float32), None)
     assert np.asarray(ok).all()
     assert np.abs(np.asarray(p) - X).max() < 1e-3
     one = tracks.copy()
     one[:, 1:] = np.nan
-    _, ok1 = triangulate(rig, jnp.asarray(one, jnp.float32))
+    _, ok1 = triangulate(rig, jnp.asarray(one, jnp.float32), None)
     assert not np.asarray(ok1).any()
 
 
