@@ -138,7 +138,10 @@ def run_associate(args: argparse.Namespace) -> int:
     if n_views.size:
         counts = np.bincount(n_views, minlength=M + 1)
         lines.append("  views per point: " + ", ".join(f"{k}: {counts[k]}" for k in range(2, M + 1) if counts[k]))
-        lines.append(f"  mean reprojection error: {err.mean():.2f} px (median {np.median(err):.2f}, max {err.max():.2f})")
+        lines.append(
+            f"  reprojection error err_px (mean distance over a group's views): mean {err.mean():.2f} px, "
+            f"median {np.median(err):.2f}, max {err.max():.2f}"
+        )
     lines.append(
         "  σ used: " + ", ".join(f"{s:.2f}" for s in np.asarray(result.sigma_px)[:8]) + (" …" if F > 8 else "") + " px"
     )

@@ -47,6 +47,8 @@ class Thresholds(NamedTuple):
     support_alpha: Float[Array, ""]  # support filter: drop if P(that many misses) < alpha
     support_min_rate: Float[Array, ""]  # support filter: floor of the estimated miss rate
     support_ref_views: Float[Array, ""]  # support filter: members of the groups that estimate it
+    min_parallax_deg: Float[Array, ""]  # validity gate: largest angle between members' lines of sight
+    max_err_frac: Float[Array, ""]  # validity gate: every member's reprojection error <= frac * tau
 
 
 _NUMERIC = tuple(f for f in Thresholds._fields if f != "sigma_px")
@@ -92,6 +94,8 @@ RANGES: dict[str, Range] = {
     "support_alpha": Range(0.0, 1.0),  # a probability
     "support_min_rate": Range(0.0, 1.0),  # a miss rate
     "support_ref_views": Range(),
+    "min_parallax_deg": Range(0.0, 90.0, high_open=True),  # validity gate, degrees
+    "max_err_frac": Range(0.0, low_open=True),  # validity gate, a multiple of τ
 }
 
 
@@ -166,6 +170,11 @@ class Config:
     support_alpha: float = 0.01
     support_min_rate: float = 0.02
     support_ref_views: float = 4.0
+    # The validity gate every valid group passes (ALGORITHM.md §12). 1° is far below the
+    # parallax of any benchmark group and well above what float32 can triangulate; 3 τ
+    # leaves room above recovery's attach gate (recover_frac · τ, 2 τ in extended()).
+    min_parallax_deg: float = 1.0
+    max_err_frac: float = 3.0
 
     def __post_init__(self):
         choices = {

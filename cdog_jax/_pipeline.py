@@ -36,6 +36,7 @@ from .refine._attach import leftover_nodes
 from .refine._recovery import recover_leftovers
 from .refine._second_association import second_association
 from .refine._support import support_keep
+from .refine._validity import validity_gate
 from ._postprocess import finish_groups, undistorted
 
 
@@ -164,7 +165,12 @@ def associate_traced(
 
     if config.refine:
         X = refine_points(rig, X, xy_g, member, config.refine_max_steps)
-        bpe, err_px = group_errors(rig, X, xy_g, member)
+
+    # One gate for every valid group, whatever stage made it (ALGORITHM.md §12).
+    member, gvalid, X = validity_gate(
+        rig, xy_g, member & gvalid[:, None], X, tau, th.max_err_frac, th.min_parallax_deg
+    )
+    bpe, err_px = group_errors(rig, X, xy_g, member)
 
     groups = jnp.where(member, groups, -1)
     groups, gvalid, order = compact_groups(groups, gvalid)
@@ -299,7 +305,7 @@ def _associate_one(rig, xy, mask, th, dist, weights, min_views, config):
     if dist is not None:
         xy = undistorted(rig, xy, mask, dist)
     result = associate_traced(rig, xy, mask, th, config)
-    return finish_groups(rig, jnp.where(mask[..., None], xy, 0.0), result, weights, min_views)
+    return finish_groups(rig, jnp.where(mask[..., None], xy, 0.0), result, weights, min_views, th)
 
 
 @partial(jax.jit, static_argnames=("config",))

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
+from ._config import Thresholds
 from ._result import Association
 from ._types import Array, Bool, Float, Int
 from .geometry._camera import Rig
@@ -15,6 +16,7 @@ from .geometry._distortion import undistort_pixels
 from .geometry._projection import group_errors
 from .geometry._triangulate import triangulate
 from .graph._groups import compact_groups, gather_groups, labels_from_groups
+from .refine._validity import validity_gate
 
 
 def undistorted(rig: Rig, xy: Float[Array, "M P 2"], mask: Bool[Array, "M P"], dist: Float[Array, "M 5"]) -> Float[Array, "M P 2"]:
@@ -29,14 +31,19 @@ def finish_groups(
     result: Association,
     weights: Float[Array, "M P"] | None,
     min_views: Int[Array, ""],
+    th: Thresholds,
 ) -> Association:
     """``result`` with groups of fewer than ``min_views`` views dropped (their detections
     become unassigned) and, when ``weights (M, P)`` is given (e.g. detector confidence, ≥ 0),
     every point re-triangulated by DLT with each member's equation scaled by its weight.
 
-    BPE and the mean error stay the plain (unweighted) means over members (SPEC §2.4);
-    ``xy`` are the pixels the association used (undistorted). Groups are compacted to the
-    front again and the labels rebuilt, as :func:`cdog_jax.associate` returns them.
+    BPE and the mean error stay the plain (unweighted) means over members;
+    ``xy`` are the pixels the association used (undistorted). The groups then pass the
+    validity gate again (:func:`cdog_jax.refine.validity_gate`, with ``th.max_err_frac``,
+    ``th.min_parallax_deg`` and the result's τ): a member of weight 0 does not count as a
+    view, and a re-weighted point must still lie in front of its cameras with parallax and
+    bounded errors. Groups are compacted to the front again and the labels rebuilt, as
+    :func:`cdog_jax.associate` returns them.
     """
     P = xy.shape[1]
     keep = result.valid & (result.n_views >= min_views)
@@ -44,10 +51,15 @@ def finish_groups(
     member = keep[:, None] & (groups >= 0)  # (G, M)
     xy_g = gather_groups(groups, xy)  # (G, M, 2)
     X = result.points3d
+    w_g = None
     if weights is not None:
         w_g = jnp.where(member, gather_groups(groups, weights), 0.0)
         X_w, ok = triangulate(rig, xy_g, member, weights=w_g)
-        X = jnp.where(ok[:, None], X_w, X)  # all-zero weights: keep the unweighted point
+        X = jnp.where(ok[:, None], X_w, X)  # fewer than 2 weighted views: the gate dissolves it
+    member, keep, X = validity_gate(rig, xy_g, member, X, result.tau_px, th.max_err_frac, th.min_parallax_deg, weights=w_g)
+    keep = keep & (jnp.sum(member, axis=1, dtype=jnp.int32) >= min_views)  # detaching may leave fewer
+    member = member & keep[:, None]
+    groups = jnp.where(member, groups, -1)
     bpe, err_px = group_errors(rig, X, xy_g, member)
     groups, keep, order = compact_groups(groups, keep)
     return Association(

@@ -40,6 +40,7 @@ __all__ = [
     "group_bpe",
     "bpe_jump_keep",
     "support_keep",
+    "validity_gate",
     "oracle_associate",
     "look_at",
     "make_rig",
@@ -678,6 +679,46 @@ def support_keep(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg):
     return keep
 
 
+def validity_gate(K, R, t, xy, groups, gvalid, pts, tau, max_err_frac, min_parallax_deg):
+    """§12: the rules every valid group obeys. While a group has > 2 members and its worst
+    member reprojects farther than ``max_err_frac · τ``, that member is detached and the
+    point re-triangulated (at most M − 2 rounds); then a group is dissolved unless its point
+    is in front of every member camera, the largest angle between two members' lines of
+    sight (folded into [0°, 90°]) is ≥ ``min_parallax_deg`` and every member error is
+    within the bound. Returns ``groups, gvalid, pts`` (copies)."""
+    K, R, t, xy = (np.asarray(a, np.float64) for a in (K, R, t, xy))
+    groups, gvalid, pts = groups.copy(), np.asarray(gvalid, bool).copy(), pts.copy()
+    M = groups.shape[1]
+    bound = max_err_frac * tau
+    centres = np.stack([-R[m].T @ t[m] for m in range(M)])
+
+    def errors(g):
+        members = np.flatnonzero(groups[g] >= 0)
+        pix = project(K, R, t, pts[g])
+        e = np.array([np.linalg.norm(pix[m] - xy[m, groups[g, m]]) for m in members])
+        return members, np.where(np.isfinite(e), e, np.inf)
+
+    for g in np.flatnonzero(gvalid):
+        for _ in range(M - 2):
+            members, e = errors(g)
+            if len(members) <= 2 or e.max() <= bound:
+                break
+            groups[g, members[np.argmax(e)]] = -1
+            obs = np.zeros((M, 2))
+            for m in np.flatnonzero(groups[g] >= 0):
+                obs[m] = xy[m, groups[g, m]]
+            pts[g] = triangulate_dlt(K, R, t, obs, groups[g] >= 0)
+        members, e = errors(g)
+        front = all((R[m] @ pts[g] + t[m])[2] > 0 for m in members)
+        rays = pts[g][None, :] - centres[members]
+        u = rays / np.linalg.norm(rays, axis=1, keepdims=True)
+        parallax = np.degrees(np.arccos(np.clip(np.abs(u @ u.T), 0.0, 1.0)).max())
+        if not (len(members) >= 2 and front and parallax >= min_parallax_deg and e.max() <= bound):
+            groups[g] = -1
+            gvalid[g] = False
+    return groups, gvalid, pts
+
+
 def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
     """The whole pipeline of docs/ALGORITHM.md on one scene, in float64 NumPy.
 
@@ -769,6 +810,15 @@ def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
             groups[~keep] = -1
             gvalid = keep
     stages["labels_recovered"] = _group_labels(groups, gvalid, M, P)
+
+    # §12 validity gate
+    changed = groups.copy()
+    groups, gvalid, pts = validity_gate(K, R, t, xy, groups, gvalid, pts, tau, cfg.max_err_frac, cfg.min_parallax_deg)
+    for g in np.flatnonzero(gvalid):
+        if (changed[g] != groups[g]).any():  # members detached: BPE and error of the new point
+            r = np.linalg.norm(project(K, R, t, pts[g]) - np.array([xy[m, groups[g, m]] if groups[g, m] >= 0 else [0.0, 0.0] for m in range(M)]), axis=1)[groups[g] >= 0]
+            bpe[g], err[g] = np.mean(r**2), np.mean(r)
+    stages["labels_gate"] = _group_labels(groups, gvalid, M, P)
 
     # §11 output: valid groups first, in the order of §5
     order = np.flatnonzero(gvalid)

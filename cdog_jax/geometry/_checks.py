@@ -13,6 +13,8 @@ def check_tracks(rig, xy, mask, weights, function: str) -> None:
     """``rig`` unbatched with ``M`` views; ``xy (*S, M, 2)``, bool ``mask (*S, M)`` and
     ``weights`` (when given) of the mask's shape."""
     expect_args(function, rig=(rig, Rig), xy=(xy, ARRAY), mask=(mask, ARRAY))
+    if not hasattr(xy, "dtype"):
+        raise TypeError(f"{function}: xy must be an array (NumPy or JAX), not a {type(xy).__name__}")
     K_shape = tuple(np.shape(rig.K))
     if len(K_shape) != 3 or K_shape[1:] != (3, 3):
         raise ValueError(f"{function}: rig.K must have shape (M, 3, 3) (one rig; vmap over many); got {K_shape}")

@@ -7,7 +7,8 @@ means ``X_cam[2] > 0``; ``K`` is read as ``K / K[2,2]`` (so ``K[2,2] = -1`` is f
 
 The warnings look for what a mix-up of conventions produces: cameras looking away from
 the detections, optical axes that meet behind the cameras (typical of ``R, t`` given
-camera→world), duplicated cameras, mirrored intrinsics.
+camera→world), duplicated cameras, mirrored intrinsics; and near-zero baselines (a pair
+of cameras whose baseline subtends less than ``Config.min_parallax_deg`` at the scene).
 """
 
 from __future__ import annotations
@@ -215,6 +216,9 @@ def _describe(K, R, t, xy, mask, sizes, names) -> tuple[RigDescription, int]:
                 )
                 pointing += 1
 
+    if target is not None and M >= 2:
+        warnings += _short_baselines(centers, target, target_name, dist_cc, names)
+
     return RigDescription(
         names=names,
         centers=centers,
@@ -234,6 +238,32 @@ def _describe(K, R, t, xy, mask, sizes, names) -> tuple[RigDescription, int]:
         centroid_pixel=pixel,
         warnings=warnings,
     ), pointing
+
+
+def _short_baselines(centers, target, target_name, dist_cc, names) -> list[str]:
+    """One warning per pair of distinct cameras whose baseline subtends less than
+    ``Config.min_parallax_deg`` at ``target``: a point they alone see cannot pass the
+    validity gate (and is poorly determined)."""
+    from .._config import Config
+
+    limit = Config().min_parallax_deg
+    to_target = target[None, :] - centers
+    norm = np.linalg.norm(to_target, axis=-1)
+    u = to_target / np.where(norm > 0, norm, 1.0)[:, None]
+    out = []
+    M = centers.shape[0]
+    tol = 1e-6 * max(float(np.abs(centers).max()), float(dist_cc.max()), 1e-12)
+    for i, j in zip(*np.triu_indices(M, k=1)):
+        if dist_cc[i, j] <= tol:
+            continue  # already reported as the same centre
+        angle = float(np.degrees(np.arccos(np.clip(abs(u[i] @ u[j]), 0.0, 1.0))))
+        if angle < limit:
+            out.append(
+                f"views {names[i]} and {names[j]} are only {dist_cc[i, j]:.3g} apart: seen from "
+                f"{target_name} {_vec(target)} their baseline spans {angle:.3g}° (< {limit:g}°, "
+                f"Config.min_parallax_deg), so points seen only by these two views are not triangulated"
+            )
+    return out
 
 
 def host_views(rig: Rig, names, what: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:

@@ -11,7 +11,7 @@ well defined wherever the system is (no SVD).
 import jax.numpy as jnp
 
 from .._expect import ARRAY, expect_args
-from .._types import Array, Bool, Float, lift
+from .._types import Array, Bool, Float, Int, lift
 from ._camera import Rig
 from ._checks import check_tracks
 from ._homogeneous import homogeneous_from_points
@@ -45,46 +45,78 @@ def dlt_blocks(
 
 
 def solve_normal_3x3(
-    N: Float[Array, "*S 3 3"], r: Float[Array, "*S 3"]
+    N: Float[Array, "*S 3 3"], r: Float[Array, "*S 3"], n_views: Int[Array, "*S"] | None = None
 ) -> tuple[Float[Array, "*S 3"], Bool[Array, "*S"]]:
-    """Solve ``N X = −r`` for symmetric PSD ``N`` with the adjugate; ``ok`` is False (and X = 0)
-    where ``N`` is near singular (fewer than two views, or rays nearly parallel)."""
+    """Solve ``N X = −r`` for symmetric PSD ``N`` with the adjugate; ``ok`` is False (and
+    X = 0) where ``N`` is near singular, or where ``n_views`` (the views that contributed,
+    when known) is below 2.
+
+    The conditioning test ``det N > c · trace(N)³`` is a bound on the ratio of the smallest
+    to the largest eigenvalue (for ≥ 2 views ``det/trace³ ≈ λ_min/λ_max`` up to a factor
+    below 30). ``c`` is ``max(1e-9, 16 ε)`` for the dtype's ε: in float32 the rounding of a
+    rank-2 (single-view) ``N`` alone gives ``det/trace³`` near 1e-8, so a smaller ``c``
+    would call one view determined. Two rays meeting at 0.5° pass in both precisions.
+    """
     c0 = jnp.cross(N[..., 1, :], N[..., 2, :])
     c1 = jnp.cross(N[..., 2, :], N[..., 0, :])
     c2 = jnp.cross(N[..., 0, :], N[..., 1, :])
     det = jnp.sum(N[..., 0, :] * c0, axis=-1)
     trace = N[..., 0, 0] + N[..., 1, 1] + N[..., 2, 2]
-    # Relative test: parallax below ~0.01° or a single view gives det ≈ 0 at this scale.
-    ok = det > 1e-9 * trace**3
+    ok = det > conditioning_floor(N.dtype) * trace**3
+    if n_views is not None:
+        ok = ok & (n_views >= 2)
     inv_det = jnp.where(ok, 1.0 / jnp.where(ok, det, 1.0), 0.0)
     adj = jnp.stack([c0, c1, c2], axis=-1)  # symmetric N: adj(N) has these columns
     X = -jnp.einsum("...ij,...j->...i", adj, r) * inv_det[..., None]
     return X, ok
 
 
+def conditioning_floor(dtype) -> float:
+    """The smallest ``det N / trace(N)³`` that :func:`solve_normal_3x3` trusts in ``dtype``."""
+    return max(1e-9, 16.0 * float(jnp.finfo(dtype).eps))
+
+
 def triangulate(
-    rig: Rig, xy: Float[Array, "*S M 2"], mask: Bool[Array, "*S M"], *, weights: Float[Array, "*S M"] | None = None
+    rig: Rig,
+    xy: Float[Array, "*S M 2"],
+    mask: Bool[Array, "*S M"] | None,
+    *,
+    weights: Float[Array, "*S M"] | None = None,
 ) -> tuple[Float[Array, "*S 3"], Bool[Array, "*S"]]:
     """Multi-view DLT of any batch of tracks, without association; jit/vmap friendly.
 
     Args:
         rig: ``M`` cameras.
-        xy: ``(*S, M, 2)`` pixels of each track in every view (anything where masked).
-        mask: ``(*S, M)`` bool, the views that observe the track.
+        xy: ``(*S, M, 2)`` pixels of each track in every view; masked entries may hold
+            anything (NaN, ±inf, huge values): they are replaced before any arithmetic, so
+            they change neither the point nor ``ok`` nor a gradient.
+        mask: ``(*S, M)`` bool, the views that observe the track; ``None`` (pass it
+            explicitly: ``triangulate(rig, xy, None)``): the views whose two coordinates are finite (NaN marks a missing view, as in anipose and
+            DeepLabCut tracks).
         weights: optional ``(*S, M)`` non-negative weight of each view's equations (e.g.
             detector confidence): the normal equations become ``Σ_v w_v N_v``. A view with
-            weight 0 counts as unobserved.
+            weight 0 (or a non-finite weight) counts as unobserved.
 
     Returns:
         ``points (*S, 3)`` (scene units, 0 where undetermined) and ``ok (*S,)``: the point is
-        determined (≥ 2 views with parallax).
+        determined, i.e. ≥ 2 views count and the normal equations are well conditioned (see
+        :func:`solve_normal_3x3`). ``ok`` says nothing about cheirality or parallax: see
+        :func:`cdog_jax.geometry.in_front` and :func:`cdog_jax.refine.max_parallax_deg`.
     """
+    if mask is None:
+        mask = jnp.all(jnp.isfinite(jnp.asarray(xy)), axis=-1)
     check_tracks(rig, xy, mask, weights, "triangulate")
-    N, r, origin = dlt_blocks(rig, xy)
-    w = mask.astype(N.dtype)
+    w = mask.astype(xy.dtype)
     if weights is not None:
-        w = jnp.where(mask, weights.astype(N.dtype), 0.0)
-    X, ok = solve_normal_3x3(jnp.einsum("...m,...mij->...ij", w, N), jnp.einsum("...m,...mi->...i", w, r))
+        w = jnp.where(mask & jnp.isfinite(weights) & (weights > 0), weights.astype(xy.dtype), 0.0)
+    counts = w > 0
+    xy = jnp.where(counts[..., None], xy, 0.0)  # neutral before any arithmetic (and gradient)
+    N, r, origin = dlt_blocks(rig, xy)
+    X, ok = solve_normal_3x3(
+        jnp.einsum("...m,...mij->...ij", w, N),
+        jnp.einsum("...m,...mi->...i", w, r),
+        jnp.sum(counts, axis=-1, dtype=jnp.int32),
+    )
     return jnp.where(ok[..., None], X + lift(origin, X.ndim), 0.0), ok
 
 

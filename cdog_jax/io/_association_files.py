@@ -2,11 +2,14 @@
 
 The JSON lists every valid detection exactly once: as a member of a group or in
 ``"unassigned"``. Rows are ``[view, slot, x, y]`` (``[view, slot, x, y, confidence]`` when
-a confidence is given), pixels; points are in scene units. Per group:
+a confidence is given), pixels; points are in scene units. Per group, the same two
+numbers as :class:`cdog_jax.Association`, with the same names, in the JSON, the NPZ and the
+CSV (and the CLI's summary reports ``err_px``):
 
-- ``bpe_px2``: the back-projection error ``mean_m ‖π_m(X) − x_m‖²`` over members (px²),
-- ``bpe_px``: its square root, the RMS reprojection error (px), as the CSV's ``bpe_px``,
-- ``err_px``: the mean reprojection distance (px).
+- ``err_px``: *the* reprojection error of a group, the mean over its member views of the
+  pixel distance ``‖π_m(X) − x_m‖`` (px),
+- ``bpe_px2``: the paper's back-projection error ``mean_m ‖π_m(X) − x_m‖²`` (px²), the
+  number the BPE filter ranks (NPZ: ``bpe``).
 
 Numbers are written with ``repr`` (exact float64 round trip); a non-finite number is
 written as ``null``.
@@ -32,8 +35,11 @@ PathLike = str | os.PathLike  # a file name
 ASSOCIATION_FIELDS = ("labels", "groups", "valid", "points3d", "bpe", "err_px", "n_views", "num_groups", "sigma_px", "tau_px", "status")
 # Any object with an Association's fields will do (e.g. one frame of a batch).
 _ASSOCIATION = Kind("an Association (or an object with its fields)", lambda v: all(hasattr(v, f) for f in ("groups", "valid", "points3d")))
-CSV_COLUMNS = ("frame", "group", "x", "y", "z", "bpe_px", "n_views")
-CSV_NOTE = "# bpe_px = sqrt(BPE in px^2): RMS reprojection error over the group's member views, pixels; x, y, z in scene units"
+CSV_COLUMNS = ("frame", "group", "x", "y", "z", "err_px", "bpe_px2", "n_views")
+CSV_NOTE = (
+    "# err_px: mean reprojection distance over the group's member views (pixels); "
+    "bpe_px2: mean squared distance (BPE, pixels^2); x, y, z in scene units"
+)
 
 
 def association_records(assoc: Any, xy: Any, mask: Any, *, confidence: Any = None, rig: Any = None) -> dict:
@@ -51,7 +57,7 @@ def association_records(assoc: Any, xy: Any, mask: Any, *, confidence: Any = Non
 
     Returns:
         ``{"groups": [{"id", "members": [[view, slot, x, y], …], "point3d": [X, Y, Z],
-        "bpe_px2", "bpe_px", "err_px", "n_views"(, "member_err_px")}, …], "unassigned":
+        "err_px", "bpe_px2", "n_views"(, "member_err_px")}, …], "unassigned":
         [[view, slot, x, y], …], "num_views", "capacity", "sigma_px", "tau_px"}``. Only
         ``valid`` groups are listed; ``id`` is the group's row in ``assoc.groups``.
     """
@@ -84,9 +90,8 @@ def association_records(assoc: Any, xy: Any, mask: Any, *, confidence: Any = Non
             "id": int(g),
             "members": [row(int(m), int(i)) for m, i in zip(views, slots)],
             "point3d": [_num(v) for v in X],
-            "bpe_px2": _num(a["bpe"][g]),
-            "bpe_px": _num(math.sqrt(a["bpe"][g])) if a["bpe"][g] >= 0 else None,
             "err_px": _num(a["err_px"][g]),
+            "bpe_px2": _num(a["bpe"][g]),
             "n_views": int(a["n_views"][g]),
         }
         if cams is not None:
@@ -161,11 +166,11 @@ def save_association_npz(path: PathLike, assoc: Any, *, xy: Any = None, mask: An
 
 
 def save_association_csv(path: PathLike, assoc: Any) -> None:
-    """One row per 3D point (valid group): ``frame, group, x, y, z, bpe_px, n_views``.
+    """One row per 3D point (valid group): ``frame, group, x, y, z, err_px, bpe_px2, n_views``.
 
-    Like anipose's point tables. ``bpe_px`` is the square root of the group's BPE in px²,
-    i.e. the RMS reprojection error over its member views (pixels); ``x, y, z`` are in
-    scene units. ``frame`` is the scene index of a batch (``labels (B, M, P)``), 0 for one
+    Like anipose's point tables. ``err_px`` is the group's reprojection error, the mean
+    pixel distance over its member views, and ``bpe_px2`` its BPE (px²), exactly the
+    result's ``err_px`` and ``bpe``; ``x, y, z`` are in scene units. ``frame`` is the scene index of a batch (``labels (B, M, P)``), 0 for one
     scene. The file starts with a ``#`` comment line saying so (pandas: ``comment="#"``).
     """
     expect_args("save_association_csv", path=(path, PATH), assoc=(assoc, _ASSOCIATION))
@@ -180,13 +185,13 @@ def save_association_csv(path: PathLike, assoc: Any) -> None:
             for g in np.flatnonzero(valid):
                 at = (b, g) if batch else (g,)
                 X = a["points3d"][at]
-                bpe = float(a["bpe"][at])
                 writer.writerow(
                     [
                         b,
                         int(g),
                         *(repr(float(v)) for v in X),
-                        repr(math.sqrt(bpe) if bpe >= 0 else math.nan),
+                        repr(float(a["err_px"][at])),
+                        repr(float(a["bpe"][at])),
                         int(a["n_views"][at]),
                     ]
                 )

@@ -4,6 +4,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import look_at
 
 from cdog_jax.geometry import Rig, RigDescription, describe_rig, distort_pixels
 from cdog_jax.synthetic import (
@@ -119,3 +120,21 @@ def test_bad_input_raises(rig, scene):
     with pytest.raises(ValueError, match="image_size"):
         describe_rig(rig, image_size=(640, 480, 3))
     assert isinstance(describe_rig(rig.select([0])), RigDescription)  # one view: no baselines, no error
+
+
+def test_near_zero_baseline_is_warned_about():
+    def rig_at(centers):
+        K, R, t = [], [], []
+        for c in centers:
+            Rm, tm = look_at(c)
+            K.append([[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]])
+            R.append(Rm)
+            t.append(tm)
+        return Rig(*(jnp.asarray(np.array(a), jnp.float32) for a in (K, R, t)))
+
+    desc = describe_rig(rig_at([(3.0, 0.0, 1.0), (3.0, 1e-3, 1.0), (0.0, 3.0, 1.0)]))
+    short = [w for w in desc.warnings if "views 0 and 1 are only 0.001 apart" in w]
+    assert len(short) == 1 and "0.0181°" in short[0], desc.warnings
+    assert len(desc.warnings) == 1
+    healthy = describe_rig(rig_at([(3.0, 0.0, 1.0), (3.0, 0.3, 1.0), (0.0, 3.0, 1.0)]))  # 5.4° at the origin
+    assert healthy.warnings == []

@@ -60,3 +60,58 @@ def test_gradient_finite_through_dlt():
 
     g = jax.grad(loss)(tracks)
     assert np.all(np.isfinite(np.asarray(g)))
+
+
+def _tracks(rig, n, seed):
+    X = np.random.default_rng(seed).uniform(-0.5, 0.5, (n, 3))
+    xy, _ = project_np(rig, X)
+    return X, np.transpose(xy, (1, 0, 2)).copy()  # (n, M, 2)
+
+
+@pytest.mark.parametrize("garbage", [np.nan, np.inf, -np.inf, 1e30])
+def test_masked_entries_change_nothing(garbage):
+    rig = ring_rig(4)
+    X, tracks = _tracks(rig, 30, 2)
+    mask = np.random.default_rng(3).random((30, 4)) < 0.7
+    mask[:, :2] = True
+    clean = np.where(mask[..., None], tracks, 0.0)
+    dirty = np.where(mask[..., None], tracks, garbage)
+    p0, ok0 = triangulate(rig, jnp.asarray(clean, jnp.float32), jnp.asarray(mask))
+    p1, ok1 = triangulate(rig, jnp.asarray(dirty, jnp.float32), jnp.asarray(mask))
+    assert np.asarray(ok0).all()
+    np.testing.assert_array_equal(np.asarray(ok1), np.asarray(ok0))
+    np.testing.assert_array_equal(np.asarray(p1), np.asarray(p0))
+    g = jax.grad(lambda tr: jnp.sum(triangulate(rig, tr, jnp.asarray(mask))[0] ** 2))(jnp.asarray(dirty, jnp.float32))
+    assert np.all(np.isfinite(np.asarray(g)))
+
+
+def test_mask_none_means_finite_entries_are_observed():
+    rig = ring_rig(4)
+    X, tracks = _tracks(rig, 30, 4)
+    tracks[:, 3] = np.nan  # anipose / DeepLabCut: NaN for a missing view
+    tracks[::2, 2] = np.nan
+    p, ok = triangulate(rig, jnp.asarray(tracks, jnp.float32), None)
+    assert np.asarray(ok).all()
+    assert np.abs(np.asarray(p) - X).max() < 1e-3
+    one = tracks.copy()
+    one[:, 1:] = np.nan
+    _, ok1 = triangulate(rig, jnp.asarray(one, jnp.float32), None)
+    assert not np.asarray(ok1).any()
+
+
+def test_single_views_are_never_ok_in_float32():
+    rig = ring_rig(4)
+    n = 148
+    _, tracks = _tracks(rig, n, 5)
+    mask = np.zeros((n, 4), bool)
+    mask[np.arange(n), np.arange(n) % 4] = True
+    _, ok = triangulate(rig, jnp.asarray(tracks, jnp.float32), jnp.asarray(mask))
+    assert int(np.sum(ok)) == 0
+    # Two views of which one has weight 0: one view counts.
+    mask2 = mask.copy()
+    mask2[np.arange(n), (np.arange(n) + 1) % 4] = True
+    weights = np.where(mask, 0.0, 1.0)
+    _, ok2 = triangulate(rig, jnp.asarray(tracks, jnp.float32), jnp.asarray(mask2), weights=jnp.asarray(weights, jnp.float32))
+    assert int(np.sum(ok2)) == 0
+    _, ok3 = triangulate(rig, jnp.asarray(tracks, jnp.float32), jnp.asarray(mask2))
+    assert np.asarray(ok3).all()

@@ -3,7 +3,6 @@ association read back equal, and every valid detection is listed exactly once.""
 
 import csv
 import json
-import math
 import re
 from types import SimpleNamespace
 
@@ -51,7 +50,7 @@ def _check_scene(records, xy, mask, assoc):
         k = g["id"]
         assert g["point3d"] == np.asarray(assoc.points3d[k], np.float64).tolist()
         assert g["bpe_px2"] == float(assoc.bpe[k])
-        assert g["bpe_px"] == math.sqrt(float(assoc.bpe[k]))
+        assert "bpe_px" not in g  # one reprojection error: err_px
         assert g["err_px"] == float(assoc.err_px[k])
         assert g["n_views"] == int(assoc.n_views[k]) == len(g["members"])
         slots = np.asarray(assoc.groups[k])
@@ -121,14 +120,15 @@ def test_csv_one_row_per_point(result, tmp_path):
     with open(path, newline="", encoding="utf-8") as f:
         note = f.readline()
         rows = list(csv.DictReader(f))
-    assert note.startswith("#") and "RMS reprojection error" in note
+    assert note.startswith("#") and "err_px: mean reprojection distance" in note
     assert tuple(rows[0].keys()) == CSV_COLUMNS
     n = int(assoc.num_groups)
     assert len(rows) == n
     for row, g in zip(rows, np.flatnonzero(np.asarray(assoc.valid))):
         assert int(row["frame"]) == 0 and int(row["group"]) == g
         assert [float(row[c]) for c in "xyz"] == np.asarray(assoc.points3d[g], np.float64).tolist()
-        assert float(row["bpe_px"]) == math.sqrt(float(assoc.bpe[g]))
+        assert float(row["err_px"]) == float(assoc.err_px[g])  # the same number as the CLI and JSON
+        assert float(row["bpe_px2"]) == float(assoc.bpe[g])
         assert int(row["n_views"]) == int(assoc.n_views[g])
 
 

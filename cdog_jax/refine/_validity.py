@@ -1,0 +1,138 @@
+"""The validity gate: the rules every valid group obeys, whatever stage made it
+(ALGORITHM.md §12).
+
+A valid group has
+
+1. at least two *counting* views: members whose DLT weight is positive,
+2. its point in front of every member camera, ``(R X + t)_z > 0`` (never the sign of the
+   homogeneous coordinate: ``K[2,2]`` may be −1),
+3. parallax: the largest angle between two members' lines of sight at the point, folded
+   into [0°, 90°] (rays that meet at 180° are one line), at least ``min_parallax_deg``,
+4. every member's reprojection error at most ``max_err_frac · τ`` pixels.
+
+:func:`validity_gate` first detaches the worst member of each group that breaks rule 4,
+one at a time and re-triangulating, while more than two members remain (at most ``M − 2``
+rounds); a group that still breaks any rule is dissolved (its members become unassigned).
+A group that needs no detaching keeps its point as given (weighted, refined), so the gate
+changes nothing for groups that already pass. Each rule is a pure function of a batch of
+groups, vmappable like the rest of the pipeline.
+"""
+
+import jax
+import jax.numpy as jnp
+
+from .._types import Array, Bool, Float
+from ..geometry._camera import Rig, camera_points
+from ..geometry._projection import reprojection_errors
+from ..geometry._triangulate import dlt_blocks, solve_normal_3x3
+
+
+def counting_views(member: Bool[Array, "G M"], *, weights: Float[Array, "G M"] | None = None) -> Bool[Array, "G M"]:
+    """``(G, M)``: the members whose DLT equations count (weight > 0; all members without
+    ``weights``)."""
+    return member if weights is None else member & (weights > 0)
+
+
+def in_front_of_members(rig: Rig, X: Float[Array, "G 3"], member: Bool[Array, "G M"]) -> Bool[Array, " G"]:
+    """``(G,)``: each point ``X (G, 3)`` lies in front of every member camera,
+    ``(R X + t)_z > 0``."""
+    depth = camera_points(rig, X)[..., 2]  # (G, M)
+    return jnp.all(~member | (depth > 0), axis=1)
+
+
+def max_parallax_deg(rig: Rig, X: Float[Array, "G 3"], member: Bool[Array, "G M"]) -> Float[Array, " G"]:
+    """``(G,)``: the largest angle (degrees, in [0, 90]) between the lines of sight
+    ``X − C_m`` of two member views at the point ``X (G, 3)``; 0 with fewer than two members
+    or where a camera centre coincides with the point."""
+    rays = X[:, None, :] - rig.centers[None, :, :]  # (G, M, 3)
+    sq = jnp.sum(rays * rays, axis=-1)
+    usable = member & (sq > 0)
+    norm = jnp.sqrt(jnp.where(usable, sq, 1.0))
+    u = jnp.where(usable[..., None], rays / norm[..., None], 0.0)
+    cross = jnp.cross(u[:, :, None, :], u[:, None, :, :])  # (G, M, M, 3)
+    sin = jnp.sqrt(jnp.sum(cross * cross, axis=-1) + jnp.finfo(u.dtype).tiny)
+    cos = jnp.abs(jnp.einsum("gai,gbi->gab", u, u))
+    angle = jnp.degrees(jnp.arctan2(sin, cos))
+    pair = usable[:, :, None] & usable[:, None, :]
+    return jnp.max(jnp.where(pair, angle, 0.0), axis=(1, 2))
+
+
+def member_errors(rig: Rig, X: Float[Array, "G 3"], xy_g: Float[Array, "G M 2"], member: Bool[Array, "G M"]) -> Float[Array, "G M"]:
+    """``(G, M)``: each member's reprojection distance (px); ``+inf`` where it is not
+    finite, ``0`` for non-members."""
+    err = reprojection_errors(rig, X, xy_g)
+    err = jnp.where(jnp.isfinite(err), err, jnp.inf)
+    return jnp.where(member, err, 0.0)
+
+
+def errors_within(errors: Float[Array, "G M"], bound_px: Float[Array, ""]) -> Bool[Array, " G"]:
+    """``(G,)``: every member error of ``errors (G, M)`` (0 for non-members) is at most
+    ``bound_px``."""
+    return jnp.all(errors <= bound_px, axis=1)
+
+
+def detach_worst(
+    rig: Rig,
+    xy_g: Float[Array, "G M 2"],
+    member: Bool[Array, "G M"],
+    weights: Float[Array, "G M"],
+    X: Float[Array, "G 3"],
+    bound_px: Float[Array, ""],
+) -> tuple[Bool[Array, "G M"], Float[Array, "G 3"]]:
+    """Members ``(G, M)`` and points ``(G, 3)`` after detaching, from every group with more
+    than two members whose worst reprojection error exceeds ``bound_px``, its worst member,
+    re-triangulating (weighted DLT, ``weights (G, M)``) after each detach; at most ``M − 2``
+    rounds. Groups that need no detach keep their point ``X``."""
+    M = member.shape[1]
+    N, r, origin = dlt_blocks(rig, xy_g)  # (G, M, 3, 3), (G, M, 3)
+
+    def offenders(member, X):
+        err = member_errors(rig, X, xy_g, member)
+        n = jnp.sum(member, axis=1, dtype=jnp.int32)
+        return err, (n > 2) & ~errors_within(err, bound_px)
+
+    def cond(carry):
+        member, X, it = carry
+        return (it < M - 2) & jnp.any(offenders(member, X)[1])
+
+    def body(carry):
+        member, X, it = carry
+        err, bad = offenders(member, X)
+        worst = jnp.argmax(err, axis=1).astype(jnp.int32)  # (G,)
+        drop = bad[:, None] & (jnp.arange(M, dtype=jnp.int32)[None, :] == worst[:, None])
+        member = member & ~drop
+        w = jnp.where(member, weights, 0.0)
+        X_new, ok = solve_normal_3x3(
+            jnp.einsum("gm,gmij->gij", w, N), jnp.einsum("gm,gmi->gi", w, r), jnp.sum(w > 0, axis=1, dtype=jnp.int32)
+        )
+        X_new = jnp.where(ok[:, None], X_new + origin[None, :], X)
+        return member, jnp.where(bad[:, None], X_new, X), it + 1
+
+    member, X, _ = jax.lax.while_loop(cond, body, (member, X, jnp.int32(0)))
+    return member, X
+
+
+def validity_gate(
+    rig: Rig,
+    xy_g: Float[Array, "G M 2"],
+    member: Bool[Array, "G M"],
+    X: Float[Array, "G 3"],
+    tau_px: Float[Array, ""],
+    max_err_frac: Float[Array, ""],
+    min_parallax_deg: Float[Array, ""],
+    *,
+    weights: Float[Array, "G M"] | None = None,
+) -> tuple[Bool[Array, "G M"], Bool[Array, " G"], Float[Array, "G 3"]]:
+    """The groups ``member (G, M)`` (members' pixels ``xy_g (G, M, 2)``, points ``X (G, 3)``)
+    after the gate of the module docstring: ``(member, valid, X)``, with the members of
+    dissolved groups all False. ``weights (G, M)``: the members' DLT weights (default 1)."""
+    w = member.astype(X.dtype) if weights is None else jnp.where(member, weights.astype(X.dtype), 0.0)
+    bound = max_err_frac * tau_px
+    member, X = detach_worst(rig, xy_g, member, w, X, bound)
+    valid = (
+        (jnp.sum(counting_views(member, weights=w), axis=1, dtype=jnp.int32) >= 2)
+        & in_front_of_members(rig, X, member)
+        & (max_parallax_deg(rig, X, member) >= min_parallax_deg)
+        & errors_within(member_errors(rig, X, xy_g, member), bound)
+    )
+    return member & valid[:, None], valid, X
