@@ -39,7 +39,10 @@ def refine_points(
         r1 = _residuals(sol.value, (rig, xy, mem))
         better = jnp.all(jnp.isfinite(sol.value)) & (jnp.sum(r1 * r1) < jnp.sum(r0 * r0))
         used = jnp.sum(mem, dtype=jnp.int32) >= 2
-        capped = used & (sol.result == optx.RESULTS.max_steps_reached)
+        # Not successful after max_steps steps (the result's enumeration is a promoted one,
+        # so its max_steps item does not compare equal to optx.RESULTS.max_steps_reached).
+        stopped = (sol.stats["num_steps"] >= max_steps) & ~(sol.result == optx.RESULTS.successful)
+        capped = used & stopped
         return jnp.where(better & used, sol.value, X), capped
 
     X, capped = jax.vmap(one)(X0, xy_g, member)
