@@ -34,11 +34,13 @@ _BATCH_EXTRA = 1.0  # float tables per scene that vmap adds (a cond runs both br
 def quadratic_bytes(M: int, config: Config, itemsize: int, batched: bool = False) -> float:
     """Bytes per ``N²`` (``N = M·P``) at the peak of one scene's pipeline."""
     f = float(itemsize)
-    stages = [2.0 * f + 3.0]  # d and its masked copy, the proposal/adjacency bool tables
+    # d and its masked copy, the proposal/adjacency bool tables, and (above N ≈ 10⁴, where
+    # XLA stops reusing some of them) about 2 more bytes per pair.
+    stages = [2.0 * f + 5.0]
     if config.second_association:
         stages.append(f * (M / 2.0 + 1.0))  # (G, M, N) distances beside d
     if config.recover or config.regroup:
-        stages.append(3.0 * f + 5.0)  # d kept for regrouping, (G, N, 2) differences
+        stages.append(3.0 * f + 6.0)  # d kept for regrouping, (G, N, 2) differences
     coeff = max(stages)
     if config.support_filter and (config.recover or config.regroup):
         coeff += f  # (G, M, P, 2) differences while the regrouped tables are alive
@@ -59,7 +61,7 @@ def estimate_peak_bytes(
     itemsize = np.dtype(dtype).itemsize
     N = M * P
     vmapped = batch_size > 1 if vmapped is None else vmapped
-    per_scene = quadratic_bytes(M, config, itemsize, batched=vmapped) * N * N + 24.0 * itemsize * M * N
+    per_scene = quadratic_bytes(M, config, itemsize, batched=vmapped) * N * N + 16.0 * itemsize * M * N
     return int(_MARGIN * batch_size * per_scene)
 
 
