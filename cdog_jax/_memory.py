@@ -52,7 +52,7 @@ def quadratic_bytes(M: int, config: Config, itemsize: int, batched: bool = False
 
 
 def estimate_peak_bytes(
-    M: int, P: int, config: Config, dtype=np.float32, batch_size: int = 1, vmapped: bool | None = None
+    M: int, P: int, config: Config, *, dtype=np.float32, batch_size: int = 1, vmapped: bool | None = None
 ) -> int:
     """Estimated peak bytes of :func:`cdog_jax.associate` on ``M`` views of ``P`` slots, or
     of :func:`cdog_jax.associate_batch` (``vmapped``; default ``batch_size > 1``), which
@@ -109,7 +109,7 @@ def memory_budget_bytes(budget_gb: float | None = None) -> tuple[float, str]:
 def largest_capacity(M: int, config: Config, dtype, batch_size: int, budget: float, vmapped: bool | None = None) -> int:
     """The largest ``P`` whose estimate fits ``budget`` bytes (0 if none)."""
     lo, hi = 0, 1
-    fits = lambda p: estimate_peak_bytes(M, p, config, dtype, batch_size, vmapped) <= budget  # noqa: E731
+    fits = lambda p: estimate_peak_bytes(M, p, config, dtype=dtype, batch_size=batch_size, vmapped=vmapped) <= budget  # noqa: E731
     while fits(hi) and hi < 1 << 40:
         lo, hi = hi, 2 * hi
     while hi - lo > 1:
@@ -124,7 +124,7 @@ def check_memory(
 ) -> int:
     """Raise ``MemoryError`` before compiling when the estimate for ``M`` views of ``P`` slots
     (``batch_size`` scenes at a time) exceeds the budget; return the estimate (bytes)."""
-    need = estimate_peak_bytes(M, P, config, dtype, batch_size, vmapped)
+    need = estimate_peak_bytes(M, P, config, dtype=dtype, batch_size=batch_size, vmapped=vmapped)
     budget, source = memory_budget_bytes(budget_gb)
     if need <= budget:
         return need

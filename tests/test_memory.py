@@ -34,7 +34,7 @@ def test_ten_thousand_detections_per_view_are_refused_before_compiling(monkeypat
 def test_budget_from_the_environment_and_per_chunk_in_a_batch(monkeypatch):
     rig = ring_rig(4)
     xy, mask = np.zeros((8, 4, 300, 2), np.float32), np.ones((8, 4, 300), bool)
-    one = estimate_peak_bytes(4, 300, Config.paper(), np.float32, 4)
+    one = estimate_peak_bytes(4, 300, Config.paper(), batch_size=4)
     monkeypatch.setenv(ENV_BUDGET, str(one / 1e9 * 0.99))
     with pytest.raises(MemoryError, match=f"4 scenes at a time.*{ENV_BUDGET}=.*smaller batch_size"):
         associate_batch(rig, xy, mask, batch_size=4)
@@ -54,7 +54,7 @@ def test_estimate_is_monotone():
         by_b = [estimate_peak_bytes(5, 50, config, batch_size=b) for b in (1, 2, 8, 32)]
         for seq in (by_p, by_m, by_b):
             assert all(a < b for a, b in zip(seq, seq[1:]))
-        assert estimate_peak_bytes(5, 50, config, jnp.float64) > estimate_peak_bytes(5, 50, config, jnp.float32)
+        assert estimate_peak_bytes(5, 50, config, dtype=jnp.float64) > estimate_peak_bytes(5, 50, config, dtype=jnp.float32)
 
 
 @pytest.mark.parametrize("name, M, P", [("paper", 4, 64), ("reference", 8, 32)])

@@ -20,7 +20,7 @@ from ._adjacency import EdgeTable
 
 
 def connected_components_capped(
-    edges: EdgeTable, alive: Bool[Array, " E"], num_nodes: int, max_rounds: int | None = None
+    edges: EdgeTable, alive: Bool[Array, " E"], num_nodes: int, *, max_rounds: int | None = None
 ) -> tuple[Int[Array, " N"], Bool[Array, ""]]:
     """Labels ``(N,)`` as :func:`connected_components`, and ``()`` True when the loop stopped
     at ``max_rounds`` (default ``N``) while the last round still changed labels."""
@@ -50,11 +50,11 @@ def connected_components_capped(
 
 
 def connected_components(
-    edges: EdgeTable, alive: Bool[Array, " E"], num_nodes: int, max_rounds: int | None = None
+    edges: EdgeTable, alive: Bool[Array, " E"], num_nodes: int, *, max_rounds: int | None = None
 ) -> Int[Array, " N"]:
     """Labels ``(N,)``: the smallest node index in each node's component of the graph formed
     by the alive proposals ``alive (E,)`` (undirected)."""
-    return connected_components_capped(edges, alive, num_nodes, max_rounds)[0]
+    return connected_components_capped(edges, alive, num_nodes, max_rounds=max_rounds)[0]
 
 
 def component_view_counts(labels: Int[Array, " N"], node_view: Int[Array, " N"], valid: Bool[Array, " N"], num_views: int) -> Int[Array, "N M"]:
