@@ -1,6 +1,7 @@
 """cdog_jax: multi-view, multi-instance point association with connected δ-overlap graphs."""
 
 from ._config import Config as Config, Thresholds as Thresholds
+from ._memory import estimate_peak_bytes as estimate_peak_bytes
 from ._pipeline import associate as associate, associate_batch as associate_batch, associate_traced as associate_traced
 from ._result import Association as Association
 from ._status import Status as Status, check_status as check_status, status_messages as status_messages

@@ -145,6 +145,13 @@ def run_associate(args: argparse.Namespace) -> int:
     lines.append(
         "  σ used: " + ", ".join(f"{s:.2f}" for s in np.asarray(result.sigma_px)[:8]) + (" …" if F > 8 else "") + " px"
     )
+    from ._status import Status, status_messages
+
+    status = np.asarray(result.status).reshape(-1)
+    for flag in Status:
+        hit = int(np.count_nonzero(status & int(flag))) if flag else 0
+        if hit:
+            lines.append(f"  warning: {hit} of {F} frame(s): {status_messages(int(flag))[0]}")
     if args.out is not None:
         one = F == 1 and not det.frames
         frame = (lambda a: a[0]) if one else (lambda a: a)

@@ -16,7 +16,9 @@ import numpy as np
 
 from ._config import Config, Thresholds, check_thresholds, config_from, tau_px
 from ._expect import INT, expect, expect_args
+from ._memory import check_memory
 from ._result import Association
+from ._status import Status
 from ._types import Array, ArrayLike, Bool, Float
 from ._validate import as_array, check_batch_rig, check_observations, check_rig, check_sigma, check_threshold_shapes
 from .geometry._camera import Rig
@@ -24,7 +26,7 @@ from .geometry._epipolar import epipolar_distances
 from .geometry._projection import group_errors
 from .geometry._triangulate import dlt_blocks, solve_normal_3x3
 from .graph._adjacency import adjacency_from_edges, alive_edges, nearest_neighbour_edges
-from .graph._components import component_view_counts, connected_components
+from .graph._components import component_view_counts, connected_components_capped
 from .graph._groups import compact_groups, gather_groups, groups_from_labels, labels_from_groups
 from .graph._overlap import edge_overlap, remove_edges
 from .graph._sigma import estimate_sigma
@@ -50,7 +52,7 @@ def _group_fit(rig, xy_g, member, N_g, r_g, origin):
 
 def _graph_groups(d, valid, tau, th, config):
     """Alg. 1–2 on the valid nodes: epipolar graph, δ-pruning, view-unique components;
-    returns the group table ``(G, M)`` and its validity ``(G,)``."""
+    returns the group table ``(G, M)``, its validity ``(G,)`` and an int32 status ``()``."""
     M, P = d.shape[:2]
     N = M * P
     d = jnp.where(valid.reshape(M, P, 1, 1) & valid.reshape(1, 1, M, P), d, jnp.inf)
@@ -61,21 +63,28 @@ def _graph_groups(d, valid, tau, th, config):
     d_nodes = d.reshape(N, N)
     edge_dist = 0.5 * (d_nodes[edges.src, edges.dst] + d_nodes[edges.dst, edges.src])
     weak = alive_edges(edges, A) & (theta < th.delta)
+    status = jnp.int32(0)
     if config.prune_scope == "conflicts":
-        labels0 = connected_components(edges, alive_edges(edges, A), N)
+        labels0, capped = connected_components_capped(edges, alive_edges(edges, A), N)
+        status = _flag(capped, Status.COMPONENTS_CAPPED)
         counts = component_view_counts(labels0, node_view, valid, M)
         weak = weak & jnp.any(counts >= 2, axis=1)[labels0[edges.src]]
     elif config.prune_scope == "none":
         weak = jnp.zeros_like(weak)
     A = remove_edges(A, edges, weak)
-    _, labels = split_conflicts(A, edges, theta, edge_dist, node_view, valid, M, config.max_split_iters)
-    return groups_from_labels(labels, valid, M, P)
+    _, labels, split_status = split_conflicts(A, edges, theta, edge_dist, node_view, valid, M, config.max_split_iters)
+    return (*groups_from_labels(labels, valid, M, P), status | split_status)
+
+
+def _flag(condition, flag: Status):
+    """``()`` int32: ``flag`` where ``condition`` holds, else 0."""
+    return jnp.where(condition, jnp.int32(int(flag)), jnp.int32(0))
 
 
 def _iqr(rig, xy, groups, gvalid, blocks, th, config):
-    """Alg. 3 on the group table; returns the cleaned table and validity."""
+    """Alg. 3 on the group table; returns the cleaned table, validity and int32 status."""
     N_node, r_node, origin = blocks
-    member = remove_outliers(
+    member, capped = remove_outliers(
         rig,
         gather_groups(groups, N_node),
         gather_groups(groups, r_node),
@@ -85,7 +94,7 @@ def _iqr(rig, xy, groups, gvalid, blocks, th, config):
         th,
         config,
     )
-    return jnp.where(member, groups, -1), jnp.sum(member, dtype=jnp.int32, axis=1) >= 2
+    return jnp.where(member, groups, -1), jnp.sum(member, dtype=jnp.int32, axis=1) >= 2, _flag(capped, Status.IQR_CAPPED)
 
 
 def _merge_groups(groups_a, valid_a, groups_b, valid_b):
@@ -123,13 +132,14 @@ def associate_traced(
     d = epipolar_distances(rig, xy, mask)  # (M, P, M, P)
     sigma = estimate_sigma(d, mask) if config.sigma_mode == "auto" else th.sigma_px
     tau = tau_px(th, sigma)
-    groups, gvalid = _graph_groups(d, valid, tau, th, config)
+    groups, gvalid, status = _graph_groups(d, valid, tau, th, config)
 
     # Alg. 3: IQR outlier removal on per-group DLT blocks.
     N_node, r_node, origin = dlt_blocks(rig, jnp.swapaxes(xy, 0, 1))  # (P, M, 3, 3), (P, M, 3)
     blocks = (jnp.swapaxes(N_node, 0, 1), jnp.swapaxes(r_node, 0, 1), origin)  # (M, P, ...)
     if config.iqr:
-        groups, gvalid = _iqr(rig, xy, groups, gvalid, blocks, th, config)
+        groups, gvalid, iqr_status = _iqr(rig, xy, groups, gvalid, blocks, th, config)
+        status = status | iqr_status
     if config.second_association:
         groups = second_association(d.reshape(M * P, M * P), groups, gvalid, valid, tau, th)
 
@@ -153,9 +163,11 @@ def associate_traced(
         groups = recover_leftovers(rig, xy, mask, groups, gvalid, X, tau, th)
     if config.regroup:
         left = leftover_nodes(groups, gvalid, mask)
-        new_groups, new_valid = _graph_groups(d, left, tau, th, config)
+        new_groups, new_valid, graph_status = _graph_groups(d, left, tau, th, config)
+        status = status | graph_status
         if config.iqr:
-            new_groups, new_valid = _iqr(rig, xy, new_groups, new_valid, blocks, th, config)
+            new_groups, new_valid, iqr_status = _iqr(rig, xy, new_groups, new_valid, blocks, th, config)
+            status = status | iqr_status
         groups, gvalid = _merge_groups(groups, gvalid, new_groups, new_valid)
     if config.recover or config.regroup:
         member, xy_g, X, (bpe, err_px) = fit(groups, gvalid)
@@ -164,7 +176,8 @@ def associate_traced(
             member = member & gvalid[:, None]
 
     if config.refine:
-        X = refine_points(rig, X, xy_g, member, config.refine_max_steps)
+        X, capped = refine_points(rig, X, xy_g, member, config.refine_max_steps)
+        status = status | _flag(capped, Status.REFINE_CAPPED)
 
     # One gate for every valid group, whatever stage made it (ALGORITHM.md §12).
     member, gvalid, X = validity_gate(
@@ -186,7 +199,7 @@ def associate_traced(
         num_groups=jnp.sum(gvalid, dtype=jnp.int32),
         sigma_px=jnp.asarray(sigma, xy.dtype),
         tau_px=jnp.asarray(tau, xy.dtype),
-        status=jnp.int32(0),
+        status=status,
     )
 
 
@@ -228,6 +241,7 @@ def associate(
     dist: ArrayLike | None = None,
     weights: ArrayLike | None = None,
     min_views: int = 2,
+    memory_budget_gb: float | None = None,
 ) -> Association:
     """Associate the detections of one scene and triangulate every group.
 
@@ -245,6 +259,9 @@ def associate(
         weights: optional ``(M, P)`` non-negative weights (e.g. detector confidence) of the
             members' DLT equations when the final points are triangulated.
         min_views: keep only groups seen in at least this many views (≥ 2).
+        memory_budget_gb: refuse (``MemoryError``, before compiling) when the estimated
+            peak memory exceeds this many GB; default: ``CDOG_JAX_MEMORY_BUDGET`` or 80 %
+            of the device's (CPU: the machine's) memory (ALGORITHM.md §14).
 
     ``xy`` may be float32 or float64 (integers are converted to the default float dtype);
     float16, bfloat16, complex and bool are refused. ``sigma`` must be finite, ``>= 0`` and
@@ -252,7 +269,8 @@ def associate(
     detections' extent ``hypot(max |x|, max |y|)`` where that is larger.
 
     Returns:
-        An :class:`Association` (labels, groups, points, errors).
+        An :class:`Association` (labels, groups, points, errors). Its ``status`` is
+        non-zero when a loop stopped at its bound (:func:`cdog_jax.check_status`).
     """
     expect_args("associate", rig=(rig, Rig), thresholds=(thresholds, (Thresholds, type(None))))
     config = config_from(config, "associate")
@@ -263,6 +281,7 @@ def associate(
     if thresholds is not None:
         check_threshold_shapes(thresholds, None)
     dtype = _float_dtype(xy)
+    check_memory("associate", *np.shape(mask), config, dtype, budget_gb=memory_budget_gb)
     static, th = _prepare(config, sigma, thresholds, dtype)
     xy, mask = jnp.asarray(xy, dtype), jnp.asarray(mask)
     extras = _check_extras(dist, weights, min_views, mask.shape, dtype)
@@ -345,6 +364,7 @@ def associate_batch(
     dist: ArrayLike | None = None,
     weights: ArrayLike | None = None,
     min_views: int = 2,
+    memory_budget_gb: float | None = None,
 ) -> Association:
     """:func:`associate` for ``B`` scenes in one compiled call.
 
@@ -353,7 +373,8 @@ def associate_batch(
     (vmapped inside ``lax.map``), which bounds memory. Every field of the result gains a
     leading ``B`` axis. ``dist (M, 5)`` and ``min_views`` are shared by all scenes,
     ``weights (B, M, P)`` are per scene. Inputs are checked as in :func:`associate`; an
-    error names the scene.
+    error names the scene. The memory budget counts ``batch_size`` scenes (see
+    :func:`associate`); ``status`` is per scene.
     """
     expect_args("associate_batch", rig=(rig, Rig), thresholds=(thresholds, (Thresholds, type(None))))
     expect(batch_size, INT, "batch_size", "associate_batch")
@@ -370,6 +391,7 @@ def associate_batch(
     if thresholds is not None:
         check_threshold_shapes(thresholds, B)
     dtype = _float_dtype(xy)
+    check_memory("associate_batch", *np.shape(mask)[1:], config, dtype, min(batch_size, B), memory_budget_gb, vmapped=True)
     static, th = _prepare(config, sigma, thresholds, dtype)
     th = Thresholds(*(jnp.broadcast_to(v, (B,)) for v in th))
     if dist is not None and not shared:

@@ -45,6 +45,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from .._expect import expect_args
 from .._config import Config
+from .._memory import check_memory
 from .._pipeline import associate_traced
 from ..geometry._camera import Rig
 from ..metrics._scores import Metrics, scene_metrics
@@ -379,6 +380,16 @@ def _layout(grid: Grid, buckets, batch_size, num_devices: int, dtype) -> _Layout
     return _Layout(tuple(inputs), tuple(members), tuple(capacities), tuple(batches), gather)
 
 
+def _check_memory(num_views: int, layout: _Layout, groups: dict, dtype) -> None:
+    """Refuse before compiling when a bucket's step (``batch`` scenes, each with the configs
+    of one structure vmapped when ``batch > 1``) would exceed the memory budget
+    (:func:`cdog_jax._memory.check_memory`; buckets and structures run one after another)."""
+    for capacity, batch in zip(layout.capacities, layout.batch_sizes):
+        for structure, members in groups.items():
+            at_once = batch * (len(members) if batch > 1 else 1)
+            check_memory(f"sweep (bucket {capacity})", num_views, capacity, structure, dtype, at_once, vmapped=batch > 1)
+
+
 def _check_configs(configs) -> dict[str, Config]:
     configs = dict(configs) if configs is not None else {"paper": Config.paper()}
     if not configs:
@@ -469,6 +480,7 @@ def sweep(
     groups: dict[Config, list[int]] = {}
     for i, config in enumerate(configs.values()):
         groups.setdefault(config.structure(), []).append(i)
+    _check_memory(rig.num_views, layout, groups, dtype)
     plan = _Plan(
         groups=tuple((structure, tuple(members)) for structure, members in groups.items()),
         capacities=layout.capacities,

@@ -3,7 +3,13 @@
 Every node ends with the smallest node index of its component as its label. Each round
 pulls the smallest label across every edge (both directions) and then follows labels
 twice (``l ← l[l]``), which halves path lengths; the loop stops when nothing changes, at
-most ``N`` rounds.
+most ``N`` rounds by default.
+
+The default bound cannot be reached: every label is a node of its component no larger than
+the node itself, so after ``k`` rounds a node's label is at most the smallest node within
+``k`` edges (following labels only lowers it further). Labels are therefore final after
+``diameter ≤ N − 1`` rounds and round ``N`` at the latest sees no change. A smaller bound
+(``max_rounds``) can stop the loop early; :func:`connected_components_capped` says so.
 """
 
 import jax
@@ -13,10 +19,13 @@ from .._types import Array, Bool, Int
 from ._adjacency import EdgeTable
 
 
-def connected_components(edges: EdgeTable, alive: Bool[Array, " E"], num_nodes: int) -> Int[Array, " N"]:
-    """Labels ``(N,)``: the smallest node index in each node's component of the graph formed
-    by the alive proposals ``alive (E,)`` (undirected)."""
+def connected_components_capped(
+    edges: EdgeTable, alive: Bool[Array, " E"], num_nodes: int, *, max_rounds: int | None = None
+) -> tuple[Int[Array, " N"], Bool[Array, ""]]:
+    """Labels ``(N,)`` as :func:`connected_components`, and ``()`` True when the loop stopped
+    at ``max_rounds`` (default ``N``) while the last round still changed labels."""
     big = jnp.int32(num_nodes)
+    bound = num_nodes if max_rounds is None else max_rounds
     src, dst = edges.src, edges.dst
 
     def step(labels):
@@ -28,7 +37,7 @@ def connected_components(edges: EdgeTable, alive: Bool[Array, " E"], num_nodes: 
 
     def cond(carry):
         _, changed, it = carry
-        return changed & (it < num_nodes)
+        return changed & (it < bound)
 
     def body(carry):
         labels, _, it = carry
@@ -36,8 +45,16 @@ def connected_components(edges: EdgeTable, alive: Bool[Array, " E"], num_nodes: 
         return new, jnp.any(new != labels), it + 1
 
     labels0 = jnp.arange(num_nodes, dtype=jnp.int32)
-    labels, _, _ = jax.lax.while_loop(cond, body, (labels0, jnp.bool_(True), jnp.int32(0)))
-    return labels
+    labels, changed, _ = jax.lax.while_loop(cond, body, (labels0, jnp.bool_(num_nodes > 0), jnp.int32(0)))
+    return labels, changed
+
+
+def connected_components(
+    edges: EdgeTable, alive: Bool[Array, " E"], num_nodes: int, *, max_rounds: int | None = None
+) -> Int[Array, " N"]:
+    """Labels ``(N,)``: the smallest node index in each node's component of the graph formed
+    by the alive proposals ``alive (E,)`` (undirected)."""
+    return connected_components_capped(edges, alive, num_nodes, max_rounds=max_rounds)[0]
 
 
 def component_view_counts(labels: Int[Array, " N"], node_view: Int[Array, " N"], valid: Bool[Array, " N"], num_views: int) -> Int[Array, "N M"]:

@@ -3,15 +3,17 @@
 A group may hold at most one detection per view. While a component conflicts, its single
 weakest edge (lowest θ, then largest epipolar distance, then smallest node pair) is
 removed; after ``max_iters`` rounds, the last resort keeps in each over-full view the node
-with the smallest mean edge distance and detaches the others.
+with the smallest mean edge distance and detaches the others, and the returned status says
+so (``Status.SPLIT_CAPPED``).
 """
 
 import jax
 import jax.numpy as jnp
 
+from .._status import Status
 from .._types import Array, Bool, Float, Int
 from ._adjacency import EdgeTable, alive_edges
-from ._components import component_view_counts, connected_components
+from ._components import component_view_counts, connected_components_capped
 from ._overlap import remove_edges
 
 
@@ -38,22 +40,28 @@ def split_conflicts(
     valid: Bool[Array, " N"],
     num_views: int,
     max_iters: int,
-) -> tuple[Bool[Array, "N N"], Int[Array, " N"]]:
+) -> tuple[Bool[Array, "N N"], Int[Array, " N"], Int[Array, ""]]:
     """Remove edges until every component is view-unique.
 
     ``A (N, N)``; per proposal ``theta (E,)`` and ``edge_dist (E,)`` (pixels); per node
-    ``node_view (N,)`` and ``valid (N,)``. Returns the graph ``(N, N)`` and its labels ``(N,)``.
+    ``node_view (N,)`` and ``valid (N,)``. Returns the graph ``(N, N)``, its labels ``(N,)``
+    and an int32 :class:`~cdog_jax.Status` ``()``: ``SPLIT_CAPPED`` when conflicts were left
+    after ``max_iters`` rounds (the last resort decided them), ``COMPONENTS_CAPPED`` when a
+    components pass stopped at its bound.
     """
     N = A.shape[0]
     pair_lo = jnp.minimum(edges.src, edges.dst).astype(theta.dtype)
     pair_hi = jnp.maximum(edges.src, edges.dst).astype(theta.dtype)
 
+    def components(A):
+        return connected_components_capped(edges, alive_edges(edges, A), N)
+
     def cond(carry):
-        _, _, any_conflict, it = carry
+        _, _, any_conflict, _, it = carry
         return any_conflict & (it < max_iters)
 
     def body(carry):
-        A, labels, _, it = carry
+        A, labels, _, comp_capped, it = carry
         conflict, _ = _conflicting(labels, node_view, valid, num_views)
         seg = labels[edges.src]
         cand = alive_edges(edges, A) & conflict[seg]
@@ -64,23 +72,27 @@ def split_conflicts(
         cand = _segment_argbest(pair_lo, cand, seg, N)
         cand = _segment_argbest(pair_hi, cand, seg, N)
         A = remove_edges(A, edges, cand)
-        labels = connected_components(edges, alive_edges(edges, A), N)
+        labels, capped = components(A)
         conflict, _ = _conflicting(labels, node_view, valid, num_views)
-        return A, labels, jnp.any(conflict), it + 1
+        return A, labels, jnp.any(conflict), comp_capped | capped, it + 1
 
-    labels = connected_components(edges, alive_edges(edges, A), N)
+    labels, comp_capped = components(A)
     conflict, _ = _conflicting(labels, node_view, valid, num_views)
-    A, labels, any_conflict, _ = jax.lax.while_loop(cond, body, (A, labels, jnp.any(conflict), jnp.int32(0)))
-    return jax.lax.cond(
+    carry = (A, labels, jnp.any(conflict), comp_capped, jnp.int32(0))
+    A, labels, any_conflict, comp_capped, _ = jax.lax.while_loop(cond, body, carry)
+    A, labels, last_capped = jax.lax.cond(
         any_conflict,
         lambda: _detach_last_resort(A, labels, edges, edge_dist, node_view, valid, num_views),
-        lambda: (A, labels),
+        lambda: (A, labels, jnp.bool_(False)),
     )
+    status = jnp.where(any_conflict, jnp.int32(int(Status.SPLIT_CAPPED)), jnp.int32(0))
+    return A, labels, status | jnp.where(comp_capped | last_capped, jnp.int32(int(Status.COMPONENTS_CAPPED)), jnp.int32(0))
 
 
 def _detach_last_resort(A, labels, edges, edge_dist, node_view, valid, num_views):
     """In each conflicting component, keep per over-full view the node of smallest mean edge
-    distance (ties: smallest index) and remove every edge of the others."""
+    distance (ties: smallest index) and remove every edge of the others; returns the graph,
+    its labels and whether the components pass stopped at its bound."""
     N = A.shape[0]
     conflict, counts = _conflicting(labels, node_view, valid, num_views)
     alive = alive_edges(edges, A)
@@ -100,4 +112,4 @@ def _detach_last_resort(A, labels, edges, edge_dist, node_view, valid, num_views
     first = jnp.full((N, num_views), N, jnp.int32).at[labels, node_view].min(idx.astype(jnp.int32))
     detach = over_full & (first[labels, node_view] != jnp.arange(N, dtype=jnp.int32))
     A = A & ~detach[:, None] & ~detach[None, :]
-    return A, connected_components(edges, alive_edges(edges, A), N)
+    return (A, *connected_components_capped(edges, alive_edges(edges, A), N))

@@ -2,7 +2,8 @@
 
 Levenberg–Marquardt (optimistix) on the member reprojection residuals in pixels, started
 from the DLT point, vmapped over groups; a refined point replaces the DLT point only where
-it lowers the group's BPE, so refinement never makes a group worse.
+it lowers the group's BPE, so refinement never makes a group worse. A group whose solver
+stopped at ``max_steps`` is reported (``Status.REFINE_CAPPED``).
 """
 
 import jax
@@ -27,9 +28,10 @@ def refine_points(
     xy_g: Float[Array, "G M 2"],
     member: Bool[Array, "G M"],
     max_steps: int,
-) -> Float[Array, "G 3"]:
+) -> tuple[Float[Array, "G 3"], Bool[Array, ""]]:
     """Refined points ``(G, 3)`` (scene units) from ``X0 (G, 3)``, ``xy_g (G, M, 2)`` and
-    ``member (G, M)``; groups with < 2 members are unchanged."""
+    ``member (G, M)``; groups with < 2 members are unchanged. Also ``()`` True when the
+    solver of some group (of ≥ 2 members) stopped at ``max_steps`` before converging."""
     expect_args("refine_points", rig=(rig, Rig), X0=(X0, ARRAY), xy_g=(xy_g, ARRAY), member=(member, ARRAY), max_steps=(max_steps, INT))
     solver = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-6)
 
@@ -38,6 +40,12 @@ def refine_points(
         r0 = _residuals(X, (rig, xy, mem))
         r1 = _residuals(sol.value, (rig, xy, mem))
         better = jnp.all(jnp.isfinite(sol.value)) & (jnp.sum(r1 * r1) < jnp.sum(r0 * r0))
-        return jnp.where(better & (jnp.sum(mem, dtype=jnp.int32) >= 2), sol.value, X)
+        used = jnp.sum(mem, dtype=jnp.int32) >= 2
+        # Not successful after max_steps steps (the result's enumeration is a promoted one,
+        # so its max_steps item does not compare equal to optx.RESULTS.max_steps_reached).
+        stopped = (sol.stats["num_steps"] >= max_steps) & ~(sol.result == optx.RESULTS.successful)
+        capped = used & stopped
+        return jnp.where(better & used, sol.value, X), capped
 
-    return jax.vmap(one)(X0, xy_g, member)
+    X, capped = jax.vmap(one)(X0, xy_g, member)
+    return X, jnp.any(capped)

@@ -3,7 +3,8 @@
 For a group with ≥ 3 members, every pair of member views is triangulated (two-view DLT)
 and reprojected into the other members; a node's score is its mean reprojection error
 (pixels) and scores outside the IQR fences are outliers. Repeated in a
-``lax.while_loop`` until no group changes.
+``lax.while_loop`` until no group changes, at most ``Config.max_iqr_iters`` rounds; a loop
+that is still changing groups at that bound is reported (``Status.IQR_CAPPED``).
 """
 
 import jax
@@ -99,8 +100,10 @@ def remove_outliers(
     member: Bool[Array, "G M"],
     th: Thresholds,
     config: Config,
-) -> Bool[Array, "G M"]:
-    """Iterated IQR removal over all groups; returns the members ``(G, M)``.
+) -> tuple[Bool[Array, "G M"], Bool[Array, ""]]:
+    """Iterated IQR removal over all groups; returns the members ``(G, M)`` and ``()`` True
+    when some chunk's loop stopped at ``config.max_iqr_iters`` while its last round still
+    removed members (more outliers may be left).
 
     Per group ``N_g (G, M, 3, 3)``, ``r_g (G, M, 3)`` DLT blocks, ``xy_g (G, M, 2)`` pixels,
     ``member (G, M)``. Groups left with < 2 members dissolve (all False).
@@ -134,7 +137,8 @@ def remove_outliers(
             new = new & (jnp.sum(new, dtype=jnp.int32, axis=1, keepdims=True) >= 2)
             return new, jnp.any(new != mem), it + 1
 
-        return jax.lax.while_loop(cond, body, (mem, jnp.bool_(True), jnp.int32(0)))[0]
+        mem, changed, _ = jax.lax.while_loop(cond, body, (mem, jnp.bool_(True), jnp.int32(0)))
+        return mem, changed
 
     big = jnp.sum(member, dtype=jnp.int32, axis=1) >= 3
     order = jnp.argsort(~big, stable=True).astype(jnp.int32)  # big groups first
@@ -144,16 +148,16 @@ def remove_outliers(
     mem_s = member[order] & live[:, None]
 
     def chunk_cond(carry):
-        start, _ = carry
+        start, _, _ = carry
         return (start < G_pad) & live[jnp.minimum(start, G_pad - 1)]
 
     def chunk_body(carry):
-        start, mem_s = carry
+        start, mem_s, capped = carry
         take = lambda a: jax.lax.dynamic_slice_in_dim(a, start, C)  # noqa: E731
-        new = clean_chunk(take(N_s), take(r_s), take(xy_s), take(mem_s))
-        return start + C, jax.lax.dynamic_update_slice_in_dim(mem_s, new, start, 0)
+        new, changed = clean_chunk(take(N_s), take(r_s), take(xy_s), take(mem_s))
+        return start + C, jax.lax.dynamic_update_slice_in_dim(mem_s, new, start, 0), capped | changed
 
-    _, mem_s = jax.lax.while_loop(chunk_cond, chunk_body, (jnp.int32(0), mem_s))
+    _, mem_s, capped = jax.lax.while_loop(chunk_cond, chunk_body, (jnp.int32(0), mem_s, jnp.bool_(False)))
     cleaned = jnp.zeros((G, M), bool).at[order].max(mem_s & live[:, None])  # padding rows add nothing
     keep = jnp.where(big[:, None], cleaned, member)  # groups of 2 are left as they are
-    return keep & (jnp.sum(keep, dtype=jnp.int32, axis=1, keepdims=True) >= 2)
+    return keep & (jnp.sum(keep, dtype=jnp.int32, axis=1, keepdims=True) >= 2), capped

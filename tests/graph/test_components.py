@@ -2,7 +2,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from cdog_jax.graph import EdgeTable, connected_components
+from cdog_jax.graph import EdgeTable, connected_components, connected_components_capped
 
 
 def _union_find(n, pairs):
@@ -46,3 +46,16 @@ def test_long_path_converges():
     edges = EdgeTable(jnp.asarray(src, jnp.int32), jnp.asarray(dst, jnp.int32), jnp.ones(n - 1, bool))
     got = np.asarray(connected_components(edges, jnp.ones(n - 1, bool), n))
     assert np.all(got == 0)
+
+
+def test_round_bound_is_reported():
+    # A path of 200 nodes in random order: the default bound (N rounds) always suffices,
+    # a bound of 2 rounds does not and says so.
+    n = 200
+    perm = np.random.default_rng(0).permutation(n)
+    edges = EdgeTable(jnp.asarray(perm[:-1], jnp.int32), jnp.asarray(perm[1:], jnp.int32), jnp.ones(n - 1, bool))
+    alive = jnp.ones(n - 1, bool)
+    labels, capped = connected_components_capped(edges, alive, n)
+    assert not bool(capped) and np.all(np.asarray(labels) == 0)
+    labels, capped = connected_components_capped(edges, alive, n, max_rounds=2)
+    assert bool(capped) and np.any(np.asarray(labels) != 0)

@@ -3,6 +3,7 @@ import numpy as np
 
 import jax
 
+from cdog_jax import Status
 from cdog_jax.graph import EdgeTable, alive_edges, connected_components
 from cdog_jax.graph import split_conflicts as _split_conflicts
 
@@ -25,7 +26,7 @@ def test_weakest_edge_removed_first():
     theta = jnp.asarray([0.9, 0.4, 0.6], jnp.float32)
     dist = jnp.asarray([1.0, 1.0, 1.0], jnp.float32)
     view = jnp.arange(N) // 2
-    A2, labels = split_conflicts(A, edges, theta, dist, view, jnp.ones(N, bool), M, max_iters=8)
+    A2, labels, _ = split_conflicts(A, edges, theta, dist, view, jnp.ones(N, bool), M, max_iters=8)
     assert not bool(A2[2, 4]) and bool(A2[0, 2]) and bool(A2[4, 1])
     assert np.array_equal(np.asarray(labels), [0, 1, 0, 3, 1, 5])
 
@@ -35,7 +36,7 @@ def test_ties_broken_by_larger_distance():
     edges, A = _edges([(0, 2), (2, 4), (4, 1)], N)
     theta = jnp.full((3,), 0.5, jnp.float32)
     dist = jnp.asarray([1.0, 2.0, 3.0], jnp.float32)
-    A2, _ = split_conflicts(A, edges, theta, dist, jnp.arange(N) // 2, jnp.ones(N, bool), M, max_iters=8)
+    A2, _, _ = split_conflicts(A, edges, theta, dist, jnp.arange(N) // 2, jnp.ones(N, bool), M, max_iters=8)
     assert not bool(A2[4, 1]) and bool(A2[0, 2]) and bool(A2[2, 4])
 
 
@@ -51,10 +52,28 @@ def test_random_graphs_end_view_unique():
         dist = jnp.asarray(rng.random(E), jnp.float32)
         view = jnp.arange(N) // P
         for iters in (1, 64):  # the last resort alone, and the edge-removal loop
-            A2, labels = split_conflicts(A, edges, theta, dist, view, jnp.ones(N, bool), M, max_iters=iters)
+            A2, labels, _ = split_conflicts(A, edges, theta, dist, view, jnp.ones(N, bool), M, max_iters=iters)
             labels = np.asarray(labels)
             assert np.array_equal(labels, np.asarray(connected_components(edges, alive_edges(edges, A2), N)))
             for c in np.unique(labels):
                 views = np.asarray(view)[labels == c]
                 assert len(views) == len(set(views))
             assert not np.any(np.asarray(A2) & ~np.asarray(A))  # only removals
+
+
+def test_split_reports_its_iteration_bound():
+    # Chain 0 - 2 - 1 - 3 (P = 2) holds two nodes of view 0 and of view 1: the weakest edge
+    # (1, 3) goes first, then (2, 1), so two rounds are needed.
+    N, M = 6, 3
+    edges, A = _edges([(0, 2), (2, 1), (1, 3)], N)
+    theta = jnp.asarray([0.9, 0.3, 0.1], jnp.float32)
+    dist = jnp.ones(3, jnp.float32)
+    view = jnp.arange(N) // 2
+    _, labels, status = split_conflicts(A, edges, theta, dist, view, jnp.ones(N, bool), M, max_iters=8)
+    assert int(status) == 0
+    assert np.array_equal(np.asarray(labels), [0, 1, 0, 3, 4, 5])
+    _, labels, status = split_conflicts(A, edges, theta, dist, view, jnp.ones(N, bool), M, max_iters=1)
+    assert int(status) == Status.SPLIT_CAPPED  # the last resort decided the rest
+    for c in np.unique(np.asarray(labels)):
+        views = np.asarray(view)[np.asarray(labels) == c]
+        assert len(views) == len(set(views))

@@ -49,5 +49,10 @@ def test_planted_outlier_removed_from_group():
     N, r, origin = dlt_blocks(rig, jnp.asarray(obs, jnp.float32))
     member = jnp.ones((1, 6), bool)
     cfg = Config.paper()
-    out = remove_outliers(rig, N[None], r[None], origin, jnp.asarray(obs, jnp.float32)[None], member, cfg.thresholds(0.5), cfg)
+    args = (rig, N[None], r[None], origin, jnp.asarray(obs, jnp.float32)[None], member, cfg.thresholds(0.5))
+    out, capped = remove_outliers(*args, cfg)
     assert np.asarray(out)[0].tolist() == [True, True, True, False, True, True]
+    assert not bool(capped)  # the second round changed nothing
+    out, capped = remove_outliers(*args, cfg.replace(max_iqr_iters=1))
+    assert np.asarray(out)[0].tolist() == [True, True, True, False, True, True]
+    assert bool(capped)  # one round removed a member and could not check for more

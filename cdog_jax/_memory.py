@@ -1,0 +1,141 @@
+"""Peak memory of the compiled pipeline, known from the shapes before compiling.
+
+The pipeline works on dense tables over the ``N = M·P`` detection slots of a scene: the
+epipolar distance table ``d (M, P, M, P)`` and its masked copy (floats), the proposal and
+adjacency matrices ``(N, N)`` (bools), and, depending on the config, the second
+association's ``(G, M, N)`` member-to-node distances (``G = N/2``), the recovery's
+``(G, N, 2)`` reprojection differences and the support filter's ``(G, M, P, 2)`` ones.
+Its peak memory is therefore ``c · N²`` bytes plus terms linear in ``N·M``, with ``c`` set
+by the float size and the stages. :func:`estimate_peak_bytes` adds these tensors up per
+stage (the coefficients were checked against XLA's own ``memory_analysis()`` of the
+compiled program, ALGORITHM.md §14); :func:`check_memory` refuses, before anything is
+compiled, a call whose estimate exceeds the budget of :func:`memory_budget_bytes`.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from ._config import Config
+
+ENV_BUDGET = "CDOG_JAX_MEMORY_BUDGET"
+"""Environment variable: the memory budget in GB (10⁹ bytes), e.g. ``"8"``."""
+
+BUDGET_FRACTION = 0.8
+"""Default budget: this share of the accelerator's memory, or of the machine's physical
+memory on CPU."""
+
+_MARGIN = 1.1  # the estimate sits 5–40 % above XLA's number on the shapes checked
+_BATCH_EXTRA = 1.0  # float tables per scene that vmap adds (a cond runs both branches)
+
+
+def quadratic_bytes(M: int, config: Config, itemsize: int, batched: bool = False) -> float:
+    """Bytes per ``N²`` (``N = M·P``) at the peak of one scene's pipeline."""
+    f = float(itemsize)
+    # d and its masked copy, the proposal/adjacency bool tables, and (above N ≈ 10⁴, where
+    # XLA stops reusing some of them) about 2 more bytes per pair.
+    stages = [2.0 * f + 5.0]
+    if config.second_association:
+        stages.append(f * (M / 2.0 + 1.0))  # (G, M, N) distances beside d
+    if config.recover or config.regroup:
+        stages.append(3.0 * f + 6.0)  # d kept for regrouping, (G, N, 2) differences
+    coeff = max(stages)
+    if config.support_filter and (config.recover or config.regroup):
+        coeff += f  # (G, M, P, 2) differences while the regrouped tables are alive
+    if config.refine:
+        coeff += 0.5 * f
+    if batched:
+        coeff += _BATCH_EXTRA * f
+    return coeff
+
+
+def estimate_peak_bytes(
+    M: int, P: int, config: Config, *, dtype=np.float32, batch_size: int = 1, vmapped: bool | None = None
+) -> int:
+    """Estimated peak bytes of :func:`cdog_jax.associate` on ``M`` views of ``P`` slots, or
+    of :func:`cdog_jax.associate_batch` (``vmapped``; default ``batch_size > 1``), which
+    runs ``batch_size`` scenes at a time. A pure function of the shapes and the config's
+    structure."""
+    itemsize = np.dtype(dtype).itemsize
+    N = M * P
+    vmapped = batch_size > 1 if vmapped is None else vmapped
+    per_scene = quadratic_bytes(M, config, itemsize, batched=vmapped) * N * N + 16.0 * itemsize * M * N
+    return int(_MARGIN * batch_size * per_scene)
+
+
+def _physical_memory() -> int | None:
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def memory_budget_bytes(budget_gb: float | None = None) -> tuple[float, str]:
+    """The budget in bytes and where it comes from: ``budget_gb`` if given, else the
+    environment variable ``CDOG_JAX_MEMORY_BUDGET`` (GB), else ``BUDGET_FRACTION`` of the
+    default device's memory limit (accelerators) or of physical memory (CPU); ``inf``
+    when none of these is known."""
+    if budget_gb is None and os.environ.get(ENV_BUDGET):
+        text = os.environ[ENV_BUDGET]
+        try:
+            budget_gb = float(text)
+        except ValueError:
+            raise ValueError(f"{ENV_BUDGET} must be a number of GB; got {text!r}") from None
+        source = f"{ENV_BUDGET}={text}"
+    else:
+        source = "memory_budget_gb"
+    if budget_gb is not None:
+        if not budget_gb > 0:
+            raise ValueError(f"the memory budget must be > 0 GB; got {budget_gb!r} ({source})")
+        return float(budget_gb) * 1e9, source
+    import jax
+
+    device = jax.devices()[0]
+    limit = None
+    if device.platform != "cpu":
+        stats = device.memory_stats() or {}
+        limit = stats.get("bytes_limit")
+        where = f"{device.platform} memory"
+    if limit is None:
+        limit = _physical_memory()
+        where = "physical memory"
+    if limit is None:
+        return float("inf"), "unknown memory size"
+    return BUDGET_FRACTION * limit, f"{BUDGET_FRACTION:.0%} of {limit / 1e9:.1f} GB {where}"
+
+
+def largest_capacity(M: int, config: Config, dtype, batch_size: int, budget: float, vmapped: bool | None = None) -> int:
+    """The largest ``P`` whose estimate fits ``budget`` bytes (0 if none)."""
+    lo, hi = 0, 1
+    fits = lambda p: estimate_peak_bytes(M, p, config, dtype=dtype, batch_size=batch_size, vmapped=vmapped) <= budget  # noqa: E731
+    while fits(hi) and hi < 1 << 40:
+        lo, hi = hi, 2 * hi
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (mid, hi) if fits(mid) else (lo, mid)
+    return lo
+
+
+def check_memory(
+    where: str, M: int, P: int, config: Config, dtype, batch_size: int = 1,
+    budget_gb: float | None = None, vmapped: bool | None = None,
+) -> int:
+    """Raise ``MemoryError`` before compiling when the estimate for ``M`` views of ``P`` slots
+    (``batch_size`` scenes at a time) exceeds the budget; return the estimate (bytes)."""
+    need = estimate_peak_bytes(M, P, config, dtype=dtype, batch_size=batch_size, vmapped=vmapped)
+    budget, source = memory_budget_bytes(budget_gb)
+    if need <= budget:
+        return need
+    scenes = f", {batch_size} scenes at a time" if batch_size > 1 else ""
+    fit = largest_capacity(M, config, dtype, batch_size, budget, vmapped)
+    changes = [f"a smaller capacity P (at most {fit} slots per view fits)" if fit else "a smaller capacity P", "fewer views"]
+    if batch_size > 1:
+        changes.append("a smaller batch_size")
+    raise MemoryError(
+        f"{where}: {M} views × {P} slots{scenes} need about {need / 1e9:.1f} GB (estimated from the shapes: "
+        f"dense tables over the N² = {(M * P) ** 2:.2g} slot pairs), more than the memory budget of "
+        f"{budget / 1e9:.1f} GB ({source}). Use " + ", ".join(changes)
+        + f", or raise the budget (memory_budget_gb=, or the {ENV_BUDGET} environment variable, in GB)."
+    )

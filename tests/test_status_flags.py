@@ -1,0 +1,31 @@
+"""Loops that stop at their bound say so in Association.status, per scene under a batch."""
+
+import numpy as np
+import pytest
+from helpers import random_scene, ring_rig
+
+from cdog_jax import Config, Status, associate_batch, check_status, status_messages
+
+RIG = ring_rig(5)
+# Scene 0: ten points in a small box with clutter and σ = 4 px (components with several
+# view conflicts, groups with outliers); scene 1: two clean points (nothing to split or clean).
+_A = random_scene(RIG, 10, 12, sigma=4.0, seed=0, clutter=2, box=0.2)
+_B = random_scene(RIG, 2, 12, sigma=0.5, seed=4)
+XY, MASK = np.stack([_A[0], _B[0]]), np.stack([_A[1], _B[1]])
+
+
+def _status(config):
+    return [int(s) for s in np.asarray(associate_batch(RIG, XY, MASK, config=config, sigma=4.0, batch_size=2).status)]
+
+
+def test_a_loop_stopped_at_its_bound_sets_its_flag_per_scene():
+    split = _status(Config.reference(max_split_iters=1))
+    assert split == [Status.SPLIT_CAPPED, 0]
+    iqr_refine = _status(Config.reference(max_iqr_iters=1, refine=True, refine_max_steps=1))
+    assert iqr_refine[0] & Status.IQR_CAPPED and not iqr_refine[1] & Status.IQR_CAPPED
+    assert iqr_refine[1] == Status.REFINE_CAPPED  # two clean groups: one LM step is not enough
+    default = _status(Config.reference(refine=True))
+    assert default[0] & (Status.SPLIT_CAPPED | Status.IQR_CAPPED) == 0 and default[1] == 0
+    with pytest.raises(RuntimeError, match="scene 0: the view-uniqueness split stopped at its iteration bound"):
+        check_status(split)
+    assert len(status_messages(split[0])) == 1 and status_messages(0) == []
