@@ -23,6 +23,7 @@ import ast
 import json
 import os
 import re
+import sys
 import zipfile
 import zlib
 from typing import Any, NamedTuple
@@ -287,7 +288,9 @@ def read_json(path: str) -> Any:
     except RecursionError:
         raise InputError(f"{path}: not readable JSON: brackets nested too deeply (deeper than Python's recursion limit)") from None
     except ValueError as e:  # an integer beyond sys.get_int_max_str_digits()
-        raise InputError(f"{path}: not readable JSON: a number has too many digits ({e})") from None
+        found = re.search(r"value has (\d+) digits", str(e))
+        digits = f"an integer has {found.group(1)} digits" if found else "an integer has too many digits"
+        raise InputError(f"{path}: not readable JSON: {digits}; at most {sys.get_int_max_str_digits()} are read") from None
 
 
 def _read_json(path: str):
