@@ -25,6 +25,7 @@ import numpy as np
 
 from ._cli import _positive_int, check_sigma_fits
 from ._paths import check_distinct, check_input, check_output, input_files
+from ._paths import write_output as _write
 from .io._errors import InputError
 from .io._rig_files import FORMATS
 
@@ -129,15 +130,6 @@ def _image_diagonal(rig_file) -> tuple[float, str]:
     K = np.asarray(rig_file.rig.K, np.float64)
     K = K / K[:, 2:3, 2:3]
     return float(np.max(np.hypot(2 * K[:, 0, 2], 2 * K[:, 1, 2]))), "twice the principal point; the rig file has no image size"
-
-
-def _write(path: str, flag: str, write) -> None:
-    """``write()`` the output ``path``; a failed write keeps the previous file (the
-    writers are atomic) and says so."""
-    try:
-        write()
-    except OSError as e:
-        raise InputError(f"{path}: {flag}: could not write it ({e.strerror or e}); any previous file is unchanged") from e
 
 
 def run_associate(args: argparse.Namespace) -> int:

@@ -266,7 +266,7 @@ def run(args: argparse.Namespace) -> int:
     import math
 
     from ._cli import _FIGURE_EXTENSIONS, check_sigma_fits
-    from ._paths import check_output
+    from ._paths import check_output, write_output
     from .synthetic import IMAGE_SIZE
 
     check_output(str(args.out), "--out", _FIGURE_EXTENSIONS, {})
@@ -286,5 +286,6 @@ def run(args: argparse.Namespace) -> int:
         wand_points=args.wand_points, gates_px=gates, seed=args.seed, timing_runs=timing,
     )
     print(format_table(rows))
-    print(f"Figure: {convergence_figure(rows, str(args.out))}")
+    write_output(str(args.out), "--out", lambda: convergence_figure(rows, str(args.out)))
+    print(f"Figure: {args.out}")
     return 0

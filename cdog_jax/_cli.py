@@ -141,7 +141,7 @@ def _run_demo(args: argparse.Namespace) -> int:
     from .metrics import scene_metrics
     from .synthetic import IMAGE_SIZE, default_rig, generate_scene
 
-    from ._paths import check_output
+    from ._paths import check_output, write_output
 
     capacity = args.points if args.capacity is None else args.capacity
     if capacity < args.points:
@@ -213,8 +213,9 @@ def _run_demo(args: argparse.Namespace) -> int:
     caption = "vs ground truth:   " + "   ".join(
         f"{name} {values[f]:{fmt}}" + (" px" if f == "bpe_px" else "") for f, name, fmt, _ in _METRIC_ROWS
     )
-    plot_association(rig, scene.xy, scene.mask, result,
-                     points3d_gt=np.asarray(scene.points3d)[:n_inst], title=caption, path=args.out)
+    write_output(args.out, "--out", lambda: plot_association(
+        rig, scene.xy, scene.mask, result, points3d_gt=np.asarray(scene.points3d)[:n_inst], title=caption, path=args.out
+    ))  # fmt: skip
     timings.append(("figure (draw + save)", time.perf_counter() - t0))
 
     lines += ["", "Timings (wall clock, this process, JAX on " + jax.default_backend() + "):"]

@@ -12,7 +12,7 @@ outputs of one command must differ. Every refusal is an :class:`~cdog_jax.io.Inp
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 
 from .io._errors import InputError
 
@@ -87,6 +87,16 @@ def check_distinct(outputs: Mapping[str, str | None]) -> None:
         for other_flag, other in given[k + 1 :]:
             if _same_file(path, other):
                 raise InputError(f"{path}: {flag} and {other_flag} are the same file; give two names")
+
+
+def write_output(path: str, flag: str, write: Callable[[], object]) -> None:
+    """Run ``write()``, which writes the output ``path`` (atomically); an ``OSError`` (a
+    full disk) becomes an :class:`InputError` naming the file and saying the previous one
+    is unchanged."""
+    try:
+        write()
+    except OSError as e:
+        raise InputError(f"{path}: {flag}: could not write it ({e.strerror or e}); any previous file is unchanged") from e
 
 
 def _check_folder_writable(path: str, flag: str, folder: str) -> None:

@@ -233,6 +233,14 @@ def test_coordinate_out_of_float32_range(files, capsys):
     refused(_associate(bare, points), capsys, points, "view 2, detection 1", "float32")
 
 
+def test_rig_number_out_of_float32_range(files, capsys):
+    folder, rig, _, points = files
+    data = json.loads(rig.read_text())
+    data["views"][1]["t"][0] = 1e39
+    rig.write_text(json.dumps(data))
+    refused(["rig", rig], capsys, rig, "view 1", "t has entries out of float32 range", "1e+39")
+
+
 def test_detections_refusals_name_the_file(files, capsys):
     folder, rig, _, points = files
     points.write_text(json.dumps({"views": VIEWS[:2]}))

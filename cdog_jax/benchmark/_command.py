@@ -180,21 +180,26 @@ def run(args: argparse.Namespace) -> int:
     print(summary_table(result, sigmas=standard if len(standard) >= 2 else grid.sigmas))
     print()
 
-    os.makedirs(args.out, exist_ok=True)
-    save_results(result, args.out)
+    from .._paths import write_output
+
+    write_output(args.out, "--out", lambda: (os.makedirs(args.out, exist_ok=True), save_results(result, args.out)))
     print(f"Results: {args.out}/ (NPZ, CSV, JSON)")
     if not args.no_figures:
-        metrics = {name: result.metrics[name] for name in result.configs}
-        paths = {}
-        for name in result.configs:
-            paths[f"heatmaps_{name}"] = figures.heatmaps(
-                result.sigma, result.count, metrics, method=name, path=os.path.join(args.out, f"heatmaps_{name}.png")
-            )
-            paths[f"surfaces_{name}"] = figures.surfaces(
-                result.sigma, result.count, metrics, method=name, path=os.path.join(args.out, f"surfaces_{name}.png")
-            )
-        figures.metrics_vs_sigma(result.sigma, metrics, path=os.path.join(args.out, "metrics_vs_sigma.png"))
-        if not args.no_timing:
-            figures.time_vs_count(result.count, result.time_s, path=os.path.join(args.out, "time_vs_count.png"))
+        write_output(args.out, "--out", lambda: _figures(figures, result, args))
         print(f"Figures: {args.out}/*.png")
     return 0
+
+
+def _figures(figures, result, args) -> None:
+    """The benchmark's PNG figures in ``args.out``."""
+    metrics = {name: result.metrics[name] for name in result.configs}
+    for name in result.configs:
+        figures.heatmaps(
+            result.sigma, result.count, metrics, method=name, path=os.path.join(args.out, f"heatmaps_{name}.png")
+        )
+        figures.surfaces(
+            result.sigma, result.count, metrics, method=name, path=os.path.join(args.out, f"surfaces_{name}.png")
+        )
+    figures.metrics_vs_sigma(result.sigma, metrics, path=os.path.join(args.out, "metrics_vs_sigma.png"))
+    if not args.no_timing:
+        figures.time_vs_count(result.count, result.time_s, path=os.path.join(args.out, "time_vs_count.png"))

@@ -118,6 +118,7 @@ def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigF
         "easymocap": _easymocap.read_easymocap,
     }
     views = readers[fmt](path)
+    _check_float_range(views, dtype, path)
     try:
         rig = rig_from_arrays(views.K, views.R, views.t, dtype=dtype)
     except ValueError as e:
@@ -126,6 +127,22 @@ def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigF
     if views.view_sizes is not None and (views.view_sizes == views.view_sizes[0]).all():
         image_size = (int(views.view_sizes[0, 0]), int(views.view_sizes[0, 1]))
     return RigFile(rig, image_size, views.dist, views.view_sizes, views.names)
+
+
+def _check_float_range(views: _Views, dtype: Any, path: str) -> None:
+    """Refuse numbers the rig's float type cannot hold (they would turn infinite)."""
+    import jax.numpy as jnp
+
+    dtype = np.dtype(dtype or jnp.asarray(0.0).dtype)
+    largest = float(np.finfo(dtype).max)
+    for key, a in (("K", views.K), ("R", views.R), ("t", views.t)):
+        bad = (np.abs(a) > largest).reshape(a.shape[0], -1).any(axis=1)
+        if bad.any():
+            m = int(np.argmax(bad))
+            raise InputError(
+                f"{path}: {_name_views(f'view {m}', views.names)}: {key} has entries out of {dtype.name} range "
+                f"(largest {largest:.4g}): {a[m].ravel()[np.abs(a[m].ravel()) > largest][0]:g}"
+            )
 
 
 def _name_views(message: str, names: tuple[str, ...] | None) -> str:
