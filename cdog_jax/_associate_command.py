@@ -6,20 +6,32 @@ work, associates every frame in one compiled call (undistorting first when the r
 distortion), prints a short summary, and writes the groups (JSON, NPZ or CSV by the
 extension of ``--out``) and optionally a figure of the first frame. ``rig`` prints
 :meth:`cdog_jax.Rig.describe` and optionally draws the rig.
+
+Before any work: the inputs exist and are of the right kind, the outputs can be written
+and are none of the inputs (``cdog_jax/_paths.py``), the files are read and checked, and
+σ is finite and at most the image diagonal (the rig file's image size, else twice the
+principal point). Frames that cannot give a group (fewer than 2 views with detections)
+get zero groups and a note.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import time
 
 import numpy as np
 
+from ._cli import _positive_int, check_sigma_fits
+from ._paths import check_distinct, check_input, check_output, input_files
+from ._paths import write_output as _write
+from .io._errors import InputError
 from .io._rig_files import FORMATS
 
 _PRESETS = ("paper", "extended", "reference")
 _OUT_FORMATS = (".json", ".npz", ".csv")
+_NOTES_SHOWN = 12  # notes printed in the summary; a long video can have thousands
 
 
 def _sigma(text: str) -> float | str:
@@ -29,13 +41,16 @@ def _sigma(text: str) -> float | str:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f'must be a number of pixels >= 0 or "auto"; got {text!r}') from None
-    if not value >= 0.0:
-        raise argparse.ArgumentTypeError(f'must be a number of pixels >= 0 or "auto"; got {text!r}')
+    if not (value >= 0.0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f'must be a finite number of pixels >= 0 or "auto"; got {text!r}')
     return value
 
 
 def _min_views(text: str) -> int:
-    value = int(text)
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 2; got {text!r}") from None
     if value < 2:
         raise argparse.ArgumentTypeError(f"must be an integer >= 2 (a group needs two views); got {text}")
     return value
@@ -60,18 +75,34 @@ def add_parsers(subparsers) -> None:
         action="store_true",
         help="triangulate with the detections' confidences as DLT weights (needs [x, y, c] entries)",
     )
-    p.add_argument("--capacity", type=int, default=None, help="slots per view (default: the largest view); refuse if exceeded")
+    p.add_argument("--capacity", type=_positive_int, default=None, help="slots per view (default: the largest view); refuse if exceeded")
     p.add_argument("--out", default=None, help="write the groups: .json (members, point, BPE), .npz (arrays) or .csv (one row per 3D point)")
-    p.add_argument("--plot", default=None, help="PNG of the first frame's groups")
-    p.add_argument("--batch-size", type=int, default=16, help="frames associated at once (memory bound)")
+    p.add_argument("--plot", default=None, help="figure of the first frame's groups (.png, .pdf, .svg, .jpg)")
+    p.add_argument("--batch-size", type=_positive_int, default=16, help="frames associated at once (memory bound)")
     p.set_defaults(func=run_associate)
 
     r = subparsers.add_parser("rig", help="describe a rig file: centres, directions, baselines, warnings", description=__doc__)
     r.add_argument("rig", help="rig file or folder")
     r.add_argument("--rig-format", default="auto", choices=("auto", *FORMATS))
     r.add_argument("--points", default=None, help="detections file: check the cameras look at their triangulated centroid")
-    r.add_argument("--plot", default=None, help="PNG of the camera frusta")
+    r.add_argument("--plot", default=None, help="figure of the camera frusta (.png, .pdf, .svg, .jpg)")
     r.set_defaults(func=run_rig)
+
+
+def _check_paths(args, outputs: dict[str, tuple[str | None, tuple[str, ...]]]) -> None:
+    """Inputs exist with the right kind; every output (flag → (path, extensions)) can be
+    written, differs from the others and from every input file. Before any reading."""
+    folder_formats = ("easyvis", "colmap", "easymocap")
+    kind = "folder" if args.rig_format == "easyvis" else "file" if args.rig_format in ("json", "npz", "anipose") else "any"
+    check_input(args.rig, "--rig", kind=kind)
+    inputs = {"--rig": input_files(args.rig) if args.rig_format in ("auto", *folder_formats) else [args.rig]}
+    if getattr(args, "points", None):
+        check_input(args.points, "--points")
+        inputs["--points"] = [args.points]
+    check_distinct({flag: path for flag, (path, _) in outputs.items()})
+    for flag, (path, extensions) in outputs.items():
+        if path is not None:
+            check_output(path, flag, extensions, inputs)
 
 
 def _load(args):
@@ -90,6 +121,17 @@ def _load(args):
     return rig_file, detections
 
 
+def _image_diagonal(rig_file) -> tuple[float, str]:
+    """The image diagonal (px) and where it comes from: the rig file's image sizes (the
+    largest view), else twice the principal point of ``K / K[2,2]`` (the largest view)."""
+    if rig_file.view_sizes is not None:
+        w, h = np.asarray(rig_file.view_sizes, np.float64).T
+        return float(np.max(np.hypot(w, h))), "image size of the rig file"
+    K = np.asarray(rig_file.rig.K, np.float64)
+    K = K / K[:, 2:3, 2:3]
+    return float(np.max(np.hypot(2 * K[:, 0, 2], 2 * K[:, 1, 2]))), "twice the principal point; the rig file has no image size"
+
+
 def run_associate(args: argparse.Namespace) -> int:
     """Load, check, associate all frames, print a summary, write the outputs."""
     import jax
@@ -98,15 +140,19 @@ def run_associate(args: argparse.Namespace) -> int:
     from . import Config, associate_batch
     from .io import save_association_csv, save_association_json, save_association_npz
 
-    if args.out is not None and os.path.splitext(args.out)[1].lower() not in _OUT_FORMATS:
-        raise SystemExit(f"--out {args.out}: the extension must be one of {_OUT_FORMATS}")
-    if args.batch_size < 1:
-        raise SystemExit(f"--batch-size must be >= 1; got {args.batch_size}")
+    from ._cli import _FIGURE_EXTENSIONS
+    from .io._detections import check_float_range
+
+    _check_paths(args, {"--out": (args.out, _OUT_FORMATS), "--plot": (args.plot, _FIGURE_EXTENSIONS)})
     rig_file, det = _load(args)
     if args.confidence_weights and det.confidence is None:
-        raise SystemExit(f"--confidence-weights: {args.points} has no confidences (entries [x, y, c])")
+        raise InputError(f"{args.points}: --confidence-weights: the file has no confidences (entries [x, y, c])")
     rig = rig_file.rig
     dtype = rig.K.dtype
+    check_float_range(det, dtype, args.points)
+    if args.sigma != "auto":
+        diagonal, source = _image_diagonal(rig_file)
+        check_sigma_fits(args.sigma, diagonal, f"{args.rig} ({source})")
     config = getattr(Config, args.preset)()
     F, M, P = det.mask.shape
     lines = [
@@ -114,7 +160,9 @@ def run_associate(args: argparse.Namespace) -> int:
         + (", with lens distortion" if rig_file.dist is not None and np.any(rig_file.dist) else "") + ")",
         f"Detections: {args.points}: {F} frame(s), {int(det.mask.sum())} detections, at most {P} per view",
     ]
-    lines += [f"  note: {n}" for n in det.notes]
+    lines += [f"  note: {n}" for n in det.notes[:_NOTES_SHOWN]]
+    if len(det.notes) > _NOTES_SHOWN:
+        lines.append(f"  … and {len(det.notes) - _NOTES_SHOWN} more notes")
     dist = None if rig_file.dist is None or not np.any(rig_file.dist) else jnp.asarray(rig_file.dist, dtype)
     weights = jnp.asarray(det.confidence, dtype) if args.confidence_weights else None
 
@@ -160,11 +208,11 @@ def run_associate(args: argparse.Namespace) -> int:
         conf = None if det.confidence is None else frame(det.confidence)
         ext = os.path.splitext(args.out)[1].lower()
         if ext == ".json":
-            save_association_json(args.out, assoc, xy, mask, confidence=conf)
+            _write(args.out, "--out", lambda: save_association_json(args.out, assoc, xy, mask, confidence=conf))
         elif ext == ".npz":
-            save_association_npz(args.out, assoc, xy=xy, mask=mask, confidence=conf)
+            _write(args.out, "--out", lambda: save_association_npz(args.out, assoc, xy=xy, mask=mask, confidence=conf))
         else:
-            save_association_csv(args.out, assoc)
+            _write(args.out, "--out", lambda: save_association_csv(args.out, assoc))
         lines.append(f"Wrote {args.out}")
     if args.plot is not None:
         from ._plot import plot_association
@@ -172,7 +220,9 @@ def run_associate(args: argparse.Namespace) -> int:
 
         first = jax.tree_util.tree_map(lambda a: a[0], result)
         size = rig_file.image_size or intrinsics_image_size(rig.K)
-        plot_association(rig, det.xy[0], det.mask[0], first, image_size=size, title=f"{args.points}, frame 0", path=args.plot)
+        _write(args.plot, "--plot", lambda: plot_association(
+            rig, det.xy[0], det.mask[0], first, image_size=size, title=f"{args.points}, frame 0", path=args.plot
+        ))  # fmt: skip
         lines.append(f"Figure: {args.plot}")
     from ._cli import _emit
 
@@ -182,8 +232,9 @@ def run_associate(args: argparse.Namespace) -> int:
 
 def run_rig(args: argparse.Namespace) -> int:
     """Print the rig's description (and warnings); optionally draw it."""
-    from ._cli import _emit
+    from ._cli import _FIGURE_EXTENSIONS, _emit
 
+    _check_paths(args, {"--plot": (args.plot, _FIGURE_EXTENSIONS)})
     rig_file, det = _load(args)
     xy = mask = None
     if det is not None:
@@ -200,9 +251,13 @@ def run_rig(args: argparse.Namespace) -> int:
 
         from ._rig_plot import plot_rig
 
+        from .io._atomic import atomic_savefig
+
         ax = plot_rig(rig_file.rig, names=rig_file.names, image_size=rig_file.image_size)
-        ax.figure.savefig(args.plot, dpi=120)
-        plt.close(ax.figure)
+        try:
+            _write(args.plot, "--plot", lambda: atomic_savefig(ax.figure, args.plot, dpi=120))
+        finally:
+            plt.close(ax.figure)
         lines.append(f"Figure: {args.plot}")
     _emit(lines)
     return 0

@@ -33,6 +33,7 @@ import numpy as np
 from ._config import Config
 from .geometry._camera import Rig
 from .geometry._parameters import so3_exp
+from .io._atomic import atomic_savefig
 
 
 @dataclasses.dataclass(frozen=True)
@@ -237,7 +238,7 @@ def convergence_figure(rows: list[dict], path: str) -> str:
     axes[0].legend(title="perturbation", fontsize=8, loc="center right")
     axes[1].set_title("focal lengths are freed in the last round only", fontsize=9)
     fig.suptitle("Camera refinement from a drifted built-in rig (errors after a similarity alignment to the truth)")
-    fig.savefig(path, dpi=120)
+    atomic_savefig(fig, path, dpi=120)
     plt.close(fig)
     return path
 
@@ -246,20 +247,30 @@ def add_parser(subparsers) -> None:
     """Declare ``calibrate`` and its flags."""
     p = subparsers.add_parser("calibrate", help="refine a perturbed built-in rig from detections", description=__doc__)
     p.add_argument("--quick", action="store_true", help="one level (large), 2 scenes of 30 points, 16 wand frames, 2 + 1 rounds, no timing")
-    p.add_argument("--scenes", type=int, default=4, help="dense scenes (fine stage)")
-    p.add_argument("--points", type=int, default=60, help="points per dense scene")
-    p.add_argument("--wand-frames", type=int, default=48, help="sparse frames (coarse stage)")
-    p.add_argument("--wand-points", type=int, default=2, help="points per sparse frame")
-    p.add_argument("--sigma", type=float, default=1.0, help="detection noise σ (px)")
+    from ._cli import _nonnegative_float, _positive_int
+
+    p.add_argument("--scenes", type=_positive_int, default=4, help="dense scenes (fine stage)")
+    p.add_argument("--points", type=_positive_int, default=60, help="points per dense scene")
+    p.add_argument("--wand-frames", type=_positive_int, default=48, help="sparse frames (coarse stage)")
+    p.add_argument("--wand-points", type=_positive_int, default=2, help="points per sparse frame")
+    p.add_argument("--sigma", type=_nonnegative_float, default=1.0, help="detection noise σ (px)")
     # Fine rounds: all but the last refine the poses only; the last frees the focal lengths too.
-    p.add_argument("--rounds", type=int, default=3, help="fine rounds (after one coarse round per gate)")
+    p.add_argument("--rounds", type=_positive_int, default=3, help="fine rounds (after one coarse round per gate)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", default="calibration.png", help="convergence figure (PNG)")
+    p.add_argument("--out", default="calibration.png", help="convergence figure, .png/.pdf/.svg/.jpg")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the experiment, print the table, write the figure; returns the exit code."""
+    import math
+
+    from ._cli import _FIGURE_EXTENSIONS, check_sigma_fits
+    from ._paths import check_output, write_output
+    from .synthetic import IMAGE_SIZE
+
+    check_output(str(args.out), "--out", _FIGURE_EXTENSIONS, {})
+    check_sigma_fits(args.sigma, math.hypot(*IMAGE_SIZE), f"the built-in rig ({IMAGE_SIZE[0]}×{IMAGE_SIZE[1]} px)")
     if args.quick:
         levels, scenes, points, rounds, frames, gates, timing = (LEVELS[2],), 2, 30, 1, 16, (120.0, 30.0), 0
     else:
@@ -275,5 +286,6 @@ def run(args: argparse.Namespace) -> int:
         wand_points=args.wand_points, gates_px=gates, seed=args.seed, timing_runs=timing,
     )
     print(format_table(rows))
-    print(f"Figure: {convergence_figure(rows, str(args.out))}")
+    write_output(str(args.out), "--out", lambda: convergence_figure(rows, str(args.out)))
+    print(f"Figure: {args.out}")
     return 0

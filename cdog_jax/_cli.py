@@ -13,15 +13,25 @@ Subcommands:
     associate  your rig file and detections file → groups, 3D points (JSON/NPZ/CSV), figure.
     rig        describe a rig file (centres, directions, baselines, warnings), draw it
                (both in ``cdog_jax/_associate_command.py``).
+
+Errors: a user error (a bad file, path or value: ``ValueError``, which includes
+:class:`cdog_jax.io.InputError`, and ``OSError``) prints one line ``cdog-jax: error: <file>:
+<what>`` on stderr and exits 2, as argparse's usage errors do; ``--debug`` shows its
+traceback instead. Any other exception is a bug of the library and keeps its traceback.
+Outputs are checked (``cdog_jax/_paths.py``) and every file is written atomically
+(``cdog_jax/io/_atomic.py``) before and while the work runs.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import time
 from collections.abc import Sequence
+
+from .io._errors import InputError
 
 # Rows of the metrics table: (Metrics field, SPEC §5 name, format, unit / meaning).
 _METRIC_ROWS = (
@@ -36,17 +46,44 @@ _METRIC_ROWS = (
 
 
 def _positive_int(text: str) -> int:
-    value = int(text)
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1; got {text!r}") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be an integer >= 1; got {text}")
     return value
 
 
-def _nonnegative_float(text: str) -> float:
-    value = float(text)
-    if not value >= 0.0:  # also rejects NaN
-        raise argparse.ArgumentTypeError(f"must be a number >= 0; got {text}")
+def _nonnegative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 0; got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 0; got {text}")
     return value
+
+
+def _nonnegative_float(text: str) -> float:
+    """A finite number >= 0 (a σ in pixels, …)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number >= 0; got {text!r}") from None
+    if not (value >= 0.0 and math.isfinite(value)):  # also rejects NaN
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0; got {text}")
+    return value
+
+
+def check_sigma_fits(sigma: float, diagonal: float, where: str) -> None:
+    """Refuse a noise σ (px) larger than the image diagonal (px): no detection noise is
+    that large, and the thresholds it sets would accept every pairing."""
+    if sigma > diagonal:
+        raise InputError(f"{where}: --sigma {sigma:g} px is larger than the image diagonal ({diagonal:.0f} px)")
+
+
+_FIGURE_EXTENSIONS = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
 
 
 def _seconds(s: float) -> str:
@@ -90,7 +127,7 @@ def _add_demo(subparsers) -> None:
         action="store_true",
         help="estimate σ from the detections instead of using --sigma (which still sets the scene noise)",
     )
-    p.add_argument("--out", default="cdog_demo.png", help="output figure (default cdog_demo.png)")
+    p.add_argument("--out", default="cdog_demo.png", help="output figure, .png/.pdf/.svg/.jpg (default cdog_demo.png)")
     p.add_argument("--capacity", type=_positive_int, default=None, help="slots per view P (default: --points)")
     p.set_defaults(func=_run_demo, parser=p)
 
@@ -104,9 +141,15 @@ def _run_demo(args: argparse.Namespace) -> int:
     from .metrics import scene_metrics
     from .synthetic import IMAGE_SIZE, default_rig, generate_scene
 
+    from ._paths import check_output, write_output
+
     capacity = args.points if args.capacity is None else args.capacity
     if capacity < args.points:
         args.parser.error(f"--capacity must be >= --points ({args.points}); got {capacity}")
+    check_output(args.out, "--out", _FIGURE_EXTENSIONS, {})
+    from .synthetic import IMAGE_SIZE as _SIZE
+
+    check_sigma_fits(args.sigma, math.hypot(*_SIZE), f"the built-in rig ({_SIZE[0]}×{_SIZE[1]} px)")
     config = getattr(Config, args.preset)()
     sigma_arg = "auto" if args.sigma_auto else args.sigma
     timings: list[tuple[str, float]] = []
@@ -170,8 +213,9 @@ def _run_demo(args: argparse.Namespace) -> int:
     caption = "vs ground truth:   " + "   ".join(
         f"{name} {values[f]:{fmt}}" + (" px" if f == "bpe_px" else "") for f, name, fmt, _ in _METRIC_ROWS
     )
-    plot_association(rig, scene.xy, scene.mask, result,
-                     points3d_gt=np.asarray(scene.points3d)[:n_inst], title=caption, path=args.out)
+    write_output(args.out, "--out", lambda: plot_association(
+        rig, scene.xy, scene.mask, result, points3d_gt=np.asarray(scene.points3d)[:n_inst], title=caption, path=args.out
+    ))  # fmt: skip
     timings.append(("figure (draw + save)", time.perf_counter() - t0))
 
     lines += ["", "Timings (wall clock, this process, JAX on " + jax.default_backend() + "):"]
@@ -214,14 +258,44 @@ def build_parser() -> argparse.ArgumentParser:
         description="C-DOG multi-view multi-instance point association in JAX.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    parser.add_argument("--debug", action="store_true", help=_DEBUG_HELP)
+    parser.add_argument("--no-cache", action="store_true", help=_NO_CACHE_HELP)
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in _SUBCOMMANDS:
         add(subparsers)
+    for sub in subparsers.choices.values():  # also accepted after the command's name
+        sub.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=_DEBUG_HELP)
+        sub.add_argument("--no-cache", action="store_true", default=argparse.SUPPRESS, help=_NO_CACHE_HELP)
     return parser
+
+
+_DEBUG_HELP = "on an error, show the Python traceback instead of one line"
+_NO_CACHE_HELP = "neither load nor store compiled programs on disk (as CDOG_JAX_CACHE=0)"
 
 
 def main(argv: Sequence[str | os.PathLike[str]] | None = None) -> int:
     """Run the command line with ``argv`` (default ``sys.argv[1:]``; paths may be
-    ``os.PathLike``); returns the exit code."""
+    ``os.PathLike``); returns the exit code: 0, or 2 for a user error (one line on stderr)."""
     args = build_parser().parse_args(None if argv is None else [str(a) for a in argv])
-    return args.func(args)
+    if args.no_cache:
+        from ._compile_cache import disable_compilation_cache
+
+        disable_compilation_cache()
+    try:
+        return args.func(args)
+    # A bad file, path or value, or a scene too large for memory; other exceptions are bugs.
+    except (ValueError, OSError, MemoryError) as e:
+        if args.debug:
+            raise
+        print(f"cdog-jax: error: {_one_line(e)}", file=sys.stderr, flush=True)
+        return 2
+
+
+def _one_line(error: Exception) -> str:
+    """The message of a user error on one line; an ``OSError`` as ``"<file>: <reason>"``."""
+    if isinstance(error, OSError) and error.strerror:
+        files = [os.fspath(f) for f in (error.filename, error.filename2) if f is not None]
+        text = ": ".join([*files, error.strerror])
+    else:
+        text = str(error) or type(error).__name__
+    return " ".join(line.strip() for line in text.splitlines() if line.strip())

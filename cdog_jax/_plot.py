@@ -15,6 +15,7 @@ import numpy as np
 
 from ._result import Association
 from .geometry._camera import Rig
+from .io._atomic import atomic_savefig
 from .synthetic._rig import IMAGE_SIZE
 
 # Qualitative palette: tab20 without its two greys (grey is kept for unassigned
@@ -193,5 +194,5 @@ def plot_association(
                bbox_to_anchor=(0.5, 0.0), handletextpad=0.3, columnspacing=2.0)
 
     if path is not None:
-        fig.savefig(path)
+        atomic_savefig(fig, path)
     return fig

@@ -57,3 +57,19 @@ def test_second_process_loads_the_compiled_program(tmp_path):
     assert int(second["hits"]) > int(first["hits"])
     off = _run_child(dict(env, CDOG_JAX_CACHE="0"))
     assert off["dir"] == "None" and int(off["hits"]) == 0
+
+
+def test_no_cache_flag_turns_it_off(tmp_path):
+    import jax
+
+    from cdog_jax._cli import main
+    from cdog_jax.io import save_rig_json
+    from cdog_jax.synthetic import default_rig
+
+    save_rig_json(tmp_path / "rig.json", default_rig())
+    before = jax.config.jax_compilation_cache_dir
+    try:
+        assert main(["--no-cache", "rig", str(tmp_path / "rig.json")]) == 0
+        assert jax.config.jax_compilation_cache_dir is None
+    finally:
+        jax.config.update("jax_compilation_cache_dir", before)

@@ -33,6 +33,8 @@ def _method_list(text: str) -> tuple[str, ...]:
 
 def add_parser(subparsers) -> None:
     """Declare ``benchmark`` and its flags."""
+    from .._cli import _nonnegative_float, _nonnegative_int, _positive_int
+
     p = subparsers.add_parser(
         "benchmark",
         help="run the noise x density benchmark grid, print tables, write figures",
@@ -41,12 +43,12 @@ def add_parser(subparsers) -> None:
     p.add_argument("--quick", action="store_true", help="tiny grid (σ 0,1,3,5 × counts 5,20,60 × 2 scenes)")
     p.add_argument("--out", default="benchmark_results", help="output folder (default: %(default)s)")
     p.add_argument("--methods", type=_method_list, default=DEFAULT_METHODS, help="comma list of " + ",".join(METHODS))
-    p.add_argument("--sigmas", type=float, nargs="+", help="noise levels σ in px (default: the grid's)")
-    p.add_argument("--counts", type=int, nargs="+", help="point counts (default: the grid's)")
-    p.add_argument("--scenes", type=int, help="scenes per (σ, count) cell")
-    p.add_argument("--views", type=int, nargs="+", help="rig view indices to use (default: all)")
+    p.add_argument("--sigmas", type=_nonnegative_float, nargs="+", help="noise levels σ in px (default: the grid's)")
+    p.add_argument("--counts", type=_positive_int, nargs="+", help="point counts (default: the grid's)")
+    p.add_argument("--scenes", type=_positive_int, help="scenes per (σ, count) cell")
+    p.add_argument("--views", type=_nonnegative_int, nargs="+", help="rig view indices to use (default: all)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--buckets", type=int, nargs="+", help="slot capacities (default: fitted to the counts)")
+    p.add_argument("--buckets", type=_positive_int, nargs="+", help="slot capacities (default: fitted to the counts)")
     p.add_argument("--rig", help="run on this rig instead of the built-in one: an EasyVis folder, .json or .npz")
     p.add_argument("--rig-format", default="auto", choices=("auto", *FORMATS), help="rig file format (default: from the path)")
     p.add_argument(
@@ -54,7 +56,7 @@ def add_parser(subparsers) -> None:
         help="3D sampling box (scene units; default: the built-in rig's, or for --rig the region ≥ 2 views see)",
     )
     p.add_argument(
-        "--image-size", type=int, nargs=2, metavar=("W", "H"),
+        "--image-size", type=_positive_int, nargs=2, metavar=("W", "H"),
         help="image size in px (default: the built-in rig's, or the rig file's, or guessed from K)",
     )
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
@@ -124,12 +126,27 @@ def _scene_setup(args, grid):
     return rig, box, image_size, text
 
 
+def _check_paths(args) -> None:
+    """The rig exists; ``--out`` is (or can be made) a writable folder whose files are
+    not the rig's. Before any work."""
+    from .._paths import check_input, check_output_folder, input_files
+
+    inputs = {}
+    if args.rig:
+        check_input(args.rig, "--rig", kind="any")
+        inputs["--rig"] = input_files(args.rig)
+    names = ["results.npz", "results.csv", "results.json", "metrics_vs_sigma.png", "time_vs_count.png"]
+    names += [f"{kind}_{name}.png" for name in args.methods for kind in ("heatmaps", "surfaces")]
+    check_output_folder(args.out, "--out", names, inputs)
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark; returns the exit code."""
     from . import _figures as figures
     from ._io import save_results, summary_table
     from ._sweep import print_progress, sweep
 
+    _check_paths(args)
     grid = _grid_from_args(args)
     configs = {name: METHODS[name]() for name in args.methods}
     buckets = _buckets_for(grid.counts, args.buckets, args.quick)
@@ -163,21 +180,26 @@ def run(args: argparse.Namespace) -> int:
     print(summary_table(result, sigmas=standard if len(standard) >= 2 else grid.sigmas))
     print()
 
-    os.makedirs(args.out, exist_ok=True)
-    save_results(result, args.out)
+    from .._paths import write_output
+
+    write_output(args.out, "--out", lambda: (os.makedirs(args.out, exist_ok=True), save_results(result, args.out)))
     print(f"Results: {args.out}/ (NPZ, CSV, JSON)")
     if not args.no_figures:
-        metrics = {name: result.metrics[name] for name in result.configs}
-        paths = {}
-        for name in result.configs:
-            paths[f"heatmaps_{name}"] = figures.heatmaps(
-                result.sigma, result.count, metrics, method=name, path=os.path.join(args.out, f"heatmaps_{name}.png")
-            )
-            paths[f"surfaces_{name}"] = figures.surfaces(
-                result.sigma, result.count, metrics, method=name, path=os.path.join(args.out, f"surfaces_{name}.png")
-            )
-        figures.metrics_vs_sigma(result.sigma, metrics, path=os.path.join(args.out, "metrics_vs_sigma.png"))
-        if not args.no_timing:
-            figures.time_vs_count(result.count, result.time_s, path=os.path.join(args.out, "time_vs_count.png"))
+        write_output(args.out, "--out", lambda: _figures(figures, result, args))
         print(f"Figures: {args.out}/*.png")
     return 0
+
+
+def _figures(figures, result, args) -> None:
+    """The benchmark's PNG figures in ``args.out``."""
+    metrics = {name: result.metrics[name] for name in result.configs}
+    for name in result.configs:
+        figures.heatmaps(
+            result.sigma, result.count, metrics, method=name, path=os.path.join(args.out, f"heatmaps_{name}.png")
+        )
+        figures.surfaces(
+            result.sigma, result.count, metrics, method=name, path=os.path.join(args.out, f"surfaces_{name}.png")
+        )
+    figures.metrics_vs_sigma(result.sigma, metrics, path=os.path.join(args.out, "metrics_vs_sigma.png"))
+    if not args.no_timing:
+        figures.time_vs_count(result.count, result.time_s, path=os.path.join(args.out, "time_vs_count.png"))

@@ -24,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from ..io._atomic import atomic_savefig
+
 # Display name and unit of every Metrics field; a unit of None marks a score in [0, 1].
 _FIELD_INFO = {
     "g_p": ("G-P", None),
@@ -163,7 +165,7 @@ def _new_figure(width, height, **kw):
 
 def _finish(fig, path):
     if path is not None:
-        fig.savefig(os.fspath(path), dpi=_DPI)
+        atomic_savefig(fig, path, dpi=_DPI)
     return fig
 
 

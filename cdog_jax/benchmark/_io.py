@@ -18,6 +18,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._expect import PATH, expect_args
+from ..io._atomic import atomic_write
 from ..metrics._scores import mean_metrics
 from ._grid import Grid
 from ._sweep import SweepResult
@@ -41,15 +42,16 @@ def save_results(result: SweepResult, directory: str | os.PathLike) -> None:
     for name in result.configs:
         arrays.update({f"metrics/{name}/{f}": v for f, v in result.metrics[name].items()})
         arrays[f"time_s/{name}"] = result.time_s[name]
-    np.savez(os.path.join(directory, "results.npz"), **arrays)
+    with atomic_write(os.path.join(directory, "results.npz"), "wb") as f:
+        np.savez(f, **arrays)
 
     meta = {"format": FORMAT_VERSION, "grid": dataclasses.asdict(result.grid)}
     meta.update({k: getattr(result, k) for k in _JSON_FIELDS})
     meta["metric_order"] = {name: list(result.metrics[name]) for name in result.configs}
-    with open(os.path.join(directory, "results.json"), "w") as f:
+    with atomic_write(os.path.join(directory, "results.json"), "w") as f:
         json.dump(meta, f, indent=1, allow_nan=True)
 
-    with open(os.path.join(directory, "results.csv"), "w", newline="") as f:
+    with atomic_write(os.path.join(directory, "results.csv"), "w", newline="") as f:
         writer = csv.writer(f)
         first = result.configs[0]
         fields = list(result.metrics[first])

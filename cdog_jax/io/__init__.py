@@ -5,6 +5,8 @@ and EasyMocap ``intri.yml``/``extri.yml`` (``load_rig`` and the ``save_rig_*`` w
 Detections: JSON and NPZ, one scene or many frames, and converters from the encodings of
 "missing" (``load_detections``, ``detections_from_lists``, ``detections_from_array``).
 Results: the groups of an :class:`cdog_jax.Association` as JSON, NPZ or CSV.
+Every writer replaces its file atomically (``_atomic.py``); a problem with a file's
+content raises :class:`InputError` (a ``ValueError``) naming the file.
 """
 
 from ._anipose import save_rig_anipose as save_rig_anipose
@@ -19,6 +21,7 @@ from ._detections import detections_from_array as detections_from_array
 from ._detections import detections_from_lists as detections_from_lists
 from ._detections import load_detections as load_detections
 from ._easymocap import save_rig_easymocap as save_rig_easymocap
+from ._errors import InputError as InputError
 from ._rig_files import FORMATS as FORMATS
 from ._rig_files import RigFile as RigFile
 from ._rig_files import load_rig as load_rig

@@ -29,6 +29,8 @@ import numpy as np
 
 from .._expect import PATH, expect_args
 from ..geometry._camera import Rig
+from ._atomic import atomic_write
+from ._errors import InputError, read_text
 from ._rig_files import (
     PathLike,
     _check_dist,
@@ -60,11 +62,13 @@ def read_anipose(path: str) -> _Views:
     ``distortions`` get ``k3 = 0``; more (rational model) or ``fisheye = true`` is an error,
     as those are not OpenCV's ``(k1, k2, p1, p2, k3)``.
     """
+    text = read_text(path)
     try:
-        with open(path, "rb") as f:
-            data = tomllib.load(f)
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
-        raise ValueError(f"{path}: not valid TOML ({e})") from e
+        raise InputError(f"{path}: not valid TOML ({e})") from None
+    except RecursionError:
+        raise InputError(f"{path}: not readable TOML: arrays nested too deeply") from None
     sections = []
     for key, section in data.items():
         match = _SECTION.fullmatch(key)
@@ -142,7 +146,7 @@ def save_rig_anipose(
             f"translation = {_toml_floats(t[m])}",
         ]
         blocks.append("\n".join(lines) + "\n")
-    with open(os.fspath(path), "w", encoding="utf-8") as f:
+    with atomic_write(path, "w") as f:
         f.write("\n".join(blocks))
 
 

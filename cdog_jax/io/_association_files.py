@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from .._expect import ARRAY, PATH, Kind, expect_args
+from ._atomic import atomic_write
 from ._rig_files import read_json
 
 PathLike = str | os.PathLike  # a file name
@@ -126,7 +127,7 @@ def save_association_json(path: PathLike, assoc: Any, xy: Any, mask: Any, *, con
         }
     else:
         data = association_records(assoc, xy, mask, confidence=confidence, rig=rig)
-    with open(path, "w", encoding="utf-8") as f:
+    with atomic_write(path, "w") as f:
         json.dump(data, f, allow_nan=False)
         f.write("\n")
 
@@ -161,7 +162,7 @@ def save_association_npz(path: PathLike, assoc: Any, *, xy: Any = None, mask: An
     for name, v in (("xy", xy), ("mask", mask), ("confidence", confidence)):
         if v is not None:
             arrays[name] = np.asarray(v)
-    with open(path, "wb") as f:  # a file object: np.savez would append ".npz" to a str path
+    with atomic_write(path, "wb") as f:  # a file object: np.savez would append ".npz" to a str path
         np.savez(f, **arrays)
 
 
@@ -176,7 +177,7 @@ def save_association_csv(path: PathLike, assoc: Any) -> None:
     expect_args("save_association_csv", path=(path, PATH), assoc=(assoc, _ASSOCIATION))
     a = _host(assoc)
     batch = a["labels"].ndim == 3
-    with open(path, "w", encoding="utf-8", newline="") as f:
+    with atomic_write(path, "w", newline="") as f:
         f.write(CSV_NOTE + "\n")
         writer = csv.writer(f)
         writer.writerow(CSV_COLUMNS)

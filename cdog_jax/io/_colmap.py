@@ -17,6 +17,7 @@ OPENCV model is OpenCV's, same ``p1, p2`` order).
 
 from __future__ import annotations
 
+import io
 import os
 from typing import Any
 
@@ -24,6 +25,8 @@ import numpy as np
 
 from .._expect import PATH, expect_args
 from ..geometry._camera import Rig
+from ._atomic import atomic_write
+from ._errors import read_text
 from ._rig_files import (
     PathLike,
     _check_dist,
@@ -88,9 +91,8 @@ def read_colmap(path: str) -> _Views:
 
 def _data_lines(file: str):
     """``(line number, text)`` of every line of ``file``, newline stripped."""
-    with open(file, encoding="utf-8") as f:
-        for lineno, line in enumerate(f, start=1):
-            yield lineno, line.rstrip("\r\n")
+    for lineno, line in enumerate(io.StringIO(read_text(file), newline=None), start=1):
+        yield lineno, line.rstrip("\r\n")
 
 
 def _numbers(fields: list[str], where: str, what: str) -> np.ndarray:
@@ -233,16 +235,16 @@ def save_rig_colmap(
     folder = os.fspath(folder)
     os.makedirs(folder, exist_ok=True)
     header = "# Camera list with one line of data per camera:\n#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
-    with open(os.path.join(folder, "cameras.txt"), "w", encoding="utf-8") as f:
+    with atomic_write(os.path.join(folder, "cameras.txt"), "w") as f:
         f.write(header + f"# Number of cameras: {M}\n" + "\n".join(camera_lines) + "\n")
     header = (
         "# Image list with two lines of data per image:\n"
         "#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n"
         "#   POINTS2D[] as (X, Y, POINT3D_ID)\n"
     )
-    with open(os.path.join(folder, "images.txt"), "w", encoding="utf-8") as f:
+    with atomic_write(os.path.join(folder, "images.txt"), "w") as f:
         f.write(header + f"# Number of images: {M}, mean observations per image: 0\n" + "\n".join(image_lines) + "\n")
-    with open(os.path.join(folder, "points3D.txt"), "w", encoding="utf-8") as f:
+    with atomic_write(os.path.join(folder, "points3D.txt"), "w") as f:
         f.write("# 3D point list with one line of data per point:\n#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[]\n")
         f.write("# Number of points: 0, mean track length: 0\n")
 

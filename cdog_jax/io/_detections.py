@@ -30,11 +30,14 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .._expect import ARRAY, PATH, expect_args
+from ._errors import InputError, too_large
 from ._rig_files import open_npz, read_json
+from ._scores import clip_scores
 
 PathLike = str | os.PathLike  # a file name
 
 MISSING = ("auto", "nan", "sentinel", "confidence")
+_LARGEST_FLOAT = int(np.finfo(np.float64).max)
 _ENTRY = "expected [x, y] or [x, y, confidence]"
 
 
@@ -100,9 +103,13 @@ def load_detections(
     Returns:
         A :class:`Detections`. Raises ``ValueError`` naming the file, frame, view and
         detection index for non-numeric entries, a wrong entry length, NaN or inf that does
-        not mean missing, duplicate detections in a view, far-outside coordinates, a view
-        count other than ``num_views``, no views, fewer than 2 views with detections in a
-        frame, a confidence outside [0, 1] or NaN, or a view over ``capacity``.
+        not mean missing, an integer too large for a float, duplicate detections in a view,
+        far-outside coordinates, a view count other than ``num_views``, no views, a
+        confidence outside [0, 1.1] or NaN (see :mod:`cdog_jax.io._scores`: up to 1.1 is
+        clipped to 1 with a note), or a view over ``capacity``; and when no group is
+        possible: one scene with fewer than 2 views with detections, or a list of frames
+        none of which has 2. Frames of a list with fewer than 2 views with detections (a
+        subject out of view) are kept with a note: they get zero groups.
     """
     expect_args("load_detections", path=(path, PATH))
     path = os.fspath(path)
@@ -193,7 +200,7 @@ class _Where(NamedTuple):
 
     def error(self, text: str, f: int | None = None, m: int | None = None, i: int | None = None) -> ValueError:
         head = [s for s in (self.source, self.loc(f, m, i)) if s]
-        return ValueError(": ".join([*head, text]))
+        return InputError(": ".join([*head, text]))
 
 
 def _check_options(missing: str, capacity: int | None, num_views: int | None, image_size: Any) -> None:
@@ -291,6 +298,8 @@ def _array_from_lists(frames_views: list, where: _Where, num_views: int | None) 
                 for v in entry:
                     if isinstance(v, bool) or not isinstance(v, (int, float)):
                         raise where.error(f"non-numeric entry {list(entry)!r}; {_ENTRY}", f, m, i)
+                    if isinstance(v, int) and abs(v) > _LARGEST_FLOAT:
+                        raise where.error(too_large(v), f, m, i)
                 if len(entry) not in (2, 3):
                     raise where.error(f"entry {list(entry)!r} has {len(entry)} numbers; {_ENTRY}", f, m, i)
                 if width is None:
@@ -395,25 +404,54 @@ def _from_rows(rows, present, frames, where, missing, sentinel, num_views, capac
 def _finish(xy, mask, conf, frames, where, notes, capacity, image_size) -> Detections:
     xy = np.where(mask[..., None], xy, 0.0)
     if conf is not None:
-        bad = mask & ~((conf >= 0.0) & (conf <= 1.0))  # NaN fails both comparisons
-        if bad.any():
-            f, m, i = (int(v) for v in np.argwhere(bad)[0])
-            raise where.error(f"confidence {conf[f, m, i]} is outside [0, 1] or NaN", f, m, i)
-        conf = np.where(mask, conf, 0.0)
+        conf, note = clip_scores(conf, mask, where.error)
+        notes += [note] if note else []
     counts = mask.sum(axis=-1).astype(np.int64)
     if capacity is not None:
         xy, mask, conf = _fit_capacity(xy, mask, conf, counts, capacity, where, notes)
     _check_duplicates(xy, mask, where)
     if image_size is not None:
         _check_in_image(xy, mask, image_size, where)
-    for f in range(mask.shape[0]):
-        seen = np.flatnonzero(counts[f] > 0)
-        if len(seen) < 2:
-            which = f" (view {int(seen[0])})" if len(seen) else ""
-            raise where.error(f"{len(seen)} view(s) with detections{which}; association needs at least 2", f)
+    _check_groups_possible(counts, frames, where, notes)
     for f, m in np.argwhere(counts == 0):
         notes.append(f"{where.loc(int(f), int(m))}: empty view")
     return Detections(xy, mask, conf, bool(frames), counts, notes)
+
+
+def _check_groups_possible(counts: np.ndarray, frames: bool, where: _Where, notes: list[str]) -> None:
+    """A group needs detections in 2 views. One scene without that is refused (nothing to
+    associate: most likely the wrong file); so is a list of frames none of which has it.
+    Frames without it among others (a subject out of view) are kept, with a note: they
+    get zero groups."""
+    views_seen = (counts > 0).sum(axis=1)  # (F,)
+    hopeless = np.flatnonzero(views_seen < 2)
+    if not frames and hopeless.size:
+        seen = np.flatnonzero(counts[0] > 0)
+        which = f" (view {int(seen[0])})" if len(seen) else ""
+        raise where.error(f"{len(seen)} view(s) with detections{which}; association needs at least 2")
+    if hopeless.size == counts.shape[0]:
+        raise where.error(f"no frame has detections in 2 views (of {counts.shape[0]} frames); association needs at least 2")
+    if hopeless.size:
+        shown = ", ".join(str(int(f)) for f in hopeless[:10]) + (", …" if hopeless.size > 10 else "")
+        notes.append(
+            f"frame{'s' if hopeless.size > 1 else ''} {shown} ({hopeless.size} of {counts.shape[0]}): fewer than 2 views "
+            "with detections; they get zero groups"
+        )
+
+
+def check_float_range(det: Detections, dtype: Any, source: str | None = None) -> None:
+    """Refuse detections whose coordinates the float type ``dtype`` (e.g. float32) cannot
+    hold: they would turn infinite when converted. ``source`` (the file) starts the message,
+    which names the frame, view and detection."""
+    largest = float(np.finfo(dtype).max)
+    bad = det.mask & (np.abs(det.xy) > largest).any(axis=-1)
+    if bad.any():
+        f, m, i = (int(v) for v in np.argwhere(bad)[0])
+        x, y = det.xy[f, m, i]
+        raise _Where(source, det.frames).error(
+            f"({x:g}, {y:g}) is out of {np.dtype(dtype).name} range (largest {largest:.4g}); these cannot be pixels",
+            f, m, i,
+        )  # fmt: skip
 
 
 def _fit_capacity(xy, mask, conf, counts, capacity, where, notes):

@@ -27,6 +27,8 @@ import numpy as np
 
 from .._expect import PATH, expect_args
 from ..geometry._camera import Rig
+from ._atomic import atomic_write
+from ._errors import read_text
 from ._rig_files import (
     PathLike,
     _check_dist,
@@ -139,8 +141,7 @@ def _matrix(entries: dict[str, _Entry], key: str, file: str, cam: str, shape: tu
 def _parse(file: str) -> dict[str, _Entry]:
     """The top-level entries of an OpenCV FileStorage YAML file (the subset of the module
     docstring)."""
-    with open(file, encoding="utf-8") as f:
-        lines = f.read().splitlines()
+    lines = read_text(file).splitlines()
     entries: dict[str, _Entry] = {}
     i = 0
     while i < len(lines):
@@ -239,7 +240,7 @@ def save_rig_easymocap(folder: PathLike, rig: Rig, *, dist: Any = None, names: A
     folder = os.fspath(folder)
     os.makedirs(folder, exist_ok=True)
     for file, parts in (("intri.yml", intri), ("extri.yml", extri)):
-        with open(os.path.join(folder, file), "w", encoding="utf-8") as f:
+        with atomic_write(os.path.join(folder, file), "w") as f:
             f.write("".join(parts))
 
 

@@ -23,12 +23,17 @@ import ast
 import json
 import os
 import re
+import sys
+import zipfile
+import zlib
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from .._expect import PATH, expect_args
 from ..geometry._camera import Rig, rig_from_arrays
+from ._atomic import atomic_write
+from ._errors import InputError, read_text, too_large
 
 PathLike = str | os.PathLike  # a folder or file name
 
@@ -115,6 +120,7 @@ def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigF
         "easymocap": _easymocap.read_easymocap,
     }
     views = readers[fmt](path)
+    _check_float_range(views, dtype, path)
     try:
         rig = rig_from_arrays(views.K, views.R, views.t, dtype=dtype)
     except ValueError as e:
@@ -123,6 +129,22 @@ def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigF
     if views.view_sizes is not None and (views.view_sizes == views.view_sizes[0]).all():
         image_size = (int(views.view_sizes[0, 0]), int(views.view_sizes[0, 1]))
     return RigFile(rig, image_size, views.dist, views.view_sizes, views.names)
+
+
+def _check_float_range(views: _Views, dtype: Any, path: str) -> None:
+    """Refuse numbers the rig's float type cannot hold (they would turn infinite)."""
+    import jax.numpy as jnp
+
+    dtype = np.dtype(dtype or jnp.asarray(0.0).dtype)
+    largest = float(np.finfo(dtype).max)
+    for key, a in (("K", views.K), ("R", views.R), ("t", views.t)):
+        bad = (np.abs(a) > largest).reshape(a.shape[0], -1).any(axis=1)
+        if bad.any():
+            m = int(np.argmax(bad))
+            raise InputError(
+                f"{path}: {_name_views(f'view {m}', views.names)}: {key} has entries out of {dtype.name} range "
+                f"(largest {largest:.4g}): {a[m].ravel()[np.abs(a[m].ravel()) > largest][0]:g}"
+            )
 
 
 def _name_views(message: str, names: tuple[str, ...] | None) -> str:
@@ -151,7 +173,7 @@ def save_rig_json(path: PathLike, rig: Rig, *, image_size: tuple[int, int] | Non
         if size is not None:
             view["image_size"] = list(size)
         views.append(json.dumps(view, allow_nan=False))
-    with open(path, "w", encoding="utf-8") as f:
+    with atomic_write(path, "w") as f:
         f.write('{"views": [\n  ' + ",\n  ".join(views) + "\n]}\n")
 
 
@@ -167,7 +189,7 @@ def save_rig_npz(path: PathLike, rig: Rig, *, image_size: tuple[int, int] | None
         arrays["image_size"] = np.asarray(size, dtype=np.int64)
     if dist is not None:
         arrays["dist"] = dist
-    with open(path, "wb") as f:  # a file object: np.savez would append ".npz" to a str path
+    with atomic_write(path, "wb") as f:  # a file object: np.savez would append ".npz" to a str path
         np.savez(f, **arrays)
 
 
@@ -188,7 +210,7 @@ def save_rig_easyvis(folder: PathLike, rig: Rig) -> None:
         raise ValueError(f"{folder}: holds {stale[0]}, beyond the {M} views of the rig; remove it or use an empty folder")
     for m in range(M):
         for name, a in (("K", K[m]), ("R", R[m]), ("T", t[m][:, None])):
-            with open(os.path.join(folder, f"{name}{m}.txt"), "w", encoding="utf-8") as f:
+            with atomic_write(os.path.join(folder, f"{name}{m}.txt"), "w") as f:
                 f.write(_literal(a) + "\n")
 
 
@@ -211,6 +233,9 @@ def _resolve_format(path: str, format: str) -> str:
                 f"{path}: a binary COLMAP model (cameras.bin, images.bin); only text models are read: "
                 "convert it with `colmap model_converter --output_type TXT`"
             )
+        suffix = os.path.splitext(os.path.normpath(path))[1].lower()
+        if suffix in (".json", ".npz", ".toml") and not _easyvis_files(path):
+            raise InputError(f"{path}: is a folder; a {suffix} rig is a file")
         return "easyvis"
     base = os.path.basename(path)
     if base in ("cameras.txt", "images.txt"):
@@ -264,8 +289,7 @@ def _read_easyvis(folder: str):
 def _read_literal(file: str, shape: tuple[int, ...]) -> np.ndarray:
     """A Python-literal nested list of numbers, checked for shape and finiteness (a ``(3,)``
     vector may also be written as a ``(3, 1)`` column)."""
-    with open(file, encoding="utf-8") as f:
-        text = f.read()
+    text = read_text(file)
     try:
         value = ast.literal_eval(text.strip())
     except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError) as e:
@@ -274,12 +298,21 @@ def _read_literal(file: str, shape: tuple[int, ...]) -> np.ndarray:
 
 
 def read_json(path: str) -> Any:
-    """The parsed JSON file; invalid JSON raises ``ValueError`` naming the file."""
-    with open(path, encoding="utf-8") as f:
-        try:
-            return json.load(f)
-        except json.JSONDecodeError as e:
-            raise ValueError(f"{path}: not valid JSON ({e})") from e
+    """The parsed JSON file. Raises :class:`InputError` naming the file for invalid JSON, a
+    byte that is not UTF-8 (with its offset), nesting deeper than Python's recursion limit,
+    and an integer with more digits than Python reads (4300); a missing file stays
+    ``FileNotFoundError``."""
+    text = read_text(path)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as e:
+        raise InputError(f"{path}: not valid JSON ({e})") from None
+    except RecursionError:
+        raise InputError(f"{path}: not readable JSON: brackets nested too deeply (deeper than Python's recursion limit)") from None
+    except ValueError as e:  # an integer beyond sys.get_int_max_str_digits()
+        found = re.search(r"value has (\d+) digits", str(e))
+        digits = f"an integer has {found.group(1)} digits" if found else "an integer has too many digits"
+        raise InputError(f"{path}: not readable JSON: {digits}; at most {sys.get_int_max_str_digits()} are read") from None
 
 
 def _read_json(path: str):
@@ -312,15 +345,45 @@ def _read_json(path: str):
     return _Views(np.stack(K), np.stack(R), np.stack(t), _tile_size(image_size, len(K)), dist)
 
 
-def open_npz(path: str):
-    """``np.load`` of an ``.npz`` without pickles; an unreadable file raises ``ValueError``
-    naming it (a missing one stays ``FileNotFoundError``)."""
+def open_npz(path: str) -> _NpzFile:
+    """``np.load`` of an ``.npz`` without pickles. An unreadable file, or an array that is
+    unreadable or holds Python objects, raises :class:`InputError` naming the file (and the
+    array); a missing file stays ``FileNotFoundError``, a folder ``IsADirectoryError``."""
     try:
-        return np.load(path, allow_pickle=False)
-    except (ValueError, OSError) as e:
-        if isinstance(e, FileNotFoundError):
+        return _NpzFile(np.load(path, allow_pickle=False), path)
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as e:
+        if isinstance(e, (FileNotFoundError, IsADirectoryError)):
             raise
-        raise ValueError(f"{path}: not a readable .npz file ({e})") from e
+        raise InputError(f"{path}: not a readable .npz file ({e})") from None
+
+
+class _NpzFile:
+    """An open ``.npz`` whose arrays are read with errors that name the file and array."""
+
+    def __init__(self, npz: Any, path: str):
+        if not hasattr(npz, "files"):  # np.load of a single .npy array
+            raise InputError(f"{path}: a single .npy array, not an .npz archive of named arrays")
+        self._npz, self._path = npz, path
+        self.files = npz.files
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        try:
+            return self._npz[key]
+        except ValueError as e:
+            if "allow_pickle" in str(e):
+                raise InputError(
+                    f'{self._path}: array "{key}" holds Python objects (an object array, readable only by unpickling, '
+                    "which is not done); save it as an array of numbers"
+                ) from None
+            raise InputError(f'{self._path}: array "{key}" is unreadable ({e})') from None
+        except (OSError, EOFError, zipfile.BadZipFile, zlib.error) as e:
+            raise InputError(f'{self._path}: array "{key}" is unreadable ({type(e).__name__}: {e})') from None
+
+    def __enter__(self) -> _NpzFile:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._npz.close()
 
 
 def _read_npz(path: str):
@@ -376,10 +439,15 @@ def _to_array(value: Any, shape: tuple[int, ...], where: str) -> np.ndarray:
             return [check(x) for x in v]
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise ValueError(f"{where}: expected a nested list of numbers; found {v!r}")  # noqa: TRY004
-        return float(v)
+        try:
+            return float(v)
+        except OverflowError:
+            raise InputError(f"{where}: {too_large(v)}") from None
 
     try:
         a = np.array(check(value), dtype=np.float64)
+    except RecursionError:
+        raise InputError(f"{where}: lists nested too deeply; expected shape {shape}") from None
     except ValueError as e:
         if str(e).startswith(where):
             raise

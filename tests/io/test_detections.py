@@ -288,9 +288,10 @@ def test_no_views(tmp_path):
 def test_fewer_than_two_views_with_detections(tmp_path):
     frames = [{"views": _scene_views()}, {"views": [[], [[1, 2]], []]}]
     path = _write_json(tmp_path, {"frames": frames})
-    with pytest.raises(
-        ValueError, match=re.escape(f"{path}: frame 1: 1 view(s) with detections (view 1); association needs at least 2")
-    ):
+    det = load_detections(path)  # frame 1 cannot give a group: kept, with a note
+    assert "frame 1 (1 of 2): fewer than 2 views with detections; they get zero groups" in det.notes
+    path = _write_json(tmp_path, {"views": [[], [[1, 2]], []]})
+    with pytest.raises(ValueError, match=re.escape(f"{path}: 1 view(s) with detections (view 1); association needs at least 2")):
         load_detections(path)
 
 

@@ -1,0 +1,33 @@
+"""What is wrong with a file, a path or a value the user gave: :class:`InputError`, and
+reading text files so that a bad byte is reported with its file and offset."""
+
+from __future__ import annotations
+
+import os
+
+
+class InputError(ValueError):
+    """A problem with the user's input (a file's content, a path, a command-line value),
+    not with the library. The message starts with where: ``"<file>: <what>"``, with the
+    frame, view, detection, key or line after the file when they are known. The command
+    line prints it as one line, ``cdog-jax: error: <message>``."""
+
+
+def read_text(path: str | os.PathLike) -> str:
+    """The UTF-8 text of ``path``; a byte that is not UTF-8 raises :class:`InputError` with
+    the file and the byte's offset (from 0)."""
+    with open(path, "rb") as f:
+        data = f.read()
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise InputError(
+            f"{os.fspath(path)}: not UTF-8 text: byte {e.start} (0x{data[e.start]:02x}) cannot be decoded ({e.reason}); "
+            "save the file as UTF-8"
+        ) from None
+
+
+def too_large(value: int) -> str:
+    """How to say that the integer ``value`` does not fit a float64."""
+    digits = len(str(abs(value)))
+    return f"the integer {str(value)[:12]}… ({digits} digits) is too large for a floating-point number"
