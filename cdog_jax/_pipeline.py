@@ -16,6 +16,7 @@ import numpy as np
 
 from ._config import Config, Thresholds, tau_px
 from ._result import Association
+from ._status import Status
 from ._types import Array, ArrayLike, Bool, Float
 from ._validate import check_observations, check_rig
 from .geometry._camera import Rig
@@ -26,7 +27,7 @@ from .graph._adjacency import adjacency_from_edges, alive_edges, nearest_neighbo
 from .graph._components import component_view_counts, connected_components
 from .graph._groups import compact_groups, gather_groups, groups_from_labels, labels_from_groups
 from .graph._overlap import edge_overlap, remove_edges
-from .graph._sigma import estimate_sigma
+from .graph._sigma import estimate_sigma, focal_scale
 from .graph._split import split_conflicts
 from .refine._bpe_filter import bpe_jump_keep
 from .refine._least_squares import refine_points
@@ -118,7 +119,11 @@ def associate_traced(
 
     # Alg. 1–2: epipolar graph, δ-overlap pruning, view-unique components.
     d = epipolar_distances(rig, xy, mask)  # (M, P, M, P)
-    sigma = estimate_sigma(d, mask) if config.sigma_mode == "auto" else th.sigma_px
+    if config.sigma_mode == "auto":
+        sigma, fallback = estimate_sigma(d, mask, focal_scale(rig.K))
+    else:
+        sigma, fallback = th.sigma_px, jnp.asarray(False)
+    status = jnp.where(fallback, jnp.int32(Status.SIGMA_FALLBACK), jnp.int32(0))
     tau = tau_px(th, sigma)
     groups, gvalid = _graph_groups(d, valid, tau, th, config)
 
@@ -178,7 +183,7 @@ def associate_traced(
         num_groups=jnp.sum(gvalid, dtype=jnp.int32),
         sigma_px=jnp.asarray(sigma, xy.dtype),
         tau_px=jnp.asarray(tau, xy.dtype),
-        status=jnp.int32(0),
+        status=status,
     )
 
 

@@ -15,6 +15,7 @@ Besides the oracle this module holds a small numpy scene generator (:func:`make_
 from __future__ import annotations
 
 import math
+from statistics import NormalDist
 
 import numpy as np
 
@@ -174,8 +175,10 @@ def tau_px(sigma, alpha_tau, tau_min_px):
 
 
 def sigma_samples(d, mask):
-    """§0.1 samples ``s[u, n] = min_j d(u; n, j)`` for valid u and views n ≠ view(u) with a
-    valid point, finite values only (1-D array)."""
+    """§0.1 samples: for valid u = (m, i) and views n ≠ m, the distance ``d(u; n, j*)`` to
+    u's nearest valid point j* of view n (ties: smallest j) when it is finite and mutual
+    (u is also the nearest of (n, j*) in view m). Returns the distances (1-D array);
+    every unordered pair appears twice (once per direction)."""
     mask = np.asarray(mask, bool)
     M, P = mask.shape
     s = []
@@ -186,37 +189,63 @@ def sigma_samples(d, mask):
             for n in range(M):
                 if n == m or not mask[n].any():
                     continue
-                v = d[m, i, n][mask[n]].min()
-                if np.isfinite(v):
-                    s.append(v)
+                j = int(np.argmin(d[m, i, n]))
+                back = int(np.argmin(d[n, j, m]))
+                if np.isfinite(d[m, i, n, j]) and back == i:
+                    s.append(float(d[m, i, n, j]))
     return np.asarray(s, np.float64)
 
 
-def estimate_sigma(d, mask, iters=30):
-    """§0.1: EM on a half-normal (scale c) + exponential (rate lam) mixture of the smallest
-    epipolar distances; σ = c / √2. Exactly the recipe of ALGORITHM.md §0.1:
+def focal_scale(K):
+    """Median over views of ``(|f_x| + |f_y|) / 2`` (pixels)."""
+    K = np.asarray(K, np.float64)
+    return float(np.median(0.5 * (np.abs(K[:, 0, 0]) + np.abs(K[:, 1, 1]))))
 
-    start ``c = max(lower median, 1e-3)``, ``lam = 1 / max(mean, 1e-3)``, ``pi = 0.5``; per
-    iteration ``r = sigmoid(log pi + log HN(s; c) − log(1 − pi) − log Exp(s; lam))``, then
-    ``c = sqrt(Σ r s² / Σ r)``, ``lam = Σ(1 − r) / Σ(1 − r) s``,
-    ``pi = clip(Σ r / n, 1e-4, 1 − 1e-4)``, ``c, lam ≥ 1e-6``.
-    """
-    s = np.sort(sigma_samples(d, mask))
-    n = s.size
-    if n == 0:
-        return 0.0
-    c = max(float(s[(n - 1) // 2]), 1e-3)
-    lam = 1.0 / max(float(np.mean(s)), 1e-3)
-    pi = 0.5
-    for _ in range(iters):
-        log_hn = 0.5 * math.log(2.0 / math.pi) - math.log(c) - s**2 / (2.0 * c**2)
-        log_exp = math.log(lam) - lam * s
-        z = math.log(pi) + log_hn - math.log(1.0 - pi) - log_exp
-        r = 0.5 * (1.0 + np.tanh(0.5 * z))  # sigmoid without overflow warnings
-        c = max(math.sqrt(float(np.sum(r * s**2) / np.sum(r))), 1e-6)
-        lam = max(float(np.sum(1.0 - r) / np.sum((1.0 - r) * s)), 1e-6)
-        pi = min(max(float(np.sum(r)) / n, 1e-4), 1.0 - 1e-4)
-    return c / math.sqrt(2.0)
+
+def estimate_sigma(d, mask, focal_px, iters=40):
+    """§0.1: EM on a half-normal (scale c) + exponential (rate lam) + uniform (on [0, U])
+    mixture of the mutual-nearest distances, each with weight ½; three starts; σ = c / √2,
+    or the 1 px fallback. Returns ``(sigma, fallback)``. The recipe of ALGORITHM.md §0.1."""
+    x = sigma_samples(d, mask)
+    w = np.full(x.size, 0.5)
+    total = max(w.sum(), 1e-3)
+    focal = focal_px if np.isfinite(focal_px) and focal_px > 0 else 1.0
+    U = max(float(x.max()) if x.size else 0.0, 0.1 * focal)
+    xs = np.sort(x)
+    fits = []
+    for q in (0.1, 0.25, 0.5):
+        z = NormalDist().inv_cdf(0.5 * (1.0 + q))  # half-normal quantile / scale
+        at_q = float(xs[int(math.floor(q * (x.size - 1)))]) if x.size else 0.0
+        c = min(max(at_q / z, 1e-3), U)
+        mean = float(np.sum(w * x) / total)
+        lam = 1.0 / min(max(mean, 5.0 * c), U)
+        pi = np.array([0.5, 0.3, 0.2])
+
+        def log_parts(c, lam, pi):
+            hn = 0.5 * math.log(2.0 / math.pi) - math.log(c) - 0.5 * (x / c) ** 2
+            ex = math.log(lam) - lam * x
+            un = np.full(x.shape, -math.log(U))
+            return np.stack([hn, ex, un]) + np.log(pi)[:, None]
+
+        for _ in range(iters):
+            parts = log_parts(c, lam, pi)
+            r = np.exp(parts - parts.max(axis=0))
+            r = r / r.sum(axis=0) * w
+            n_k = r.sum(axis=1)
+            c = min(max(math.sqrt(float(np.sum(r[0] * x * x)) / max(n_k[0], 1e-3)), 1e-3), U)
+            mean_exp = float(np.sum(r[1] * x)) / max(n_k[1], 1e-3)
+            lam = 1.0 / min(max(mean_exp, 5.0 * c), U)
+            pi = np.clip(n_k / total, 1e-4, 1.0)
+            pi = pi / pi.sum()
+        parts = log_parts(c, lam, pi)
+        top = parts.max(axis=0)
+        log_lik = float(np.sum(w * (top + np.log(np.exp(parts - top).sum(axis=0)))))
+        n_match = float(np.sum(w[np.argmax(parts, axis=0) == 0]))
+        fits.append((log_lik, c, n_match))
+    log_lik, c, n_match = max(fits, key=lambda f: f[0])  # ties: the first start
+    sigma = c / math.sqrt(2.0)
+    fallback = not (n_match >= 3.0 and sigma <= 0.01 * focal)
+    return (1.0 if fallback else sigma), fallback
 
 
 # ----------------------------------------------------------------------------- §2 graph
@@ -709,7 +738,7 @@ def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
     # §1 epipolar distances, §0 noise level and gate
     d = epipolar_distance_table(K, R, t, xy, mask)
     auto = cfg.sigma_mode == "auto" or (isinstance(sigma, str) and sigma == "auto")
-    sigma_px = estimate_sigma(d, mask) if auto else float(sigma)
+    sigma_px, sigma_fallback = estimate_sigma(d, mask, focal_scale(K)) if auto else (float(sigma), False)
     tau = tau_px(sigma_px, cfg.alpha_tau, cfg.tau_min_px)
 
     # §2 adjacency, §3 pruning, §4 view-uniqueness split, §5 group table
@@ -784,6 +813,7 @@ def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
         num_groups=k,
         sigma_px=sigma_px,
         tau_px=tau,
+        sigma_fallback=sigma_fallback,
     )
     for new, g in enumerate(order):
         res["groups"][new] = groups[g]
