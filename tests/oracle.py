@@ -175,13 +175,12 @@ def tau_px(sigma, alpha_tau, tau_min_px):
 
 
 def sigma_samples(d, mask):
-    """§0.1 samples: for valid u = (m, i) and views n ≠ m, the distance ``d(u; n, j*)`` to
-    u's nearest valid point j* of view n (ties: smallest j) when it is finite and mutual
-    (u is also the nearest of (n, j*) in view m). Returns the distances (1-D array);
-    every unordered pair appears twice (once per direction)."""
+    """§0.1 samples: for valid u = (m, i) and views n ≠ m with a valid point, the finite
+    distance ``min_j d(u; n, j)`` and the number of valid points of view n. Returns two
+    1-D arrays (distances, counts)."""
     mask = np.asarray(mask, bool)
     M, P = mask.shape
-    s = []
+    x, count = [], []
     for m in range(M):
         for i in range(P):
             if not mask[m, i]:
@@ -189,11 +188,11 @@ def sigma_samples(d, mask):
             for n in range(M):
                 if n == m or not mask[n].any():
                     continue
-                j = int(np.argmin(d[m, i, n]))
-                back = int(np.argmin(d[n, j, m]))
-                if np.isfinite(d[m, i, n, j]) and back == i:
-                    s.append(float(d[m, i, n, j]))
-    return np.asarray(s, np.float64)
+                v = d[m, i, n][mask[n]].min()
+                if np.isfinite(v):
+                    x.append(float(v))
+                    count.append(float(mask[n].sum()))
+    return np.asarray(x, np.float64), np.asarray(count, np.float64)
 
 
 def focal_scale(K):
@@ -202,49 +201,76 @@ def focal_scale(K):
     return float(np.median(0.5 * (np.abs(K[:, 0, 0]) + np.abs(K[:, 1, 1]))))
 
 
+def _log_q(a):
+    """``log Q(a) = log P(Z > a)`` for a ≥ 0, stable in the tail."""
+    return np.array([math.log(0.5 * math.erfc(v / math.sqrt(2.0))) if v < 30 else
+                     -0.5 * v * v - math.log(v * math.sqrt(2.0 * math.pi)) + math.log1p(-1.0 / (v * v))
+                     for v in np.atleast_1d(a)])
+
+
+def _sigma_log_parts(x, count, c, inv_kappa, pi, width):
+    """Log joint density (4, S): match, hidden, none, uniform (§0.1)."""
+    a = x / c
+    lam_true = (count - 1.0) / inv_kappa
+    lam_none = count / inv_kappa
+    log_hn = 0.5 * math.log(2.0 / math.pi) - math.log(c) - 0.5 * a * a
+    other = count > 1.0
+    with np.errstate(divide="ignore"):
+        hidden = np.where(other, np.log(np.where(other, lam_true, 1.0)) - lam_true * x + math.log(2.0) + _log_q(a), -np.inf)
+        none = np.log(lam_none) - lam_none * x
+    return np.stack([log_hn - lam_true * x + math.log(pi[0]), hidden + math.log(pi[0]),
+                     none + math.log(pi[1]), np.full(x.shape, -math.log(width) + math.log(pi[2]))])
+
+
+def _softmax0(parts):
+    top = parts.max(axis=0)
+    e = np.exp(parts - top)
+    return e / e.sum(axis=0), top + np.log(e.sum(axis=0))
+
+
 def estimate_sigma(d, mask, focal_px, iters=40):
-    """§0.1: EM on a half-normal (scale c) + exponential (rate lam) + uniform (on [0, U])
-    mixture of the mutual-nearest distances, each with weight ½; three starts; σ = c / √2,
-    or the 1 px fallback. Returns ``(sigma, fallback)``. The recipe of ALGORITHM.md §0.1."""
-    x = sigma_samples(d, mask)
+    """§0.1: EM on the censored mixture (a true match nearest / a true match behind a nearer
+    unrelated point / no true match / uniform) of the nearest distances, each with weight ½,
+    from three starts; σ = c / √2, or the 1 px fallback. Returns ``(sigma, fallback)``.
+    The recipe of ALGORITHM.md §0.1."""
+    x, count = sigma_samples(d, mask)
     w = np.full(x.size, 0.5)
     total = max(w.sum(), 1e-3)
     focal = focal_px if np.isfinite(focal_px) and focal_px > 0 else 1.0
-    U = max(float(x.max()) if x.size else 0.0, 0.1 * focal)
+    width = max(float(x.max()) if x.size else 0.0, 0.1 * focal)
+    spread_min = 0.05 * focal
+    top_count = max(float(count.max()) if x.size else 1.0, 1.0)
     xs = np.sort(x)
     fits = []
     for q in (0.1, 0.25, 0.5):
         z = NormalDist().inv_cdf(0.5 * (1.0 + q))  # half-normal quantile / scale
         at_q = float(xs[int(math.floor(q * (x.size - 1)))]) if x.size else 0.0
-        c = min(max(at_q / z, 1e-3), U)
-        mean = float(np.sum(w * x) / total)
-        lam = 1.0 / min(max(mean, 5.0 * c), U)
-        pi = np.array([0.5, 0.3, 0.2])
-
-        def log_parts(c, lam, pi):
-            hn = 0.5 * math.log(2.0 / math.pi) - math.log(c) - 0.5 * (x / c) ** 2
-            ex = math.log(lam) - lam * x
-            un = np.full(x.shape, -math.log(U))
-            return np.stack([hn, ex, un]) + np.log(pi)[:, None]
-
+        c = min(max(at_q / z, 1e-3), width)
+        inv_kappa = min(max(float(np.sum(w * count * x)) / total, spread_min), width * top_count)
+        pi = np.array([0.6, 0.3, 0.1])
         for _ in range(iters):
-            parts = log_parts(c, lam, pi)
-            r = np.exp(parts - parts.max(axis=0))
-            r = r / r.sum(axis=0) * w
-            n_k = r.sum(axis=1)
-            c = min(max(math.sqrt(float(np.sum(r[0] * x * x)) / max(n_k[0], 1e-3)), 1e-3), U)
-            mean_exp = float(np.sum(r[1] * x)) / max(n_k[1], 1e-3)
-            lam = 1.0 / min(max(mean_exp, 5.0 * c), U)
-            pi = np.clip(n_k / total, 1e-4, 1.0)
+            r, _ = _softmax0(_sigma_log_parts(x, count, c, inv_kappa, pi, width))
+            match, hidden, none, uniform = r * w
+            a = x / c
+            mills = np.exp(-0.5 * a * a - 0.5 * math.log(2.0 * math.pi) - _log_q(a))
+            mills = np.clip(mills, a, a + 1.0 / np.maximum(a, 1e-3))
+            n_true = float(np.sum(match + hidden))
+            c_new = math.sqrt(float(np.sum(match * x * x + hidden * c * c * (1.0 + a * mills))) / max(n_true, 1e-3))
+            others = np.where(count > 1.0, count - 1.0, 0.0)
+            censored = np.where(count > 1.0, match, 0.0)
+            seen = float(np.sum(hidden * others * x + none * count * x + censored * (others * x + inv_kappa)))
+            inv_kappa = seen / max(float(np.sum(hidden + none + censored)), 1e-3)
+            c = min(max(c_new, 1e-3), width)
+            inv_kappa = min(max(inv_kappa, spread_min), width * top_count)
+            pi = np.clip(np.array([n_true, np.sum(none), np.sum(uniform)]) / total, 1e-4, 1.0)
             pi = pi / pi.sum()
-        parts = log_parts(c, lam, pi)
-        top = parts.max(axis=0)
-        log_lik = float(np.sum(w * (top + np.log(np.exp(parts - top).sum(axis=0)))))
-        n_match = float(np.sum(w[np.argmax(parts, axis=0) == 0]))
-        fits.append((log_lik, c, n_match))
-    log_lik, c, n_match = max(fits, key=lambda f: f[0])  # ties: the first start
+        r, log_total = _softmax0(_sigma_log_parts(x, count, c, inv_kappa, pi, width))
+        fits.append((float(np.sum(w * log_total)), c, float(np.sum(w * (r[0] + r[1])))))
+    top = max(f[0] for f in fits)
+    best = next(k for k, f in enumerate(fits) if f[0] >= top - 1e-5 * (1.0 + abs(top)))  # near-ties: the first
+    _, c, n_match = fits[best]
     sigma = c / math.sqrt(2.0)
-    fallback = not (n_match >= 3.0 and sigma <= 0.01 * focal)
+    fallback = not (n_match >= 2.5 and sigma <= 0.01 * focal)
     return (1.0 if fallback else sigma), fallback
 
 
