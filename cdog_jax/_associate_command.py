@@ -95,7 +95,8 @@ def run_associate(args: argparse.Namespace) -> int:
     import jax
     import jax.numpy as jnp
 
-    from . import Config, associate_batch
+    from . import Config, Status, associate_batch
+    from .graph._sigma import FALLBACK_SIGMA_PX
     from .io import save_association_csv, save_association_json, save_association_npz
 
     if args.out is not None and os.path.splitext(args.out)[1].lower() not in _OUT_FORMATS:
@@ -139,8 +140,11 @@ def run_associate(args: argparse.Namespace) -> int:
         counts = np.bincount(n_views, minlength=M + 1)
         lines.append("  views per point: " + ", ".join(f"{k}: {counts[k]}" for k in range(2, M + 1) if counts[k]))
         lines.append(f"  mean reprojection error: {err.mean():.2f} px (median {np.median(err):.2f}, max {err.max():.2f})")
+    fallback = np.flatnonzero(np.asarray(result.status) & int(Status.SIGMA_FALLBACK))
     lines.append(
         "  σ used: " + ", ".join(f"{s:.2f}" for s in np.asarray(result.sigma_px)[:8]) + (" …" if F > 8 else "") + " px"
+        + (f" (fallback {FALLBACK_SIGMA_PX:g} px: too few likely true matches to estimate σ in {len(fallback)} of {F} "
+           f"frame(s), e.g. frame {fallback[0]}; pass --sigma)" if fallback.size else "")
     )
     if args.out is not None:
         one = F == 1 and not det.frames

@@ -67,7 +67,7 @@ def _with_clutter(xy, mask, per_view, rng):
 
 def test_clutter_does_not_move_the_estimate():
     # 1–2 points at σ = 1 px, then 3 clutter detections per view (the previous estimator:
-    # 1.8 and 16 px on two of these scenes).
+    # 12 and 15 px on two of these scenes).
     estimates = jax.jit(jax.vmap(lambda xy, mask: estimate_sigma(epipolar_distances(RIG, xy, mask), mask, focal_scale(RIG.K))))
     clean, cluttered = [], []
     for seed in range(8):
