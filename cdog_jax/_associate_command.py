@@ -143,8 +143,8 @@ def run_associate(args: argparse.Namespace) -> int:
     fallback = np.flatnonzero(np.asarray(result.status) & int(Status.SIGMA_FALLBACK))
     lines.append(
         "  σ used: " + ", ".join(f"{s:.2f}" for s in np.asarray(result.sigma_px)[:8]) + (" …" if F > 8 else "") + " px"
-        + (f" (fallback {FALLBACK_SIGMA_PX:g} px: too few likely true matches to estimate σ in {len(fallback)} of {F} "
-           f"frame(s), e.g. frame {fallback[0]}; pass --sigma)" if fallback.size else "")
+        + (f" (the fallback {FALLBACK_SIGMA_PX:g} px in {len(fallback)} of {F} frame(s), e.g. frame {fallback[0]}: "
+           "too little evidence to estimate σ; pass --sigma)" if fallback.size else "")
     )
     if args.out is not None:
         one = F == 1 and not det.frames

@@ -114,7 +114,7 @@ def test_associate_summary_says_when_sigma_fell_back(data, capsys):
     frames.write_text(json.dumps({"frames": [{"views": [[r[:2] for r in v] for v in views]}, {"views": thin}]}))
     assert main(["associate", "--rig", rig_path, "--points", frames]) == 0
     text = capsys.readouterr().out
-    assert "fallback 1 px: too few likely true matches to estimate σ in 1 of 2 frame(s), e.g. frame 1" in text
+    assert "(the fallback 1 px in 1 of 2 frame(s), e.g. frame 1: too little evidence to estimate σ" in text
 
 
 def test_associate_undistorts_with_the_rig_distortion(data, capsys):
