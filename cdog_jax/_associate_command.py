@@ -137,7 +137,8 @@ def run_associate(args: argparse.Namespace) -> int:
     import jax
     import jax.numpy as jnp
 
-    from . import Config, associate_batch
+    from . import Config, Status, associate_batch
+    from .graph._sigma import FALLBACK_SIGMA_PX
     from .io import save_association_csv, save_association_json, save_association_npz
 
     from ._cli import _FIGURE_EXTENSIONS
@@ -190,14 +191,17 @@ def run_associate(args: argparse.Namespace) -> int:
             f"  reprojection error err_px (mean distance over a group's views): mean {err.mean():.2f} px, "
             f"median {np.median(err):.2f}, max {err.max():.2f}"
         )
+    fallback = np.flatnonzero(np.asarray(result.status) & int(Status.SIGMA_FALLBACK))
     lines.append(
         "  σ used: " + ", ".join(f"{s:.2f}" for s in np.asarray(result.sigma_px)[:8]) + (" …" if F > 8 else "") + " px"
+        + (f" (the fallback {FALLBACK_SIGMA_PX:g} px in {len(fallback)} of {F} frame(s), e.g. frame {fallback[0]}: "
+           "too little evidence to estimate σ; pass --sigma)" if fallback.size else "")
     )
-    from ._status import Status, status_messages
+    from ._status import status_messages
 
     status = np.asarray(result.status).reshape(-1)
-    for flag in Status:
-        hit = int(np.count_nonzero(status & int(flag))) if flag else 0
+    for flag in Status:  # the σ fallback is said on the line above
+        hit = int(np.count_nonzero(status & int(flag))) if flag not in (Status.OK, Status.SIGMA_FALLBACK) else 0
         if hit:
             lines.append(f"  warning: {hit} of {F} frame(s): {status_messages(int(flag))[0]}")
     if args.out is not None:

@@ -29,7 +29,7 @@ from .graph._adjacency import adjacency_from_edges, alive_edges, nearest_neighbo
 from .graph._components import component_view_counts, connected_components_capped
 from .graph._groups import compact_groups, gather_groups, groups_from_labels, labels_from_groups
 from .graph._overlap import edge_overlap, remove_edges
-from .graph._sigma import estimate_sigma
+from .graph._sigma import estimate_sigma, focal_scale
 from .graph._split import split_conflicts
 from .refine._bpe_filter import bpe_jump_keep
 from .refine._least_squares import refine_points
@@ -130,9 +130,14 @@ def associate_traced(
 
     # Alg. 1–2: epipolar graph, δ-overlap pruning, view-unique components.
     d = epipolar_distances(rig, xy, mask)  # (M, P, M, P)
-    sigma = estimate_sigma(d, mask) if config.sigma_mode == "auto" else th.sigma_px
+    if config.sigma_mode == "auto":
+        sigma, fallback = estimate_sigma(d, mask, focal_scale(rig.K))
+    else:
+        sigma, fallback = th.sigma_px, jnp.asarray(False)
+    status = jnp.where(fallback, jnp.int32(Status.SIGMA_FALLBACK), jnp.int32(0))
     tau = tau_px(th, sigma)
-    groups, gvalid, status = _graph_groups(d, valid, tau, th, config)
+    groups, gvalid, graph_status = _graph_groups(d, valid, tau, th, config)
+    status = status | graph_status
 
     # Alg. 3: IQR outlier removal on per-group DLT blocks.
     N_node, r_node, origin = dlt_blocks(rig, jnp.swapaxes(xy, 0, 1))  # (P, M, 3, 3), (P, M, 3)
@@ -270,7 +275,8 @@ def associate(
 
     Returns:
         An :class:`Association` (labels, groups, points, errors). Its ``status`` is
-        non-zero when a loop stopped at its bound (:func:`cdog_jax.check_status`).
+        non-zero when a loop stopped at its bound or ``sigma="auto"`` fell back
+        (:class:`cdog_jax.Status`, :func:`cdog_jax.check_status`).
     """
     expect_args("associate", rig=(rig, Rig), thresholds=(thresholds, (Thresholds, type(None))))
     config = config_from(config, "associate")

@@ -20,7 +20,8 @@ class Association(eqx.Module):
         err_px: ``(G,)`` mean reprojection distance over members (px).
         n_views: ``(G,)`` int32 number of member views.
         num_groups: ``()`` int32 count of valid groups.
-        sigma_px: ``()`` the noise level used (given, or estimated when ``sigma="auto"``).
+        sigma_px: ``()`` the noise level used (given, or estimated when ``sigma="auto"``:
+            1 px when the estimate falls back, see ``status``).
         tau_px: ``()`` the epipolar gate used.
         status: ``()`` int32 bit flags of :class:`cdog_jax.Status` (0: nothing to report;
             e.g. a loop that stopped at its bound, or σ estimated by its fallback).

@@ -15,6 +15,7 @@ Besides the oracle this module holds a small numpy scene generator (:func:`make_
 from __future__ import annotations
 
 import math
+from statistics import NormalDist
 
 import numpy as np
 
@@ -175,11 +176,12 @@ def tau_px(sigma, alpha_tau, tau_min_px):
 
 
 def sigma_samples(d, mask):
-    """§0.1 samples ``s[u, n] = min_j d(u; n, j)`` for valid u and views n ≠ view(u) with a
-    valid point, finite values only (1-D array)."""
+    """§0.1 samples: for valid u = (m, i) and views n ≠ m with a valid point, the finite
+    distance ``min_j d(u; n, j)`` and the number of valid points of view n. Returns two
+    1-D arrays (distances, counts)."""
     mask = np.asarray(mask, bool)
     M, P = mask.shape
-    s = []
+    x, count = [], []
     for m in range(M):
         for i in range(P):
             if not mask[m, i]:
@@ -189,35 +191,88 @@ def sigma_samples(d, mask):
                     continue
                 v = d[m, i, n][mask[n]].min()
                 if np.isfinite(v):
-                    s.append(v)
-    return np.asarray(s, np.float64)
+                    x.append(float(v))
+                    count.append(float(mask[n].sum()))
+    return np.asarray(x, np.float64), np.asarray(count, np.float64)
 
 
-def estimate_sigma(d, mask, iters=30):
-    """§0.1: EM on a half-normal (scale c) + exponential (rate lam) mixture of the smallest
-    epipolar distances; σ = c / √2. Exactly the recipe of ALGORITHM.md §0.1:
+def focal_scale(K):
+    """Median over views of ``(|f_x| + |f_y|) / 2`` (pixels)."""
+    K = np.asarray(K, np.float64)
+    return float(np.median(0.5 * (np.abs(K[:, 0, 0]) + np.abs(K[:, 1, 1]))))
 
-    start ``c = max(lower median, 1e-3)``, ``lam = 1 / max(mean, 1e-3)``, ``pi = 0.5``; per
-    iteration ``r = sigmoid(log pi + log HN(s; c) − log(1 − pi) − log Exp(s; lam))``, then
-    ``c = sqrt(Σ r s² / Σ r)``, ``lam = Σ(1 − r) / Σ(1 − r) s``,
-    ``pi = clip(Σ r / n, 1e-4, 1 − 1e-4)``, ``c, lam ≥ 1e-6``.
-    """
-    s = np.sort(sigma_samples(d, mask))
-    n = s.size
-    if n == 0:
-        return 0.0
-    c = max(float(s[(n - 1) // 2]), 1e-3)
-    lam = 1.0 / max(float(np.mean(s)), 1e-3)
-    pi = 0.5
-    for _ in range(iters):
-        log_hn = 0.5 * math.log(2.0 / math.pi) - math.log(c) - s**2 / (2.0 * c**2)
-        log_exp = math.log(lam) - lam * s
-        z = math.log(pi) + log_hn - math.log(1.0 - pi) - log_exp
-        r = 0.5 * (1.0 + np.tanh(0.5 * z))  # sigmoid without overflow warnings
-        c = max(math.sqrt(float(np.sum(r * s**2) / np.sum(r))), 1e-6)
-        lam = max(float(np.sum(1.0 - r) / np.sum((1.0 - r) * s)), 1e-6)
-        pi = min(max(float(np.sum(r)) / n, 1e-4), 1.0 - 1e-4)
-    return c / math.sqrt(2.0)
+
+def _log_q(a):
+    """``log Q(a) = log P(Z > a)`` for a ≥ 0, stable in the tail."""
+    return np.array([math.log(0.5 * math.erfc(v / math.sqrt(2.0))) if v < 30 else
+                     -0.5 * v * v - math.log(v * math.sqrt(2.0 * math.pi)) + math.log1p(-1.0 / (v * v))
+                     for v in np.atleast_1d(a)])
+
+
+def _sigma_log_parts(x, count, c, inv_kappa, pi, width):
+    """Log joint density (4, S): match, hidden, none, uniform (§0.1)."""
+    a = x / c
+    lam_true = (count - 1.0) / inv_kappa
+    lam_none = count / inv_kappa
+    log_hn = 0.5 * math.log(2.0 / math.pi) - math.log(c) - 0.5 * a * a
+    other = count > 1.0
+    with np.errstate(divide="ignore"):
+        hidden = np.where(other, np.log(np.where(other, lam_true, 1.0)) - lam_true * x + math.log(2.0) + _log_q(a), -np.inf)
+        none = np.log(lam_none) - lam_none * x
+    return np.stack([log_hn - lam_true * x + math.log(pi[0]), hidden + math.log(pi[0]),
+                     none + math.log(pi[1]), np.full(x.shape, -math.log(width) + math.log(pi[2]))])
+
+
+def _softmax0(parts):
+    top = parts.max(axis=0)
+    e = np.exp(parts - top)
+    return e / e.sum(axis=0), top + np.log(e.sum(axis=0))
+
+
+def estimate_sigma(d, mask, focal_px, iters=40):
+    """§0.1: EM on the censored mixture (a true match nearest / a true match behind a nearer
+    unrelated point / no true match / uniform) of the nearest distances, each with weight ½,
+    from three starts; σ = c / √2, or the 1 px fallback. Returns ``(sigma, fallback)``.
+    The recipe of ALGORITHM.md §0.1."""
+    x, count = sigma_samples(d, mask)
+    w = np.full(x.size, 0.5)
+    total = max(w.sum(), 1e-3)
+    focal = focal_px if np.isfinite(focal_px) and focal_px > 0 else 1.0
+    width = max(float(x.max()) if x.size else 0.0, 0.1 * focal)
+    spread_min = 0.05 * focal
+    top_count = max(float(count.max()) if x.size else 1.0, 1.0)
+    xs = np.sort(x)
+    fits = []
+    for q in (0.1, 0.25, 0.5):
+        z = NormalDist().inv_cdf(0.5 * (1.0 + q))  # half-normal quantile / scale
+        at_q = float(xs[int(math.floor(q * (x.size - 1)))]) if x.size else 0.0
+        c = min(max(at_q / z, 1e-3), width)
+        inv_kappa = min(max(float(np.sum(w * count * x)) / total, spread_min), width * top_count)
+        pi = np.array([0.6, 0.3, 0.1])
+        for _ in range(iters):
+            r, _ = _softmax0(_sigma_log_parts(x, count, c, inv_kappa, pi, width))
+            match, hidden, none, uniform = r * w
+            a = x / c
+            mills = np.exp(-0.5 * a * a - 0.5 * math.log(2.0 * math.pi) - _log_q(a))
+            mills = np.clip(mills, a, a + 1.0 / np.maximum(a, 1e-3))
+            n_true = float(np.sum(match + hidden))
+            c_new = math.sqrt(float(np.sum(match * x * x + hidden * c * c * (1.0 + a * mills))) / max(n_true, 1e-3))
+            others = np.where(count > 1.0, count - 1.0, 0.0)
+            censored = np.where(count > 1.0, match, 0.0)
+            seen = float(np.sum(hidden * others * x + none * count * x + censored * (others * x + inv_kappa)))
+            inv_kappa = seen / max(float(np.sum(hidden + none + censored)), 1e-3)
+            c = min(max(c_new, 1e-3), width)
+            inv_kappa = min(max(inv_kappa, spread_min), width * top_count)
+            pi = np.clip(np.array([n_true, np.sum(none), np.sum(uniform)]) / total, 1e-4, 1.0)
+            pi = pi / pi.sum()
+        r, log_total = _softmax0(_sigma_log_parts(x, count, c, inv_kappa, pi, width))
+        fits.append((float(np.sum(w * log_total)), c, float(np.sum(w * (r[0] + r[1])))))
+    top = max(f[0] for f in fits)
+    best = next(k for k, f in enumerate(fits) if f[0] >= top - 1e-5 * (1.0 + abs(top)))  # near-ties: the first
+    _, c, n_match = fits[best]
+    sigma = c / math.sqrt(2.0)
+    fallback = not (n_match >= 2.5 and sigma <= 0.01 * focal)
+    return (1.0 if fallback else sigma), fallback
 
 
 # ----------------------------------------------------------------------------- §2 graph
@@ -750,7 +805,7 @@ def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
     # §1 epipolar distances, §0 noise level and gate
     d = epipolar_distance_table(K, R, t, xy, mask)
     auto = cfg.sigma_mode == "auto" or (isinstance(sigma, str) and sigma == "auto")
-    sigma_px = estimate_sigma(d, mask) if auto else float(sigma)
+    sigma_px, sigma_fallback = estimate_sigma(d, mask, focal_scale(K)) if auto else (float(sigma), False)
     tau = tau_px(sigma_px, cfg.alpha_tau, cfg.tau_min_px)
 
     # §2 adjacency, §3 pruning, §4 view-uniqueness split, §5 group table
@@ -834,6 +889,7 @@ def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
         num_groups=k,
         sigma_px=sigma_px,
         tau_px=tau,
+        sigma_fallback=sigma_fallback,
     )
     for new, g in enumerate(order):
         res["groups"][new] = groups[g]

@@ -105,6 +105,19 @@ def test_associate_frames_csv_npz_weights_min_views_plot(data, capsys):
         np.testing.assert_array_equal(npz["num_groups"], [int(expected.num_groups)] * 2)
 
 
+def test_associate_summary_says_when_sigma_fell_back(data, capsys):
+    folder, rig, points, views, expected = data
+    rig_path = folder / "rig_fallback.json"
+    save_rig_json(rig_path, rig, image_size=IMAGE_SIZE)
+    # Frame 1: one detection in each of two views (of different points): nothing to estimate σ from.
+    thin = [[[300.0, 200.0]], [[350.0, 260.0]]] + [[] for _ in views[2:]]
+    frames = folder / "frames_fallback.json"
+    frames.write_text(json.dumps({"frames": [{"views": [[r[:2] for r in v] for v in views]}, {"views": thin}]}))
+    assert main(["associate", "--rig", rig_path, "--points", frames]) == 0
+    text = capsys.readouterr().out
+    assert "(the fallback 1 px in 1 of 2 frame(s), e.g. frame 1: too little evidence to estimate σ" in text
+
+
 def test_associate_undistorts_with_the_rig_distortion(data, capsys):
     folder, rig, points, views, expected = data
     dist = np.tile(DIST, (rig.num_views, 1))

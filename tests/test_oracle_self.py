@@ -14,6 +14,7 @@ from oracle import (
     directed_edges,
     epipolar_distance_table,
     estimate_sigma,
+    focal_scale,
     fundamental_matrices,
     iqr_outliers,
     iqr_scores,
@@ -305,9 +306,9 @@ def test_estimate_sigma_ballpark():
     for sigma in (1.0, 2.0):
         xy, mask, _, _ = make_scene(K, R, t, 30, rng, sigma=sigma, drop=0.3, clutter=3)
         d = epipolar_distance_table(K, R, t, xy, mask)
-        est = estimate_sigma(d, mask)
-        assert 0.5 * sigma < est < 1.5 * sigma
-    assert estimate_sigma(np.full((2, 1, 2, 1), np.inf), np.zeros((2, 1), bool)) == 0.0
+        est, fallback = estimate_sigma(d, mask, focal_scale(K))
+        assert 0.5 * sigma < est < 1.5 * sigma and not fallback
+    assert estimate_sigma(np.full((2, 1, 2, 1), np.inf), np.zeros((2, 1), bool), 1000.0) == (1.0, True)
 
 
 # ----------------------------------------------------------------------------- whole pipeline

@@ -8,7 +8,7 @@ import pytest
 from helpers import purity, random_scene, ring_rig, x64
 
 import cdog_jax
-from cdog_jax import Config, associate, associate_batch, associate_traced
+from cdog_jax import Config, Status, associate, associate_batch, associate_traced
 
 PRESETS = {"paper": Config.paper(), "reference": Config.reference(), "extended": Config.extended()}
 RIG = ring_rig(5)
@@ -125,6 +125,19 @@ def test_sigma_auto_is_reported_and_reasonable():
     res = associate(RIG, xy, mask, sigma="auto")
     assert 1.4 < float(res.sigma_px) < 2.8
     assert float(res.tau_px) == pytest.approx(max(2 * np.sqrt(2) * float(res.sigma_px), 1.0), rel=1e-5)
+
+
+def test_sigma_fallback_is_flagged():
+    # One detection in each of two views, of different points: too little evidence for σ.
+    xy = np.zeros((M, P, 2), np.float32)
+    mask = np.zeros((M, P), bool)
+    xy[0, 0], xy[1, 0] = (300.0, 200.0), (350.0, 260.0)
+    mask[0, 0] = mask[1, 0] = True
+    res = associate(RIG, xy, mask, sigma="auto")
+    assert int(res.status) & Status.SIGMA_FALLBACK
+    assert float(res.sigma_px) == 1.0 and np.isfinite(float(res.tau_px))
+    given = associate(RIG, xy, mask, sigma=1.0)
+    assert int(given.status) & Status.SIGMA_FALLBACK == 0
 
 
 def test_thresholds_override_does_not_recompile():

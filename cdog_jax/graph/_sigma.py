@@ -1,50 +1,145 @@
-"""``sigma="auto"``: the 2D noise level from the epipolar nearest-neighbour distances
-(ALGORITHM.md §0.1).
+"""``sigma="auto"``: the 2D noise level from the nearest epipolar distances, with a fallback
+when the data hold too little evidence (ALGORITHM.md §0.1).
 
-The smallest epipolar distance of a node into another view is either its true match
-(half-normal: both points' noise, scale ``√2 σ``) or the nearest unrelated point (roughly
-exponential for points scattered over the image). A fixed number of EM iterations fits
-that two-component mixture; ``σ = c / √2`` from the half-normal scale ``c``.
+One sample per node ``u`` and other view ``n``: ``x`` = the distance of ``u``'s epipolar line
+to the nearest point of view ``n``. That nearest point is the true match (half-normal
+distance ``T``, scale ``c = √2 σ``: both points' noise) unless an unrelated point lies
+nearer; the nearest of ``k`` unrelated points is exponential with rate ``κ k`` (points
+scattered over the image). Three kinds of sample, modelled jointly (a censored mixture):
+
+- ``match``: a true match exists and is nearest: ``x = T``, every unrelated point farther;
+- ``hidden``: a true match exists but an unrelated point is nearer: ``T > x``;
+- ``none``: no true match in view ``n`` (clutter, a point that ``n`` does not see):
+  ``x`` is the nearest unrelated distance;
+
+plus a uniform on ``[0, W]`` for anything else (far-off detections). EM with closed-form
+steps (the censored half-normal and exponential moments) runs a fixed number of iterations
+from several low-quantile starts; the most likely fit wins.
+
+The estimate is not trusted (``fallback``) when the expected number of pairs with a true
+match is below :data:`MIN_MATCHES`, or when ``σ̂`` exceeds :data:`MAX_SIGMA_PER_FOCAL`
+of the focal length; then ``σ = FALLBACK_SIGMA_PX``.
 """
 
 import jax
 import jax.numpy as jnp
+from jax.scipy.special import erfinv, log_ndtr
 
 from .._types import Array, Bool, Float
 
-EM_ITERS = 30
+EM_ITERS = 40
+START_QUANTILES = (0.1, 0.25, 0.5)  # the half-normal scale starts from these sample quantiles
+MIN_MATCHES = 2.5  # expected true-match pairs needed to use σ̂ (three pairs that fit well)
+MAX_SIGMA_PER_FOCAL = 0.01  # a plausible σ is at most 1 % of the focal length
+UNIFORM_PER_FOCAL = 0.1  # the uniform spans at least 10 % of the focal length
+SPREAD_PER_FOCAL = 0.05  # 1/κ (a point's mean nearest distance to a line when alone) is at least this
+FALLBACK_SIGMA_PX = 1.0
+TIE_RELATIVE = 1e-5  # log-likelihoods this close (relative) count as equal
+MIN_SCALE_PX = 1e-3  # the half-normal scale's floor (noise-free data: every distance ≈ 0)
 
 
-def estimate_sigma(d: Float[Array, "M P M P"], mask: Bool[Array, "M P"]) -> Float[Array, ""]:
-    """Robust noise estimate ``()`` (pixels) from the epipolar distance table
-    ``d (M, P, M, P)`` and ``mask (M, P)``; 0 if nothing to fit."""
-    s = jnp.min(d, axis=-1)  # (M, P, M): nearest distance of node (m, i) into view n
-    ok = jnp.isfinite(s)
-    w_ok = ok.astype(d.dtype)
-    n = jnp.sum(w_ok)
-    x = jnp.where(ok, s, 0.0)
-    tiny = jnp.finfo(d.dtype).tiny
+def nearest_samples(
+    d: Float[Array, "M P M P"], mask: Bool[Array, "M P"]
+) -> tuple[Float[Array, "M P M"], Float[Array, "M P M"], Float[Array, "M P M"]]:
+    """``x[m, i, n] = min_j d[m, i, n, j]`` (pixels, 0 where unused), its weight (½ where
+    finite, else 0: a pair of nodes gives two samples that count once) and the number of
+    valid points of view ``n``."""
+    x = jnp.min(d, axis=-1)
+    ok = jnp.isfinite(x) & mask[:, :, None]
+    count = jnp.broadcast_to(jnp.sum(mask, axis=1).astype(d.dtype)[None, None, :], x.shape)
+    return jnp.where(ok, x, 0.0), jnp.where(ok, 0.5, 0.0).astype(d.dtype), count
 
-    # Start: c from the median, lambda from the mean.
-    flat = jnp.where(ok, s, jnp.inf).reshape(-1)
-    median = jnp.sort(flat)[jnp.maximum(n.astype(jnp.int32) - 1, 0) // 2]
-    median = jnp.where(jnp.isfinite(median), median, 0.0)
-    c0 = jnp.maximum(median, 1e-3)
-    lam0 = 1.0 / jnp.maximum(jnp.sum(x) / jnp.maximum(n, 1.0), 1e-3)
 
-    def em(_, state):
-        c, lam, pi = state
-        log_half_normal = 0.5 * jnp.log(2.0 / jnp.pi) - jnp.log(c) - 0.5 * (x / c) ** 2
-        log_expo = jnp.log(lam) - lam * x
-        a = jnp.log(pi) + log_half_normal
-        b = jnp.log1p(-pi) + log_expo
-        resp = jax.nn.sigmoid(a - b) * w_ok  # P(true match)
-        n1 = jnp.sum(resp)
-        n0 = n - n1
-        c = jnp.sqrt(jnp.sum(resp * x * x) / jnp.maximum(n1, tiny))
-        lam = n0 / jnp.maximum(jnp.sum((w_ok - resp) * x), tiny)
-        pi = jnp.clip(n1 / jnp.maximum(n, 1.0), 1e-4, 1.0 - 1e-4)
-        return jnp.maximum(c, 1e-6), jnp.maximum(lam, 1e-6), pi
+def _log_parts(x, count, c, inv_kappa, pi, width):
+    """Log joint density ``(4, S)`` of every sample under match / hidden / none / uniform."""
+    a = x / c
+    lam_true = (count - 1.0) / inv_kappa  # rate of the nearest unrelated point beside a true match
+    lam_none = count / inv_kappa
+    log_hn = 0.5 * jnp.log(2.0 / jnp.pi) - jnp.log(c) - 0.5 * a * a
+    log_t_beyond = jnp.log(2.0) + log_ndtr(-a)  # log P(T > x)
+    has_other = count > 1.0
+    log_lam_true = jnp.log(jnp.where(has_other, lam_true, 1.0))
+    match = log_hn - lam_true * x
+    hidden = jnp.where(has_other, log_lam_true - lam_true * x + log_t_beyond, -jnp.inf)
+    none = jnp.log(lam_none) - lam_none * x
+    uniform = jnp.broadcast_to(-jnp.log(width), x.shape)
+    return jnp.stack([match + jnp.log(pi[0]), hidden + jnp.log(pi[0]), none + jnp.log(pi[1]), uniform + jnp.log(pi[2])])
 
-    c, _, _ = jax.lax.fori_loop(0, EM_ITERS, em, (c0, lam0, jnp.asarray(0.5, d.dtype)))
-    return jnp.where(n > 0, c / jnp.sqrt(2.0), 0.0)
+
+def _em(x, w, count, c0, inv_kappa0, width, spread_min):
+    """EM from half-normal scale ``c0``; returns the scale, the expected number of pairs
+    with a true match (``match`` or ``hidden``) and the log-likelihood."""
+    total = jnp.maximum(jnp.sum(w), MIN_SCALE_PX)
+    max_count = jnp.maximum(jnp.max(jnp.where(w > 0, count, 1.0)), 1.0)
+
+    def step(_, state):
+        c, inv_kappa, pi = state
+        resp = jax.nn.softmax(_log_parts(x, count, c, inv_kappa, pi, width), axis=0) * w[None]
+        match, hidden, none, uniform = resp
+        a = x / c
+        # E[T² | T > x] = c² (1 + a φ(a) / Q(a)) for T half-normal with scale c.
+        # a < φ(a) / Q(a) < a + 1/a bounds the round-off of the ratio far in the tail.
+        mills = jnp.exp(-0.5 * a * a - 0.5 * jnp.log(2.0 * jnp.pi) - log_ndtr(-a))
+        mills = jnp.clip(mills, a, a + 1.0 / jnp.maximum(a, MIN_SCALE_PX))
+        t2_beyond = c * c * (1.0 + a * mills)
+        n_true = jnp.sum(match + hidden)
+        c_new = jnp.sqrt(jnp.sum(match * x * x + hidden * t2_beyond) / jnp.maximum(n_true, MIN_SCALE_PX))
+        # (count − 1)·U is exponential with mean 1/κ; beside a match it is only known to exceed x.
+        others = jnp.where(count > 1.0, count - 1.0, 0.0)
+        censored = jnp.where(count > 1.0, match, 0.0)
+        seen = jnp.sum(hidden * others * x + none * count * x + censored * (others * x + inv_kappa))
+        inv_kappa = seen / jnp.maximum(jnp.sum(hidden + none + censored), MIN_SCALE_PX)
+        c = jnp.clip(c_new, MIN_SCALE_PX, width)
+        inv_kappa = jnp.clip(inv_kappa, spread_min, width * max_count)
+        pi = jnp.clip(jnp.stack([n_true, jnp.sum(none), jnp.sum(uniform)]) / total, 1e-4, 1.0)
+        return c, inv_kappa, pi / jnp.sum(pi)
+
+    pi0 = jnp.asarray([0.6, 0.3, 0.1], x.dtype)
+    c, inv_kappa, pi = jax.lax.fori_loop(0, EM_ITERS, step, (c0, inv_kappa0, pi0))
+    parts = _log_parts(x, count, c, inv_kappa, pi, width)
+    log_lik = jnp.sum(w * jax.nn.logsumexp(parts, axis=0))
+    resp = jax.nn.softmax(parts, axis=0)
+    n_match = jnp.sum(w * (resp[0] + resp[1]))
+    return c, n_match, log_lik
+
+
+def estimate_sigma(
+    d: Float[Array, "M P M P"], mask: Bool[Array, "M P"], focal_px: Float[Array, ""]
+) -> tuple[Float[Array, ""], Bool[Array, ""]]:
+    """Noise estimate ``σ`` (pixels) from the epipolar distance table ``d (M, P, M, P)``,
+    ``mask (M, P)`` and the rig's focal length ``focal_px`` (sets the plausible range).
+
+    Returns ``(sigma, fallback)``: ``fallback`` is True when the fit is not trusted (fewer
+    than ``MIN_MATCHES`` expected true pairs, or ``σ̂ > MAX_SIGMA_PER_FOCAL · focal_px``), and
+    then ``sigma = FALLBACK_SIGMA_PX``. Always finite.
+    """
+    x, w, count = (a.reshape(-1) for a in nearest_samples(d, mask))
+    n = jnp.sum(w > 0)
+    focal_px = jnp.where(jnp.isfinite(focal_px) & (focal_px > 0), focal_px, 1.0)
+    width = jnp.maximum(jnp.max(x), UNIFORM_PER_FOCAL * focal_px)
+
+    ordered = jnp.sort(jnp.where(w > 0, x, jnp.inf))
+    last = jnp.maximum(n - 1, 0).astype(x.dtype)
+    # A half-normal's q-quantile is c · Φ⁻¹((1 + q) / 2) = c · √2 erfinv(q).
+    q = jnp.asarray(START_QUANTILES, x.dtype)
+    z = jnp.sqrt(2.0) * erfinv(q)
+    at_q = ordered[jnp.floor(q * last).astype(jnp.int32)]
+    c0 = jnp.clip(jnp.where(jnp.isfinite(at_q), at_q, 0.0) / z, MIN_SCALE_PX, width)
+    scaled_mean = jnp.sum(w * count * x) / jnp.maximum(jnp.sum(w), MIN_SCALE_PX)
+    spread_min = SPREAD_PER_FOCAL * focal_px
+    inv_kappa0 = jnp.clip(scaled_mean, spread_min, width * jnp.maximum(jnp.max(count), 1.0))
+
+    em = jax.vmap(_em, in_axes=(None, None, None, 0, None, None, None))
+    c, n_match, log_lik = em(x, w, count, c0, inv_kappa0, width, spread_min)
+    log_lik = jnp.where(jnp.isfinite(log_lik), log_lik, -jnp.inf)
+    top = jnp.max(log_lik)
+    # Starts that reach one optimum differ only by round-off: near-ties go to the first.
+    best = jnp.argmax(log_lik >= top - TIE_RELATIVE * (1.0 + jnp.abs(top)))
+    sigma = c[best] / jnp.sqrt(2.0)
+    fallback = ~((n_match[best] >= MIN_MATCHES) & (sigma <= MAX_SIGMA_PER_FOCAL * focal_px) & jnp.isfinite(sigma))
+    return jnp.where(fallback, FALLBACK_SIGMA_PX, sigma).astype(d.dtype), fallback
+
+
+def focal_scale(K: Float[Array, "M 3 3"]) -> Float[Array, ""]:
+    """The rig's focal length (pixels): the median over views of ``(|f_x| + |f_y|) / 2``."""
+    return jnp.median(0.5 * (jnp.abs(K[..., 0, 0]) + jnp.abs(K[..., 1, 1])))

@@ -1,0 +1,111 @@
+"""``sigma="auto"`` (graph/_sigma.py): finite on noise-free data, a flagged fallback when the
+evidence is too thin, unmoved by clutter, and the same numbers as the NumPy oracle."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from helpers import random_scene, ring_rig
+from oracle import epipolar_distance_table, estimate_sigma as oracle_estimate_sigma, focal_scale as oracle_focal
+
+from cdog_jax.geometry import epipolar_distances
+from cdog_jax.graph._sigma import FALLBACK_SIGMA_PX, estimate_sigma, focal_scale
+
+RIG = ring_rig(5)
+FOCAL = 1000.0
+
+
+def _table(value, M, P=1):
+    """A distance table with every cross-view entry ``value`` and all slots valid."""
+    d = np.full((M, P, M, P), value, np.float32)
+    for m in range(M):
+        d[m, :, m, :] = np.inf
+    return jnp.asarray(d), jnp.ones((M, P), bool)
+
+
+_estimate_jit = jax.jit(estimate_sigma)
+
+
+def _estimate(d, mask, focal=FOCAL):
+    sigma, fallback = _estimate_jit(d, mask, jnp.asarray(focal, d.dtype))
+    return float(sigma), bool(fallback)
+
+
+def test_noise_free_one_point_is_finite_and_small():
+    # One point seen by three views without noise: every distance is exactly 0 (the
+    # previous estimator returned NaN here).
+    sigma, fallback = _estimate(*_table(0.0, 3))
+    assert np.isfinite(sigma) and sigma < 0.01 and not fallback
+
+
+@pytest.mark.parametrize("distance", [0.0, 30.0])
+def test_one_pair_is_too_little_evidence(distance):
+    # Two views, one detection each (of different points 30 px apart, or a noise-free
+    # point): one pair cannot tell the noise from an unrelated match (previously σ̂ = 21 px).
+    assert _estimate(*_table(distance, 2)) == (FALLBACK_SIGMA_PX, True)
+
+
+def test_nothing_to_fit_falls_back():
+    d, mask = _table(np.inf, 3)
+    assert _estimate(d, mask & False) == (FALLBACK_SIGMA_PX, True)
+
+
+def test_implausibly_large_sigma_falls_back():
+    # Many consistent pairs, but σ̂ ≈ 21 px is above 1 % of a 1000 px focal length.
+    d, mask = _table(30.0, 4, 3)
+    assert _estimate(d, mask) == (FALLBACK_SIGMA_PX, True)
+    sigma, fallback = _estimate(d, mask, focal=1e4)
+    assert not fallback and 10.0 < sigma < 30.0
+
+
+def _with_clutter(xy, mask, per_view, rng):
+    """The scene with ``per_view`` uniform clutter detections added in free slots."""
+    xy, mask = xy.copy(), mask.copy()
+    for m in range(mask.shape[0]):
+        free = np.flatnonzero(~mask[m])[:per_view]
+        xy[m, free] = rng.uniform([0, 0], [640, 480], (len(free), 2))
+        mask[m, free] = True
+    return xy, mask
+
+
+def test_clutter_does_not_move_the_estimate():
+    # 1–2 points at σ = 1 px, then 3 clutter detections per view (the previous estimator:
+    # 12 and 15 px on two of these scenes).
+    estimates = jax.jit(jax.vmap(lambda xy, mask: estimate_sigma(epipolar_distances(RIG, xy, mask), mask, focal_scale(RIG.K))))
+    clean, cluttered = [], []
+    for seed in range(8):
+        xy, mask, _, _ = random_scene(RIG, 1 + seed % 2, 12, sigma=1.0, seed=seed)
+        clean.append((xy, mask))
+        cluttered.append(_with_clutter(xy, mask, 3, np.random.default_rng(seed)))
+    (s0, f0), (s1, f1) = (
+        estimates(jnp.asarray(np.stack([a for a, _ in s]), jnp.float32), jnp.asarray(np.stack([b for _, b in s])))
+        for s in (clean, cluttered)
+    )
+    s0, s1 = np.asarray(s0), np.asarray(s1)
+    assert not np.any(f0) and not np.any(f1)
+    np.testing.assert_allclose(s1, s0, rtol=0.3)
+    assert 0.7 < np.median(s1) < 1.3
+
+
+def _oracle_cases():
+    rng = np.random.default_rng(2)
+    K, R, t = (np.asarray(a, np.float64) for a in (RIG.K, RIG.R, RIG.t))
+    cases = []
+    for seed, (n, sigma, clutter) in enumerate([(6, 1.0, 0), (2, 1.0, 3), (8, 2.0, 2), (1, 0.0, 0), (3, 0.5, 4)]):
+        xy, mask, _, _ = random_scene(RIG, n, 12, sigma=sigma, seed=10 + seed, clutter=clutter)
+        cases.append((epipolar_distance_table(K, R, t, xy, mask), mask))
+    far = rng.uniform(0, 200, (5, 12, 5, 12))  # unrelated points only
+    for m in range(5):
+        far[m, :, m, :] = np.inf
+    cases.append((far, np.ones((5, 12), bool)))
+    return cases, oracle_focal(K)
+
+
+def test_matches_oracle():
+    cases, focal = _oracle_cases()
+    with jax.enable_x64(True):
+        for d, mask in cases:
+            got = _estimate(jnp.asarray(d, jnp.float64), jnp.asarray(mask), focal)
+            want = oracle_estimate_sigma(d, mask, focal)
+            assert got[1] == want[1]
+            assert got[0] == pytest.approx(want[0], rel=1e-6)
