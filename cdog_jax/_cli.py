@@ -4,9 +4,9 @@ One function per subcommand: ``_add_<name>(subparsers)`` declares its arguments 
 ``func`` to ``_run_<name>(args) -> int``; register new ones in ``_SUBCOMMANDS``.
 
 Subcommands:
-    demo       built-in rig → synthetic scene → :func:`cdog_jax.associate` → summary, SPEC §5
+    demo       built-in rig → synthetic scene → :func:`cdog_jax.associate` → summary, docs/BENCHMARK.md §2
                metrics, timings and a PNG figure.
-    benchmark  the SPEC §3 grid for several methods in one compiled call → tables, saved
+    benchmark  the docs/BENCHMARK.md §1 grid for several methods in one compiled call → tables, saved
                results, figures (``cdog_jax/benchmark/_command.py``).
     calibrate  perturb the built-in rig, refine it from associations, before/after table and
                a convergence figure (``cdog_jax/_calibrate_command.py``).
@@ -33,7 +33,7 @@ from collections.abc import Sequence
 
 from .io._errors import InputError
 
-# Rows of the metrics table: (Metrics field, SPEC §5 name, format, unit / meaning).
+# Rows of the metrics table: (Metrics field, docs/BENCHMARK.md §2 name, format, unit / meaning).
 _METRIC_ROWS = (
     ("g_f1", "G-F1", ".3f", "group level, imperfect groups allowed"),
     ("mp_f1", "mP-F1", ".3f", "mean point F1 over groups of >= 2 nodes"),
@@ -109,8 +109,8 @@ def _add_demo(subparsers) -> None:
         "demo",
         help="associate a synthetic scene on the built-in rig, print metrics, save a figure",
         description=(
-            "Generate a synthetic scene on the built-in 10-camera rig (SPEC §3), associate it "
-            "with C-DOG, print a summary with the SPEC §5 metrics and timings, and write a PNG."
+            "Generate a synthetic scene on the built-in 10-camera rig (docs/BENCHMARK.md §1), associate it "
+            "with C-DOG, print a summary with the docs/BENCHMARK.md §2 metrics and timings, and write a PNG."
         ),
     )
     p.add_argument("--points", type=_positive_int, default=60, help="3D points in the scene (default 60)")
@@ -202,7 +202,7 @@ def _run_demo(args: argparse.Namespace) -> int:
         lines.append("  (no groups)")
 
     values = {field: float(getattr(metrics, field)) for field, *_ in _METRIC_ROWS}
-    lines += ["", "Metrics (SPEC §5, this scene):"]
+    lines += ["", "Metrics (docs/BENCHMARK.md §2, this scene):"]
     for field, name, fmt, note in _METRIC_ROWS:
         shown = format(values[field], fmt) if np.isfinite(values[field]) else "n/a"
         if field in ("err3d", "bpe_px") and int(metrics.num_err_groups) == 0:

@@ -1,4 +1,4 @@
-"""``cdog-jax benchmark``: the SPEC §3 grid for several methods, tables and figures.
+"""``cdog-jax benchmark``: the docs/BENCHMARK.md §1 grid for several methods, tables and figures.
 
 Runs :func:`~cdog_jax.benchmark.sweep` once (every method and scene in one compiled call),
 prints the paper-style table at σ = 0, 1, 3, 5, saves the per-scene results (NPZ, CSV,
@@ -192,6 +192,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _figures(figures, result, args) -> None:
     """The benchmark's PNG figures in ``args.out``."""
+    from ._grid import Grid
+
     metrics = {name: result.metrics[name] for name in result.configs}
     for name in result.configs:
         figures.heatmaps(
@@ -200,6 +202,10 @@ def _figures(figures, result, args) -> None:
         figures.surfaces(
             result.sigma, result.count, metrics, method=name, path=os.path.join(args.out, f"surfaces_{name}.png")
         )
-    figures.metrics_vs_sigma(result.sigma, metrics, path=os.path.join(args.out, "metrics_vs_sigma.png"))
+    full = Grid.paper()
+    grid = result.grid
+    full_grid = (grid.sigmas, grid.counts, grid.views) == (full.sigmas, full.counts, None) and grid.scenes >= full.scenes
+    figures.metrics_vs_sigma(result.sigma, metrics, full_grid=full_grid, path=os.path.join(args.out, "metrics_vs_sigma.png"))
     if not args.no_timing:
-        figures.time_vs_count(result.count, result.time_s, path=os.path.join(args.out, "time_vs_count.png"))
+        figures.time_vs_count(result.count, result.time_s, capacity=result.capacity,
+                              path=os.path.join(args.out, "time_vs_count.png"))

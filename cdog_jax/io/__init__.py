@@ -1,4 +1,4 @@
-"""Files in and out (SPEC §4).
+"""Files in and out (docs/CONVENTIONS.md §3).
 
 Rigs: EasyVis/OpenMVG folders, JSON, NPZ, anipose ``calibration.toml``, COLMAP text models
 and EasyMocap ``intri.yml``/``extri.yml`` (``load_rig`` and the ``save_rig_*`` writers).
