@@ -56,13 +56,33 @@ def _min_views(text: str) -> int:
     return value
 
 
+_RIG_FORMATS_TEXT = (
+    "an EasyVis/OpenMVG folder (K0.txt, R0.txt, T0.txt, ...), the project's .json or .npz, an anipose "
+    "calibration.toml, a COLMAP text model (cameras.txt + images.txt) or EasyMocap intri.yml + extri.yml"
+)
+_ASSOCIATE_DESCRIPTION = (
+    "Associate the detections of your cameras: read a rig (" + _RIG_FORMATS_TEXT + ") and a "
+    "detections file (JSON or NPZ, one scene or many frames; docs/CONVENTIONS.md §3), check "
+    "both before any work, associate every frame (undistorting first when the rig has "
+    "distortion), print a summary and write the groups and their 3D points (JSON, NPZ or CSV "
+    "by the extension of --out) and optionally a figure of the first frame. Frames with fewer "
+    "than 2 views with detections get zero groups and a note. Try it on the example files: "
+    "cdog-jax associate --rig examples/rig.json --points examples/detections.json"
+)
+_RIG_DESCRIPTION = (
+    "Describe a rig file (" + _RIG_FORMATS_TEXT + "): camera centres, viewing directions, "
+    "focal lengths, baselines and warnings (a camera looking away from the detections, "
+    "axes meeting behind the cameras, a rig that reads right only as camera-to-world), and "
+    "optionally draw it."
+)
+
+
 def add_parsers(subparsers) -> None:
     """Declare ``associate`` and ``rig``."""
     p = subparsers.add_parser(
         "associate",
         help="associate your detections with your rig; write groups and 3D points",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=_ASSOCIATE_DESCRIPTION,
     )
     p.add_argument("--rig", required=True, help="rig file or folder")
     p.add_argument("--rig-format", default="auto", choices=("auto", *FORMATS), help="rig format (default: from the path)")
@@ -81,9 +101,9 @@ def add_parsers(subparsers) -> None:
     p.add_argument("--batch-size", type=_positive_int, default=16, help="frames associated at once (memory bound)")
     p.set_defaults(func=run_associate)
 
-    r = subparsers.add_parser("rig", help="describe a rig file: centres, directions, baselines, warnings", description=__doc__)
+    r = subparsers.add_parser("rig", help="describe a rig file: centres, directions, baselines, warnings", description=_RIG_DESCRIPTION)
     r.add_argument("rig", help="rig file or folder")
-    r.add_argument("--rig-format", default="auto", choices=("auto", *FORMATS))
+    r.add_argument("--rig-format", default="auto", choices=("auto", *FORMATS), help="rig format (default: from the path)")
     r.add_argument("--points", default=None, help="detections file: check the cameras look at their triangulated centroid")
     r.add_argument("--plot", default=None, help="figure of the camera frusta (.png, .pdf, .svg, .jpg)")
     r.set_defaults(func=run_rig)
