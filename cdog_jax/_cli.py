@@ -259,7 +259,8 @@ def _run_demo(args: argparse.Namespace) -> int:
         f"{name} {values[f]:{fmt}}" + (" px" if f == "bpe_px" else "") for f, name, fmt, _ in _METRIC_ROWS
     )
     write_output(args.out, "--out", lambda: plot_association(
-        rig, scene.xy, scene.mask, result, points3d_gt=np.asarray(scene.points3d)[:n_inst], title=caption, path=args.out
+        rig, scene.xy, scene.mask, result, points3d_gt=np.asarray(scene.points3d)[:n_inst],
+        instance=scene.instance, title=caption, path=args.out
     ))  # fmt: skip
     timings.append(("figure (draw + save)", time.perf_counter() - t0))
 
