@@ -17,6 +17,7 @@ get zero groups and a note.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import time
@@ -109,6 +110,41 @@ def add_parsers(subparsers) -> None:
     r.set_defaults(func=run_rig)
 
 
+_PROGRESS_STEPS = 20  # frames are associated in about this many calls, for the progress bar
+
+
+def _associate_frames(call, xy, mask, weights, batch_size: int):
+    """``call(xy, mask, weights)`` over chunks of the ``F`` frames, with a progress bar,
+    and the results joined: one chunk (one call) up to ``_PROGRESS_STEPS`` batches, else
+    chunks of a whole number of batches, the last padded with copies of the last frame
+    (one shape, one compiled program), the copies' results dropped."""
+    import jax
+    import jax.numpy as jnp
+
+    from ._progress import bar, compiling
+
+    F = xy.shape[0]
+    chunk = batch_size * max(1, math.ceil(F / (batch_size * _PROGRESS_STEPS)))
+    if F <= chunk:
+        with compiling(f"the association of {F} frame(s) (with its run)"):
+            return jax.block_until_ready(call(xy, mask, weights))
+    pad = -F % chunk
+
+    def padded(a):
+        return None if a is None else jnp.concatenate([a, jnp.repeat(a[-1:], pad, axis=0)])
+
+    xy, mask, weights = padded(xy), padded(mask), padded(weights)
+    frames = bar(F, "associate", unit="frame")
+    parts = []
+    for start in range(0, F + pad, chunk):
+        part = slice(start, start + chunk)
+        with compiling(f"the association of {chunk} frames (with its first run)") if start == 0 else contextlib.nullcontext():
+            parts.append(jax.block_until_ready(call(xy[part], mask[part], None if weights is None else weights[part])))
+        frames.update(min(chunk, F - start))
+    frames.close()
+    return jax.tree.map(lambda *a: jnp.concatenate(a)[:F], *parts)
+
+
 def _check_paths(args, outputs: dict[str, tuple[str | None, tuple[str, ...]]]) -> None:
     """Inputs exist with the right kind; every output (flag → (path, extensions)) can be
     written, differs from the others and from every input file. Before any reading."""
@@ -187,11 +223,13 @@ def run_associate(args: argparse.Namespace) -> int:
     weights = jnp.asarray(det.confidence, dtype) if args.confidence_weights else None
 
     t0 = time.perf_counter()
-    result = associate_batch(
-        rig, jnp.asarray(det.xy, dtype), jnp.asarray(det.mask), config=config, sigma=args.sigma,
-        dist=dist, weights=weights, min_views=args.min_views, batch_size=args.batch_size,
+    result = _associate_frames(
+        lambda xy, mask, w: associate_batch(
+            rig, xy, mask, config=config, sigma=args.sigma, dist=dist, weights=w, min_views=args.min_views,
+            batch_size=args.batch_size,
+        ),
+        jnp.asarray(det.xy, dtype), jnp.asarray(det.mask), weights, args.batch_size,
     )
-    result = jax.block_until_ready(result)
     elapsed = time.perf_counter() - t0
     num_groups = np.asarray(result.num_groups)
     n_views = np.asarray(result.n_views)[np.asarray(result.valid)]

@@ -23,6 +23,7 @@ are the estimator's own (noise and weakly observable directions), the floor for 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import time
 
@@ -31,6 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._config import Config
+from ._progress import bar, compiling
 from .geometry._camera import Rig
 from .geometry._parameters import so3_exp
 from .io._atomic import atomic_savefig
@@ -154,12 +156,15 @@ def run_experiment(
         return jnp.mean(pg_f1), jnp.nanmedian(bpe)
 
     center = np.mean(np.asarray(DEFAULT_BOX), axis=0)
-    pg_f1_truth = float(scores(truth)[0])
+    with compiling("the scoring of the dense scenes (with its first run)"):
+        pg_f1_truth = float(scores(truth)[0])
     rows = []
+    levels_bar = bar(len(levels), "calibrate: drift levels", unit="level")
     for i, level in enumerate(levels):
         start = perturb_rig(jax.random.fold_in(key_perturb, i), truth, level, center)
         t0 = time.perf_counter()
-        refined, rotation_rounds, focal_rounds = jax.block_until_ready(run(start))
+        with compiling("the calibration (with its first run)") if i == 0 else contextlib.nullcontext():
+            refined, rotation_rounds, focal_rounds = jax.block_until_ready(run(start))
         first = time.perf_counter() - t0
         times = []
         for _ in range(timing_runs):
@@ -186,6 +191,8 @@ def run_experiment(
                 first_s=first,
             )
         )
+        levels_bar.update(1)
+    levels_bar.close()
     return rows
 
 

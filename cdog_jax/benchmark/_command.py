@@ -154,6 +154,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the benchmark; returns the exit code."""
     from . import _figures as figures
     from ._io import save_results, summary_table
+    from .._progress import interactive, sweep_bar
     from ._sweep import print_progress, sweep
 
     _check_paths(args)
@@ -168,17 +169,22 @@ def run(args: argparse.Namespace) -> int:
         flush=True,
     )
     print("Generating, associating and scoring every scene in one compiled call (compiling first) …", flush=True)
+    # A live bar in a terminal; in a log, one line per finished bucket.
+    progress, close_bar = sweep_bar(grid.num_scenes) if interactive() else (print_progress, lambda: None)
     t0 = time.perf_counter()
-    result = sweep(
-        rig,
-        grid,
-        configs=configs,
-        buckets=buckets,
-        box=box,
-        image_size=image_size,
-        timing=not args.no_timing,
-        progress=print_progress,
-    )
+    try:
+        result = sweep(
+            rig,
+            grid,
+            configs=configs,
+            buckets=buckets,
+            box=box,
+            image_size=image_size,
+            timing=not args.no_timing,
+            progress=progress,
+        )
+    finally:
+        close_bar()
     total = time.perf_counter() - t0
     print(
         f"Done: sweep call {result.wall_s:.2f} s warm-equivalent (compile {result.compile_s:.2f} s), "
