@@ -1,4 +1,4 @@
-"""Speed of the benchmark sweep and of one scene (issue 3, item 8).
+"""Speed of the benchmark sweep and of one scene.
 
 Questions:
 

@@ -1,4 +1,4 @@
-"""The benchmark sweep (docs/BENCHMARK.md §1–2; issue 3): generate, associate and score a whole grid
+"""The benchmark sweep (docs/BENCHMARK.md §1–2): generate, associate and score a whole grid
 in one compiled call.
 
 :func:`sweep` builds every scene of a :class:`Grid` from its own key, runs every config on
