@@ -455,6 +455,10 @@ def surfaces(
     return _finish(fig, path)
 
 
+_TIME_NOTE = ("median over the scenes\nband: interquartile range\n\nevery scene is padded to its\nbucket's capacity P and timed\n"
+              "at that size: the time is\nflat within a bucket")
+
+
 def time_vs_count(
     count,
     time_s: Mapping[str, Any],
@@ -511,8 +515,8 @@ def time_vs_count(
         capacity = _as_1d("capacity", capacity, count.size)
         for k, cap in enumerate(np.unique(capacity)):
             ax.axvline(cap, color="0.6", ls=":", lw=1.0, label="end of a padded bucket" if k == 0 else None)
-            ax.annotate(f"P = {_fmt(cap)}", (cap, 1.0), xycoords=("data", "axes fraction"), xytext=(-3, -4),
-                        textcoords="offset points", ha="right", va="top", fontsize=8, color="0.4")
+            ax.annotate(f"P = {_fmt(cap)}", (cap, 0.0), xycoords=("data", "axes fraction"), xytext=(-3, 4),
+                        textcoords="offset points", ha="right", va="bottom", fontsize=8, color="0.4")
     if log:
         ax.set_yscale("log")
     ax.set_xlim(left=0)
@@ -521,11 +525,10 @@ def time_vs_count(
     ax.grid(True, which="major", color="0.88", lw=0.8)
     ax.grid(True, which="minor", axis="y", color="0.94", lw=0.5)
     ax.set_axisbelow(True)
-    fig.legend(loc="outside right upper", fontsize=9, title="median over the scenes\nband: interquartile range",
+    fig.legend(loc="outside right upper", fontsize=9, title=_TIME_NOTE,
                title_fontsize=8, frameon=False, labelspacing=0.9)
     ax.set_title("Association time vs scene size", fontsize=12, fontweight="bold", loc="left")
-    ax.text(0.0, 1.0, "every scene is padded to its bucket's capacity P and timed at that size: flat within a bucket",
-            transform=ax.transAxes, fontsize=8, color="0.35", va="bottom", ha="left")
+
     return _finish(fig, path)
 
 
