@@ -26,12 +26,13 @@ def interactive() -> bool:
     return bool(getattr(stream, "isatty", None) and stream.isatty())
 
 
-def bar(total: int | None, desc: str, unit: str = "it") -> Any:
-    """A tqdm bar on stderr, disabled (every call a no-op) when not :func:`interactive`."""
+def bar(total: int | None, desc: str, unit: str = "it", **options: Any) -> Any:
+    """A tqdm bar on stderr, disabled (every call a no-op) when not :func:`interactive`;
+    ``options`` go to ``tqdm``."""
     from tqdm import tqdm
 
     return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, disable=not interactive(), leave=True,
-                dynamic_ncols=True)
+                dynamic_ncols=True, **options)
 
 
 @contextlib.contextmanager
@@ -42,8 +43,7 @@ def compiling(what: str) -> Iterator[None]:
     if not interactive():
         yield
         return
-    line = bar(None, f"compiling {what} (once; cached on disk for the next runs)", unit="s")
-    line.bar_format = "{desc} … {elapsed}"
+    line = bar(None, f"compiling {what}", unit="s", bar_format="{desc} … {elapsed}")
     stop = threading.Event()
 
     def tick() -> None:
