@@ -17,6 +17,7 @@ get zero groups and a note.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import time
@@ -56,13 +57,33 @@ def _min_views(text: str) -> int:
     return value
 
 
+_RIG_FORMATS_TEXT = (
+    "an EasyVis/OpenMVG folder (K0.txt, R0.txt, T0.txt, ...), the project's .json or .npz, an anipose "
+    "calibration.toml, a COLMAP text model (cameras.txt + images.txt) or EasyMocap intri.yml + extri.yml"
+)
+_ASSOCIATE_DESCRIPTION = (
+    "Associate the detections of your cameras: read a rig (" + _RIG_FORMATS_TEXT + ") and a "
+    "detections file (JSON or NPZ, one scene or many frames; docs/CONVENTIONS.md §3), check "
+    "both before any work, associate every frame (undistorting first when the rig has "
+    "distortion), print a summary and write the groups and their 3D points (JSON, NPZ or CSV "
+    "by the extension of --out) and optionally a figure of the first frame. Frames with fewer "
+    "than 2 views with detections get zero groups and a note. Try it on the example files: "
+    "cdog-jax associate --rig examples/rig.json --points examples/detections.json"
+)
+_RIG_DESCRIPTION = (
+    "Describe a rig file (" + _RIG_FORMATS_TEXT + "): camera centres, viewing directions, "
+    "focal lengths, baselines and warnings (a camera looking away from the detections, "
+    "axes meeting behind the cameras, a rig that reads right only as camera-to-world), and "
+    "optionally draw it."
+)
+
+
 def add_parsers(subparsers) -> None:
     """Declare ``associate`` and ``rig``."""
     p = subparsers.add_parser(
         "associate",
         help="associate your detections with your rig; write groups and 3D points",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=_ASSOCIATE_DESCRIPTION,
     )
     p.add_argument("--rig", required=True, help="rig file or folder")
     p.add_argument("--rig-format", default="auto", choices=("auto", *FORMATS), help="rig format (default: from the path)")
@@ -81,12 +102,47 @@ def add_parsers(subparsers) -> None:
     p.add_argument("--batch-size", type=_positive_int, default=16, help="frames associated at once (memory bound)")
     p.set_defaults(func=run_associate)
 
-    r = subparsers.add_parser("rig", help="describe a rig file: centres, directions, baselines, warnings", description=__doc__)
+    r = subparsers.add_parser("rig", help="describe a rig file: centres, directions, baselines, warnings", description=_RIG_DESCRIPTION)
     r.add_argument("rig", help="rig file or folder")
-    r.add_argument("--rig-format", default="auto", choices=("auto", *FORMATS))
+    r.add_argument("--rig-format", default="auto", choices=("auto", *FORMATS), help="rig format (default: from the path)")
     r.add_argument("--points", default=None, help="detections file: check the cameras look at their triangulated centroid")
     r.add_argument("--plot", default=None, help="figure of the camera frusta (.png, .pdf, .svg, .jpg)")
     r.set_defaults(func=run_rig)
+
+
+_PROGRESS_STEPS = 20  # frames are associated in about this many calls, for the progress bar
+
+
+def _associate_frames(call, xy, mask, weights, batch_size: int):
+    """``call(xy, mask, weights)`` over chunks of the ``F`` frames, with a progress bar,
+    and the results joined: one chunk (one call) up to ``_PROGRESS_STEPS`` batches, else
+    chunks of a whole number of batches, the last padded with copies of the last frame
+    (one shape, one compiled program), the copies' results dropped."""
+    import jax
+    import jax.numpy as jnp
+
+    from ._progress import bar, compiling
+
+    F = xy.shape[0]
+    chunk = batch_size * max(1, math.ceil(F / (batch_size * _PROGRESS_STEPS)))
+    if F <= chunk:
+        with compiling(f"the association of {F} frame(s) (with its run)"):
+            return jax.block_until_ready(call(xy, mask, weights))
+    pad = -F % chunk
+
+    def padded(a):
+        return None if a is None else jnp.concatenate([a, jnp.repeat(a[-1:], pad, axis=0)])
+
+    xy, mask, weights = padded(xy), padded(mask), padded(weights)
+    frames = bar(F, "associate", unit="frame")
+    parts = []
+    for start in range(0, F + pad, chunk):
+        part = slice(start, start + chunk)
+        with compiling(f"the association of {chunk} frames (with its first run)") if start == 0 else contextlib.nullcontext():
+            parts.append(jax.block_until_ready(call(xy[part], mask[part], None if weights is None else weights[part])))
+        frames.update(min(chunk, F - start))
+    frames.close()
+    return jax.tree.map(lambda *a: jnp.concatenate(a)[:F], *parts)
 
 
 def _check_paths(args, outputs: dict[str, tuple[str | None, tuple[str, ...]]]) -> None:
@@ -168,11 +224,13 @@ def run_associate(args: argparse.Namespace) -> int:
     weights = jnp.asarray(det.confidence, dtype) if args.confidence_weights else None
 
     t0 = time.perf_counter()
-    result = associate_batch(
-        rig, jnp.asarray(det.xy, dtype), jnp.asarray(det.mask), config=config, sigma=args.sigma,
-        dist=dist, weights=weights, min_views=args.min_views, batch_size=args.batch_size,
+    result = _associate_frames(
+        lambda xy, mask, w: associate_batch(
+            rig, xy, mask, config=config, sigma=args.sigma, dist=dist, weights=w, min_views=args.min_views,
+            batch_size=args.batch_size,
+        ),
+        jnp.asarray(det.xy, dtype), jnp.asarray(det.mask), weights, args.batch_size,
     )
-    result = jax.block_until_ready(result)
     elapsed = time.perf_counter() - t0
     num_groups = np.asarray(result.num_groups)
     n_views = np.asarray(result.n_views)[np.asarray(result.valid)]

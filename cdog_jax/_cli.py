@@ -4,9 +4,9 @@ One function per subcommand: ``_add_<name>(subparsers)`` declares its arguments 
 ``func`` to ``_run_<name>(args) -> int``; register new ones in ``_SUBCOMMANDS``.
 
 Subcommands:
-    demo       built-in rig → synthetic scene → :func:`cdog_jax.associate` → summary, SPEC §5
-               metrics, timings and a PNG figure.
-    benchmark  the SPEC §3 grid for several methods in one compiled call → tables, saved
+    demo       built-in rig → synthetic scene → :func:`cdog_jax.associate` → summary, metrics
+               (docs/BENCHMARK.md §2), timings and a PNG figure; ``--save-scene`` writes files.
+    benchmark  the benchmark grid (docs/BENCHMARK.md §1) for several methods in one compiled call → tables, saved
                results, figures (``cdog_jax/benchmark/_command.py``).
     calibrate  perturb the built-in rig, refine it from associations, before/after table and
                a convergence figure (``cdog_jax/_calibrate_command.py``).
@@ -33,7 +33,7 @@ from collections.abc import Sequence
 
 from .io._errors import InputError
 
-# Rows of the metrics table: (Metrics field, SPEC §5 name, format, unit / meaning).
+# Rows of the metrics table: (Metrics field, docs/BENCHMARK.md §2 name, format, unit / meaning).
 _METRIC_ROWS = (
     ("g_f1", "G-F1", ".3f", "group level, imperfect groups allowed"),
     ("mp_f1", "mP-F1", ".3f", "mean point F1 over groups of >= 2 nodes"),
@@ -109,8 +109,9 @@ def _add_demo(subparsers) -> None:
         "demo",
         help="associate a synthetic scene on the built-in rig, print metrics, save a figure",
         description=(
-            "Generate a synthetic scene on the built-in 10-camera rig (SPEC §3), associate it "
-            "with C-DOG, print a summary with the SPEC §5 metrics and timings, and write a PNG."
+            "Generate a synthetic scene on the built-in 10-camera rig, associate it with C-DOG, print a "
+            "summary with the benchmark's metrics (defined in docs/BENCHMARK.md) and timings, and write a "
+            "figure. --save-scene DIR also writes the scene as files that 'cdog-jax associate' reads."
         ),
     )
     p.add_argument("--points", type=_positive_int, default=60, help="3D points in the scene (default 60)")
@@ -129,7 +130,47 @@ def _add_demo(subparsers) -> None:
     )
     p.add_argument("--out", default="cdog_demo.png", help="output figure, .png/.pdf/.svg/.jpg (default cdog_demo.png)")
     p.add_argument("--capacity", type=_positive_int, default=None, help="slots per view P (default: --points)")
+    p.add_argument(
+        "--save-scene",
+        metavar="DIR",
+        default=None,
+        help="also write the scene into DIR: rig.json, detections.json (input of 'cdog-jax associate') and "
+        "truth.json (the true 3D points and the point of every detection)",
+    )
     p.set_defaults(func=_run_demo, parser=p)
+
+
+_SCENE_FILES = ("rig.json", "detections.json", "truth.json")
+
+
+def _save_scene(folder: str, rig, scene, sigma: float, seed: int) -> None:
+    """Write ``scene`` (unbatched) into ``folder`` as ``rig.json``, ``detections.json`` and
+    ``truth.json``; the truth lists the point id of every detection in the order of
+    ``detections.json`` and the true 3D points (scene units)."""
+    import json
+
+    import numpy as np
+
+    from .io import save_detections_json, save_rig_json
+    from .io._atomic import atomic_write
+    from .synthetic import IMAGE_SIZE
+
+    os.makedirs(folder, exist_ok=True)
+    mask = np.asarray(scene.mask)
+    instance = np.asarray(scene.instance)
+    save_rig_json(os.path.join(folder, "rig.json"), rig, image_size=IMAGE_SIZE)
+    save_detections_json(os.path.join(folder, "detections.json"), scene.xy, mask)
+    truth = {
+        "about": "synthetic scene of 'cdog-jax demo': views[m][k] is the true point of detection k of view m "
+        "in detections.json; points3d[i] is point i (scene units)",
+        "sigma_px": sigma,
+        "seed": seed,
+        "points3d": np.asarray(scene.points3d, dtype=np.float64)[: int(scene.num_points)].tolist(),
+        "views": [instance[m][mask[m]].tolist() for m in range(mask.shape[0])],
+    }
+    with atomic_write(os.path.join(folder, "truth.json"), "w") as f:
+        json.dump(truth, f)
+        f.write("\n")
 
 
 def _run_demo(args: argparse.Namespace) -> int:
@@ -147,6 +188,10 @@ def _run_demo(args: argparse.Namespace) -> int:
     if capacity < args.points:
         args.parser.error(f"--capacity must be >= --points ({args.points}); got {capacity}")
     check_output(args.out, "--out", _FIGURE_EXTENSIONS, {})
+    if args.save_scene is not None:
+        from ._paths import check_output_folder
+
+        check_output_folder(args.save_scene, "--save-scene", _SCENE_FILES, {})
     from .synthetic import IMAGE_SIZE as _SIZE
 
     check_sigma_fits(args.sigma, math.hypot(*_SIZE), f"the built-in rig ({_SIZE[0]}×{_SIZE[1]} px)")
@@ -202,7 +247,7 @@ def _run_demo(args: argparse.Namespace) -> int:
         lines.append("  (no groups)")
 
     values = {field: float(getattr(metrics, field)) for field, *_ in _METRIC_ROWS}
-    lines += ["", "Metrics (SPEC §5, this scene):"]
+    lines += ["", "Metrics (this scene; definitions in docs/BENCHMARK.md §2):"]
     for field, name, fmt, note in _METRIC_ROWS:
         shown = format(values[field], fmt) if np.isfinite(values[field]) else "n/a"
         if field in ("err3d", "bpe_px") and int(metrics.num_err_groups) == 0:
@@ -214,7 +259,8 @@ def _run_demo(args: argparse.Namespace) -> int:
         f"{name} {values[f]:{fmt}}" + (" px" if f == "bpe_px" else "") for f, name, fmt, _ in _METRIC_ROWS
     )
     write_output(args.out, "--out", lambda: plot_association(
-        rig, scene.xy, scene.mask, result, points3d_gt=np.asarray(scene.points3d)[:n_inst], title=caption, path=args.out
+        rig, scene.xy, scene.mask, result, points3d_gt=np.asarray(scene.points3d)[:n_inst],
+        instance=scene.instance, title=caption, path=args.out
     ))  # fmt: skip
     timings.append(("figure (draw + save)", time.perf_counter() - t0))
 
@@ -222,6 +268,12 @@ def _run_demo(args: argparse.Namespace) -> int:
     width = max(len(label) for label, _ in timings)
     lines += [f"  {label:<{width}}  {_seconds(s):>9}" for label, s in timings]
     lines += ["", f"Figure  {args.out}"]
+    if args.save_scene is not None:
+        write_output(args.save_scene, "--save-scene", lambda: _save_scene(args.save_scene, rig, scene, args.sigma, args.seed))
+        files = ", ".join(os.path.join(args.save_scene, name) for name in _SCENE_FILES)
+        lines += [f"Scene   {files}",
+                  f"        try: cdog-jax associate --rig {os.path.join(args.save_scene, 'rig.json')} "
+                  f"--points {os.path.join(args.save_scene, 'detections.json')} --out groups.json"]
     _emit(lines)
     return 0
 

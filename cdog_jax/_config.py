@@ -1,4 +1,4 @@
-"""Pipeline configuration (SPEC §2): static structure plus traced numeric thresholds.
+"""Pipeline configuration (docs/ALGORITHM.md): static structure plus traced numeric thresholds.
 
 :class:`Config` holds plain Python values, so it is hashable and can be a static argument
 of ``jax.jit``. Its numeric fields (τ, δ, α, the jump rule...) are *not* part of the jit
@@ -27,7 +27,7 @@ SigmaMode = Literal["given", "auto"]
 class Thresholds(NamedTuple):
     """Numeric thresholds, traced (scalars, or arrays with a leading batch axis under vmap).
 
-    ``tau_px = max(alpha_tau * sqrt(2) * sigma_px, tau_min_px)`` (SPEC §2.1).
+    ``tau_px = max(alpha_tau * sqrt(2) * sigma_px, tau_min_px)`` (docs/ALGORITHM.md §1–2).
     """
 
     sigma_px: Float[Array, ""]  # 2D noise std (pixels); ignored when sigma_mode="auto"
@@ -132,7 +132,7 @@ class Config:
     """How to associate. Structural fields change the compiled program; numeric ones do not.
 
     Presets: :meth:`paper` (the paper's method, our defaults) and :meth:`reference` (the
-    original public implementation's behaviour, SPEC §2.7).
+    original public implementation's behaviour, docs/BENCHMARK.md §5).
     """
 
     # --- structure (part of the jit key) ---
@@ -213,7 +213,7 @@ class Config:
 
     @classmethod
     def reference(cls, **overrides) -> "Config":
-        """The original public code's choices (SPEC §2.7): fixed τ = 10 px, δ-pruning only of
+        """The original public code's choices (docs/BENCHMARK.md §5): fixed τ = 10 px, δ-pruning only of
         view-conflicting components, IQR α = 1.5 on positive scores with own errors and the
         10/50 px guards, no BPE filter, then the second association."""
         base = dict(
@@ -268,5 +268,5 @@ def config_from(config, function: str) -> Config:
 
 
 def tau_px(th: Thresholds, sigma_px: Float[Array, ""]) -> Float[Array, ""]:
-    """Epipolar gate ``τ = max(alpha_tau · √2 · σ, tau_min)`` in pixels (SPEC §2.1)."""
+    """Epipolar gate ``τ = max(alpha_tau · √2 · σ, tau_min)`` in pixels (docs/ALGORITHM.md §1–2)."""
     return jnp.maximum(th.alpha_tau * jnp.sqrt(2.0) * sigma_px, th.tau_min_px)

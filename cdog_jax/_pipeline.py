@@ -1,4 +1,4 @@
-"""C-DOG end to end for one scene (SPEC §2, ALGORITHM.md), and the public entry points.
+"""C-DOG end to end for one scene (docs/ALGORITHM.md, ALGORITHM.md), and the public entry points.
 
 ``associate_traced`` is the pure function (jit/vmap it yourself; ``config`` must be
 static). ``associate`` checks its inputs eagerly and runs the jitted pipeline on one

@@ -1,4 +1,4 @@
-"""The association result pytree (SPEC §2.6)."""
+"""The association result pytree (docs/ALGORITHM.md §11)."""
 
 import equinox as eqx
 

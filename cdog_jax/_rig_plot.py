@@ -101,3 +101,68 @@ def plot_rig(rig: Rig, *, ax=None, points=None, names=None, image_size=None, fru
     ax.set_zlabel("Z (scene units)")
     ax.set_title(f"Rig: {M} cameras (frusta to depth {frustum_depth:.3g}; red tick = image top)", fontsize=10)
     return ax
+
+
+def plot_rays(rig: Rig, xy, mask, *, result=None, depth=None, ax=None, names=None, image_size=None):
+    """Draw the rig (as :func:`plot_rig`) and the ray from every camera centre through each
+    of its detections: the rays of one group should meet at its 3D point.
+
+    Args:
+        rig: one unbatched rig of ``M`` views (distortion-free pixels: undistort first).
+        xy: ``(M, P, 2)`` detections (pixels).
+        mask: ``(M, P)`` bool; only valid detections get a ray.
+        result: optional unbatched :class:`cdog_jax.Association`: rays are coloured by
+            group (unassigned ones thin and grey), each group's ray stops just past its 3D
+            point, and the points are drawn.
+        depth: length of the rays without a group point (scene units); default: 1.2 × the
+            largest distance from a camera to a group point, or the rig's width.
+        ax, names, image_size: as for :func:`plot_rig`.
+
+    Returns:
+        The matplotlib ``Axes3D``. The rays are ``ax.lines[-n:]``, ``n`` the number of
+        valid detections, in view-major slot order, each starting at its camera centre.
+    """
+    from ._plot import group_style
+
+    expect_args("plot_rays", rig=(rig, Rig))
+    K, R, t, _ = host_views(rig, names, "plot_rays")
+    xy = np.asarray(xy, dtype=np.float64)
+    mask = np.asarray(mask, dtype=bool)
+    M = K.shape[0]
+    if xy.ndim != 3 or xy.shape[0] != M or xy.shape[2] != 2 or mask.shape != xy.shape[:2]:
+        raise ValueError(f"plot_rays: xy must be (M, P, 2) and mask (M, P) with M={M}; got {xy.shape} and {mask.shape}")
+    centers = -np.einsum("mji,mj->mi", R, t)
+    labels = np.full(mask.shape, -1)
+    points = np.zeros((0, 3))
+    if result is not None:
+        labels = np.asarray(result.labels)
+        if labels.shape != mask.shape:
+            raise ValueError(f"plot_rays: result must be one unbatched scene; labels {labels.shape}, mask {mask.shape}")
+        valid = np.asarray(result.valid, dtype=bool)
+        labels = np.where((labels >= 0) & valid[np.maximum(labels, 0)], labels, -1)
+        points = np.asarray(result.points3d, dtype=np.float64)
+    used = np.unique(labels[labels >= 0])
+    if depth is None:
+        reach = np.linalg.norm(points[used][None, :, :] - centers[:, None, :], axis=-1) if used.size else np.zeros(0)
+        depth = 1.2 * float(reach.max()) if reach.size else float(np.max(np.ptp(centers, axis=0))) or 1.0
+    ax = plot_rig(rig, ax=ax, points=points[used] if used.size else None, names=names, image_size=image_size)
+
+    pixels = np.concatenate([xy, np.ones_like(xy[..., :1])], axis=-1)
+    ray = np.einsum("mij,mpj->mpi", np.linalg.inv(K), pixels)
+    ray *= np.sign(ray[..., 2:3]) + (ray[..., 2:3] == 0)  # in front: positive camera depth
+    world = np.einsum("mji,mpj->mpi", R, ray)
+    world /= np.linalg.norm(world, axis=-1, keepdims=True)
+    for m, p in zip(*np.nonzero(mask)):
+        g = int(labels[m, p])
+        length = depth
+        if g >= 0:
+            length = 1.08 * float(np.dot(points[g] - centers[m], world[m, p]))  # just past the point
+            color, lw, alpha = group_style(g)[0], 0.9, 0.9
+        else:
+            color, lw, alpha = "0.6", 0.5, 0.6
+        end = centers[m] + max(length, 1e-9) * world[m, p]
+        ax.plot(*np.stack([centers[m], end]).T, color=color, lw=lw, alpha=alpha)
+    n = int(mask.sum())
+    assigned = int((labels[mask] >= 0).sum())
+    ax.set_title(f"Rays through {n} detections ({assigned} in {used.size} groups, coloured; others grey)", fontsize=10)
+    return ax

@@ -1,8 +1,8 @@
-"""Speed of the benchmark sweep and of one scene (issue 3, item 8).
+"""Speed of the benchmark sweep and of one scene.
 
 Questions:
 
-1. How long does the full SPEC §3 grid (21 σ × 42 counts × 5 scenes = 4,410 scenes,
+1. How long does the full docs/BENCHMARK.md §1 grid (21 σ × 42 counts × 5 scenes = 4,410 scenes,
    10 views, generate + associate + score) take in one ``sweep`` call, cold (a fresh
    process: trace + compile + run) and warm (the same call again), and how much memory?
 2. How does the time of one scene grow with its point count (warm; compile apart)?

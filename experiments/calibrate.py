@@ -1,4 +1,4 @@
-"""Camera refinement from associations on the built-in rig (issue 4, item 4).
+"""Camera refinement from associations on the built-in rig.
 
 Question: starting from a drifted calibration (three levels of rotation, centre and focal
 noise on every view), how well does alternating association and joint camera + point

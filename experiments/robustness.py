@@ -1,4 +1,4 @@
-"""Robustness of C-DOG to missed detections and to clutter (SPEC §3, beyond the paper).
+"""Robustness of C-DOG to missed detections and to clutter (docs/BENCHMARK.md §1, beyond the paper).
 
 Question: how do PG-F1, mP-F1 and G-F1 fall when detections are missed (drop rate 0, 5, 10,
 20, 30 %) or when false detections are added (Poisson clutter, mean 0, 2, 5, 10, 20 points
@@ -13,13 +13,13 @@ drop and clutter rates; ``capacity`` = the largest count, ``clutter_capacity`` =
 a Poisson(20) count is clipped with probability ≈ 10⁻⁶; the clipped count is checked). The
 two sweeps share the level (0 %, 0). Which points exist is decided before the drops (a
 point visible in ≥ 2 views), so every drop rate keeps the same points, and a point may
-be left with one detection (then it is no ground-truth group, SPEC §5). Each config
+be left with one detection (then it is no ground-truth group, docs/BENCHMARK.md §2). Each config
 associates the whole batch in one compiled :func:`cdog_jax.associate_batch` call (σ given,
 the rates only change the data, so nothing recompiles); the metrics are
 :func:`cdog_jax.metrics.scene_metrics` vmapped, means over scenes as
 :func:`cdog_jax.metrics.mean_metrics`. "truth G-F1" is the G-F1 of the true grouping (one
 group per ground-truth group, everything else unassigned): every unassigned detection is a
-singleton prediction (SPEC §5), so clutter and points seen once keep G-F1 below 1 even for
+singleton prediction (docs/BENCHMARK.md §2), so clutter and points seen once keep G-F1 below 1 even for
 the truth (its PG-F1 and mP-F1 are 1). A method can score above it by hiding clutter inside
 correct groups (a group stays a G- match while its majority is right).
 

@@ -1,6 +1,6 @@
-"""Small accuracy grid for both presets on the built-in rig (issue 2's closing table).
+"""Small accuracy grid for both presets on the built-in rig.
 
-Question: how do ``paper()`` and ``reference()`` score (SPEC §5) at σ ∈ {0, 1, 3, 5} on a
+Question: how do ``paper()`` and ``reference()`` score (docs/BENCHMARK.md §2) at σ ∈ {0, 1, 3, 5} on a
 few scenes of 10, 40 and 130 points? Usage: ``python experiments/small_grid.py [--scenes 5]``.
 """
 

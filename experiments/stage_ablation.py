@@ -3,7 +3,7 @@
 Each row adds one stage to the previous one (cumulative configs): the epipolar graph with
 view-uniqueness only, + δ-overlap pruning (Alg. 2), + IQR (Alg. 3), + the BPE jump filter
 (§IV-E) = ``paper()``, then our additions: union adjacency, + recovery by reprojection,
-+ regrouping = ``extended()``. Reported per σ (SPEC §5, mean over scenes): PG-R (share of
++ regrouping = ``extended()``. Reported per σ (docs/BENCHMARK.md §2, mean over scenes): PG-R (share of
 ground-truth groups found as a perfect group), PG-P, G-F1 and unassigned detections per
 scene. Usage: ``python experiments/stage_ablation.py [--sigmas 1 3] [--scenes 2]``.
 """

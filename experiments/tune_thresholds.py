@@ -1,4 +1,4 @@
-"""Tuning the numeric thresholds of ``Config.paper()`` on a separate split (issue 3, item 6).
+"""Tuning the numeric thresholds of ``Config.paper()`` on a separate split.
 
 Question: are there better values than the paper's defaults for τ (``alpha_tau``,
 ``tau_min_px``), δ, the IQR α and the BPE jump rule (``jump_kappa``, ``jump_floor_px2``,

@@ -1,4 +1,4 @@
-"""Views ablation at σ = 3 px (paper Table I, issue 3 item 5).
+"""Views ablation at σ = 3 px (paper Table I).
 
 Question: how does PG-F1 (and mP-F1, G-F1) of ``paper()`` and ``extended()`` change with
 the number of views k = 2 … 10, when the k views are drawn at random from the built-in

@@ -1,4 +1,4 @@
-"""The benchmark sweep (SPEC §3, §5): a noise × density grid generated, associated and
+"""The benchmark sweep (docs/BENCHMARK.md §1–2): a noise × density grid generated, associated and
 scored in one compiled call, sharded over devices, saved to NPZ/CSV/JSON, summarised."""
 
 from ._grid import DRAW_CAPACITY as DRAW_CAPACITY

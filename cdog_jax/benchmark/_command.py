@@ -1,4 +1,4 @@
-"""``cdog-jax benchmark``: the SPEC §3 grid for several methods, tables and figures.
+"""``cdog-jax benchmark``: the benchmark grid (docs/BENCHMARK.md) for several methods, tables and figures.
 
 Runs :func:`~cdog_jax.benchmark.sweep` once (every method and scene in one compiled call),
 prints the paper-style table at σ = 0, 1, 3, 5, saves the per-scene results (NPZ, CSV,
@@ -31,14 +31,24 @@ def _method_list(text: str) -> tuple[str, ...]:
     return names
 
 
+_DESCRIPTION = (
+    "Generate, associate and score a grid of synthetic scenes (noise σ × point count × scenes; "
+    "docs/BENCHMARK.md) for several methods in one compiled call, print the paper-style table "
+    "at σ = 0, 1, 3, 5, save the per-scene results (NPZ, CSV, JSON) and write figures (heat "
+    "maps, score surfaces, metrics against σ, time against point count) into --out. The full "
+    "grid is 4,410 scenes; --quick runs a small one in under a minute."
+)
+
+
 def add_parser(subparsers) -> None:
     """Declare ``benchmark`` and its flags."""
+    from .._associate_command import _RIG_FORMATS_TEXT
     from .._cli import _nonnegative_float, _nonnegative_int, _positive_int
 
     p = subparsers.add_parser(
         "benchmark",
         help="run the noise x density benchmark grid, print tables, write figures",
-        description=__doc__,
+        description=_DESCRIPTION,
     )
     p.add_argument("--quick", action="store_true", help="tiny grid (σ 0,1,3,5 × counts 5,20,60 × 2 scenes)")
     p.add_argument("--out", default="benchmark_results", help="output folder (default: %(default)s)")
@@ -47,9 +57,9 @@ def add_parser(subparsers) -> None:
     p.add_argument("--counts", type=_positive_int, nargs="+", help="point counts (default: the grid's)")
     p.add_argument("--scenes", type=_positive_int, help="scenes per (σ, count) cell")
     p.add_argument("--views", type=_nonnegative_int, nargs="+", help="rig view indices to use (default: all)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="PRNG seed of the scenes (default 0)")
     p.add_argument("--buckets", type=_positive_int, nargs="+", help="slot capacities (default: fitted to the counts)")
-    p.add_argument("--rig", help="run on this rig instead of the built-in one: an EasyVis folder, .json or .npz")
+    p.add_argument("--rig", help="run on this rig instead of the built-in one: " + _RIG_FORMATS_TEXT)
     p.add_argument("--rig-format", default="auto", choices=("auto", *FORMATS), help="rig file format (default: from the path)")
     p.add_argument(
         "--box", type=float, nargs=6, metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"),
@@ -144,6 +154,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the benchmark; returns the exit code."""
     from . import _figures as figures
     from ._io import save_results, summary_table
+    from .._progress import interactive, sweep_bar
     from ._sweep import print_progress, sweep
 
     _check_paths(args)
@@ -158,17 +169,22 @@ def run(args: argparse.Namespace) -> int:
         flush=True,
     )
     print("Generating, associating and scoring every scene in one compiled call (compiling first) …", flush=True)
+    # A live bar in a terminal; in a log, one line per finished bucket.
+    progress, close_bar = sweep_bar(grid.num_scenes) if interactive() else (print_progress, lambda: None)
     t0 = time.perf_counter()
-    result = sweep(
-        rig,
-        grid,
-        configs=configs,
-        buckets=buckets,
-        box=box,
-        image_size=image_size,
-        timing=not args.no_timing,
-        progress=print_progress,
-    )
+    try:
+        result = sweep(
+            rig,
+            grid,
+            configs=configs,
+            buckets=buckets,
+            box=box,
+            image_size=image_size,
+            timing=not args.no_timing,
+            progress=progress,
+        )
+    finally:
+        close_bar()
     total = time.perf_counter() - t0
     print(
         f"Done: sweep call {result.wall_s:.2f} s warm-equivalent (compile {result.compile_s:.2f} s), "
@@ -192,6 +208,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _figures(figures, result, args) -> None:
     """The benchmark's PNG figures in ``args.out``."""
+    from ._grid import Grid
+
     metrics = {name: result.metrics[name] for name in result.configs}
     for name in result.configs:
         figures.heatmaps(
@@ -200,6 +218,10 @@ def _figures(figures, result, args) -> None:
         figures.surfaces(
             result.sigma, result.count, metrics, method=name, path=os.path.join(args.out, f"surfaces_{name}.png")
         )
-    figures.metrics_vs_sigma(result.sigma, metrics, path=os.path.join(args.out, "metrics_vs_sigma.png"))
+    full = Grid.paper()
+    grid = result.grid
+    full_grid = (grid.sigmas, grid.counts, grid.views) == (full.sigmas, full.counts, None) and grid.scenes >= full.scenes
+    figures.metrics_vs_sigma(result.sigma, metrics, full_grid=full_grid, path=os.path.join(args.out, "metrics_vs_sigma.png"))
     if not args.no_timing:
-        figures.time_vs_count(result.count, result.time_s, path=os.path.join(args.out, "time_vs_count.png"))
+        figures.time_vs_count(result.count, result.time_s, capacity=result.capacity,
+                              path=os.path.join(args.out, "time_vs_count.png"))

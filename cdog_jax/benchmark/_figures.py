@@ -1,4 +1,4 @@
-"""Figures of a benchmark sweep (SPEC §3 grid, SPEC §5 metrics, SPEC §6 reference numbers).
+"""Figures of a benchmark sweep (docs/BENCHMARK.md §1 grid, docs/BENCHMARK.md §2 metrics, docs/BENCHMARK.md §3–4 reference numbers).
 
 Host-side only, on plain arrays, so nothing here depends on how the sweep was run:
 
@@ -8,7 +8,7 @@ Host-side only, on plain arrays, so nothing here depends on how the sweep was ru
   ``Metrics`` batched over the scenes may stand in for the inner mapping;
 - ``time_s[method] -> (S,)`` per-scene association time in seconds.
 
-Averages follow SPEC §5 like :func:`cdog_jax.metrics.mean_metrics`: the plain mean over
+Averages follow docs/BENCHMARK.md §2 like :func:`cdog_jax.metrics.mean_metrics`: the plain mean over
 scenes, except ``err3d`` and ``bpe_px``, which only average the scenes with
 ``num_err_groups > 0``. Every function returns a :class:`matplotlib.figure.Figure` bound to
 the Agg canvas (headless, pyplot's global state untouched) and saves it when given ``path``.
@@ -47,10 +47,10 @@ _FIELD_INFO = {
     "num_err_groups": ("groups scored by 3DErr/BPE", "per scene"),
     "has_groups": ("scenes with a group", None),
 }
-# Fields averaged only over scenes that have a group with a ground-truth point (SPEC §5).
+# Fields averaged only over scenes that have a group with a ground-truth point (docs/BENCHMARK.md §2).
 _ERR_FIELDS = ("err3d", "bpe_px")
 
-# SPEC §6: the paper's "Ours" row (10 views) and the original code measured on our benchmark.
+# docs/BENCHMARK.md §3–4: the paper's "Ours" row (10 views) and the original code measured on our benchmark.
 _PAPER_SIGMA_PX = (0.0, 1.0, 3.0, 5.0)
 _PAPER_OURS = {
     "g_f1": (0.950, 0.919, 0.881, 0.845),
@@ -106,7 +106,7 @@ def cell_means(sigma, count, values, *, keep=None) -> tuple[np.ndarray, np.ndarr
         count: ``(S,)`` number of 3D points of every scene.
         values: ``(S,)`` per-scene value (e.g. one field of the metrics).
         keep: optional ``(S,)`` bool, the scenes that enter the mean (default: all); use
-            :func:`scenes_for` to get the SPEC §5 rule for ``err3d``/``bpe_px``.
+            :func:`scenes_for` to get the docs/BENCHMARK.md §2 rule for ``err3d``/``bpe_px``.
 
     Returns:
         ``sigmas (A,)`` and ``counts (C,)``, the sorted distinct values, and ``table (A, C)``
@@ -133,7 +133,7 @@ def _cell_sizes(sigma, count) -> np.ndarray:
 
 
 def scenes_for(method_metrics: Mapping[str, Any], field: str) -> np.ndarray:
-    """Which scenes enter the average of ``field`` (SPEC §5).
+    """Which scenes enter the average of ``field`` (docs/BENCHMARK.md §2).
 
     Args:
         method_metrics: ``{field: (S,)}`` per-scene metrics of one method.
@@ -146,7 +146,7 @@ def scenes_for(method_metrics: Mapping[str, Any], field: str) -> np.ndarray:
     values = np.asarray(method_metrics[field])
     if field in _ERR_FIELDS:
         if "num_err_groups" not in method_metrics:
-            raise ValueError(f"averaging {field!r} needs 'num_err_groups' in the metrics (SPEC §5)")
+            raise ValueError(f"averaging {field!r} needs 'num_err_groups' in the metrics (docs/BENCHMARK.md §2)")
         return np.asarray(method_metrics["num_err_groups"]).reshape(values.shape) > 0
     return np.ones(values.shape, bool)
 
@@ -252,7 +252,7 @@ def _step_breaks(values: np.ndarray) -> list[int]:
 
 def _category_axis(values: np.ndarray, name: str, *, max_labels: int) -> tuple[list[int], list[int], str]:
     """Ticks, step breaks and axis label of a categorical axis. On a long axis whose spacing
-    changes a few times (SPEC §3 counts: step 1 to 20, then 5) the breaks are marked and the
+    changes a few times (docs/BENCHMARK.md §1 counts: step 1 to 20, then 5) the breaks are marked and the
     label says so; a short axis labels every category and needs neither."""
     ticks = _category_ticks(values, max_labels=max_labels)
     breaks = _step_breaks(values)
@@ -278,7 +278,7 @@ def heatmaps(
 ):
     """Heat maps over the σ × point count grid of one method, one panel per field.
 
-    Rows are noise levels, columns point counts, as categories (the SPEC §3 counts step by 1
+    Rows are noise levels, columns point counts, as categories (the docs/BENCHMARK.md §1 counts step by 1
     up to 20, then by 5; a white line marks where the step changes). Scores share one colour
     scale 0–1; other fields (``err3d``, ``bpe_px``) get their own colour bar.
 
@@ -455,10 +455,15 @@ def surfaces(
     return _finish(fig, path)
 
 
+_TIME_NOTE = ("median over the scenes\nband: interquartile range\n\nevery scene is padded to its\nbucket's capacity P and timed\n"
+              "at that size: the time is\nflat within a bucket")
+
+
 def time_vs_count(
     count,
     time_s: Mapping[str, Any],
     *,
+    capacity=None,
     reference: bool = True,
     log: bool = True,
     path: str | os.PathLike | None = None,
@@ -466,12 +471,16 @@ def time_vs_count(
     """Association time per scene against the number of 3D points, one line per method.
 
     Each line is the median over the scenes with that point count (all σ pooled), the band
-    their interquartile range. The original code's medians from SPEC §6 (0.06 s at 5 points,
-    0.56 s at 40, 4.6 s at 130) are drawn for reference.
+    their interquartile range. The sweep times every capacity bucket as a whole, so a scene's
+    time is that of its bucket's padded size: the curve is flat inside a bucket. The figure
+    says so, and with ``capacity`` marks where each bucket ends. The original code's medians
+    (docs/BENCHMARK.md §4: 0.06 s at 5 points, 0.56 s at 40, 4.6 s at 130) are drawn for
+    reference.
 
     Args:
         count: ``(S,)`` number of 3D points of every scene.
         time_s: ``{method: (S,)}`` per-scene association time in seconds (NaN: not timed).
+        capacity: optional ``(S,)`` slot capacity (padded bucket) each scene ran at.
         reference: draw the original code's timings.
         log: logarithmic time axis.
         path: if given, the figure is also saved there (PNG from the suffix).
@@ -496,23 +505,30 @@ def time_vs_count(
         ax.plot(counts, q[:, 1], color=color, lw=1.8, marker="o", ms=2.8, label=label)
     if reference:
         ax.plot(_ORIGINAL_TIME_COUNTS, np.array(_ORIGINAL_TIME_S) * 1e3, color=_REF_COLOR, ls="--", lw=1.2,
-                marker="s", ms=6, mfc="white", mew=1.4, label="original code (SPEC §6)")
+                marker="s", ms=6, mfc="white", mew=1.4, label="original code, full grid (docs/BENCHMARK.md §4)")
         # Labels below-right of the first markers, above-left of the last: clear of the line.
         offsets = ((8, -3, "left", "top"), (8, -3, "left", "top"), (-9, 3, "right", "bottom"))
         for c, sec, (dx, dy, ha, va) in zip(_ORIGINAL_TIME_COUNTS, _ORIGINAL_TIME_S, offsets):
             ax.annotate(f"{sec:g} s", (c, sec * 1e3), textcoords="offset points", xytext=(dx, dy), ha=ha,
                         va=va, fontsize=8, color=_REF_COLOR)
+    if capacity is not None:
+        capacity = _as_1d("capacity", capacity, count.size)
+        for k, cap in enumerate(np.unique(capacity)):
+            ax.axvline(cap, color="0.6", ls=":", lw=1.0, label="end of a padded bucket" if k == 0 else None)
+            ax.annotate(f"P = {_fmt(cap)}", (cap, 0.0), xycoords=("data", "axes fraction"), xytext=(-3, 4),
+                        textcoords="offset points", ha="right", va="bottom", fontsize=8, color="0.4")
     if log:
         ax.set_yscale("log")
     ax.set_xlim(left=0)
     ax.set_xlabel("3D points per scene", fontsize=10)
-    ax.set_ylabel("association time per scene (ms" + (", log scale)" if log else ")"), fontsize=10)
+    ax.set_ylabel("time per scene of its padded bucket (ms" + (", log scale)" if log else ")"), fontsize=10)
     ax.grid(True, which="major", color="0.88", lw=0.8)
     ax.grid(True, which="minor", axis="y", color="0.94", lw=0.5)
     ax.set_axisbelow(True)
-    fig.legend(loc="outside right upper", fontsize=9, title="median over the scenes\nband: interquartile range",
+    fig.legend(loc="outside right upper", fontsize=9, title=_TIME_NOTE,
                title_fontsize=8, frameon=False, labelspacing=0.9)
     ax.set_title("Association time vs scene size", fontsize=12, fontweight="bold", loc="left")
+
     return _finish(fig, path)
 
 
@@ -523,13 +539,16 @@ def metrics_vs_sigma(
     fields: Sequence[str] = ("pg_f1", "mp_f1", "g_f1", "pg_p", "pg_r"),
     paper_reference: bool = True,
     original_reference: bool = True,
+    full_grid: bool = True,
     path: str | os.PathLike | None = None,
 ):
     """Mean metrics against the noise level, one panel per field, one line per method.
 
-    Every point averages all the scenes of that σ (all point counts, SPEC §5 rule for
-    ``err3d``/``bpe_px``). SPEC §6 numbers at σ = 0, 1, 3, 5 are drawn as markers where the
-    field has them: the paper's "Ours" row and the original code measured on our benchmark.
+    Every point averages all the scenes of that σ (all point counts, docs/BENCHMARK.md §2 rule for
+    ``err3d``/``bpe_px``). The reference numbers at σ = 0, 1, 3, 5 are drawn as markers where
+    the field has them: the paper's "Ours" row (docs/BENCHMARK.md §3) and the original code
+    measured on our benchmark (§4). Both average a full grid; with ``full_grid=False`` (a
+    quick or narrowed grid) the title says that the comparison is only a rough guide.
 
     Args:
         sigma: ``(S,)`` noise level of every scene (px).
@@ -537,6 +556,7 @@ def metrics_vs_sigma(
         fields: the fields, one panel each.
         paper_reference: draw the paper's numbers.
         original_reference: draw the original code's numbers.
+        full_grid: whether the scenes are the full benchmark grid (else a note in the title).
         path: if given, the figure is also saved there (PNG from the suffix).
 
     Returns:
@@ -560,11 +580,11 @@ def metrics_vs_sigma(
             handles.setdefault(method, h)
         if original_reference and f in _ORIGINAL_CODE:
             (h,) = ax.plot(_PAPER_SIGMA_PX, _ORIGINAL_CODE[f], ls="none", marker="D", ms=6.5, mfc="white",
-                           mec=_ORIG_COLOR, mew=1.5, label="original code (SPEC §6)", zorder=4)
+                           mec=_ORIG_COLOR, mew=1.5, label="original code, full grid (docs/BENCHMARK.md §4)", zorder=4)
             handles.setdefault(h.get_label(), h)
         if paper_reference and f in _PAPER_OURS:
             (h,) = ax.plot(_PAPER_SIGMA_PX, _PAPER_OURS[f], ls="none", marker="*", ms=11, color=_REF_COLOR,
-                           mec="white", mew=0.6, label="paper (SPEC §6)", zorder=5)
+                           mec="white", mew=0.6, label="paper, full grid (docs/BENCHMARK.md §3)", zorder=5)
             handles.setdefault(h.get_label(), h)
         if _is_score(f):
             lo, hi = ax.get_ylim()
@@ -579,7 +599,11 @@ def metrics_vs_sigma(
         ax.tick_params(labelsize=8)
     fig.legend(list(handles.values()), list(handles), loc="outside lower center", ncol=min(len(handles), 6),
                fontsize=9, frameon=False)
-    fig.suptitle("Metrics vs noise (mean over all the scenes of each σ, all point counts)", fontsize=12)
+    title = "Metrics vs noise (mean over all the scenes of each σ, all point counts)"
+    if not full_grid and (paper_reference or original_reference):
+        title += ("\nthis run is a smaller grid than the full benchmark; the paper's and the original code's "
+                  "markers average the full grid: a rough guide, not a like-for-like comparison")
+    fig.suptitle(title, fontsize=12 if full_grid else 11)
     return _finish(fig, path)
 
 
@@ -598,7 +622,7 @@ def views_ablation(
         views: ``(S,)`` number of views of every scene (or of every value).
         values_by_method: ``{method: values}``, where ``values`` is either ``(S,)`` (already
             the chosen field) or ``{field: (S,)}`` per-scene metrics. Values with the same
-            view count are averaged (SPEC §5 rule for ``err3d``/``bpe_px`` when the metrics
+            view count are averaged (docs/BENCHMARK.md §2 rule for ``err3d``/``bpe_px`` when the metrics
             dict is given).
         field: the field drawn (its name labels the axis).
         paper: the paper's values for 2, 3, … views (default: Table I PG-F1 at σ = 3,
@@ -634,7 +658,7 @@ def views_ablation(
         paper_views = np.arange(2, 2 + len(paper))
         all_views.append(paper_views)
         ax.plot(paper_views, paper, color=_REF_COLOR, ls="--", lw=1.0, marker="*", ms=11, mec="white", mew=0.6,
-                label="paper Table I (SPEC §6)")
+                label="paper Table I (docs/BENCHMARK.md §3)")
     xs = np.unique(np.concatenate(all_views))
     ax.set_xticks(xs)
     if _is_score(field):

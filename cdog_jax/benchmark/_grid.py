@@ -1,4 +1,4 @@
-"""The benchmark grid (SPEC §3): noise levels × point counts × scenes, with per-scene keys.
+"""The benchmark grid (docs/BENCHMARK.md §1): noise levels × point counts × scenes, with per-scene keys.
 
 Every scene of a grid is named by ``(σ, count, scene index)`` and its PRNG key is derived
 from those values alone (never from its position in the grid), so a sub-grid, a
@@ -90,7 +90,7 @@ class Grid:
 
     @classmethod
     def paper(cls, **overrides) -> "Grid":
-        """SPEC §3: σ = 0, 0.25, …, 5 (21) × counts 1…20, 25…130 step 5 (42) × 5 scenes."""
+        """docs/BENCHMARK.md §1: σ = 0, 0.25, …, 5 (21) × counts 1…20, 25…130 step 5 (42) × 5 scenes."""
         base = dict(
             sigmas=tuple(0.25 * i for i in range(21)),
             counts=tuple(range(1, 21)) + tuple(range(25, 131, 5)),

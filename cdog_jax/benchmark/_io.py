@@ -1,4 +1,4 @@
-"""Sweep results on disk (NPZ + CSV + JSON) and the paper-style summary table (SPEC §5).
+"""Sweep results on disk (NPZ + CSV + JSON) and the paper-style summary table (docs/BENCHMARK.md §2).
 
 A results folder holds ``results.npz`` (every array), ``results.csv`` (one row per scene
 and config, for spreadsheets and pandas) and ``results.json`` (grid, configs, versions,
@@ -104,7 +104,7 @@ def load_results(directory: str | os.PathLike) -> SweepResult:
     )
 
 
-# Column title, mean_metrics key, format; SPEC §5 order.
+# Column title, mean_metrics key, format; docs/BENCHMARK.md §2 order.
 _COLUMNS = (
     ("G-F1", "g_f1", "{:.3f}"),
     ("mP-F1", "mp_f1", "{:.3f}"),
@@ -118,7 +118,7 @@ _COLUMNS = (
 
 
 def summary_table(result: SweepResult, *, sigmas: Sequence[float] = (0.0, 1.0, 3.0, 5.0)) -> str:
-    """A Markdown table of SPEC §5 columns per (σ, config), averaged over the scenes of
+    """A Markdown table of docs/BENCHMARK.md §2 columns per (σ, config), averaged over the scenes of
     that σ as :func:`cdog_jax.metrics.mean_metrics` does (3DErr and BPE over scenes with
     a scored group); time is the mean per-scene estimate in milliseconds. σ values absent
     from the grid are skipped."""

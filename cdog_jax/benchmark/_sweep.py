@@ -1,4 +1,4 @@
-"""The benchmark sweep (SPEC §3, §5; issue 3): generate, associate and score a whole grid
+"""The benchmark sweep (docs/BENCHMARK.md §1–2): generate, associate and score a whole grid
 in one compiled call.
 
 :func:`sweep` builds every scene of a :class:`Grid` from its own key, runs every config on
@@ -51,6 +51,7 @@ from ..geometry._camera import Rig
 from ..metrics._scores import Metrics, scene_metrics
 from ..synthetic._rig import DEFAULT_BOX, IMAGE_SIZE
 from ..synthetic._scene import generate_scene
+from .._progress import compiling, interactive, sweep_bar
 from ._grid import Grid, bucket_of, compact_scene
 
 AXIS = "scenes"
@@ -427,7 +428,7 @@ def sweep(
     mesh: Mesh | None = None,
     timing: bool = True,
     timing_runs: int = 3,
-    progress: Callable[[SweepProgress], None] | None = None,
+    progress: Callable[[SweepProgress], None] | str | None = "auto",
 ) -> SweepResult:
     """Generate, associate and score every scene of ``grid`` in one compiled call.
 
@@ -452,12 +453,28 @@ def sweep(
         progress: called on the host with a :class:`SweepProgress` each time a bucket
             finishes, while the compiled call runs (e.g. :func:`print_progress`). Buckets
             are the only points where the one compiled call reports back; a sweep with
-            and one without progress are two programs (each compiled once).
+            and one without progress are two programs (each compiled once). ``"auto"``
+            (default): a progress bar on stderr when it is a terminal, else none. In a
+            terminal a line also says while the sweep compiles.
 
     Returns:
         A :class:`SweepResult` with ``(S,)`` arrays in :meth:`Grid.flat` order.
     """
     expect_args("sweep", rig=(rig, Rig), grid=(grid, Grid))
+    if isinstance(progress, str) and progress != "auto":
+        raise ValueError(f"sweep: progress must be a callable, None or 'auto'; got {progress!r}")
+    close_bar = None
+    if progress == "auto":
+        progress, close_bar = sweep_bar(grid.num_scenes) if interactive() else (None, None)
+    try:
+        return _sweep(rig, grid, configs, buckets, batch_size, box, image_size, mesh, timing, timing_runs, progress)
+    finally:
+        if close_bar is not None:
+            close_bar()
+
+
+def _sweep(rig, grid, configs, buckets, batch_size, box, image_size, mesh, timing, timing_runs, progress) -> SweepResult:
+    """:func:`sweep` after its ``progress`` is resolved to a callable or ``None``."""
     configs = _check_configs(configs)
     mesh = default_mesh() if mesh is None else mesh
     if tuple(mesh.axis_names) != (AXIS,):
@@ -501,7 +518,8 @@ def sweep(
         jax.device_put(layout.inputs, NamedSharding(mesh, PartitionSpec(AXIS))),
         jax.device_put(layout.gather, replicated),
     )
-    compiled, compile_s = _compiled(plan, args)
+    with compiling(f"the sweep ({len(configs)} method(s), {len(layout.capacities)} bucket(s))"):
+        compiled, compile_s = _compiled(plan, args)
     if progress is not None:
         _ACTIVE_PROGRESS.append(_ProgressState(progress, layout, int(mesh.devices.size)))
     t0 = time.perf_counter()

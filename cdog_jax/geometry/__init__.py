@@ -1,4 +1,4 @@
-"""Cameras, lens distortion, epipolar geometry, triangulation (SPEC §1, §2.1), a rig
+"""Cameras, lens distortion, epipolar geometry, triangulation (docs/CONVENTIONS.md, docs/ALGORITHM.md §1–2), a rig
 summary with sanity warnings (``describe_rig``), and a camera parameterisation
 for optimisation (axis-angle rotations, intrinsics)."""
 

@@ -1,4 +1,4 @@
-"""The camera rig (SPEC §1): pinhole cameras with a general upper-triangular K.
+"""The camera rig (docs/CONVENTIONS.md §1): pinhole cameras with a general upper-triangular K.
 
 World→camera: ``X_cam = R X_world + t``; pixels ``x ~ K X_cam``, always dehomogenised by
 the third coordinate (K[2,2] may be negative). "In front" means ``X_cam[2] > 0``.

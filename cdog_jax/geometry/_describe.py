@@ -1,7 +1,7 @@
 """A plain-language summary of a rig, with warnings that make a wrong rig obvious.
 
 A reporting tool, not a pipeline stage: everything is converted to NumPy (float64) on the
-host and nothing here is traced. The conventions are SPEC §1: world→camera
+host and nothing here is traced. The conventions are docs/CONVENTIONS.md §1: world→camera
 ``X_cam = R X + t``, centre ``C = -Rᵀ t``, optical axis = third row of ``R``, "in front"
 means ``X_cam[2] > 0``; ``K`` is read as ``K / K[2,2]`` (so ``K[2,2] = -1`` is fine).
 

@@ -1,7 +1,7 @@
 """Lens distortion: OpenCV's radial + tangential model, ``dist = (k1, k2, p1, p2, k3)``.
 
 Distortion acts on normalised camera coordinates ``(X/Z, Y/Z)``. With a general
-upper-triangular ``K`` (SPEC §1: ``K[2,2]`` may be -1), ``K / K[2,2]`` maps ``(X/Z, Y/Z, 1)``
+upper-triangular ``K`` (docs/CONVENTIONS.md §1: ``K[2,2]`` may be -1), ``K / K[2,2]`` maps ``(X/Z, Y/Z, 1)``
 to the same pixel as ``K``, so we normalise with ``K / K[2,2]`` (the same as applying
 ``K⁻¹`` and dividing by the third coordinate). For ``r² = x² + y²``::
 

@@ -1,9 +1,10 @@
-"""Files in and out (SPEC §4).
+"""Files in and out (docs/CONVENTIONS.md §3).
 
 Rigs: EasyVis/OpenMVG folders, JSON, NPZ, anipose ``calibration.toml``, COLMAP text models
 and EasyMocap ``intri.yml``/``extri.yml`` (``load_rig`` and the ``save_rig_*`` writers).
 Detections: JSON and NPZ, one scene or many frames, and converters from the encodings of
-"missing" (``load_detections``, ``detections_from_lists``, ``detections_from_array``).
+"missing" (``load_detections``, ``detections_from_lists``, ``detections_from_array``), and
+a writer of the JSON form (``save_detections_json``).
 Results: the groups of an :class:`cdog_jax.Association` as JSON, NPZ or CSV.
 Every writer replaces its file atomically (``_atomic.py``); a problem with a file's
 content raises :class:`InputError` (a ``ValueError``) naming the file.
@@ -20,6 +21,7 @@ from ._detections import Detections as Detections
 from ._detections import detections_from_array as detections_from_array
 from ._detections import detections_from_lists as detections_from_lists
 from ._detections import load_detections as load_detections
+from ._detections_out import save_detections_json as save_detections_json
 from ._easymocap import save_rig_easymocap as save_rig_easymocap
 from ._errors import InputError as InputError
 from ._rig_files import FORMATS as FORMATS

@@ -1,4 +1,4 @@
-"""anipose / aniposelib ``calibration.toml`` rigs (SPEC §4).
+"""anipose / aniposelib ``calibration.toml`` rigs (docs/CONVENTIONS.md §3).
 
 One section per camera, ``[cam_0]``, ``[cam_1]``, …::
 

@@ -1,4 +1,4 @@
-"""Association results on disk (SPEC §2.6, §4): JSON records, NPZ arrays, a CSV of points.
+"""Association results on disk (docs/ALGORITHM.md §11, docs/CONVENTIONS.md §3): JSON records, NPZ arrays, a CSV of points.
 
 The JSON lists every valid detection exactly once: as a member of a group or in
 ``"unassigned"``. Rows are ``[view, slot, x, y]`` (``[view, slot, x, y, confidence]`` when
@@ -227,7 +227,7 @@ def _host_rig(rig: Any, M: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def _member_errors(cams, X: np.ndarray, views: np.ndarray, xy: np.ndarray) -> np.ndarray:
     """Pixel distance between each member ``xy (k, 2)`` and the projection of ``X`` in its view
-    (dividing by the third homogeneous coordinate, whatever its sign: SPEC §1)."""
+    (dividing by the third homogeneous coordinate, whatever its sign: docs/CONVENTIONS.md §1)."""
     K, R, t = (c[views] for c in cams)
     h = np.einsum("kij,kj->ki", K, np.einsum("kij,j->ki", R, X) + t)  # (k, 3)
     with np.errstate(divide="ignore", invalid="ignore"):

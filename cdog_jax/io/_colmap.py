@@ -1,4 +1,4 @@
-"""COLMAP text models (``cameras.txt`` + ``images.txt``) as rigs (SPEC §4).
+"""COLMAP text models (``cameras.txt`` + ``images.txt``) as rigs (docs/CONVENTIONS.md §3).
 
 ``cameras.txt``: ``CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]`` per line. ``images.txt``: two
 lines per image, ``IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME`` then the image's

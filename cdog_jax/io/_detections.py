@@ -1,6 +1,6 @@
-"""Detection files (SPEC §4): JSON lists, NPZ arrays, and the encodings of "missing".
+"""Detection files (docs/CONVENTIONS.md §3): JSON lists, NPZ arrays, and the encodings of "missing".
 
-Every reader and converter ends in the dense, padded form the pipeline takes (SPEC §1):
+Every reader and converter ends in the dense, padded form the pipeline takes (docs/CONVENTIONS.md §2):
 ``xy (F, M, P, 2)`` pixels and ``mask (F, M, P)`` bool, with a frame axis ``F`` that is 1
 for a single scene. The slot of a detection is its index in its view's list (JSON) or its
 row in the array (NPZ); slots are kept unless a ``capacity`` forces a view to be packed,

@@ -1,4 +1,4 @@
-"""EasyMocap ``intri.yml`` + ``extri.yml`` rigs (OpenCV FileStorage YAML) (SPEC §4).
+"""EasyMocap ``intri.yml`` + ``extri.yml`` rigs (OpenCV FileStorage YAML) (docs/CONVENTIONS.md §3).
 
 ``intri.yml``: ``names`` (a list of camera names), ``K_<name>`` (3×3) and ``dist_<name>``
 (1×5 or 5×1; 4 coefficients get ``k3 = 0``). ``extri.yml``: ``R_<name>`` (3×1 Rodrigues

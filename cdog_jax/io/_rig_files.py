@@ -1,8 +1,8 @@
-"""Rig files (SPEC §4): EasyVis/OpenMVG text folders, the project's JSON, NPZ, and (in
+"""Rig files (docs/CONVENTIONS.md §3): EasyVis/OpenMVG text folders, the project's JSON, NPZ, and (in
 their own modules) anipose ``calibration.toml``, COLMAP text models and EasyMocap
 ``intri.yml``/``extri.yml``.
 
-Every reader returns the convention of SPEC §1: world→camera ``X_cam = R X_world + t``
+Every reader returns the convention of docs/CONVENTIONS.md §1: world→camera ``X_cam = R X_world + t``
 with ``R`` a 3×3 rotation matrix (rows are the camera axes in world coordinates: x right,
 y down, z forward), pixels ``x ~ K X_cam`` divided by the third homogeneous coordinate,
 so a general upper-triangular ``K`` (``K[2,2] = -1`` included) is kept as it is. Pixel

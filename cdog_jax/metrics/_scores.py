@@ -1,10 +1,10 @@
-"""The paper's association metrics (SPEC §5, paper §V-A): G-, mP-, PG- scores, 3DErr, BPE.
+"""The paper's association metrics (docs/BENCHMARK.md §2, paper §V-A): G-, mP-, PG- scores, 3DErr, BPE.
 
 One scene at a time, pure JAX with fixed shapes, so ``jax.jit`` and
 ``jax.vmap(scene_metrics, in_axes=(None, 0, 0))`` work; :func:`mean_metrics` averages a
 batch on the host.
 
-Conventions (where SPEC §5 leaves a choice):
+Conventions (where docs/BENCHMARK.md §2 leaves a choice):
 
 - A *predicted group* is a valid group of the result holding ≥ 1 valid detection, or an
   unassigned valid detection as a singleton. Membership comes from ``result.labels``; a
@@ -46,7 +46,7 @@ from ..synthetic._scene import Scene
 
 
 class Metrics(eqx.Module):
-    """SPEC §5 scores of one scene (a batch of scenes adds leading axes to every field).
+    """docs/BENCHMARK.md §2 scores of one scene (a batch of scenes adds leading axes to every field).
 
     Attributes:
         g_p, g_r, g_f1, g_iou: G- precision, recall, F1, IoU (imperfect groups allowed).
@@ -102,7 +102,7 @@ def _masked_mean(x, keep, dtype):
 
 
 def scene_metrics(rig: Rig, result: Association, scene: Scene) -> Metrics:
-    """SPEC §5 metrics of one association result against its ground truth.
+    """docs/BENCHMARK.md §2 metrics of one association result against its ground truth.
 
     Args:
         rig: the ``M`` cameras (used for BPE).
@@ -209,7 +209,7 @@ def scene_metrics(rig: Rig, result: Association, scene: Scene) -> Metrics:
 
 
 def mean_metrics(metrics: Metrics) -> dict[str, float]:
-    """Average per-scene metrics over scenes (SPEC §5), on the host.
+    """Average per-scene metrics over scenes (docs/BENCHMARK.md §2), on the host.
 
     Args:
         metrics: a :class:`Metrics` whose fields share any leading batch shape (``(B,)``

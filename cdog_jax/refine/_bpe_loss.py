@@ -1,4 +1,4 @@
-"""The back-projection error of an association (SPEC §2.4) as a differentiable loss.
+"""The back-projection error of an association (docs/ALGORITHM.md §8) as a differentiable loss.
 
 Given a group table, every group's 3D point is triangulated inside by the closed-form
 multi-view DLT (no SVD, so the derivative is defined wherever the point is determined) or
@@ -93,7 +93,7 @@ def group_bpe(
     scale_px: Real[ArrayLike, ""] = 1.0,
     points3d: Float[Array, "G 3"] | None = None,
 ) -> Float[Array, " G"]:
-    """Back-projection error of every group, ``(G,)`` (px² for ``"l2"``; SPEC §2.4).
+    """Back-projection error of every group, ``(G,)`` (px² for ``"l2"``; docs/ALGORITHM.md §8).
 
     ``BPE(r) = mean over member views m of ρ(‖π_m(X_r) − x_m‖²)`` with ``ρ(s) = s``
     (``"l2"``), Huber ``ρ(s) = s`` if ``s ≤ c²`` else ``2c√s − c²``, or Cauchy

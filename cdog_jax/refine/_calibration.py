@@ -1,4 +1,4 @@
-"""Camera refinement from associations (issue 4): a joint Levenberg–Marquardt fit of the
+"""Camera refinement from associations: a joint Levenberg–Marquardt fit of the
 cameras and the 3D points of the groups of ``S`` scenes seen by one rig, alternated with
 association; and a similarity alignment of rigs for evaluation.
 

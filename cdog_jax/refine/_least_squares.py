@@ -1,4 +1,4 @@
-"""Optional nonlinear refinement of each group's 3D point (SPEC §2.5, ALGORITHM.md §10).
+"""Optional nonlinear refinement of each group's 3D point (docs/ALGORITHM.md §10, ALGORITHM.md §10).
 
 Levenberg–Marquardt (optimistix) on the member reprojection residuals in pixels, started
 from the DLT point, vmapped over groups; a refined point replaces the DLT point only where

@@ -1,4 +1,4 @@
-"""The reference code's "second association" (SPEC §2.7, ALGORITHM.md §7).
+"""The reference code's "second association" (docs/BENCHMARK.md §5, ALGORITHM.md §7).
 
 Each leftover valid node joins the group (lacking its view) whose members' epipolar lines
 pass closest to it on average, distances ≥ τ counted three times, if that mean is below

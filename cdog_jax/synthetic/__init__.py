@@ -1,4 +1,4 @@
-"""Benchmark data (SPEC §3): the built-in rig and synthetic scenes with ground truth."""
+"""Benchmark data (docs/BENCHMARK.md §1): the built-in rig and synthetic scenes with ground truth."""
 
 from ._rig import DEFAULT_BOX as DEFAULT_BOX
 from ._rig import IMAGE_SIZE as IMAGE_SIZE

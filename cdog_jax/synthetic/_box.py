@@ -1,4 +1,4 @@
-"""Scene boxes for user rigs (SPEC §3): the image size implied by K, and an axis-aligned box
+"""Scene boxes for user rigs (docs/BENCHMARK.md §1): the image size implied by K, and an axis-aligned box
 of the region that several cameras see, to pass to ``generate_scene(box=…)``.
 
 Host-side helpers (NumPy plus eager JAX projection), not part of the jitted pipeline.

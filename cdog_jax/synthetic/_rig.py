@@ -1,5 +1,5 @@
-"""The built-in benchmark rig (SPEC §3): ten cameras in the style of the EasyVis
-laparoscopic box trainer, plus a helper that negates K like OpenMVG exports (SPEC §1).
+"""The built-in benchmark rig (docs/BENCHMARK.md §1): ten cameras in the style of the EasyVis
+laparoscopic box trainer, plus a helper that negates K like OpenMVG exports (docs/CONVENTIONS.md §1).
 
 The rig is a constant, built on the host with numpy and returned as a :class:`Rig` of
 ``jnp`` arrays. World frame: ``z`` up, the workspace box ``DEFAULT_BOX`` centred on the

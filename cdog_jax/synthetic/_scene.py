@@ -1,4 +1,4 @@
-"""Benchmark scenes (SPEC §3): uniform 3D points seen by ≥ 2 views, noisy shuffled detections."""
+"""Benchmark scenes (docs/BENCHMARK.md §1): uniform 3D points seen by ≥ 2 views, noisy shuffled detections."""
 
 import functools
 from collections.abc import Sequence
@@ -58,7 +58,7 @@ def generate_scene(
     clutter_rate: Real[ArrayLike, ""] = 0.0,
     clutter_capacity: int = 0,
 ) -> Scene:
-    """One benchmark scene (SPEC §3): uniform points seen by ≥ 2 views, noisy, shuffled.
+    """One benchmark scene (docs/BENCHMARK.md §1): uniform points seen by ≥ 2 views, noisy, shuffled.
 
     ``capacity * oversample`` candidates are drawn uniformly in ``box``; a candidate is
     visible in view ``m`` when it is in front of the camera and its noise-free pixel lies in
@@ -68,14 +68,14 @@ def generate_scene(
     may fall slightly outside the image), then the ``P`` slots of every view are permuted
     independently, so slot order and padding position carry no information.
 
-    Beyond the paper (SPEC §3; both off by default, and then the scene is identical, bit for
+    Beyond the paper (docs/BENCHMARK.md §1; both off by default, and then the scene is identical, bit for
     bit, to one generated without these arguments):
 
     - *Missed detections*: each visible detection is dropped independently with probability
       ``drop_rate``. Which points are kept (visible in ≥ 2 views) is decided on the true
       visibility, *before* the drops, so the point set does not depend on the drop rate;
       an instance may therefore end with fewer than 2 detections (then it is no
-      ground-truth group for the metrics, SPEC §5) or none at all.
+      ground-truth group for the metrics, docs/BENCHMARK.md §2) or none at all.
     - *Clutter*: view ``m`` gets ``min(Poisson(clutter_rate), clutter_capacity)`` false
       detections (the clipped Poisson is drawn directly, by inversion) uniform in ``[0, w) × [0, h)`` with instance id -1, in ``clutter_capacity``
       extra slots per view that are shuffled together with the real ones. The clipped count

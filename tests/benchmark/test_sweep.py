@@ -87,7 +87,7 @@ def test_paper_grid_size_and_order():
     idx = grid.flat()
     assert grid.num_scenes == 4410 == idx.sigma.shape[0]
     assert len(grid.sigmas) == 21 and len(grid.counts) == 42
-    assert int(idx.count[idx.sigma == 0.0].sum()) == 9575  # 3D points per σ (SPEC §3)
+    assert int(idx.count[idx.sigma == 0.0].sum()) == 9575  # 3D points per σ (docs/BENCHMARK.md §1)
     np.testing.assert_array_equal(idx.cell, idx.sigma_index * 42 + idx.count_index)
     assert hash(grid) == hash(Grid.paper())
 

@@ -1,4 +1,4 @@
-"""Association results on disk (SPEC §2.6, §4): JSON, NPZ and CSV written from a real
+"""Association results on disk (docs/ALGORITHM.md §11, docs/CONVENTIONS.md §3): JSON, NPZ and CSV written from a real
 association read back equal, and every valid detection is listed exactly once."""
 
 import csv

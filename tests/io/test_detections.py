@@ -1,4 +1,4 @@
-"""Detection files and the encodings of "missing" (SPEC §4): every encoding gives the same
+"""Detection files and the encodings of "missing" (docs/CONVENTIONS.md §3): every encoding gives the same
 dense (xy, mask), and every error names the file, frame, view and detection index."""
 
 import json

@@ -1,4 +1,4 @@
-"""Rig files (SPEC §4): exact round trips, hand-written files project as computed by hand,
+"""Rig files (docs/CONVENTIONS.md §3): exact round trips, hand-written files project as computed by hand,
 and every error names the file, the view and the key."""
 
 import json

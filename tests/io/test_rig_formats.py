@@ -1,4 +1,4 @@
-"""Rig files in anipose, COLMAP and EasyMocap formats (SPEC §4): round trips, hand-written
+"""Rig files in anipose, COLMAP and EasyMocap formats (docs/CONVENTIONS.md §3): round trips, hand-written
 files that project as computed by hand in each format's own convention, and errors that
 name the file, the camera and the line or key."""
 

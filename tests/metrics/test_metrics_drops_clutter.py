@@ -1,4 +1,4 @@
-"""SPEC §5 metrics on scenes with missed detections and clutter, hand-built cases.
+"""docs/BENCHMARK.md §2 metrics on scenes with missed detections and clutter, hand-built cases.
 
 A ground-truth group is an instance with ≥ 2 *surviving* detections (a dropped detection is
 simply absent); clutter (a valid detection of instance -1) votes -1, which never matches;

@@ -1,4 +1,4 @@
-"""SPEC §5 metrics: a plain NumPy reference written from the text, hand-built cases, jit/vmap."""
+"""docs/BENCHMARK.md §2 metrics: a plain NumPy reference written from the text, hand-built cases, jit/vmap."""
 
 import dataclasses
 import functools
@@ -160,7 +160,7 @@ def hmean(p, r):
 
 
 def reference_metrics(rig, result, scene):
-    """SPEC §5 with Python loops over nodes and groups, float64."""
+    """docs/BENCHMARK.md §2 with Python loops over nodes and groups, float64."""
     labels, valid = np.asarray(result.labels), np.asarray(result.valid)
     X_hat = np.asarray(result.points3d, np.float64)
     mask, instance = np.asarray(scene.mask), np.asarray(scene.instance)

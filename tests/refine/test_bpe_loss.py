@@ -1,4 +1,4 @@
-"""Differentiable BPE of an association (SPEC §2.4): values against NumPy, gradients against
+"""Differentiable BPE of an association (docs/ALGORITHM.md §8): values against NumPy, gradients against
 finite differences, degenerate rows, robust kernels, jit and vmap, given points."""
 
 import functools
@@ -54,7 +54,7 @@ def scene(dtype="float32", sigma=1.0, seed=0):
 
 
 def residuals_np(rig, xy, groups, valid):
-    """Squared member residuals (px²) per valid group, SPEC §2.4 in NumPy float64: the
+    """Squared member residuals (px²) per valid group, docs/ALGORITHM.md §8 in NumPy float64: the
     group's multi-view DLT (rows ``x̂ P3 − P1``, ``ŷ P3 − P2`` in normalised coordinates,
     least squares by SVD), projected with the general K."""
     K, R, t = (np.asarray(a, np.float64) for a in (rig.K, rig.R, rig.t))

@@ -1,4 +1,4 @@
-"""Camera refinement (issue 4, item 3): a perturbed rig is recovered exactly from noise-free
+"""Camera refinement: a perturbed rig is recovered exactly from noise-free
 scenes, fixed parameters stay put, calibration with association inside improves a drifted
 rig, jit and vmap agree with single calls, and the similarity alignment is exact."""
 

@@ -1,4 +1,4 @@
-"""Missed detections and clutter in the benchmark scenes (SPEC §3, beyond the paper)."""
+"""Missed detections and clutter in the benchmark scenes (docs/BENCHMARK.md §1, beyond the paper)."""
 
 import functools
 

@@ -1,4 +1,4 @@
-"""The built-in benchmark rig (SPEC §3) and negated intrinsics (SPEC §1)."""
+"""The built-in benchmark rig (docs/BENCHMARK.md §1) and negated intrinsics (docs/CONVENTIONS.md §1)."""
 
 import jax
 import jax.numpy as jnp

@@ -1,4 +1,4 @@
-"""Benchmark scene generation (SPEC §3): visibility, noise, shuffled slots, jit and vmap."""
+"""Benchmark scene generation (docs/BENCHMARK.md §1): visibility, noise, shuffled slots, jit and vmap."""
 
 import functools
 
