@@ -135,8 +135,7 @@ def associate_traced(
     groups, gvalid, status = _graph_groups(d, valid, tau, th, config)
 
     # Alg. 3: IQR outlier removal on per-group DLT blocks.
-    N_node, r_node, origin = dlt_blocks(rig, jnp.swapaxes(xy, 0, 1))  # (P, M, 3, 3), (P, M, 3)
-    blocks = (jnp.swapaxes(N_node, 0, 1), jnp.swapaxes(r_node, 0, 1), origin)  # (M, P, ...)
+    blocks = dlt_blocks(rig, xy)  # (M, P, 3, 3), (M, P, 3), origin
     if config.iqr:
         groups, gvalid, iqr_status = _iqr(rig, xy, groups, gvalid, blocks, th, config)
         status = status | iqr_status

@@ -14,7 +14,7 @@ from ._types import Array, Bool, Float, Int
 from .geometry._camera import Rig
 from .geometry._distortion import undistort_pixels
 from .geometry._projection import group_errors
-from .geometry._triangulate import triangulate
+from .geometry._triangulate import triangulate_views_last
 from .graph._groups import compact_groups, gather_groups, labels_from_groups
 from .refine._validity import validity_gate
 
@@ -54,7 +54,7 @@ def finish_groups(
     w_g = None
     if weights is not None:
         w_g = jnp.where(member, gather_groups(groups, weights), 0.0)
-        X_w, ok = triangulate(rig, xy_g, member, weights=w_g)
+        X_w, ok = triangulate_views_last(rig, xy_g, member, weights=w_g)
         X = jnp.where(ok[:, None], X_w, X)  # fewer than 2 weighted views: the gate dissolves it
     member, keep, X = validity_gate(rig, xy_g, member, X, result.tau_px, th.max_err_frac, th.min_parallax_deg, weights=w_g)
     keep = keep & (jnp.sum(member, axis=1, dtype=jnp.int32) >= min_views)  # detaching may leave fewer
