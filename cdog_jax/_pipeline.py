@@ -136,6 +136,7 @@ def associate_traced(
 
     # Alg. 3: IQR outlier removal on per-group DLT blocks.
     blocks = dlt_blocks(rig, xy)  # (M, P, 3, 3), (M, P, 3), origin
+    origin = blocks[2]
     if config.iqr:
         groups, gvalid, iqr_status = _iqr(rig, xy, groups, gvalid, blocks, th, config)
         status = status | iqr_status
