@@ -42,7 +42,11 @@ class Fisheye(eqx.Module):
             a batch adds leading axes. NumPy (host) or JAX arrays.
     """
 
-    coeffs: Float[Array | np.ndarray, "*B M 4"]
+    coeffs: Array | np.ndarray
+
+    def __check_init__(self):
+        if np.ndim(self.coeffs) < 2 or np.shape(self.coeffs)[-1] != 4:
+            raise ValueError(f"Fisheye.coeffs must have shape (M, 4) = (k1, k2, k3, k4) per view; got {np.shape(self.coeffs)}")
 
 
 def _check(K, dist, xy) -> None:
@@ -130,7 +134,7 @@ def _newton_step(dist, xd, yd, ox, oy):
 
 
 def distort_pixels(
-    K: Float[Array, "*B M 3 3"], dist: Float[Array, "*B M 5"], xy: Float[Array, "*B M P 2"]
+    K: Float[Array, "*B M 3 3"], dist: Float[Array, "*B M 5"] | Fisheye, xy: Float[Array, "*B M P 2"]
 ) -> Float[Array, "*B M P 2"]:
     """Ideal (undistorted) pixels → distorted pixels, OpenCV's model, per view.
 
@@ -155,7 +159,7 @@ def distort_pixels(
 
 def undistort_pixels(
     K: Float[Array, "*B M 3 3"],
-    dist: Float[Array, "*B M 5"],
+    dist: Float[Array, "*B M 5"] | Fisheye,
     xy: Float[Array, "*B M P 2"],
     *,
     iterations: int = 20,
