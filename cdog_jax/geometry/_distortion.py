@@ -213,6 +213,13 @@ def undistort_pixels(
     return _shift_pixels(K, xy, ox, oy)
 
 
+def as_lens(dist, dtype):
+    """``dist`` (array-like ``(M, 5)`` or a :class:`Fisheye`) as JAX arrays of ``dtype``."""
+    if isinstance(dist, Fisheye):
+        return Fisheye(jnp.asarray(dist.coeffs, dtype))
+    return jnp.asarray(dist, dtype)
+
+
 def _check_dist_type(function: str, dist) -> None:
     if isinstance(dist, Fisheye):
         expect_args(function, **{"dist.coeffs": (dist.coeffs, ARRAY)})

@@ -27,9 +27,9 @@ def project(
     xy, ok = project_views_last(rig, X_world)
     xy, ok = jnp.moveaxis(xy, -2, 0), jnp.moveaxis(ok, -1, 0)
     if dist is not None:
-        from ._distortion import distort_pixels
+        from ._distortion import as_lens, distort_pixels
 
-        xy = distort_pixels(rig.K, dist, xy.reshape(xy.shape[0], -1, 2)).reshape(xy.shape)
+        xy = distort_pixels(rig.K, as_lens(dist, xy.dtype), xy.reshape(xy.shape[0], -1, 2)).reshape(xy.shape)
     return xy, ok
 
 

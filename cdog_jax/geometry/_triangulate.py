@@ -124,10 +124,10 @@ def triangulate(
         mask = jnp.all(jnp.isfinite(jnp.asarray(xy)), axis=-1)
     check_tracks(rig, xy, mask, weights, "triangulate")
     if dist is not None:
-        from ._distortion import undistort_pixels
+        from ._distortion import as_lens, undistort_pixels
 
         xy = jnp.where(mask[..., None], xy, 0.0)
-        xy = undistort_pixels(rig.K, dist, xy.reshape(xy.shape[0], -1, 2)).reshape(xy.shape)
+        xy = undistort_pixels(rig.K, as_lens(dist, xy.dtype), xy.reshape(xy.shape[0], -1, 2)).reshape(xy.shape)
     if weights is not None:
         weights = jnp.moveaxis(weights, 0, -1)
     return triangulate_views_last(rig, jnp.moveaxis(xy, 0, -2), jnp.moveaxis(mask, 0, -1), weights=weights)

@@ -120,8 +120,9 @@ def _int(field: str, where: str, what: str, minimum: int) -> int:
     return value
 
 
-def _read_cameras(file: str) -> dict[int, tuple[np.ndarray, tuple[int, int], np.ndarray | None]]:
-    """``CAMERA_ID → (K (3, 3) in OpenCV pixels, (width, height), dist (5,) or None)``."""
+def _read_cameras(file: str) -> dict[int, tuple[np.ndarray, tuple[int, int], Any]]:
+    """``CAMERA_ID → (K (3, 3) in OpenCV pixels, (width, height), lens)``, the lens as
+    :func:`camera_from_params` gives it."""
     cameras: dict[int, Any] = {}
     for lineno, line in _data_lines(file):
         fields = line.split()
