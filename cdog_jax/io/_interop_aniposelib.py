@@ -21,7 +21,8 @@ from ._rig_files import RigFile
 
 def rig_from_aniposelib(camera_group: Any, *, dtype: Any = None) -> RigFile:
     """A :class:`RigFile` from an aniposelib ``CameraGroup`` (anything with ``.cameras``
-    whose items have aniposelib's ``Camera`` getters), in the group's camera order.
+    whose items have aniposelib's ``Camera`` getters), in the group's camera order: the rig
+    ``K, R (M, 3, 3)``, ``t (M, 3)``, ``dist (M, 5)`` (or a Fisheye), ``view_sizes (M, 2)``.
 
     A group mixing ``FisheyeCamera`` and ``Camera`` raises (a rig has one lens model); so
     does one where only some cameras have a size.
@@ -42,7 +43,7 @@ def rig_from_aniposelib(camera_group: Any, *, dtype: Any = None) -> RigFile:
         [c.get_distortions() for c in cameras],
         [c.get_rotation() for c in cameras],
         [c.get_translation() for c in cameras],
-        None if sizes[0] is None else [list(s) for s in sizes],
+        image_size=None if sizes[0] is None else [list(s) for s in sizes],
         fisheye=all(fisheye),
         names=None if any(n is None for n in names) else [str(n) for n in names],
         dtype=dtype,

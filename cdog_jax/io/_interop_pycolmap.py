@@ -54,9 +54,11 @@ def rig_from_pycolmap(reconstruction: Any, *, dtype: Any = None) -> RigFile:
 
 
 def pycolmap_from_rig(rig: Rig, *, image_size: Any, dist: Any = None, names: Any = None) -> Any:
-    """``rig`` as a pycolmap ``Reconstruction`` (needs ``pip install pycolmap``): one camera
-    and one posed image per view, no points; the models of :func:`save_rig_colmap` (which
-    writes it; pycolmap reads it back, so every pycolmap version builds it the same way)."""
+    """``rig`` (``K, R (M, 3, 3)``, ``t (M, 3)``) as a pycolmap ``Reconstruction`` (needs
+    ``pip install pycolmap``): one camera and one posed image per view, no points, with
+    the camera models of :func:`save_rig_colmap`, which writes the model that pycolmap then
+    reads (so every pycolmap version builds it the same way). ``image_size``: ``(w, h)`` or
+    ``(M, 2)``, required; ``dist``: ``(M, 5)`` or a :class:`cdog_jax.geometry.Fisheye`."""
     try:
         import pycolmap
     except ImportError as e:

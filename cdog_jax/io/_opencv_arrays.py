@@ -52,7 +52,7 @@ class OpenCVCameras(NamedTuple):
 
 
 def rig_from_opencv(
-    K: Any, dist: Any, rvec: Any, tvec: Any, image_size: Any = None, *, fisheye: bool = False, names: Any = None, dtype: Any = None
+    K: Any, dist: Any, rvec: Any, tvec: Any, *, image_size: Any = None, fisheye: bool = False, names: Any = None, dtype: Any = None
 ) -> RigFile:
     """A :class:`RigFile` from OpenCV arrays, one entry per camera (sequences or stacked).
 

@@ -183,7 +183,7 @@ def test_rig_from_pycolmap_shifts_pixel_centres_and_reads_models():
 
 def test_opencv_arrays_round_trip_and_project_as_opencv():
     with x64():
-        loaded = rig_from_opencv(list(K), list(DIST), [r[:, None] for r in RVEC], list(TVEC), (640, 480), names=["a", "b"], dtype=jnp.float64)
+        loaded = rig_from_opencv(list(K), list(DIST), [r[:, None] for r in RVEC], list(TVEC), image_size=(640, 480), names=["a", "b"], dtype=jnp.float64)
         for m in range(2):
             np.testing.assert_allclose(_ours(loaded)[m], _opencv_pixels(K[m], DIST[m], RVEC[m], TVEC[m], X), atol=1e-9)
         back = opencv_from_rig(loaded.rig, dist=loaded.dist, image_size=loaded.image_size)
