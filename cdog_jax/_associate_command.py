@@ -195,6 +195,7 @@ def run_associate(args: argparse.Namespace) -> int:
 
     from . import Config, Status, associate_batch
     from .graph._sigma import FALLBACK_SIGMA_PX
+    from .geometry._distortion import Fisheye
     from .io import save_association_csv, save_association_json, save_association_npz
 
     from ._cli import _FIGURE_EXTENSIONS
@@ -214,13 +215,15 @@ def run_associate(args: argparse.Namespace) -> int:
     F, M, P = det.mask.shape
     lines = [
         f"Rig: {args.rig} ({M} views" + (f", {rig_file.image_size[0]}×{rig_file.image_size[1]} px" if rig_file.image_size else "")
-        + (", with lens distortion" if rig_file.dist is not None and np.any(rig_file.dist) else "") + ")",
+        + (", with lens distortion" if _has_lens(rig_file.dist) else "") + ")",
         f"Detections: {args.points}: {F} frame(s), {int(det.mask.sum())} detections, at most {P} per view",
     ]
     lines += [f"  note: {n}" for n in det.notes[:_NOTES_SHOWN]]
     if len(det.notes) > _NOTES_SHOWN:
         lines.append(f"  … and {len(det.notes) - _NOTES_SHOWN} more notes")
-    dist = None if rig_file.dist is None or not np.any(rig_file.dist) else jnp.asarray(rig_file.dist, dtype)
+    dist = None
+    if _has_lens(rig_file.dist):
+        dist = Fisheye(jnp.asarray(rig_file.dist.coeffs, dtype)) if isinstance(rig_file.dist, Fisheye) else jnp.asarray(rig_file.dist, dtype)
     weights = jnp.asarray(det.confidence, dtype) if args.confidence_weights else None
 
     t0 = time.perf_counter()
@@ -323,3 +326,10 @@ def run_rig(args: argparse.Namespace) -> int:
         lines.append(f"Figure: {args.plot}")
     _emit(lines)
     return 0
+
+
+def _has_lens(dist) -> bool:
+    """Whether a rig file's lens does anything (a fisheye lens always does)."""
+    from .geometry._distortion import Fisheye
+
+    return isinstance(dist, Fisheye) or (dist is not None and bool(np.any(dist)))

@@ -22,6 +22,7 @@ from ._status import Status
 from ._types import Array, ArrayLike, Bool, Float
 from ._validate import as_array, check_batch_rig, check_observations, check_rig, check_sigma, check_threshold_shapes
 from .geometry._camera import Rig
+from .geometry._distortion import Fisheye
 from .geometry._epipolar import epipolar_distances
 from .geometry._projection import group_errors
 from .geometry._triangulate import dlt_blocks, solve_normal_3x3
@@ -140,8 +141,8 @@ def associate_traced(
     status = status | graph_status
 
     # Alg. 3: IQR outlier removal on per-group DLT blocks.
-    N_node, r_node, origin = dlt_blocks(rig, jnp.swapaxes(xy, 0, 1))  # (P, M, 3, 3), (P, M, 3)
-    blocks = (jnp.swapaxes(N_node, 0, 1), jnp.swapaxes(r_node, 0, 1), origin)  # (M, P, ...)
+    blocks = dlt_blocks(rig, xy)  # (M, P, 3, 3), (M, P, 3), origin
+    origin = blocks[2]
     if config.iqr:
         groups, gvalid, iqr_status = _iqr(rig, xy, groups, gvalid, blocks, th, config)
         status = status | iqr_status
@@ -243,7 +244,7 @@ def associate(
     config: Config | str = Config.paper(),
     sigma: float | str = 1.0,
     thresholds: Thresholds | None = None,
-    dist: ArrayLike | None = None,
+    dist: ArrayLike | Fisheye | None = None,
     weights: ArrayLike | None = None,
     min_views: int = 2,
     memory_budget_gb: float | None = None,
@@ -258,7 +259,8 @@ def associate(
             or a preset's name: ``"paper"``, ``"extended"``, ``"reference"``.
         sigma: 2D noise std in pixels, or ``"auto"`` to estimate it (ALGORITHM.md §0.1).
         thresholds: overrides the config's numeric thresholds (for sweeps; arrays welcome).
-        dist: optional ``(M, 5)`` OpenCV distortion ``(k1, k2, p1, p2, k3)`` per view; ``xy``
+        dist: optional ``(M, 5)`` OpenCV distortion ``(k1, k2, p1, p2, k3)`` per view (or a
+            :class:`cdog_jax.geometry.Fisheye`, OpenCV's fisheye model); ``xy``
             are then the distorted (as-detected) pixels and are undistorted first. The
             result's points and errors refer to the undistorted (pinhole) pixels.
         weights: optional ``(M, P)`` non-negative weights (e.g. detector confidence) of the
@@ -304,7 +306,12 @@ def _check_extras(dist, weights, min_views, mask_shape, dtype):
     if dist is None and weights is None and min_views == 2:
         return None
     M = mask_shape[-2]
-    if dist is not None:
+    if isinstance(dist, Fisheye):
+        coeffs = np.asarray(dist.coeffs)
+        if coeffs.shape != (M, 4) or not np.isfinite(coeffs).all():
+            raise ValueError(f"dist: Fisheye coefficients must be finite with shape (M, 4) = ({M}, 4); got shape {coeffs.shape}")
+        dist = Fisheye(jnp.asarray(coeffs, dtype))
+    elif dist is not None:
         dist_h = np.asarray(dist)
         if dist_h.shape != (M, 5):
             raise ValueError(f"dist must have shape (M, 5) = ({M}, 5), OpenCV (k1, k2, p1, p2, k3) per view; got {dist_h.shape}")
@@ -367,7 +374,7 @@ def associate_batch(
     sigma: float | str | Float[Array, " B"] = 1.0,
     thresholds: Thresholds | None = None,
     batch_size: int = 16,
-    dist: ArrayLike | None = None,
+    dist: ArrayLike | Fisheye | None = None,
     weights: ArrayLike | None = None,
     min_views: int = 2,
     memory_budget_gb: float | None = None,

@@ -12,16 +12,19 @@ from ._config import Thresholds
 from ._result import Association
 from ._types import Array, Bool, Float, Int
 from .geometry._camera import Rig
-from .geometry._distortion import undistort_pixels
+from .geometry._distortion import Fisheye, undistort_pixels
 from .geometry._projection import group_errors
-from .geometry._triangulate import triangulate
+from .geometry._triangulate import triangulate_views_last
 from .graph._groups import compact_groups, gather_groups, labels_from_groups
 from .refine._validity import validity_gate
 
 
-def undistorted(rig: Rig, xy: Float[Array, "M P 2"], mask: Bool[Array, "M P"], dist: Float[Array, "M 5"]) -> Float[Array, "M P 2"]:
+def undistorted(
+    rig: Rig, xy: Float[Array, "M P 2"], mask: Bool[Array, "M P"], dist: Float[Array, "M 5"] | Fisheye
+) -> Float[Array, "M P 2"]:
     """Detections ``xy (M, P, 2)`` (pixels, as the lens saw them) mapped to the ideal pinhole
-    pixels of ``rig`` through OpenCV distortion ``dist (M, 5)``; padding stays 0."""
+    pixels of ``rig`` through OpenCV distortion ``dist (M, 5)`` or a :class:`Fisheye`;
+    padding stays 0."""
     return jnp.where(mask[..., None], undistort_pixels(rig.K, dist, jnp.where(mask[..., None], xy, 0.0)), 0.0)
 
 
@@ -54,7 +57,7 @@ def finish_groups(
     w_g = None
     if weights is not None:
         w_g = jnp.where(member, gather_groups(groups, weights), 0.0)
-        X_w, ok = triangulate(rig, xy_g, member, weights=w_g)
+        X_w, ok = triangulate_views_last(rig, xy_g, member, weights=w_g)
         X = jnp.where(ok[:, None], X_w, X)  # fewer than 2 weighted views: the gate dissolves it
     member, keep, X = validity_gate(rig, xy_g, member, X, result.tau_px, th.max_err_frac, th.min_parallax_deg, weights=w_g)
     keep = keep & (jnp.sum(member, axis=1, dtype=jnp.int32) >= min_views)  # detaching may leave fewer

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import cdog_jax
-from cdog_jax.geometry import distort_pixels
+from cdog_jax.geometry import Fisheye, distort_pixels
 from cdog_jax.synthetic import default_rig, generate_scene
 
 DIST = np.array([-0.25, 0.08, 1e-3, -5e-4, 0.0])
@@ -75,6 +75,16 @@ def test_distorted_detections_with_dist_match_the_pinhole_association(scene_and_
     shift = np.abs(np.asarray(xy_lens - scene.xy))[np.asarray(scene.mask)].max()
     assert shift > 3.0
     out = cdog_jax.associate(rig, xy_lens, scene.mask, sigma=0.5, dist=dist)
+    np.testing.assert_array_equal(_groups(out), _groups(plain))
+    np.testing.assert_allclose(np.asarray(out.points3d), np.asarray(plain.points3d), atol=2e-3)
+
+
+def test_fisheye_detections_with_dist_match_the_pinhole_association(scene_and_plain):
+    rig, scene, plain = scene_and_plain
+    lens = Fisheye(jnp.asarray(np.tile([0.02, -0.01, 0.0, 0.0], (rig.num_views, 1)), jnp.float32))
+    xy_lens = jnp.where(scene.mask[..., None], distort_pixels(rig.K, lens, scene.xy), 0.0)
+    assert np.abs(np.asarray(xy_lens - scene.xy))[np.asarray(scene.mask)].max() > 3.0
+    out = cdog_jax.associate(rig, xy_lens, scene.mask, sigma=0.5, dist=lens)
     np.testing.assert_array_equal(_groups(out), _groups(plain))
     np.testing.assert_allclose(np.asarray(out.points3d), np.asarray(plain.points3d), atol=2e-3)
 

@@ -204,15 +204,15 @@ def test_per_scene_rig_with_another_B_is_refused(batch):
 @pytest.mark.parametrize(
     "views_xy, views_mask, weights_shape, message",
     [
-        (2, 2, None, r"triangulate: xy must have shape \(\*S, M, 2\) with M=3 views from the rig; got \(6, 2, 2\)"),
-        (3, 2, None, r"triangulate: mask must have shape \(6, 3\) \(one flag per view of each track\); got \(6, 2\)"),
-        (3, 3, (6, 2), r"triangulate: weights must have the shape of mask \(6, 3\); got \(6, 2\)"),
+        (2, 2, None, r"triangulate: xy must have shape \(M, \*S, 2\), the view axis first, with M=3 views from the rig; got \(2, 6, 2\)"),
+        (3, 2, None, r"triangulate: mask must have shape \(3, 6\) \(one flag per view of each track\); got \(2, 6\)"),
+        (3, 3, (2, 6), r"triangulate: weights must have the shape of mask \(3, 6\); got \(2, 6\)"),
     ],
 )
 def test_triangulate_view_mismatch_is_a_plain_message(scene, views_xy, views_mask, weights_shape, message):
     rig, xy, mask = scene
-    tracks_xy = np.swapaxes(xy, 0, 1)[:, :views_xy]  # (P, M, 2)
-    tracks_mask = mask.T[:, :views_mask]
+    tracks_xy = xy[:views_xy]  # (M, P, 2)
+    tracks_mask = mask[:views_mask]
     weights = None if weights_shape is None else np.ones(weights_shape, np.float32)
     with pytest.raises(ValueError, match=message):
         plain(triangulate)(rig, jnp.asarray(tracks_xy), jnp.asarray(tracks_mask), weights=weights)
@@ -222,7 +222,7 @@ def test_triangulate_refuses_a_batched_rig(scene):
     rig, xy, mask = scene
     rig2 = Rig(*(jnp.stack([a] * 2) for a in (rig.K, rig.R, rig.t)))
     with pytest.raises(ValueError, match=r"triangulate: rig.K must have shape \(M, 3, 3\) \(one rig; vmap over many\); got \(2, 3, 3, 3\)"):
-        plain(cdog_jax.geometry.triangulate)(rig2, jnp.asarray(np.swapaxes(xy, 0, 1)), jnp.asarray(mask.T))
+        plain(cdog_jax.geometry.triangulate)(rig2, jnp.asarray(xy), jnp.asarray(mask))
 
 
 # --- argument types of public functions ------------------------------------------------------

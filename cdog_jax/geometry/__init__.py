@@ -4,7 +4,7 @@ for optimisation (axis-angle rotations, intrinsics)."""
 
 from ._camera import Rig as Rig, camera_points as camera_points, in_front as in_front, rig_from_arrays as rig_from_arrays
 from ._describe import RigDescription as RigDescription, describe_rig as describe_rig
-from ._distortion import distort_pixels as distort_pixels, undistort_pixels as undistort_pixels
+from ._distortion import Fisheye as Fisheye, distort_pixels as distort_pixels, undistort_pixels as undistort_pixels
 from ._epipolar import (
     epipolar_distances as epipolar_distances,
     essential_from_rig as essential_from_rig,

@@ -122,13 +122,14 @@ def affine_per_view(A: Float[Array, "M R 3"], b: Float[Array, "M R"], X: Float[A
     return out
 
 
-def camera_points(rig: Rig, X_world: Float[Array, "*S 3"]) -> Float[Array, "*S M 3"]:
-    """World points in every camera frame: ``X_cam = R X + t``, shape ``(*S, M, 3)``."""
+def camera_points(rig: Rig, X_world: Float[Array, "*S 3"]) -> Float[Array, "M *S 3"]:
+    """World points in every camera frame: ``X_cam = R X + t``, shape ``(M, *S, 3)`` (the
+    view axis first)."""
     expect_args("camera_points", rig=(rig, Rig), X_world=(X_world, ARRAY))
-    return affine_per_view(rig.R, rig.t, X_world)
+    return jnp.moveaxis(affine_per_view(rig.R, rig.t, X_world), -2, 0)
 
 
-def in_front(rig: Rig, X_world: Float[Array, "*S 3"]) -> Bool[Array, "*S M"]:
-    """Whether each point lies in front of each camera, ``(R X + t)_z > 0``."""
+def in_front(rig: Rig, X_world: Float[Array, "*S 3"]) -> Bool[Array, "M *S"]:
+    """Whether each point lies in front of each camera, ``(R X + t)_z > 0``, ``(M, *S)``."""
     expect_args("in_front", rig=(rig, Rig), X_world=(X_world, ARRAY))
     return camera_points(rig, X_world)[..., 2] > 0

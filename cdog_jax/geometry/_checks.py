@@ -10,7 +10,7 @@ from ._camera import Rig
 
 
 def check_tracks(rig, xy, mask, weights, function: str) -> None:
-    """``rig`` unbatched with ``M`` views; ``xy (*S, M, 2)``, bool ``mask (*S, M)`` and
+    """``rig`` unbatched with ``M`` views; ``xy (M, *S, 2)``, bool ``mask (M, *S)`` and
     ``weights`` (when given) of the mask's shape."""
     expect_args(function, rig=(rig, Rig), xy=(xy, ARRAY), mask=(mask, ARRAY))
     if not hasattr(xy, "dtype"):
@@ -20,8 +20,10 @@ def check_tracks(rig, xy, mask, weights, function: str) -> None:
         raise ValueError(f"{function}: rig.K must have shape (M, 3, 3) (one rig; vmap over many); got {K_shape}")
     M = K_shape[0]
     xy_shape, mask_shape = tuple(np.shape(xy)), tuple(np.shape(mask))
-    if len(xy_shape) < 2 or xy_shape[-2:] != (M, 2):
-        raise ValueError(f"{function}: xy must have shape (*S, M, 2) with M={M} views from the rig; got {xy_shape}")
+    if len(xy_shape) < 2 or xy_shape[0] != M or xy_shape[-1] != 2:
+        raise ValueError(
+            f"{function}: xy must have shape (M, *S, 2), the view axis first, with M={M} views from the rig; got {xy_shape}"
+        )
     if mask_shape != xy_shape[:-1]:
         raise ValueError(f"{function}: mask must have shape {xy_shape[:-1]} (one flag per view of each track); got {mask_shape}")
     mask_dtype = mask.dtype if hasattr(mask, "dtype") else np.asarray(mask).dtype

@@ -20,7 +20,7 @@ import numpy as np
 
 from .._expect import expect_args
 from ._camera import Rig
-from ._distortion import undistort_pixels
+from ._distortion import Fisheye, undistort_pixels
 
 
 @dataclasses.dataclass(frozen=True)
@@ -121,10 +121,14 @@ def _undistorted(K, xy, mask, dist, dtype) -> np.ndarray:
     xy = np.asarray(xy, dtype=np.float64)
     if mask is not None:
         xy = np.where(np.asarray(mask, dtype=bool)[..., None], xy, 0.0)  # padded slots may hold garbage
-    dist = np.asarray(dist, dtype=np.float64)
-    if dist.shape != (K.shape[0], 5):
-        raise ValueError(f"dist must have shape (M, 5) with M={K.shape[0]}; got {dist.shape}")
-    out = undistort_pixels(jnp.asarray(K, dtype), jnp.asarray(dist, dtype), jnp.asarray(xy, dtype))
+    if isinstance(dist, Fisheye):
+        lens = Fisheye(jnp.asarray(dist.coeffs, dtype))  # undistort_pixels checks its shape
+    else:
+        dist = np.asarray(dist, dtype=np.float64)
+        if dist.shape != (K.shape[0], 5):
+            raise ValueError(f"dist must have shape (M, 5) with M={K.shape[0]}; got {dist.shape}")
+        lens = jnp.asarray(dist, dtype)
+    out = undistort_pixels(jnp.asarray(K, dtype), lens, jnp.asarray(xy, dtype))
     return np.asarray(out, dtype=np.float64)
 
 

@@ -1,4 +1,5 @@
-"""Lens distortion: OpenCV's radial + tangential model, ``dist = (k1, k2, p1, p2, k3)``.
+"""Lens distortion: OpenCV's radial + tangential model, ``dist = (k1, k2, p1, p2, k3)``, and
+OpenCV's fisheye model (``cv2.fisheye``), ``Fisheye(coeffs = (k1, k2, k3, k4))``.
 
 Distortion acts on normalised camera coordinates ``(X/Z, Y/Z)``. With a general
 upper-triangular ``K`` (docs/CONVENTIONS.md §1: ``K[2,2]`` may be -1), ``K / K[2,2]`` maps ``(X/Z, Y/Z, 1)``
@@ -9,24 +10,55 @@ to the same pixel as ``K``, so we normalise with ``K / K[2,2]`` (the same as app
     x_d = x radial + 2 p1 x y + p2 (r² + 2 x²)
     y_d = y radial + p1 (r² + 2 y²) + 2 p2 x y
 
+The fisheye model (equidistant with a polynomial in the angle): for ``r = √(x² + y²)`` and
+``θ = atan r``::
+
+    θ_d = θ (1 + k1 θ² + k2 θ⁴ + k3 θ⁶ + k4 θ⁸)
+    (x_d, y_d) = (θ_d / r) (x, y)
+
+A plain ``(M, 5)`` array is the first model; a :class:`Fisheye` the second (the type is
+static under ``jit``, so each model compiles on its own).
+
 Every function takes one scene's ``(M, …)`` arrays; extra leading axes ``*B`` are allowed
 if all three arguments carry them, and ``jax.vmap`` works as usual.
 """
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jax import lax
 
 from .._expect import ARRAY, INT, expect_args
 from .._types import Array, Float
 
 
+class Fisheye(eqx.Module):
+    """OpenCV's fisheye lens model (``cv2.fisheye``) of every view.
+
+    Attributes:
+        coeffs: ``(M, 4)`` coefficients ``(k1, k2, k3, k4)`` (OpenCV's ``D``) of every view;
+            a batch adds leading axes. NumPy (host) or JAX arrays.
+    """
+
+    coeffs: Array | np.ndarray
+
+    def __check_init__(self):
+        if np.ndim(self.coeffs) < 2 or np.shape(self.coeffs)[-1] != 4:
+            raise ValueError(f"Fisheye.coeffs must have shape (M, 4) = (k1, k2, k3, k4) per view; got {np.shape(self.coeffs)}")
+
+
 def _check(K, dist, xy) -> None:
     if K.shape[-2:] != (3, 3):
         raise ValueError(f"K must have shape (M, 3, 3); got {K.shape}")
     M = K.shape[-3]
-    if dist.shape[-2:] != (M, 5):
+    if isinstance(dist, Fisheye):
+        if np.shape(dist.coeffs)[-2:] != (M, 4):
+            raise ValueError(
+                f"Fisheye.coeffs must have shape (M, 4) = (k1, k2, k3, k4) per view with M={M}; got {np.shape(dist.coeffs)}"
+            )
+    elif dist.shape[-2:] != (M, 5):
         raise ValueError(f"dist must have shape (M, 5) = (k1, k2, p1, p2, k3) per view with M={M}; got {dist.shape}")
     if xy.ndim < 3 or xy.shape[-3] != M or xy.shape[-1] != 2:
         raise ValueError(f"xy must have shape (M, P, 2) with M={M} from K; got {xy.shape}")
@@ -102,28 +134,32 @@ def _newton_step(dist, xd, yd, ox, oy):
 
 
 def distort_pixels(
-    K: Float[Array, "*B M 3 3"], dist: Float[Array, "*B M 5"], xy: Float[Array, "*B M P 2"]
+    K: Float[Array, "*B M 3 3"], dist: Float[Array, "*B M 5"] | Fisheye, xy: Float[Array, "*B M P 2"]
 ) -> Float[Array, "*B M P 2"]:
     """Ideal (undistorted) pixels → distorted pixels, OpenCV's model, per view.
 
     Args:
         K: ``(M, 3, 3)`` intrinsics, general upper-triangular (``K[2,2]`` may be -1).
-        dist: ``(M, 5)`` coefficients ``(k1, k2, p1, p2, k3)`` of every view.
+        dist: ``(M, 5)`` coefficients ``(k1, k2, p1, p2, k3)`` of every view, or a
+            :class:`Fisheye` of ``(M, 4)`` coefficients.
         xy: ``(M, P, 2)`` ideal pixels.
 
     Returns:
         ``(M, P, 2)`` distorted pixels (what a real camera records). Zero ``dist`` returns
         ``xy`` exactly.
     """
-    expect_args("distort_pixels", K=(K, ARRAY), dist=(dist, ARRAY), xy=(xy, ARRAY))
+    expect_args("distort_pixels", K=(K, ARRAY), xy=(xy, ARRAY))
+    _check_dist_type("distort_pixels", dist)
     _check(K, dist, xy)
     x, y = _normalise(K, xy)
+    if isinstance(dist, Fisheye):
+        return _shift_pixels(K, xy, *_fisheye_displacement(jnp.asarray(dist.coeffs, xy.dtype), x, y))
     return _shift_pixels(K, xy, *_displacement(dist, x, y))
 
 
 def undistort_pixels(
     K: Float[Array, "*B M 3 3"],
-    dist: Float[Array, "*B M 5"],
+    dist: Float[Array, "*B M 5"] | Fisheye,
     xy: Float[Array, "*B M P 2"],
     *,
     iterations: int = 20,
@@ -136,7 +172,8 @@ def undistort_pixels(
 
     Args:
         K: ``(M, 3, 3)`` intrinsics, general upper-triangular (``K[2,2]`` may be -1).
-        dist: ``(M, 5)`` coefficients ``(k1, k2, p1, p2, k3)`` of every view.
+        dist: ``(M, 5)`` coefficients ``(k1, k2, p1, p2, k3)`` of every view, or a
+            :class:`Fisheye` of ``(M, 4)`` coefficients.
         xy: ``(M, P, 2)`` distorted (recorded) pixels; padded slots may hold anything
             finite (e.g. 0) and stay finite.
         iterations: number of Newton steps (a Python int, static under ``jit``).
@@ -144,11 +181,14 @@ def undistort_pixels(
     Returns:
         ``(M, P, 2)`` ideal pixels, those that :func:`distort_pixels` maps onto ``xy``.
     """
-    expect_args("undistort_pixels", K=(K, ARRAY), dist=(dist, ARRAY), xy=(xy, ARRAY), iterations=(iterations, INT))
+    expect_args("undistort_pixels", K=(K, ARRAY), xy=(xy, ARRAY), iterations=(iterations, INT))
+    _check_dist_type("undistort_pixels", dist)
     _check(K, dist, xy)
     if not isinstance(iterations, int) or iterations < 0:
         raise ValueError(f"iterations must be a non-negative Python int; got {iterations!r}")
     xd, yd = _normalise(K, xy)
+    if isinstance(dist, Fisheye):
+        return _shift_pixels(K, xy, *_fisheye_undistort_offset(jnp.asarray(dist.coeffs, xy.dtype), xd, yd, iterations))
 
     # Newton with the 2×2 Jacobian rather than OpenCV's fixed point x ← (x_d − tangential) /
     # radial: the fixed point converges linearly with the factor |r ρ'(r) / ρ(r)| (ρ = radial),
@@ -171,3 +211,66 @@ def undistort_pixels(
     # derivative (the terms multiplied by the residual vanish).
     ox, oy = _newton_step(dist, xd, yd, lax.stop_gradient(ox), lax.stop_gradient(oy))
     return _shift_pixels(K, xy, ox, oy)
+
+
+def as_lens(dist, dtype):
+    """``dist`` (array-like ``(M, 5)`` or a :class:`Fisheye`) as JAX arrays of ``dtype``."""
+    if isinstance(dist, Fisheye):
+        return Fisheye(jnp.asarray(dist.coeffs, dtype))
+    return jnp.asarray(dist, dtype)
+
+
+def _check_dist_type(function: str, dist) -> None:
+    if isinstance(dist, Fisheye):
+        expect_args(function, **{"dist.coeffs": (dist.coeffs, ARRAY)})
+    else:
+        expect_args(function, dist=(dist, ARRAY))
+
+
+# OpenCV's fisheye model -------------------------------------------------------------------
+
+
+def _theta_d(k, theta):
+    """``θ (1 + k1 θ² + k2 θ⁴ + k3 θ⁶ + k4 θ⁸)`` and its derivative in ``θ``."""
+    k1, k2, k3, k4 = (k[..., i][..., None] for i in range(4))
+    t2 = theta * theta
+    poly = t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4)))
+    slope = 1 + t2 * (3 * k1 + t2 * (5 * k2 + t2 * (7 * k3 + t2 * 9 * k4)))
+    return theta * (1 + poly), slope
+
+
+def _fisheye_displacement(k, x, y):
+    """``distorted − ideal`` of the normalised point ``(x, y)`` under the fisheye model."""
+    r2 = x * x + y * y
+    pos = r2 > 0
+    r = jnp.sqrt(jnp.where(pos, r2, 1.0))  # no infinite derivative at the centre
+    theta_d, _ = _theta_d(k, jnp.arctan(r))
+    scale_m1 = jnp.where(pos, theta_d / r - 1, 0.0)  # θ_d / r → 1 at the centre
+    return x * scale_m1, y * scale_m1
+
+
+def _fisheye_undistort_offset(k, xd, yd, iterations: int):
+    """``ideal − distorted`` (normalised) under the fisheye model: Newton on
+    ``θ_d(θ) = |(x_d, y_d)|`` from ``θ = θ_d``, then one differentiable step (the
+    implicit-function derivative, as for the other model); ``r = tan θ``.
+
+    A step that is not finite or whose slope is not positive (past the model's fold) is
+    not taken, so every output stays finite.
+    """
+    rd2 = xd * xd + yd * yd
+    pos = rd2 > 0
+    rd = jnp.sqrt(jnp.where(pos, rd2, 1.0))
+
+    def step(k, rd, theta):
+        value, slope = _theta_d(k, theta)
+        new = theta - (value - rd) / jnp.where(slope > 0, slope, 1.0)
+        ok = (slope > 0) & jnp.isfinite(new)
+        return jnp.where(ok, new, theta)
+
+    k_c, rd_c = lax.stop_gradient(k), lax.stop_gradient(rd)
+    theta = lax.fori_loop(0, iterations, lambda _, th: step(k_c, rd_c, th), rd_c)
+    theta = step(k, rd, lax.stop_gradient(theta))
+    # θ below π/2 keeps tan θ finite; a point beyond is not an image of this lens.
+    theta = jnp.clip(theta, 0.0, jnp.pi / 2 - 1e-3)
+    scale_m1 = jnp.where(pos, jnp.tan(theta) / rd - 1, 0.0)
+    return xd * scale_m1, yd * scale_m1

@@ -6,6 +6,9 @@ so that every entry is O(1) in float32. With ``X = (x, y, z, 1)`` the least-squa
 reduces to a 3×3 system ``(Σ_v N_v) X = −Σ_v r_v``, solved in closed form: a subset of
 views is triangulated by summing its precomputed per-view blocks, and the derivative is
 well defined wherever the system is (no SVD).
+
+Tracks put the view axis first, ``xy (M, *S, 2)``, as detections ``(M, P, 2)``; the
+``*_views_last`` variants take ``(*S, M, 2)``, the library's per-group tables.
 """
 
 import jax.numpy as jnp
@@ -18,14 +21,23 @@ from ._homogeneous import homogeneous_from_points
 
 
 def dlt_blocks(
-    rig: Rig, xy: Float[Array, "*S M 2"]
-) -> tuple[Float[Array, "*S M 3 3"], Float[Array, "*S M 3"], Float[Array, "3"]]:
-    """Per-observation normal blocks ``N = AᵀA`` and ``r = Aᵀb`` of the DLT rows.
+    rig: Rig, xy: Float[Array, "M *S 2"]
+) -> tuple[Float[Array, "M *S 3 3"], Float[Array, "M *S 3"], Float[Array, "3"]]:
+    """Per-observation normal blocks ``N = AᵀA (M, *S, 3, 3)`` and ``r = Aᵀb (M, *S, 3)`` of
+    the DLT rows of pixels ``xy (M, *S, 2)``.
 
     Returns ``(N, r, origin)``: solving ``(Σ N) X = −Σ r`` gives ``X + origin`` in world
     coordinates (scene units).
     """
     expect_args("dlt_blocks", rig=(rig, Rig), xy=(xy, ARRAY))
+    N, r, origin = dlt_blocks_views_last(rig, jnp.moveaxis(xy, 0, -2))
+    return jnp.moveaxis(N, -3, 0), jnp.moveaxis(r, -2, 0), origin
+
+
+def dlt_blocks_views_last(
+    rig: Rig, xy: Float[Array, "*S M 2"]
+) -> tuple[Float[Array, "*S M 3 3"], Float[Array, "*S M 3"], Float[Array, "3"]]:
+    """:func:`dlt_blocks` with the view axis last but one: ``xy (*S, M, 2)``."""
     origin = jnp.mean(rig.centers, axis=0)  # (3,)
     t_shift = rig.t + jnp.einsum("mij,j->mi", rig.R, origin)  # (M, 3)
     rays = jnp.einsum("mab,...mb->...ma", jnp.linalg.inv(rig.K), homogeneous_from_points(xy))
@@ -78,24 +90,29 @@ def conditioning_floor(dtype) -> float:
 
 def triangulate(
     rig: Rig,
-    xy: Float[Array, "*S M 2"],
-    mask: Bool[Array, "*S M"] | None,
+    xy: Float[Array, "M *S 2"],
+    mask: Bool[Array, "M *S"] | None,
     *,
-    weights: Float[Array, "*S M"] | None = None,
+    weights: Float[Array, "M *S"] | None = None,
+    dist=None,
 ) -> tuple[Float[Array, "*S 3"], Bool[Array, "*S"]]:
     """Multi-view DLT of any batch of tracks, without association; jit/vmap friendly.
 
     Args:
         rig: ``M`` cameras.
-        xy: ``(*S, M, 2)`` pixels of each track in every view; masked entries may hold
-            anything (NaN, ±inf, huge values): they are replaced before any arithmetic, so
-            they change neither the point nor ``ok`` nor a gradient.
-        mask: ``(*S, M)`` bool, the views that observe the track; ``None`` (pass it
-            explicitly: ``triangulate(rig, xy, None)``): the views whose two coordinates are finite (NaN marks a missing view, as in anipose and
-            DeepLabCut tracks).
-        weights: optional ``(*S, M)`` non-negative weight of each view's equations (e.g.
+        xy: ``(M, *S, 2)`` pixels of each track in every view (the view axis first, as
+            detections ``(M, P, 2)``); masked entries may hold anything (NaN, ±inf, huge
+            values): they are replaced before any arithmetic, so they change neither the
+            point nor ``ok`` nor a gradient.
+        mask: ``(M, *S)`` bool, the views that observe the track; ``None`` (pass it
+            explicitly: ``triangulate(rig, xy, None)``): the views whose two coordinates
+            are finite (NaN marks a missing view, as in anipose and DeepLabCut tracks).
+        weights: optional ``(M, *S)`` non-negative weight of each view's equations (e.g.
             detector confidence): the normal equations become ``Σ_v w_v N_v``. A view with
             weight 0 (or a non-finite weight) counts as unobserved.
+        dist: the lens of every view (``(M, 5)`` OpenCV coefficients or a
+            :class:`cdog_jax.geometry.Fisheye`): ``xy`` are then recorded (distorted)
+            pixels, undistorted first. ``None``: ``xy`` are ideal pinhole pixels.
 
     Returns:
         ``points (*S, 3)`` (scene units, 0 where undetermined) and ``ok (*S,)``: the point is
@@ -106,12 +123,31 @@ def triangulate(
     if mask is None:
         mask = jnp.all(jnp.isfinite(jnp.asarray(xy)), axis=-1)
     check_tracks(rig, xy, mask, weights, "triangulate")
+    if dist is not None:
+        from ._distortion import as_lens, undistort_pixels
+
+        xy = jnp.where(mask[..., None], xy, 0.0)
+        xy = undistort_pixels(rig.K, as_lens(dist, xy.dtype), xy.reshape(xy.shape[0], -1, 2)).reshape(xy.shape)
+    if weights is not None:
+        weights = jnp.moveaxis(weights, 0, -1)
+    return triangulate_views_last(rig, jnp.moveaxis(xy, 0, -2), jnp.moveaxis(mask, 0, -1), weights=weights)
+
+
+def triangulate_views_last(
+    rig: Rig,
+    xy: Float[Array, "*S M 2"],
+    mask: Bool[Array, "*S M"],
+    *,
+    weights: Float[Array, "*S M"] | None = None,
+) -> tuple[Float[Array, "*S 3"], Bool[Array, "*S"]]:
+    """:func:`triangulate` of tracks laid out view axis last: ``xy (*S, M, 2)``,
+    ``mask (*S, M)``, ``weights (*S, M)`` (the library's per-group tables)."""
     w = mask.astype(xy.dtype)
     if weights is not None:
         w = jnp.where(mask & jnp.isfinite(weights) & (weights > 0), weights.astype(xy.dtype), 0.0)
     counts = w > 0
     xy = jnp.where(counts[..., None], xy, 0.0)  # neutral before any arithmetic (and gradient)
-    N, r, origin = dlt_blocks(rig, xy)
+    N, r, origin = dlt_blocks_views_last(rig, xy)
     X, ok = solve_normal_3x3(
         jnp.einsum("...m,...mij->...ij", w, N),
         jnp.einsum("...m,...mi->...i", w, r),

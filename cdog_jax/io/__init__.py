@@ -1,7 +1,10 @@
-"""Files in and out (docs/CONVENTIONS.md §3).
+"""Files in and out (docs/CONVENTIONS.md §3), and rigs from and to other libraries' objects.
 
-Rigs: EasyVis/OpenMVG folders, JSON, NPZ, anipose ``calibration.toml``, COLMAP text models
-and EasyMocap ``intri.yml``/``extri.yml`` (``load_rig`` and the ``save_rig_*`` writers).
+Rigs: EasyVis/OpenMVG folders, JSON, NPZ, anipose ``calibration.toml``, COLMAP text models,
+EasyMocap ``intri.yml``/``extri.yml`` and nerfstudio ``transforms.json`` (``load_rig`` and
+the ``save_rig_*`` writers); in memory, an aniposelib ``CameraGroup``, a pycolmap
+``Reconstruction`` and OpenCV arrays (``rig_from_*`` / ``*_from_rig``; the libraries are
+optional); exact Rodrigues and quaternion conversions.
 Detections: JSON and NPZ, one scene or many frames, and converters from the encodings of
 "missing" (``load_detections``, ``detections_from_lists``, ``detections_from_array``), and
 a writer of the JSON form (``save_detections_json``).
@@ -11,6 +14,18 @@ content raises :class:`InputError` (a ``ValueError``) naming the file.
 """
 
 from ._anipose import save_rig_anipose as save_rig_anipose
+from ._interop_aniposelib import aniposelib_from_rig as aniposelib_from_rig
+from ._interop_aniposelib import rig_from_aniposelib as rig_from_aniposelib
+from ._interop_pycolmap import pycolmap_from_rig as pycolmap_from_rig
+from ._interop_pycolmap import rig_from_pycolmap as rig_from_pycolmap
+from ._nerfstudio import save_rig_nerfstudio as save_rig_nerfstudio
+from ._opencv_arrays import OpenCVCameras as OpenCVCameras
+from ._opencv_arrays import opencv_from_rig as opencv_from_rig
+from ._opencv_arrays import rig_from_opencv as rig_from_opencv
+from ._rotations import quaternion_from_rotation as quaternion_from_rotation
+from ._rotations import rodrigues_from_rotation as rodrigues_from_rotation
+from ._rotations import rotation_from_quaternion as rotation_from_quaternion
+from ._rotations import rotation_from_rodrigues as rotation_from_rodrigues
 from ._association_files import association_records as association_records
 from ._association_files import load_association_json as load_association_json
 from ._association_files import save_association_csv as save_association_csv

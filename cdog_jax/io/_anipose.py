@@ -14,7 +14,13 @@ Convention (aniposelib's ``Camera``, which projects with ``cv2.projectPoints``):
 is a Rodrigues vector (axis × angle in radians, as ``cv2.Rodrigues``) of the world→camera
 rotation, ``X_cam = R X_world + translation``; OpenCV camera axes (x right, y down, z
 forward) and pixels (centre of the top-left pixel at ``(0, 0)``); ``distortions`` are
-OpenCV's ``(k1, k2, p1, p2[, k3])``.
+OpenCV's ``(k1, k2, p1, p2[, k3])``, or, with ``fisheye = true`` (aniposelib's
+``FisheyeCamera``), OpenCV's fisheye ``(k1, k2, k3, k4)``.
+
+Camera order: aniposelib's ``CameraGroup.load`` sorts the section names as strings
+(``cam_10`` before ``cam_2``); :func:`read_anipose` sorts them by number. Match cameras by
+their ``name`` (``RigFile.select(camera_group.get_names())``), never by position. The
+writer zero-pads the numbers (``cam_00`` … ``cam_10``) so that both orders agree.
 """
 
 from __future__ import annotations
@@ -31,6 +37,7 @@ from .._expect import PATH, expect_args
 from ..geometry._camera import Rig
 from ._atomic import atomic_write
 from ._errors import InputError, read_text
+from ..geometry._distortion import Fisheye
 from ._rig_files import (
     PathLike,
     _check_dist,
@@ -42,6 +49,7 @@ from ._rig_files import (
     _opencv_dist,
     _to_array,
     _Views,
+    stack_dists,
 )
 from ._rotations import rodrigues_from_rotation, rotation_from_rodrigues
 
@@ -59,8 +67,9 @@ def read_anipose(path: str) -> _Views:
     Views are the ``[cam_N]`` sections in numeric order of ``N`` (``cam_2`` before ``cam_10``;
     aniposelib itself sorts the names as strings); other sections (``[metadata]``) are
     ignored. ``name`` (default: the section name) and ``size`` are optional; 4
-    ``distortions`` get ``k3 = 0``; more (rational model) or ``fisheye = true`` is an error,
-    as those are not OpenCV's ``(k1, k2, p1, p2, k3)``.
+    ``distortions`` get ``k3 = 0``; 8 (the rational model) are read when ``k4 = k5 = k6 =
+    0``. ``fisheye = true`` reads 4 ``distortions`` as a :class:`Fisheye` (every camera of
+    the rig must then be fisheye).
     """
     text = read_text(path)
     try:
@@ -89,18 +98,19 @@ def read_anipose(path: str) -> _Views:
             raise ValueError(f'{path}: view {m}, [{key}], key "name": expected a string; got {name!r}')  # noqa: TRY004
         name = str(name)
         where = f"{path}: view {m} (camera {name!r}, section [{key}])"
-        if section.get("fisheye", False):
-            raise ValueError(
-                f'{where}: key "fisheye" is true; the fisheye model is not OpenCV\'s (k1, k2, p1, p2, k3) '
-                "and is not supported"
-            )
+        fisheye = section.get("fisheye", False)
+        if not isinstance(fisheye, bool):
+            raise ValueError(f'{where}, key "fisheye": expected true or false; got {fisheye!r}')  # noqa: TRY004
         for k in ("matrix", "distortions", "rotation", "translation"):
             if k not in section:
                 raise ValueError(f'{where}: missing key "{k}" (expected matrix, distortions, rotation, translation)')
         Ks.append(_to_array(section["matrix"], (3, 3), f'{where}, key "matrix"'))
         dist = section["distortions"]
         length = len(dist) if isinstance(dist, list) else 1
-        dists.append(_opencv_dist(_to_array(dist, (length,), f'{where}, key "distortions"'), f'{where}, key "distortions"'))
+        if fisheye:
+            dists.append(("fisheye", _to_array(dist, (4,), f'{where}, key "distortions" (fisheye: k1, k2, k3, k4)')))
+        else:
+            dists.append(_opencv_dist(_to_array(dist, (length,), f'{where}, key "distortions"'), f'{where}, key "distortions"'))
         Rs.append(rotation_from_rodrigues(_to_array(section["rotation"], (3,), f'{where}, key "rotation"')))
         ts.append(_to_array(section["translation"], (3,), f'{where}, key "translation"'))
         sizes.append(_check_image_size(section["size"], f'{where}, key "size"') if "size" in section else None)
@@ -111,7 +121,7 @@ def read_anipose(path: str) -> _Views:
         if missing:
             raise ValueError(f'{path}: view {missing[0]} (camera {names[missing[0]]!r}): missing key "size" (other cameras give one)')
         view_sizes = np.array(sizes, dtype=np.int64)
-    return _Views(np.stack(Ks), np.stack(Rs), np.stack(ts), view_sizes, np.stack(dists), tuple(names))
+    return _Views(np.stack(Ks), np.stack(Rs), np.stack(ts), view_sizes, stack_dists(dists, path), tuple(names))
 
 
 def save_rig_anipose(
@@ -119,32 +129,43 @@ def save_rig_anipose(
 ) -> None:
     """Write ``rig`` (``K, R (M, 3, 3)``, ``t (M, 3)``) as an aniposelib ``calibration.toml``.
 
-    Sections ``[cam_0]`` … ``[cam_{M-1}]`` with ``name`` (``names``, default ``"cam_{m}"``),
-    ``size`` (when ``image_size``, one ``(w, h)`` or ``(M, 2)``, is given: aniposelib needs
-    it), ``matrix = K / K[2,2]`` (same projection; OpenCV assumes ``K[2,2] = 1`` and ignores
-    the skew ``K[0,1]``, which is written all the same), ``distortions`` (``dist (M, 5)``,
-    zeros when ``None``), ``rotation`` (Rodrigues vector of ``R``) and ``translation``.
+    Sections ``[cam_0]`` … ``[cam_{M-1}]`` (zero-padded to one width, ``[cam_00]`` …, when
+    ``M > 10``, so that aniposelib's string order is the view order) with ``name``
+    (``names``, default ``"cam_{m}"``), ``size`` (``image_size``, one ``(w, h)`` or
+    ``(M, 2)``: required, aniposelib cannot load a camera without it), ``matrix = K /
+    K[2,2]`` (same projection; OpenCV assumes ``K[2,2] = 1`` and ignores the skew
+    ``K[0,1]``, which is written all the same), ``distortions`` (``dist (M, 5)``, zeros
+    when ``None``; a :class:`cdog_jax.geometry.Fisheye` writes its 4 coefficients and
+    ``fisheye = true``), ``rotation`` (Rodrigues vector of ``R``) and ``translation``.
     Numbers are written with float64 ``repr``.
     """
     expect_args("save_rig_anipose", path=(path, PATH), rig=(rig, Rig))
     K, R, t = _host_rig(rig)
     M = K.shape[0]
     K = _K_over_K22(K)
+    if image_size is None:
+        raise ValueError(
+            "save_rig_anipose: image_size is required: aniposelib cannot load a calibration.toml camera "
+            "without size = [width, height]; pass image_size=(w, h) or one per view (M, 2)"
+        )
     sizes = _check_view_sizes(image_size, M)
     dist = _check_dist(dist, M)
-    dist = np.zeros((M, 5)) if dist is None else dist
+    fisheye = isinstance(dist, Fisheye)
+    coeffs = dist.coeffs if fisheye else (np.zeros((M, 5)) if dist is None else dist)
     names = _check_names(names, M, "cam_{}")
+    width = len(str(M - 1)) if M > 10 else 1
     blocks = []
     for m in range(M):
-        lines = [f"[cam_{m}]", f"name = {_toml_string(names[m])}"]
-        if sizes is not None:
-            lines.append(f"size = [{int(sizes[m, 0])}, {int(sizes[m, 1])}]")
+        lines = [f"[cam_{m:0{width}d}]", f"name = {_toml_string(names[m])}"]
+        lines.append(f"size = [{int(sizes[m, 0])}, {int(sizes[m, 1])}]")
         lines += [
             f"matrix = [{', '.join(_toml_floats(row) for row in K[m])}]",
-            f"distortions = {_toml_floats(dist[m])}",
+            f"distortions = {_toml_floats(coeffs[m])}",
             f"rotation = {_toml_floats(rodrigues_from_rotation(R[m]))}",
             f"translation = {_toml_floats(t[m])}",
         ]
+        if fisheye:
+            lines.append("fisheye = true")
         blocks.append("\n".join(lines) + "\n")
     with atomic_write(path, "w") as f:
         f.write("\n".join(blocks))

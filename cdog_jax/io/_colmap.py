@@ -12,7 +12,10 @@ forward, as OpenCV. COLMAP puts the centre of the top-left pixel at ``(0.5, 0.5)
 and written back as ``(cx + 0.5, cy + 0.5)``. Distortion maps to OpenCV's
 ``(k1, k2, p1, p2, k3)`` as: SIMPLE_RADIAL ``k`` → ``(k, 0, 0, 0, 0)``, RADIAL ``k1, k2``
 → ``(k1, k2, 0, 0, 0)``, OPENCV ``k1, k2, p1, p2`` → ``(k1, k2, p1, p2, 0)`` (COLMAP's
-OPENCV model is OpenCV's, same ``p1, p2`` order).
+OPENCV model is OpenCV's, same ``p1, p2`` order), FULL_OPENCV ``k1, k2, p1, p2, k3, k4,
+k5, k6`` → ``(k1, k2, p1, p2, k3)`` when ``k4 = k5 = k6 = 0`` (then it is OpenCV's
+5-coefficient model; otherwise the rational model, refused), OPENCV_FISHEYE ``k1 … k4`` →
+:class:`cdog_jax.geometry.Fisheye` (OpenCV's fisheye model).
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from .._expect import PATH, expect_args
 from ..geometry._camera import Rig
 from ._atomic import atomic_write
 from ._errors import read_text
+from ..geometry._distortion import Fisheye
 from ._rig_files import (
     PathLike,
     _check_dist,
@@ -35,6 +39,7 @@ from ._rig_files import (
     _host_rig,
     _K_over_K22,
     _Views,
+    stack_dists,
 )
 from ._rotations import quaternion_from_rotation, rotation_from_quaternion
 
@@ -45,6 +50,8 @@ _MODELS = {
     "SIMPLE_RADIAL": ("f", "cx", "cy", "k"),
     "RADIAL": ("f", "cx", "cy", "k1", "k2"),
     "OPENCV": ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2"),
+    "FULL_OPENCV": ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"),
+    "OPENCV_FISHEYE": ("fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4"),
 }
 _QUATERNION_NORM_TOL = 1e-3
 
@@ -83,9 +90,7 @@ def read_colmap(path: str) -> _Views:
         sizes.append(size)
         dists.append(dist)
         names.append(name)
-    dist = None
-    if any(d is not None for d in dists):
-        dist = np.stack([np.zeros(5) if d is None else d for d in dists])
+    dist = stack_dists(dists, images_file)
     return _Views(np.stack(K), np.stack(R), np.stack(t), np.array(sizes, dtype=np.int64), dist, tuple(names))
 
 
@@ -115,8 +120,9 @@ def _int(field: str, where: str, what: str, minimum: int) -> int:
     return value
 
 
-def _read_cameras(file: str) -> dict[int, tuple[np.ndarray, tuple[int, int], np.ndarray | None]]:
-    """``CAMERA_ID → (K (3, 3) in OpenCV pixels, (width, height), dist (5,) or None)``."""
+def _read_cameras(file: str) -> dict[int, tuple[np.ndarray, tuple[int, int], Any]]:
+    """``CAMERA_ID → (K (3, 3) in OpenCV pixels, (width, height), lens)``, the lens as
+    :func:`camera_from_params` gives it."""
     cameras: dict[int, Any] = {}
     for lineno, line in _data_lines(file):
         fields = line.split()
@@ -129,10 +135,7 @@ def _read_cameras(file: str) -> dict[int, tuple[np.ndarray, tuple[int, int], np.
         where = f"{file}, line {lineno}, camera {camera_id}"
         model = fields[1]
         if model not in _MODELS:
-            raise ValueError(
-                f"{where}: unsupported camera model {model!r}; expected one of {', '.join(_MODELS)} "
-                "(undistort the model with `colmap image_undistorter` or convert it to OPENCV)"
-            )
+            camera_from_params(model, np.zeros(0), where)  # raises: unsupported model
         if camera_id in cameras:
             raise ValueError(f"{where}: CAMERA_ID {camera_id} defined twice")
         size = (_int(fields[2], where, "WIDTH", 1), _int(fields[3], where, "HEIGHT", 1))
@@ -141,19 +144,44 @@ def _read_cameras(file: str) -> dict[int, tuple[np.ndarray, tuple[int, int], np.
             raise ValueError(
                 f"{where}: model {model} takes {len(names)} parameters ({', '.join(names)}); got {len(fields) - 4}"
             )
-        p = dict(zip(names, _numbers(fields[4:], where, f"{model} parameters")))
-        fx, fy = (p["f"], p["f"]) if "f" in p else (p["fx"], p["fy"])
-        # COLMAP's pixel centres are at +0.5: shift the principal point to OpenCV's convention.
-        K = np.array([[fx, 0.0, p["cx"] - 0.5], [0.0, fy, p["cy"] - 0.5], [0.0, 0.0, 1.0]])
-        dist = None
-        if model == "SIMPLE_RADIAL":
-            dist = np.array([p["k"], 0.0, 0.0, 0.0, 0.0])
-        elif model == "RADIAL":
-            dist = np.array([p["k1"], p["k2"], 0.0, 0.0, 0.0])
-        elif model == "OPENCV":
-            dist = np.array([p["k1"], p["k2"], p["p1"], p["p2"], 0.0])
+        K, dist = camera_from_params(model, _numbers(fields[4:], where, f"{model} parameters"), where)
         cameras[camera_id] = (K, size, dist)
     return cameras
+
+
+def camera_from_params(model: str, params: np.ndarray, where: str) -> tuple[np.ndarray, Any]:
+    """``K (3, 3)`` in OpenCV pixels and the lens (``None``, ``(5,)`` OpenCV coefficients or
+    ``("fisheye", (4,))``) of a COLMAP camera ``model`` with its ``params``."""
+    if model not in _MODELS:
+        raise ValueError(
+            f"{where}: unsupported camera model {model!r}; expected one of {', '.join(_MODELS)} "
+            "(undistort the model with `colmap image_undistorter` or convert it to OPENCV)"
+        )
+    values = np.asarray(params, dtype=np.float64).reshape(-1)
+    if values.size != len(_MODELS[model]):
+        raise ValueError(f"{where}: model {model} takes {len(_MODELS[model])} parameters ({', '.join(_MODELS[model])}); got {values.size}")
+    p = dict(zip(_MODELS[model], values.tolist()))
+    fx, fy = (p["f"], p["f"]) if "f" in p else (p["fx"], p["fy"])
+    # COLMAP's pixel centres are at +0.5: shift the principal point to OpenCV's convention.
+    K = np.array([[fx, 0.0, p["cx"] - 0.5], [0.0, fy, p["cy"] - 0.5], [0.0, 0.0, 1.0]])
+    dist: Any = None
+    if model == "SIMPLE_RADIAL":
+        dist = np.array([p["k"], 0.0, 0.0, 0.0, 0.0])
+    elif model == "RADIAL":
+        dist = np.array([p["k1"], p["k2"], 0.0, 0.0, 0.0])
+    elif model == "OPENCV":
+        dist = np.array([p["k1"], p["k2"], p["p1"], p["p2"], 0.0])
+    elif model == "FULL_OPENCV":
+        rational = [p["k4"], p["k5"], p["k6"]]
+        if any(rational):
+            raise ValueError(
+                f"{where}: FULL_OPENCV with k4, k5, k6 = {rational} (the rational model) is not supported; "
+                "only k4 = k5 = k6 = 0, OpenCV's 5-coefficient model"
+            )
+        dist = np.array([p["k1"], p["k2"], p["p1"], p["p2"], p["k3"]])
+    elif model == "OPENCV_FISHEYE":
+        dist = ("fisheye", np.array([p["k1"], p["k2"], p["k3"], p["k4"]]))
+    return K, dist
 
 
 def _read_images(file: str) -> dict[int, tuple[np.ndarray, np.ndarray, int, str, int]]:
@@ -199,9 +227,11 @@ def save_rig_colmap(
     One camera and one image per view (``CAMERA_ID = IMAGE_ID = m + 1``), ``images.txt``
     with empty POINTS2D lines, and an empty ``points3D.txt``. ``K / K[2,2]`` is written
     (same projection; ``K[2,2] = -1`` allowed), the principal point shifted by +0.5 to
-    COLMAP's pixel centres; PINHOLE, or OPENCV for a view whose ``dist`` (``(M, 5)``) has a
-    nonzero ``k1, k2, p1, p2``. A nonzero skew ``K[0,1]`` or ``k3`` raises ``ValueError``
-    (no COLMAP model holds them). ``image_size``: ``(w, h)`` or ``(M, 2)``, required.
+    COLMAP's pixel centres; PINHOLE, OPENCV for a view whose ``dist`` (``(M, 5)``) has a
+    nonzero ``k1, k2, p1, p2``, FULL_OPENCV (``k4 = k5 = k6 = 0``) for one with a nonzero
+    ``k3``, OPENCV_FISHEYE for every view of a :class:`cdog_jax.geometry.Fisheye`. A
+    nonzero skew ``K[0,1]`` raises ``ValueError`` (no COLMAP model holds it).
+    ``image_size``: ``(w, h)`` or ``(M, 2)``, required.
     ``names`` (default ``"view_{m}"``) must have no whitespace.
     """
     expect_args("save_rig_colmap", folder=(folder, PATH), rig=(rig, Rig))
@@ -217,14 +247,18 @@ def save_rig_colmap(
             raise ValueError(f"view {m}: K has skew K[0,1] = {float(K[m, 0, 1])!r} (after K / K[2,2]); COLMAP's camera models cannot hold it")
         if np.abs(K[m][np.tril_indices(3, -1)]).max() > 0:
             raise ValueError(f"view {m}: K is not upper triangular; COLMAP's camera models cannot hold it")
-        if dist is not None and dist[m, 4] != 0:
-            raise ValueError(f"view {m}: dist has k3 = {float(dist[m, 4])!r}; COLMAP's OPENCV model has no k3")
     camera_lines, image_lines = [], []
     for m in range(M):
         fx, fy, cx, cy = K[m, 0, 0], K[m, 1, 1], K[m, 0, 2] + 0.5, K[m, 1, 2] + 0.5
         params = [fx, fy, cx, cy]
         model = "PINHOLE"
-        if dist is not None and np.any(dist[m, :4] != 0):
+        if isinstance(dist, Fisheye):
+            model = "OPENCV_FISHEYE"
+            params += list(dist.coeffs[m])
+        elif dist is not None and dist[m, 4] != 0:
+            model = "FULL_OPENCV"
+            params += list(dist[m]) + [0.0, 0.0, 0.0]
+        elif dist is not None and np.any(dist[m, :4] != 0):
             model = "OPENCV"
             params += list(dist[m, :4])
         w, h = sizes[m]

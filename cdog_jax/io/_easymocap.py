@@ -1,9 +1,10 @@
 """EasyMocap ``intri.yml`` + ``extri.yml`` rigs (OpenCV FileStorage YAML) (docs/CONVENTIONS.md §3).
 
-``intri.yml``: ``names`` (a list of camera names), ``K_<name>`` (3×3) and ``dist_<name>``
-(1×5 or 5×1; 4 coefficients get ``k3 = 0``). ``extri.yml``: ``R_<name>`` (3×1 Rodrigues
-vector), ``Rot_<name>`` (3×3, used when present, checked against ``R_<name>``) and
-``T_<name>`` (3×1). Matrices are ``!!opencv-matrix`` maps with ``rows``, ``cols``, ``dt``
+``intri.yml``: ``names`` (a list of camera names), ``K_<name>`` (3×3), ``dist_<name>``
+(1×5 or 5×1; 4 coefficients get ``k3 = 0``) and optional ``H_<name>``, ``W_<name>`` (the
+image height and width, integers). ``extri.yml``: ``R_<name>`` (3×1 Rodrigues vector, the
+rotation EasyMocap reads), ``Rot_<name>`` (3×3, used only without ``R_<name>``; when both
+are given they must agree) and ``T_<name>`` (3×1). Matrices are ``!!opencv-matrix`` maps with ``rows``, ``cols``, ``dt``
 and ``data: [...]``.
 
 Convention (EasyMocap's ``read_camera``): world→camera, ``X_cam = Rot X_world + T`` with
@@ -29,10 +30,12 @@ from .._expect import PATH, expect_args
 from ..geometry._camera import Rig
 from ._atomic import atomic_write
 from ._errors import read_text
+from ..geometry._distortion import Fisheye
 from ._rig_files import (
     PathLike,
     _check_dist,
     _check_names,
+    _check_view_sizes,
     _host_rig,
     _K_over_K22,
     _opencv_dist,
@@ -59,8 +62,8 @@ def read_easymocap(path: str) -> _Views:
     one of them (the module docstring has the convention).
 
     Views follow ``names`` of ``intri.yml`` (``extri.yml``'s, when given, must be the same).
-    ``dist_<name>`` (or ``D_<name>``) may be missing: zeros, and ``dist`` is ``None`` when no
-    camera has one. No image sizes.
+    ``dist_<name>`` (or ``D_<name>``) may be missing: zeros. The image size of a camera is
+    ``(W_<name>, H_<name>)`` when both are given (all cameras or none).
     """
     folder = os.path.dirname(path) if os.path.isfile(path) else path
     intri_file, extri_file = os.path.join(folder, "intri.yml"), os.path.join(folder, "extri.yml")
@@ -80,10 +83,11 @@ def read_easymocap(path: str) -> _Views:
         raise ValueError(f'{intri_file}, line {intri["names"].line}: key "names" is empty (zero cameras)')
     if len(set(names)) != len(names):
         raise ValueError(f'{intri_file}, line {intri["names"].line}: key "names" repeats a camera: {list(names)}')
-    Ks, Rs, ts, dists = [], [], [], []
+    Ks, Rs, ts, dists, sizes = [], [], [], [], []
     for m, name in enumerate(names):
         cam = f"view {m} (camera {name!r})"
         Ks.append(_matrix(intri, f"K_{name}", intri_file, cam, (3, 3)))
+        sizes.append(_size(intri, name, intri_file, cam))
         dist_key = next((k for k in (f"dist_{name}", f"D_{name}") if k in intri), None)
         if dist_key is None:
             dists.append(None)
@@ -96,24 +100,54 @@ def read_easymocap(path: str) -> _Views:
         rvec_key, rot_key = f"R_{name}", f"Rot_{name}"
         if rot_key not in extri and rvec_key not in extri:
             raise ValueError(f'{extri_file}: {cam}: missing key "{rvec_key}" (or "{rot_key}")')
-        if rot_key in extri:
+        if rvec_key in extri:  # EasyMocap's read_camera uses R_ (Rodrigues) and ignores Rot_
+            R = rotation_from_rodrigues(_matrix(extri, rvec_key, extri_file, cam, (3, 1)))
+            if rot_key in extri:
+                R_rot = _matrix(extri, rot_key, extri_file, cam, (3, 3))
+                if np.abs(R_rot - R).max() > _ROT_TOL:
+                    raise ValueError(
+                        f'{extri_file}, line {extri[rot_key].line}: {cam}: "{rot_key}" and the rotation of '
+                        f'"{rvec_key}" (line {extri[rvec_key].line}) differ by {np.abs(R_rot - R).max():.3g} '
+                        f'(expected agreement within {_ROT_TOL:g}; EasyMocap uses "{rvec_key}")'
+                    )
+        else:
             R = _matrix(extri, rot_key, extri_file, cam, (3, 3))
-        if rvec_key in extri:
-            R_from_rvec = rotation_from_rodrigues(_matrix(extri, rvec_key, extri_file, cam, (3, 1)))
-            if rot_key not in extri:
-                R = R_from_rvec
-            elif np.abs(R - R_from_rvec).max() > _ROT_TOL:
-                raise ValueError(
-                    f'{extri_file}, line {extri[rot_key].line}: {cam}: "{rot_key}" and the rotation of '
-                    f'"{rvec_key}" (line {extri[rvec_key].line}) differ by {np.abs(R - R_from_rvec).max():.3g} '
-                    f"(expected agreement within {_ROT_TOL:g})"
-                )
         Rs.append(R)
         ts.append(_matrix(extri, f"T_{name}", extri_file, cam, (3, 1))[:, 0])
     dist = None
     if any(d is not None for d in dists):
         dist = np.stack([np.zeros(5) if d is None else d for d in dists])
-    return _Views(np.stack(Ks), np.stack(Rs), np.stack(ts), None, dist, names)
+    view_sizes = None
+    if any(s is not None for s in sizes):
+        missing = [m for m, s in enumerate(sizes) if s is None]
+        if missing:
+            raise ValueError(f'{intri_file}: view {missing[0]} (camera {names[missing[0]]!r}): missing "H_{names[missing[0]]}" / '
+                             f'"W_{names[missing[0]]}" (other cameras give their image size)')
+        view_sizes = np.array(sizes, dtype=np.int64)
+    return _Views(np.stack(Ks), np.stack(Rs), np.stack(ts), view_sizes, dist, names)
+
+
+def _size(intri: dict[str, _Entry], name: str, file: str, cam: str) -> tuple[int, int] | None:
+    """``(W_<name>, H_<name>)``, positive integers, or ``None`` when neither is given."""
+    keys = (f"W_{name}", f"H_{name}")
+    given = [k in intri for k in keys]
+    if not any(given):
+        return None
+    if not all(given):
+        raise ValueError(f'{file}: {cam}: "{keys[given.index(True)]}" without "{keys[given.index(False)]}"')
+    values = []
+    for key in keys:
+        entry = intri[key]
+        value = entry.value.data.reshape(-1) if isinstance(entry.value, _Matrix) else entry.value
+        text = str(value[0] if isinstance(value, np.ndarray) and value.size == 1 else value)
+        try:
+            number = float(text)
+        except ValueError:
+            number = float("nan")
+        if not (number >= 1 and number.is_integer()):
+            raise ValueError(f'{file}, line {entry.line}: {cam}, key "{key}": expected a positive integer; got {text!r}')
+        values.append(int(number))
+    return values[0], values[1]
 
 
 def _names(entry: _Entry, file: str) -> tuple[str, ...]:
@@ -209,13 +243,17 @@ def _scalar(text: str) -> str:
     return text
 
 
-def save_rig_easymocap(folder: PathLike, rig: Rig, *, dist: Any = None, names: Any = None) -> None:
+def save_rig_easymocap(
+    folder: PathLike, rig: Rig, *, dist: Any = None, names: Any = None, image_size: Any = None
+) -> None:
     """Write ``rig`` (``K, R (M, 3, 3)``, ``t (M, 3)``) as EasyMocap ``intri.yml`` and
     ``extri.yml`` in ``folder`` (created if needed), in OpenCV FileStorage YAML.
 
     ``intri.yml``: ``names``, ``K_<name> = K / K[2,2]`` (same projection; OpenCV assumes
     ``K[2,2] = 1`` and ignores the skew ``K[0,1]``, which is written all the same) and
-    ``dist_<name>`` (1×5, ``dist (M, 5)``, zeros when ``None``). ``extri.yml``: ``names``,
+    ``dist_<name>`` (1×5, ``dist (M, 5)``, zeros when ``None``; EasyMocap has no fisheye
+    model), and ``H_<name>``, ``W_<name>`` when ``image_size`` (``(w, h)`` or ``(M, 2)``)
+    is given. ``extri.yml``: ``names``,
     ``R_<name>`` (3×1 Rodrigues), ``Rot_<name>`` (3×3) and ``T_<name>`` (3×1). ``names``
     (default ``"{m:02d}"``) must be OpenCV keys: letters, digits, ``_`` and ``-``. Numbers
     are written with float64 ``repr``.
@@ -225,12 +263,17 @@ def save_rig_easymocap(folder: PathLike, rig: Rig, *, dist: Any = None, names: A
     M = K.shape[0]
     K = _K_over_K22(K)
     dist = _check_dist(dist, M)
+    if isinstance(dist, Fisheye):
+        raise ValueError("save_rig_easymocap: EasyMocap has no fisheye lens model; write another format or undistort first")
     dist = np.zeros((M, 5)) if dist is None else dist
+    sizes = _check_view_sizes(image_size, M)
     names = _check_names(names, M, "{:02d}", r"[A-Za-z0-9_\-]+", "EasyMocap camera names must be letters, digits, _ or -")
     head = "%YAML:1.0\n---\nnames:\n" + "".join(f'   - "{n}"\n' for n in names)
     intri, extri = [head], [head]
     for m, name in enumerate(names):
         intri += [_yaml_matrix(f"K_{name}", K[m]), _yaml_matrix(f"dist_{name}", dist[m][None, :])]
+        if sizes is not None:
+            intri += [f"H_{name}: {int(sizes[m, 1])}\n", f"W_{name}: {int(sizes[m, 0])}\n"]
         rvec = rodrigues_from_rotation(R[m])
         extri += [
             _yaml_matrix(f"R_{name}", rvec[:, None]),

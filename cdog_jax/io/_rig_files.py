@@ -1,14 +1,16 @@
-"""Rig files (docs/CONVENTIONS.md §3): EasyVis/OpenMVG text folders, the project's JSON, NPZ, and (in
-their own modules) anipose ``calibration.toml``, COLMAP text models and EasyMocap
-``intri.yml``/``extri.yml``.
+"""Rig files (docs/CONVENTIONS.md §3): EasyVis/OpenMVG text folders, the project's JSON, NPZ, and (in their own
+modules) anipose ``calibration.toml``, COLMAP text models, EasyMocap
+``intri.yml``/``extri.yml`` and nerfstudio ``transforms.json``.
 
 Every reader returns the convention of docs/CONVENTIONS.md §1: world→camera ``X_cam = R X_world + t``
 with ``R`` a 3×3 rotation matrix (rows are the camera axes in world coordinates: x right,
 y down, z forward), pixels ``x ~ K X_cam`` divided by the third homogeneous coordinate,
 so a general upper-triangular ``K`` (``K[2,2] = -1`` included) is kept as it is. Pixel
 coordinates are those of the rest of the library: x right, y down, pixel centres at
-integer coordinates (OpenCV). ``dist`` holds OpenCV distortion ``(k1, k2, p1, p2, k3)``;
-it is read and written but never applied (the pipeline takes undistorted pixels).
+integer coordinates (OpenCV). ``dist`` holds OpenCV distortion ``(k1, k2, p1, p2, k3)``
+(zeros when a file gives none) or a :class:`cdog_jax.geometry.Fisheye` (OpenCV's fisheye
+``k1 … k4``); it is read and written, and applied only where it is passed on
+(``associate(dist=…)``, ``project(dist=…)``, ``triangulate(dist=…)``).
 
 Precision: files are parsed to float64 on the host; the :class:`Rig` gets ``dtype``
 (default: JAX's default float, float32 unless x64 is enabled), as :func:`rig_from_arrays`.
@@ -32,12 +34,13 @@ import numpy as np
 
 from .._expect import PATH, expect_args
 from ..geometry._camera import Rig, rig_from_arrays
+from ..geometry._distortion import Fisheye
 from ._atomic import atomic_write
 from ._errors import InputError, read_text, too_large
 
 PathLike = str | os.PathLike  # a folder or file name
 
-FORMATS = ("easyvis", "json", "npz", "anipose", "colmap", "easymocap")
+FORMATS = ("easyvis", "json", "npz", "anipose", "colmap", "easymocap", "nerfstudio")
 _EASYVIS_FILE = re.compile(r"^([KRT])(0|[1-9][0-9]*)\.txt$")
 
 
@@ -48,8 +51,9 @@ class RigFile(NamedTuple):
         rig: the ``M`` cameras, ``K, R (M, 3, 3)``, ``t (M, 3)``.
         image_size: ``(width, height)`` in pixels shared by all views, or ``None`` when the
             file gives none or when its views have different sizes (see ``view_sizes``).
-        dist: ``(M, 5)`` float64 OpenCV distortion ``(k1, k2, p1, p2, k3)`` (not applied),
-            or ``None`` when the file gives none.
+        dist: ``(M, 5)`` float64 OpenCV distortion ``(k1, k2, p1, p2, k3)`` (zeros when
+            the file gives none), or a :class:`cdog_jax.geometry.Fisheye` of ``(M, 4)``
+            float64 coefficients for fisheye lenses. Not applied by the reader.
         view_sizes: ``(M, 2)`` int64 ``(width, height)`` of every view, or ``None`` when
             the file gives no sizes.
         names: the camera names in view order, or ``None`` when the file has none.
@@ -57,20 +61,45 @@ class RigFile(NamedTuple):
 
     rig: Rig
     image_size: tuple[int, int] | None
-    dist: np.ndarray | None
+    dist: np.ndarray | Fisheye
     view_sizes: np.ndarray | None = None
     names: tuple[str, ...] | None = None
+
+    def select(self, names: Any) -> "RigFile":
+        """The views named ``names`` (a sequence of camera names), in that order.
+
+        Match cameras by name, never by position, when two tools order them differently:
+        e.g. aniposelib's ``CameraGroup.load`` orders ``[cam_10]`` before ``[cam_2]`` (string
+        order) while :func:`load_rig` reads sections in numeric order.
+        ``rig_file.select(camera_group.get_names())`` gives aniposelib's order.
+        """
+        if self.names is None:
+            raise ValueError("this rig has no camera names; select views by index with rig.select(views)")
+        if isinstance(names, str):
+            raise TypeError(f"names must be a sequence of camera names, not the string {names!r}")
+        index = {n: m for m, n in enumerate(self.names)}
+        missing = [n for n in names if str(n) not in index]
+        if missing:
+            raise ValueError(f"camera {missing[0]!r} is not in this rig; its cameras are {list(self.names)}")
+        views = np.array([index[str(n)] for n in names], dtype=np.int64)
+        dist = Fisheye(self.dist.coeffs[views]) if isinstance(self.dist, Fisheye) else self.dist[views]
+        sizes = None if self.view_sizes is None else self.view_sizes[views]
+        image_size = None
+        if sizes is not None and len(sizes) and (sizes == sizes[0]).all():
+            image_size = (int(sizes[0, 0]), int(sizes[0, 1]))
+        return RigFile(self.rig.select(views), image_size, dist, sizes, tuple(self.names[m] for m in views))
 
 
 class _Views(NamedTuple):
     """What a reader returns: float64 ``K, R (M, 3, 3)``, ``t (M, 3)``, and optional int
-    ``view_sizes (M, 2)``, ``dist (M, 5)`` and names."""
+    ``view_sizes (M, 2)``, ``dist (M, 5)`` (or a :class:`Fisheye` of float64 ``(M, 4)``)
+    and names."""
 
     K: np.ndarray
     R: np.ndarray
     t: np.ndarray
     view_sizes: np.ndarray | None = None
-    dist: np.ndarray | None = None
+    dist: np.ndarray | Fisheye | None = None
     names: tuple[str, ...] | None = None
 
 
@@ -82,15 +111,18 @@ def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigF
     - ``"easyvis"``: a folder of ``K{i}.txt``, ``R{i}.txt`` (3×3 Python-literal nested
       lists) and ``T{i}.txt`` (``[[x], [y], [z]]`` or ``[x, y, z]``), ``i = 0 … M-1``;
       other files are ignored. Parsed with ``ast.literal_eval``. No image size, no ``dist``.
-    - ``"json"``: ``{"views": [{"K", "R", "t", "dist" (optional, 5), "image_size"
-      (optional, [w, h])}, …]}``; views without ``dist`` get zeros when others have one.
+    - ``"json"``: ``{"views": [{"K", "R", "t", "dist" (optional, 5) or "fisheye"
+      (optional, 4: OpenCV's fisheye k1…k4), "image_size" (optional, [w, h])}, …]}``;
+      views without ``dist`` get zeros.
     - ``"npz"``: ``K (M, 3, 3)``, ``R (M, 3, 3)``, ``t (M, 3)``, optional ``dist (M, 5)``
-      and ``image_size (2,)``.
+      or ``fisheye (M, 4)``, and ``image_size (2,)``.
     - ``"anipose"``: an aniposelib ``calibration.toml`` (see :func:`read_anipose`).
     - ``"colmap"``: a COLMAP text model, ``cameras.txt`` + ``images.txt`` (see
       :func:`read_colmap`); COLMAP's half-pixel principal point is shifted to OpenCV's.
     - ``"easymocap"``: EasyMocap ``intri.yml`` + ``extri.yml`` (see :func:`read_easymocap`).
-    - ``"auto"``: ``.json``, ``.npz``, ``.toml`` (anipose) by suffix; ``cameras.txt`` or
+    - ``"nerfstudio"``: a nerfstudio ``transforms.json`` (see :func:`read_nerfstudio`).
+    - ``"auto"``: a file named ``transforms.json`` is nerfstudio; ``.json``, ``.npz``,
+      ``.toml`` (anipose) by suffix; ``cameras.txt`` or
       ``images.txt`` (COLMAP) and ``intri.yml`` or ``extri.yml`` (EasyMocap) by name, their
       folder being read; a folder holding ``cameras.txt`` and ``images.txt`` is COLMAP, one
       holding ``intri.yml`` and ``extri.yml`` is EasyMocap, any other folder is EasyVis.
@@ -98,16 +130,19 @@ def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigF
     Args:
         path: the folder or file.
         format: ``"auto"`` or one of :data:`FORMATS`.
-        dtype: float dtype of the rig (default: JAX's default float).
+        dtype: float dtype of the rig (default: JAX's default float). ``float64`` needs
+            64-bit JAX (``jax.config.update("jax_enable_x64", True)``), else it raises.
 
     Returns:
         A :class:`RigFile`; ``image_size`` is the common size when all views agree, else
-        ``None`` (``view_sizes`` has every view's). Raises ``ValueError`` naming the file
+        ``None`` (``view_sizes`` has every view's); ``dist`` is zeros when the file gives
+        none. Raises ``ValueError`` naming the file
         (and view, camera, line or key) for an unreadable file, a missing view or key, a
         wrong shape, a non-finite number, a singular ``K`` or a ``R`` that is not a rotation.
     """
     expect_args("load_rig", path=(path, PATH))
-    from . import _anipose, _colmap, _easymocap  # they import this module's helpers
+    check_rig_dtype(dtype, "load_rig")
+    from . import _anipose, _colmap, _easymocap, _nerfstudio  # they import this module's helpers
 
     path = os.fspath(path)
     fmt = _resolve_format(path, format)
@@ -118,8 +153,26 @@ def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigF
         "anipose": _anipose.read_anipose,
         "colmap": _colmap.read_colmap,
         "easymocap": _easymocap.read_easymocap,
+        "nerfstudio": _nerfstudio.read_nerfstudio,
     }
     views = readers[fmt](path)
+    return rig_file_from_views(views, dtype, path)
+
+
+def check_rig_dtype(dtype: Any, function: str) -> None:
+    """Refuse ``float64`` while JAX is 32-bit: it would quietly give a float32 rig."""
+    import jax
+
+    if dtype is not None and np.dtype(dtype).itemsize == 8 and not jax.config.jax_enable_x64:
+        raise ValueError(
+            f"{function}: dtype={np.dtype(dtype).name} needs 64-bit JAX, which is off (the rig would be float32); "
+            'call jax.config.update("jax_enable_x64", True) first, or leave dtype=None'
+        )
+
+
+def rig_file_from_views(views: _Views, dtype: Any, path: str) -> RigFile:
+    """The :class:`RigFile` of a reader's views: the rig checked and in ``dtype``, zeros for
+    a missing ``dist``, the common image size. ``path`` names the source in errors."""
     _check_float_range(views, dtype, path)
     try:
         rig = rig_from_arrays(views.K, views.R, views.t, dtype=dtype)
@@ -128,7 +181,8 @@ def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigF
     image_size = None
     if views.view_sizes is not None and (views.view_sizes == views.view_sizes[0]).all():
         image_size = (int(views.view_sizes[0, 0]), int(views.view_sizes[0, 1]))
-    return RigFile(rig, image_size, views.dist, views.view_sizes, views.names)
+    dist = np.zeros((views.K.shape[0], 5)) if views.dist is None else views.dist
+    return RigFile(rig, image_size, dist, views.view_sizes, views.names)
 
 
 def _check_float_range(views: _Views, dtype: Any, path: str) -> None:
@@ -158,8 +212,9 @@ def save_rig_json(path: PathLike, rig: Rig, *, image_size: tuple[int, int] | Non
     """Write ``rig`` (``K, R (M, 3, 3)``, ``t (M, 3)``) as the project's JSON rig.
 
     One object per view ``{"K": 3×3, "R": 3×3, "t": [3]}``, plus ``"image_size": [w, h]``
-    and ``"dist": [5]`` (OpenCV ``k1, k2, p1, p2, k3``, ``dist (M, 5)``) when given.
-    Numbers are written exactly (float64 ``repr``).
+    and ``"dist": [5]`` (OpenCV ``k1, k2, p1, p2, k3``, ``dist (M, 5)``) or ``"fisheye":
+    [4]`` (a :class:`cdog_jax.geometry.Fisheye`) when given. Numbers are written exactly
+    (float64 ``repr``).
     """
     expect_args("save_rig_json", path=(path, PATH), rig=(rig, Rig))
     K, R, t = _host_rig(rig)
@@ -168,7 +223,9 @@ def save_rig_json(path: PathLike, rig: Rig, *, image_size: tuple[int, int] | Non
     views = []
     for m in range(K.shape[0]):
         view: dict[str, Any] = {"K": K[m].tolist(), "R": R[m].tolist(), "t": t[m].tolist()}
-        if dist is not None:
+        if isinstance(dist, Fisheye):
+            view["fisheye"] = dist.coeffs[m].tolist()
+        elif dist is not None:
             view["dist"] = dist[m].tolist()
         if size is not None:
             view["image_size"] = list(size)
@@ -179,7 +236,8 @@ def save_rig_json(path: PathLike, rig: Rig, *, image_size: tuple[int, int] | Non
 
 def save_rig_npz(path: PathLike, rig: Rig, *, image_size: tuple[int, int] | None = None, dist: Any = None) -> None:
     """Write ``rig`` as NPZ: float64 ``K (M, 3, 3)``, ``R (M, 3, 3)``, ``t (M, 3)``, and
-    ``dist (M, 5)`` and int ``image_size (2,)`` (width, height) when given."""
+    ``dist (M, 5)`` (or ``fisheye (M, 4)`` for a :class:`cdog_jax.geometry.Fisheye`) and
+    int ``image_size (2,)`` (width, height) when given."""
     expect_args("save_rig_npz", path=(path, PATH), rig=(rig, Rig))
     K, R, t = _host_rig(rig)
     arrays = {"K": K, "R": R, "t": t}
@@ -187,7 +245,9 @@ def save_rig_npz(path: PathLike, rig: Rig, *, image_size: tuple[int, int] | None
     dist = _check_dist(dist, K.shape[0])
     if size is not None:
         arrays["image_size"] = np.asarray(size, dtype=np.int64)
-    if dist is not None:
+    if isinstance(dist, Fisheye):
+        arrays["fisheye"] = dist.coeffs
+    elif dist is not None:
         arrays["dist"] = dist
     with atomic_write(path, "wb") as f:  # a file object: np.savez would append ".npz" to a str path
         np.savez(f, **arrays)
@@ -238,6 +298,8 @@ def _resolve_format(path: str, format: str) -> str:
             raise InputError(f"{path}: is a folder; a {suffix} rig is a file")
         return "easyvis"
     base = os.path.basename(path)
+    if base == "transforms.json":
+        return "nerfstudio"
     if base in ("cameras.txt", "images.txt"):
         return "colmap"
     if base in ("intri.yml", "extri.yml"):
@@ -333,16 +395,18 @@ def _read_json(path: str):
         K.append(_to_array(view["K"], (3, 3), f'{where}, key "K"'))
         R.append(_to_array(view["R"], (3, 3), f'{where}, key "R"'))
         t.append(_to_array(view["t"], (3,), f'{where}, key "t"'))
-        dists.append(_to_array(view["dist"], (5,), f'{where}, key "dist"') if "dist" in view else None)
+        if "dist" in view and "fisheye" in view:
+            raise ValueError(f'{where}: both "dist" and "fisheye"; a view has one lens model')
+        if "fisheye" in view:
+            dists.append(("fisheye", _to_array(view["fisheye"], (4,), f'{where}, key "fisheye"')))
+        else:
+            dists.append(_to_array(view["dist"], (5,), f'{where}, key "dist"') if "dist" in view else None)
         sizes.append(_check_image_size(view["image_size"], f'{where}, key "image_size"') if "image_size" in view else None)
     given = {s for s in sizes if s is not None}
     if len(given) > 1:
         raise ValueError(f'{path}: views give different "image_size" values {sorted(given)}; expected one for all views')
     image_size = given.pop() if given else None
-    dist = None
-    if any(d is not None for d in dists):
-        dist = np.stack([np.zeros(5) if d is None else d for d in dists])
-    return _Views(np.stack(K), np.stack(R), np.stack(t), _tile_size(image_size, len(K)), dist)
+    return _Views(np.stack(K), np.stack(R), np.stack(t), _tile_size(image_size, len(K)), stack_dists(dists, path))
 
 
 def open_npz(path: str) -> _NpzFile:
@@ -403,10 +467,14 @@ def _read_npz(path: str):
             if a.shape != shape:
                 raise ValueError(f'{path}: array "{key}": expected shape {shape} (M={M} from K); got {a.shape}')
         dist = None
-        if "dist" in npz.files:
-            dist = _npz_array(npz, "dist", path)
-            if dist.shape != (M, 5):
-                raise ValueError(f'{path}: array "dist": expected shape {(M, 5)} (M={M} from K); got {dist.shape}')
+        if "dist" in npz.files and "fisheye" in npz.files:
+            raise ValueError(f'{path}: both arrays "dist" and "fisheye"; a rig has one lens model')
+        for key, n in (("dist", 5), ("fisheye", 4)):
+            if key in npz.files:
+                dist = _npz_array(npz, key, path)
+                if dist.shape != (M, n):
+                    raise ValueError(f'{path}: array "{key}": expected shape {(M, n)} (M={M} from K); got {dist.shape}')
+        fisheye = "fisheye" in npz.files
         image_size = None
         if "image_size" in npz.files:
             image_size = _check_image_size(npz["image_size"].tolist(), f'{path}: array "image_size"')
@@ -414,8 +482,8 @@ def _read_npz(path: str):
         if a is not None:
             bad = ~np.isfinite(a).reshape(M, -1).all(axis=1)
             if bad.any():
-                raise ValueError(f'{path}: array "{key}", view {int(np.argmax(bad))}: non-finite entries')
-    return _Views(K, R, t, _tile_size(image_size, M), dist)
+                raise ValueError(f'{path}: array "{"fisheye" if key == "dist" and fisheye else key}", view {int(np.argmax(bad))}: non-finite entries')
+    return _Views(K, R, t, _tile_size(image_size, M), Fisheye(dist) if fisheye else dist)
 
 
 def _tile_size(size: tuple[int, int] | None, M: int) -> np.ndarray | None:
@@ -489,9 +557,17 @@ def _host_rig(rig: Rig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return K, R, t
 
 
-def _check_dist(dist: Any, M: int) -> np.ndarray | None:
+def _check_dist(dist: Any, M: int) -> np.ndarray | Fisheye | None:
+    """``dist (M, 5)`` or a :class:`Fisheye` of ``(M, 4)``, as float64 host arrays."""
     if dist is None:
         return None
+    if isinstance(dist, Fisheye):
+        coeffs = np.asarray(dist.coeffs, dtype=np.float64)
+        if coeffs.shape != (M, 4):
+            raise ValueError(f"Fisheye coefficients must have shape (M, 4) = {(M, 4)}; got {coeffs.shape}")
+        if not np.isfinite(coeffs).all():
+            raise ValueError("Fisheye coefficients have non-finite entries; cannot write them")
+        return Fisheye(coeffs)
     dist = np.asarray(dist, dtype=np.float64)
     if dist.shape != (M, 5):
         raise ValueError(f"dist must have shape (M, 5) = {(M, 5)}; got {dist.shape}")
@@ -510,13 +586,33 @@ def _literal(a: np.ndarray) -> str:
 # Helpers shared by the format modules ----------------------------------------------------
 
 
+def stack_dists(dists: list, where: str) -> np.ndarray | Fisheye | None:
+    """Per-view lens models as one: ``None`` (no view gives one), ``(M, 5)`` OpenCV
+    coefficients (zeros for a view without), or a :class:`Fisheye` when every view is
+    ``("fisheye", (4,))``. Mixing the two models in one rig raises."""
+    if all(d is None for d in dists):
+        return None
+    fisheye = [isinstance(d, tuple) for d in dists]
+    if any(fisheye):
+        if not all(fisheye):
+            m = fisheye.index(not fisheye[0])
+            raise ValueError(
+                f"{where}: view 0 is {'a fisheye' if fisheye[0] else 'an OpenCV (k1, k2, p1, p2, k3)'} lens and view {m} "
+                "is not; one rig has one lens model"
+            )
+        return Fisheye(np.stack([d[1] for d in dists]))
+    return np.stack([np.zeros(5) if d is None else d for d in dists])
+
+
 def _opencv_dist(a: np.ndarray, where: str) -> np.ndarray:
     """4 or 5 OpenCV coefficients (a vector, or a 1×N / N×1 matrix) as ``(k1, k2, p1, p2, k3)``,
     ``k3 = 0`` when only four are given."""
     a = np.asarray(a, dtype=np.float64).reshape(-1)
     if a.size in (4, 5):
         return np.concatenate([a, np.zeros(5 - a.size)])
-    extra = " (rational, thin-prism, tilted and fisheye models are not supported)" if a.size > 5 else ""
+    if a.size == 8 and not np.any(a[5:]):
+        return a[:5]  # the rational model with k4 = k5 = k6 = 0 is the 5-coefficient one
+    extra = " (rational, thin-prism and tilted models are not supported)" if a.size > 5 else ""
     raise ValueError(
         f"{where}: expected 4 or 5 OpenCV distortion coefficients (k1, k2, p1, p2[, k3]); got {a.size}{extra}"
     )

@@ -41,7 +41,7 @@ from .._expect import expect_args
 from .._result import Association
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
-from ..geometry._projection import project
+from ..geometry._projection import project_views_last
 from ..synthetic._scene import Scene
 
 
@@ -181,8 +181,8 @@ def scene_metrics(rig: Rig, result: Association, scene: Scene) -> Metrics:
     err3d = _masked_mean(_norm(X_hat - X_gt), scored, dtype)
     views = jnp.broadcast_to(jnp.arange(M)[:, None], (M, P))
     detected = jnp.zeros((I, M), jnp.int32).at[inst_c, views].add(is_inst.astype(jnp.int32))[g_c] > 0  # (G, M)
-    xy_hat, _ = project(rig, X_hat)  # (G, M, 2)
-    xy_gt, _ = project(rig, X_gt)
+    xy_hat, _ = project_views_last(rig, X_hat)  # (G, M, 2)
+    xy_gt, _ = project_views_last(rig, X_gt)
     bpe_group = _masked_mean(_norm(xy_hat - xy_gt), detected, dtype)  # (G,)
     bpe_px = _masked_mean(bpe_group, scored, dtype)
 

@@ -17,8 +17,8 @@ from jaxtyping import ArrayLike, Real
 from .._expect import ARRAY, expect_args
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
-from ..geometry._projection import project
-from ..geometry._triangulate import dlt_blocks, solve_normal_3x3
+from ..geometry._projection import project_views_last
+from ..geometry._triangulate import dlt_blocks_views_last, solve_normal_3x3
 from ..graph._groups import gather_groups
 
 Loss = Literal["l2", "huber", "cauchy"]
@@ -66,7 +66,7 @@ def _group_terms(rig, xy, groups, valid, loss, scale_px, points3d):
     active = n >= 2
 
     if points3d is None:
-        N, r, origin = dlt_blocks(rig, xy_g)  # (G, M, 3, 3), (G, M, 3), (3,)
+        N, r, origin = dlt_blocks_views_last(rig, xy_g)  # (G, M, 3, 3), (G, M, 3), (3,)
         X, ok = solve_normal_3x3(jnp.einsum("gm,gmij->gij", w, N), jnp.einsum("gm,gmi->gi", w, r))
         X = X + origin[None, :]
         active = active & ok
@@ -74,7 +74,7 @@ def _group_terms(rig, xy, groups, valid, loss, scale_px, points3d):
         X = points3d
     X = jnp.where(active[:, None], X, 0.0)
 
-    xy_hat, _ = project(rig, X)  # (G, M, 2)
+    xy_hat, _ = project_views_last(rig, X)  # (G, M, 2)
     d = xy_hat - xy_g
     s = jnp.where(member, jnp.sum(d * d, axis=-1), 0.0)  # px², (G, M)
     rho = _rho(s, loss, jnp.asarray(scale_px, dtype=xy.dtype))

@@ -36,8 +36,8 @@ from .._result import Association
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..geometry._parameters import CameraParams, params_from_rig, rig_from_params, so3_exp, so3_log
-from ..geometry._projection import project
-from ..geometry._triangulate import triangulate
+from ..geometry._projection import project_views_last
+from ..geometry._triangulate import triangulate_views_last
 from ..graph._groups import gather_groups
 from ._bpe_loss import _LOSSES, Loss, _rho, group_bpe
 
@@ -239,7 +239,7 @@ def _select_groups(rig, xy, groups, valid, max_groups):
     member = valid[:, None] & (groups >= 0) & (groups < P)  # (G, M)
     xy_g = gather_groups(groups, xy)  # (G, M, 2); out-of-range slots are clamped, then masked
     xy_g = jnp.where(member[..., None], xy_g, 0.0)
-    X, ok = triangulate(rig, xy_g, member)
+    X, ok = triangulate_views_last(rig, xy_g, member)
     n_views = jnp.sum(member, axis=1, dtype=jnp.int32)
     usable = valid & ok & (n_views >= 2)
     err = group_bpe(rig, xy, groups, usable, points3d=X)
@@ -359,7 +359,7 @@ def _refine_rig(
 
     def errors(y):
         cam, X = y
-        xy_hat, _ = project(_rig_from_unknowns(start, unravel(cam)), X)  # (S, K, M, 2)
+        xy_hat, _ = project_views_last(_rig_from_unknowns(start, unravel(cam)), X)  # (S, K, M, 2)
         d = jnp.where(member[..., None], xy_hat - xy_g, 0.0)
         return d, jnp.sum(d * d, axis=-1)  # px, px²
 

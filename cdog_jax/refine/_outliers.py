@@ -15,7 +15,7 @@ from .._expect import ARRAY, expect_args
 from .._config import Config, Thresholds
 from .._types import Array, Bool, Float
 from ..geometry._camera import Rig
-from ..geometry._projection import reprojection_errors
+from ..geometry._projection import reprojection_errors_views_last
 from ..geometry._triangulate import solve_normal_3x3
 
 
@@ -46,7 +46,7 @@ def node_scores(
     pa, pb = np.triu_indices(M, k=1)  # the K = M(M-1)/2 unordered pairs a < b, static
     X, ok = solve_normal_3x3(N[pa] + N[pb], r[pa] + r[pb])  # (K, 3), (K,)
     X = X + origin[None, :]
-    err = reprojection_errors(rig, X, jnp.broadcast_to(xy_g, (len(pa), M, 2)))  # e[p, c], (K, M)
+    err = reprojection_errors_views_last(rig, X, jnp.broadcast_to(xy_g, (len(pa), M, 2)))  # e[p, c], (K, M)
     pair = ok & member[pa] & member[pb]
     weight = pair[:, None] & member[None, :]
     if not own:

@@ -12,7 +12,7 @@ import jax.numpy as jnp
 from .._config import Thresholds
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
-from ..geometry._projection import project
+from ..geometry._projection import project_views_last
 from ._attach import attach_cheapest, leftover_nodes
 
 
@@ -34,7 +34,7 @@ def recover_leftovers(
     member = valid[:, None] & (groups >= 0)
     leftover = leftover_nodes(groups, valid, mask)  # (N,)
 
-    pix, in_front = project(rig, X)  # (G, M, 2), (G, M)
+    pix, in_front = project_views_last(rig, X)  # (G, M, 2), (G, M)
     node_view = jnp.arange(N, dtype=jnp.int32) // P
     diff = pix[:, node_view, :] - xy.reshape(N, 2)[None, :, :]  # (G, N, 2)
     err = jnp.sqrt(jnp.sum(diff * diff, axis=-1))

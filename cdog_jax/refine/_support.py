@@ -25,7 +25,7 @@ import jax.numpy as jnp
 from .._config import Thresholds
 from .._types import Array, Bool, Float
 from ..geometry._camera import Rig
-from ..geometry._projection import project
+from ..geometry._projection import project_views_last
 
 
 def missing_views(
@@ -38,7 +38,7 @@ def missing_views(
 ) -> tuple[Bool[Array, "G M"], Bool[Array, "G M"]]:
     """``(G, M)`` views where group ``g``'s point ``X[g]`` should be detected but is not, and
     ``(G, M)`` whether it is in front of each camera."""
-    pix, in_front = project(rig, X)  # (G, M, 2), (G, M)
+    pix, in_front = project_views_last(rig, X)  # (G, M, 2), (G, M)
     lo = jnp.min(jnp.where(mask[..., None], xy, jnp.inf), axis=1)  # (M, 2); +inf: no detection
     hi = jnp.max(jnp.where(mask[..., None], xy, -jnp.inf), axis=1)
     inside = in_front & jnp.all((pix >= lo[None]) & (pix <= hi[None]), axis=-1)  # (G, M)

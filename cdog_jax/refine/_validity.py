@@ -22,9 +22,9 @@ import jax
 import jax.numpy as jnp
 
 from .._types import Array, Bool, Float
-from ..geometry._camera import Rig, camera_points
-from ..geometry._projection import reprojection_errors
-from ..geometry._triangulate import dlt_blocks, solve_normal_3x3
+from ..geometry._camera import Rig, affine_per_view
+from ..geometry._projection import reprojection_errors_views_last
+from ..geometry._triangulate import dlt_blocks_views_last, solve_normal_3x3
 
 
 def counting_views(member: Bool[Array, "G M"], *, weights: Float[Array, "G M"] | None = None) -> Bool[Array, "G M"]:
@@ -36,7 +36,7 @@ def counting_views(member: Bool[Array, "G M"], *, weights: Float[Array, "G M"] |
 def in_front_of_members(rig: Rig, X: Float[Array, "G 3"], member: Bool[Array, "G M"]) -> Bool[Array, " G"]:
     """``(G,)``: each point ``X (G, 3)`` lies in front of every member camera,
     ``(R X + t)_z > 0``."""
-    depth = camera_points(rig, X)[..., 2]  # (G, M)
+    depth = affine_per_view(rig.R, rig.t, X)[..., 2]  # (G, M)
     return jnp.all(~member | (depth > 0), axis=1)
 
 
@@ -60,7 +60,7 @@ def max_parallax_deg(rig: Rig, X: Float[Array, "G 3"], member: Bool[Array, "G M"
 def member_errors(rig: Rig, X: Float[Array, "G 3"], xy_g: Float[Array, "G M 2"], member: Bool[Array, "G M"]) -> Float[Array, "G M"]:
     """``(G, M)``: each member's reprojection distance (px); ``+inf`` where it is not
     finite, ``0`` for non-members."""
-    err = reprojection_errors(rig, X, xy_g)
+    err = reprojection_errors_views_last(rig, X, xy_g)
     err = jnp.where(jnp.isfinite(err), err, jnp.inf)
     return jnp.where(member, err, 0.0)
 
@@ -84,7 +84,7 @@ def detach_worst(
     re-triangulating (weighted DLT, ``weights (G, M)``) after each detach; at most ``M − 2``
     rounds. Groups that need no detach keep their point ``X``."""
     M = member.shape[1]
-    N, r, origin = dlt_blocks(rig, xy_g)  # (G, M, 3, 3), (G, M, 3)
+    N, r, origin = dlt_blocks_views_last(rig, xy_g)  # (G, M, 3, 3), (G, M, 3)
 
     def offenders(member, X):
         err = member_errors(rig, X, xy_g, member)

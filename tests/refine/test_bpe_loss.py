@@ -256,8 +256,8 @@ def test_given_points_equal_triangulated_and_are_stationary():
 
         @jax.jit
         def run(X):
-            tracks = xy[jnp.arange(xy.shape[0])[None, :], jnp.maximum(groups, 0)]  # (G, M, 2)
-            X_dlt, ok = triangulate(rig, tracks, (groups >= 0) & valid[:, None])
+            tracks = xy[jnp.arange(xy.shape[0])[:, None], jnp.maximum(groups, 0).T]  # (M, G, 2)
+            X_dlt, ok = triangulate(rig, tracks, ((groups >= 0) & valid[:, None]).T)
             inside = bpe(rig, xy, groups, valid)
             given, g = jax.value_and_grad(lambda X: bpe(rig, xy, groups, valid, points3d=X))(X_dlt + X)
             return ok, inside, given, g
