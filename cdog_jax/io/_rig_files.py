@@ -37,7 +37,7 @@ from ._errors import InputError, read_text, too_large
 
 PathLike = str | os.PathLike  # a folder or file name
 
-FORMATS = ("easyvis", "json", "npz", "anipose", "colmap", "easymocap")
+FORMATS = ("easyvis", "json", "npz", "anipose", "colmap", "easymocap", "qualisys")
 _EASYVIS_FILE = re.compile(r"^([KRT])(0|[1-9][0-9]*)\.txt$")
 
 
@@ -90,6 +90,8 @@ def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigF
     - ``"colmap"``: a COLMAP text model, ``cameras.txt`` + ``images.txt`` (see
       :func:`read_colmap`); COLMAP's half-pixel principal point is shifted to OpenCV's.
     - ``"easymocap"``: EasyMocap ``intri.yml`` + ``extri.yml`` (see :func:`read_easymocap`).
+    - ``"qualisys"``: a Qualisys ``.qca.txt`` calibration, as Pose2Sim reads it (see
+      :func:`read_qualisys`); scene units metres. ``"auto"``: by the suffix ``.qca.txt``.
     - ``"auto"``: ``.json``, ``.npz``, ``.toml`` (anipose) by suffix; ``cameras.txt`` or
       ``images.txt`` (COLMAP) and ``intri.yml`` or ``extri.yml`` (EasyMocap) by name, their
       folder being read; a folder holding ``cameras.txt`` and ``images.txt`` is COLMAP, one
@@ -107,7 +109,7 @@ def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigF
         wrong shape, a non-finite number, a singular ``K`` or a ``R`` that is not a rotation.
     """
     expect_args("load_rig", path=(path, PATH))
-    from . import _anipose, _colmap, _easymocap  # they import this module's helpers
+    from . import _anipose, _colmap, _easymocap, _qualisys  # they import this module's helpers
 
     path = os.fspath(path)
     fmt = _resolve_format(path, format)
@@ -118,6 +120,7 @@ def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigF
         "anipose": _anipose.read_anipose,
         "colmap": _colmap.read_colmap,
         "easymocap": _easymocap.read_easymocap,
+        "qualisys": _qualisys.read_qualisys,
     }
     views = readers[fmt](path)
     _check_float_range(views, dtype, path)
@@ -238,6 +241,8 @@ def _resolve_format(path: str, format: str) -> str:
             raise InputError(f"{path}: is a folder; a {suffix} rig is a file")
         return "easyvis"
     base = os.path.basename(path)
+    if base.lower().endswith((".qca.txt", ".qca")):
+        return "qualisys"
     if base in ("cameras.txt", "images.txt"):
         return "colmap"
     if base in ("intri.yml", "extri.yml"):
