@@ -28,7 +28,7 @@ from ._result import Association
 from ._validate import as_array, check_observations, check_rig
 from .geometry._camera import Rig
 from .geometry._epipolar import epipolar_distances
-from .graph._sigma import estimate_sigma
+from .graph._sigma import sigma_from_nearest
 
 SIGMA_POOLS = ("frame", "all", "scene")
 
@@ -136,7 +136,8 @@ def associate_classes(
         sigma_arg = "auto" if auto else sigma
     padded = _pad_scenes(scenes, min(batch_size, B), sigma_arg)
     result = associate_batch(
-        rig, jnp.asarray(padded.xy, dtype), jnp.asarray(padded.mask), config=config, sigma=padded.sigma,
+        rig, jnp.asarray(padded.xy, dtype), jnp.asarray(padded.mask), config=config,
+        sigma=jnp.asarray(padded.sigma) if isinstance(padded.sigma, np.ndarray) else padded.sigma,
         dist=dist, weights=None if weights is None else jnp.asarray(padded.weights, dtype),
         min_views=min_views, batch_size=min(batch_size, B), memory_budget_gb=memory_budget_gb,
     )  # fmt: skip
@@ -249,8 +250,7 @@ def _pooled_sigma(rig, scenes: _Scenes, F: int, dist, dtype, pool: str) -> np.nd
     rank = np.arange(len(group)) - np.repeat(start, np.diff(np.r_[start, len(group)]))
     table = np.full((G, int(rank.max()) + 1, s.shape[1]), np.inf, s.dtype)
     table[group, rank] = s
-    samples = jnp.asarray(table.reshape(G, 1, -1, 1, 1))
-    sigma = np.asarray(jax.vmap(lambda x: estimate_sigma(x, jnp.ones(x.shape[:2], bool)))(samples))
+    sigma = np.asarray(jax.vmap(sigma_from_nearest)(jnp.asarray(table.reshape(G, -1))))
     return sigma if pool == "frame" else np.full(F, sigma[0])
 
 
@@ -285,7 +285,7 @@ def _map_back(r, scenes: _Scenes, F, M, P, C, names) -> ClassAssociation:
     np.bitwise_or.at(status, scenes.frame, r.status.astype(np.int32))
     sigma = _per_frame(r.sigma_px, scenes.frame, F)
     tau = _per_frame(r.tau_px, scenes.frame, F)
-    assoc = Association(
+    assoc = _batched(
         labels=jnp.asarray(labels),
         groups=jnp.asarray(groups),
         valid=jnp.asarray(valid),
@@ -301,6 +301,13 @@ def _map_back(r, scenes: _Scenes, F, M, P, C, names) -> ClassAssociation:
     return ClassAssociation(assoc, group_class, None if names is None else tuple(names), C)
 
 
+def _batched(**fields) -> Association:
+    """An :class:`Association` with a leading frame axis (built per frame, so that each
+    field's shape is checked as for one scene)."""
+    names = tuple(fields)
+    return jax.vmap(lambda *values: Association(**dict(zip(names, values))))(*fields.values())
+
+
 def _per_frame(values: np.ndarray, frame: np.ndarray, F: int) -> np.ndarray:
     """The median over each frame's scenes (one value when σ was pooled); 0 without scenes."""
     out = np.zeros(F, values.dtype)
@@ -313,7 +320,7 @@ def _per_frame(values: np.ndarray, frame: np.ndarray, F: int) -> np.ndarray:
 def _empty(rig, F, M, P, dtype, C, names) -> ClassAssociation:
     dtype = dtype if np.issubdtype(dtype, np.floating) else np.float64
     z = lambda *shape, dt=dtype: jnp.zeros(shape, dt)  # noqa: E731
-    assoc = Association(
+    assoc = _batched(
         labels=jnp.full((F, M, P), -1, jnp.int32), groups=jnp.full((F, 1, M), -1, jnp.int32),
         valid=jnp.zeros((F, 1), bool), points3d=z(F, 1, 3), bpe=z(F, 1), err_px=z(F, 1),
         n_views=z(F, 1, dt=np.int32), num_groups=z(F, dt=np.int32), sigma_px=z(F), tau_px=z(F),

@@ -18,12 +18,17 @@ EM_ITERS = 30
 def estimate_sigma(d: Float[Array, "M P M P"], mask: Bool[Array, "M P"]) -> Float[Array, ""]:
     """Robust noise estimate ``()`` (pixels) from the epipolar distance table
     ``d (M, P, M, P)`` and ``mask (M, P)``; 0 if nothing to fit."""
-    s = jnp.min(d, axis=-1)  # (M, P, M): nearest distance of node (m, i) into view n
+    return sigma_from_nearest(jnp.min(d, axis=-1))  # (M, P, M): nearest distance of node (m, i) into view n
+
+
+def sigma_from_nearest(s: Float[Array, "*S"]) -> Float[Array, ""]:
+    """The estimate from nearest epipolar distances ``s`` (pixels, any shape; ``inf``: no
+    sample), e.g. those of many scenes pooled; 0 if nothing to fit."""
     ok = jnp.isfinite(s)
-    w_ok = ok.astype(d.dtype)
+    w_ok = ok.astype(s.dtype)
     n = jnp.sum(w_ok)
     x = jnp.where(ok, s, 0.0)
-    tiny = jnp.finfo(d.dtype).tiny
+    tiny = jnp.finfo(s.dtype).tiny
 
     # Start: c from the median, lambda from the mean.
     flat = jnp.where(ok, s, jnp.inf).reshape(-1)
@@ -46,5 +51,5 @@ def estimate_sigma(d: Float[Array, "M P M P"], mask: Bool[Array, "M P"]) -> Floa
         pi = jnp.clip(n1 / jnp.maximum(n, 1.0), 1e-4, 1.0 - 1e-4)
         return jnp.maximum(c, 1e-6), jnp.maximum(lam, 1e-6), pi
 
-    c, _, _ = jax.lax.fori_loop(0, EM_ITERS, em, (c0, lam0, jnp.asarray(0.5, d.dtype)))
+    c, _, _ = jax.lax.fori_loop(0, EM_ITERS, em, (c0, lam0, jnp.asarray(0.5, s.dtype)))
     return jnp.where(n > 0, c / jnp.sqrt(2.0), 0.0)
