@@ -99,7 +99,9 @@ def associate_classes(
             class in one view holds too few detections for its own estimate.
         sigma_pool: ``"frame"`` (one σ per frame, default), ``"all"`` (one for all frames)
             or ``"scene"`` (each (frame, class) scene its own, as ``associate_batch``).
-        batch_size: scenes run at once (memory bound; scenes are small).
+        batch_size: scenes per compiled call (memory bound; scenes are small). The scenes
+            are padded with empty ones to a multiple of it, so one compiled program serves
+            any number of frames and classes.
 
     Returns:
         A :class:`ClassAssociation`. Raises ``ValueError`` before any work for a wrong shape,
@@ -134,14 +136,19 @@ def associate_classes(
         config = config.replace(sigma_mode="given")
     else:
         sigma_arg = "auto" if auto else sigma
-    padded = _pad_scenes(scenes, min(batch_size, B), sigma_arg)
-    result = associate_batch(
-        rig, jnp.asarray(padded.xy, dtype), jnp.asarray(padded.mask), config=config,
-        sigma=jnp.asarray(padded.sigma) if isinstance(padded.sigma, np.ndarray) else padded.sigma,
-        dist=dist, weights=None if weights is None else jnp.asarray(padded.weights, dtype),
-        min_views=min_views, batch_size=min(batch_size, B), memory_budget_gb=memory_budget_gb,
-    )  # fmt: skip
-    result = jax.tree_util.tree_map(lambda a: np.asarray(a)[:B], result)
+    # Chunks of exactly batch_size scenes: one compiled program for any number of frames
+    # and classes (it depends on M, P_c, the dtype and the options only).
+    padded = _pad_scenes(scenes, batch_size, sigma_arg)
+    chunks = []
+    for lo in range(0, len(padded.xy), batch_size):
+        part = slice(lo, lo + batch_size)
+        chunks.append(associate_batch(
+            rig, jnp.asarray(padded.xy[part], dtype), jnp.asarray(padded.mask[part]), config=config,
+            sigma=jnp.asarray(padded.sigma[part]) if isinstance(padded.sigma, np.ndarray) else padded.sigma,
+            dist=dist, weights=None if weights is None else jnp.asarray(padded.weights[part], dtype),
+            min_views=min_views, batch_size=batch_size, memory_budget_gb=memory_budget_gb,
+        ))  # fmt: skip
+    result = jax.tree_util.tree_map(lambda *a: np.concatenate([np.asarray(x) for x in a])[:B], *chunks)
     return _map_back(result, scenes, F, M, P, C, class_names)
 
 
