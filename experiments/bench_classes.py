@@ -117,10 +117,13 @@ def timed(fn, *args):
     out = fn(*args)
     jax.block_until_ready(jax.tree_util.tree_leaves(out[0]))
     first = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    out = fn(*args)
-    jax.block_until_ready(jax.tree_util.tree_leaves(out[0]))
-    return out, first, time.perf_counter() - t0
+    warm = []
+    for _ in range(3):  # the best of three: the machine is shared
+        t0 = time.perf_counter()
+        out = fn(*args)
+        jax.block_until_ready(jax.tree_util.tree_leaves(out[0]))
+        warm.append(time.perf_counter() - t0)
+    return out, first, min(warm)
 
 
 def main(argv=None):
@@ -129,18 +132,19 @@ def main(argv=None):
     p.add_argument("--classes", type=int, default=25)
     p.add_argument("--people", type=int, default=3)
     p.add_argument("--views", type=int, default=4)
-    p.add_argument("--batch-size-a", type=int, default=64)
+    p.add_argument("--batch-size-a", type=int, nargs="+", default=[64, 512])
     p.add_argument("--batch-size-b", type=int, default=16)
     p.add_argument("--skip-b", action="store_true")
     args = p.parse_args(argv)
     rig = default_rig(num_views=args.views)
     xy, mask, classes, truth = make_scenes(rig, args.frames, args.classes, args.people)
     print(f"{args.classes} classes × {args.frames} frames × {args.views} views × {args.people} people, σ = 1 px given")
-    print("| option | scenes × slots | compile + first run (s) | warm run (s) | groups | mixing classes | mixing instances |")
+    print("| option | scenes × slots | compile + first run (s) | warm run, best of 3 (s) | groups | mixing classes | mixing instances |")
     print("|---|---|---:|---:|---:|---:|---:|")
-    (a, _), first, warm = timed(option_a, rig, xy, mask, classes, 1.0, args.batch_size_a)
-    n, mc, mi = score(a, classes, truth)
-    print(f"| A: (frame, class) scenes | {args.frames * args.classes} × {args.people} | {first:.2f} | {warm:.2f} | {n} | {mc} | {mi} |")
+    for bs in args.batch_size_a:
+        (a, _), first, warm = timed(option_a, rig, xy, mask, classes, 1.0, bs)
+        n, mc, mi = score(a, classes, truth)
+        print(f"| A: (frame, class) scenes, chunks of {bs} | {args.frames * args.classes} × {args.people} | {first:.2f} | {warm:.2f} | {n} | {mc} | {mi} |")
     if not args.skip_b:
         (b, _), first, warm = timed(option_b, rig, xy, mask, classes, 1.0, args.batch_size_b)
         n, mc, mi = score(b, classes, truth)

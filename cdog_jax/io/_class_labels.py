@@ -66,6 +66,8 @@ def class_array(
         error: ``error(text, f, m, i)`` builds the exception for a location.
     """
     names = check_names(names, error)
+    if all(lab is None for lab in labels):
+        raise error('"class_names" without classes (give "classes" beside "views", or "by_class")', None, None, None)
     if any(lab is None for lab in labels):
         f = next(f for f, lab in enumerate(labels) if lab is None)
         raise error('no "classes" in this frame while other frames have them (give classes in every frame or none)', f, None, None)
