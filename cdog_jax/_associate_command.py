@@ -120,7 +120,10 @@ def _check_paths(args, outputs: dict[str, tuple[str | None, tuple[str, ...]]]) -
     check_input(args.rig, "--rig", kind=kind)
     inputs = {"--rig": input_files(args.rig) if args.rig_format in ("auto", *folder_formats) else [args.rig]}
     if getattr(args, "points", None):
-        check_input(args.points, "--points", kind="any" if getattr(args, "points_format", "auto") in ("auto", "openpose") else "file")
+        fmt = getattr(args, "points_format", "auto")
+        named_file = os.path.splitext(args.points)[1].lower() in (".json", ".npz", ".csv")  # a folder "x.json" is a mistake
+        folder_ok = fmt == "openpose" or (fmt == "auto" and not named_file)
+        check_input(args.points, "--points", kind="any" if folder_ok else "file")
         inputs["--points"] = _point_files(args.points)
     check_distinct({flag: path for flag, (path, _) in outputs.items()})
     for flag, (path, extensions) in outputs.items():

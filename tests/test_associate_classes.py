@@ -152,3 +152,17 @@ def test_cli_associates_openpose_folder_by_keypoint(scene, tmp_path, capsys):
         rows = list(csv.DictReader(line for line in fh if not line.startswith("#")))
     assert len(rows) == F * C * K
     assert sorted(int(r["class"]) for r in rows if r["frame"] == "0") == [0, 0, 1, 1, 2, 2]
+
+
+def test_cli_keypoint_options_checked_before_work(scene, tmp_path, capsys):
+    rig, *_ = scene
+    save_rig_json(tmp_path / "rig.json", rig)
+    points = tmp_path / "points.json"
+    points.write_text(json.dumps({"views": [[[1, 2]], [[3, 4]], [[5, 6]], [[7, 8]]]}))
+    code = main(["associate", "--rig", str(tmp_path / "rig.json"), "--points", str(points), "--keypoints", "BODY_25"])
+    assert code == 2
+    assert "--keypoints names OpenPose keypoints" in capsys.readouterr().err
+    os.makedirs(tmp_path / "pose" / "cam1")
+    code = main(["associate", "--rig", str(tmp_path / "rig.json"), "--points", str(tmp_path / "pose")])
+    assert code == 2
+    assert "expected one folder per camera" in capsys.readouterr().err
