@@ -1,5 +1,6 @@
 """cdog_jax: multi-view, multi-instance point association with connected δ-overlap graphs."""
 
+from ._classes import ClassAssociation as ClassAssociation, associate_classes as associate_classes
 from ._config import Config as Config, Thresholds as Thresholds
 from ._memory import estimate_peak_bytes as estimate_peak_bytes
 from ._pipeline import associate as associate, associate_batch as associate_batch, associate_traced as associate_traced

@@ -1,10 +1,15 @@
 """``cdog-jax associate`` and ``cdog-jax rig``: the user's own cameras and detections.
 
-``associate`` reads a rig file (any format of :func:`cdog_jax.io.load_rig`) and a detections
-file (:func:`cdog_jax.io.load_detections`: one scene or many frames), checks both before any
-work, associates every frame in one compiled call (undistorting first when the rig carries
-distortion), prints a short summary, and writes the groups (JSON, NPZ or CSV by the
-extension of ``--out``) and optionally a figure of the first frame. ``rig`` prints
+``associate`` reads a rig file (any format of :func:`cdog_jax.io.load_rig`) and detections
+(:func:`cdog_jax.io.load_detections`: one scene or many frames; an OpenPose folder of
+camera folders, :func:`cdog_jax.io.load_openpose`; a table ``frame, view, class, x, y,
+score``, :func:`cdog_jax.io.load_keypoint_table`), checks both before any work, associates
+every frame in one compiled call (undistorting first when the rig carries distortion),
+prints a short summary, and writes the groups (JSON, NPZ or CSV by the extension of
+``--out``) and optionally a figure of the first frame. Detections with classes (keypoint
+types, or the JSON's ``"classes"``/``"by_class"``) are associated class by class
+(:func:`cdog_jax.associate_classes`: different classes are never joined), and every
+output carries each group's class. ``rig`` prints
 :meth:`cdog_jax.Rig.describe` and optionally draws the rig.
 
 Before any work: the inputs exist and are of the right kind, the outputs can be written
@@ -28,9 +33,11 @@ from ._cli import _positive_int, check_sigma_fits
 from ._paths import check_distinct, check_input, check_output, input_files
 from ._paths import write_output as _write
 from .io._errors import InputError
+from .io._keypoints import SKELETONS
 from .io._rig_files import FORMATS
 
 _PRESETS = ("paper", "extended", "reference")
+_POINT_FORMATS = ("auto", "detections", "openpose", "table")
 _OUT_FORMATS = (".json", ".npz", ".csv")
 _NOTES_SHOWN = 12  # notes printed in the summary; a long video can have thousands
 
@@ -87,7 +94,23 @@ def add_parsers(subparsers) -> None:
     )
     p.add_argument("--rig", required=True, help="rig file or folder")
     p.add_argument("--rig-format", default="auto", choices=("auto", *FORMATS), help="rig format (default: from the path)")
-    p.add_argument("--points", required=True, help="detections file (.json or .npz): one scene or many frames")
+    p.add_argument(
+        "--points",
+        required=True,
+        help="detections: a .json or .npz file (one scene or many frames), a folder of OpenPose camera folders, "
+        "or a table .csv/.npz (frame, view, class, x, y[, score])",
+    )
+    p.add_argument(
+        "--points-format",
+        choices=_POINT_FORMATS,
+        default="auto",
+        help="detections format (default: a folder is openpose, .csv a table, .npz with a 'frame' array a table)",
+    )
+    p.add_argument(
+        "--keypoints",
+        default=None,
+        help="names of the OpenPose keypoint types: " + ", ".join(SKELETONS) + " (default: ids only)",
+    )
     p.add_argument("--sigma", type=_sigma, default="auto", help='detection noise σ in px, or "auto" (default) to estimate it')
     p.add_argument("--preset", choices=_PRESETS, default="paper", help="method preset (default paper)")
     p.add_argument("--min-views", type=_min_views, default=2, help="report only groups seen in at least K views (default 2)")
@@ -153,27 +176,60 @@ def _check_paths(args, outputs: dict[str, tuple[str | None, tuple[str, ...]]]) -
     check_input(args.rig, "--rig", kind=kind)
     inputs = {"--rig": input_files(args.rig) if args.rig_format in ("auto", *folder_formats) else [args.rig]}
     if getattr(args, "points", None):
-        check_input(args.points, "--points")
-        inputs["--points"] = [args.points]
+        fmt = getattr(args, "points_format", "auto")
+        named_file = os.path.splitext(args.points)[1].lower() in (".json", ".npz", ".csv")  # a folder "x.json" is a mistake
+        folder_ok = fmt == "openpose" or (fmt == "auto" and not named_file)
+        check_input(args.points, "--points", kind="any" if folder_ok else "file")
+        inputs["--points"] = _point_files(args.points)
     check_distinct({flag: path for flag, (path, _) in outputs.items()})
     for flag, (path, extensions) in outputs.items():
         if path is not None:
             check_output(path, flag, extensions, inputs)
 
 
+def _point_files(path: str) -> list[str]:
+    """Every file that reading ``--points`` may read (an OpenPose folder: all its files)."""
+    if not os.path.isdir(path):
+        return [path]
+    return [os.path.join(root, name) for root, _, names in os.walk(path) for name in names]
+
+
+def _points_format(path: str, given: str) -> str:
+    if given != "auto":
+        return given
+    if os.path.isdir(path):
+        return "openpose"
+    suffix = os.path.splitext(path)[1].lower()
+    if suffix == ".csv":
+        return "table"
+    if suffix == ".npz":
+        from .io._rig_files import open_npz
+
+        with open_npz(path) as npz:
+            return "table" if "frame" in npz.files else "detections"
+    return "detections"
+
+
 def _load(args):
     """Rig file and detections, checked against each other (views, image size, capacity)."""
-    from .io import load_detections, load_rig
+    from .io import load_detections, load_keypoint_table, load_openpose, load_rig
 
     rig_file = load_rig(args.rig, format=args.rig_format)
     detections = None
     if getattr(args, "points", None):
-        detections = load_detections(
-            args.points,
-            num_views=rig_file.rig.num_views,
-            capacity=getattr(args, "capacity", None),
-            image_size=rig_file.image_size,
-        )
+        checks = dict(num_views=rig_file.rig.num_views, capacity=getattr(args, "capacity", None), image_size=rig_file.image_size)
+        fmt = _points_format(args.points, getattr(args, "points_format", "auto"))
+        keypoints = getattr(args, "keypoints", None)
+        if keypoints is not None and fmt != "openpose":
+            raise InputError(f"{args.points}: --keypoints names OpenPose keypoints; the detections are not an OpenPose folder")
+        if fmt == "openpose":
+            if keypoints is not None and keypoints not in SKELETONS:
+                raise InputError(f"--keypoints: expected one of {', '.join(SKELETONS)}; got {keypoints!r}")
+            detections = load_openpose(args.points, keypoints=keypoints, **checks)
+        elif fmt == "table":
+            detections = load_keypoint_table(args.points, **checks)
+        else:
+            detections = load_detections(args.points, **checks)
     return rig_file, detections
 
 
@@ -193,7 +249,7 @@ def run_associate(args: argparse.Namespace) -> int:
     import jax
     import jax.numpy as jnp
 
-    from . import Config, Status, associate_batch
+    from . import Config, Status, associate_batch, associate_classes
     from .graph._sigma import FALLBACK_SIGMA_PX
     from .geometry._distortion import Fisheye
     from .io import save_association_csv, save_association_json, save_association_npz
@@ -227,13 +283,21 @@ def run_associate(args: argparse.Namespace) -> int:
     weights = jnp.asarray(det.confidence, dtype) if args.confidence_weights else None
 
     t0 = time.perf_counter()
-    result = _associate_frames(
-        lambda xy, mask, w: associate_batch(
-            rig, xy, mask, config=config, sigma=args.sigma, dist=dist, weights=w, min_views=args.min_views,
-            batch_size=args.batch_size,
-        ),
-        jnp.asarray(det.xy, dtype), jnp.asarray(det.mask), weights, args.batch_size,
-    )
+    classed = None
+    if det.classes is not None:
+        classed = associate_classes(
+            rig, np.asarray(det.xy, dtype), det.mask, det.classes, class_names=det.class_names, config=config,
+            sigma=args.sigma, dist=dist, weights=weights, min_views=args.min_views, batch_size=max(args.batch_size, 64),
+        )  # fmt: skip
+        result = classed.association
+    else:
+        result = _associate_frames(
+            lambda xy, mask, w: associate_batch(
+                rig, xy, mask, config=config, sigma=args.sigma, dist=dist, weights=w, min_views=args.min_views,
+                batch_size=args.batch_size,
+            ),
+            jnp.asarray(det.xy, dtype), jnp.asarray(det.mask), weights, args.batch_size,
+        )
     elapsed = time.perf_counter() - t0
     num_groups = np.asarray(result.num_groups)
     n_views = np.asarray(result.n_views)[np.asarray(result.valid)]
@@ -245,6 +309,8 @@ def run_associate(args: argparse.Namespace) -> int:
         f"  3D points: {int(num_groups.sum())} ({num_groups.min()}–{num_groups.max()} per frame)" if F > 1 else f"  3D points: {int(num_groups.sum())}",
         f"  detections assigned: {assigned} of {int(det.mask.sum())}",
     ]
+    if classed is not None:
+        lines.append(_class_summary(classed, det))
     if n_views.size:
         counts = np.bincount(n_views, minlength=M + 1)
         lines.append("  views per point: " + ", ".join(f"{k}: {counts[k]}" for k in range(2, M + 1) if counts[k]))
@@ -271,11 +337,14 @@ def run_associate(args: argparse.Namespace) -> int:
         assoc = jax.tree_util.tree_map(frame, result)
         xy, mask = frame(det.xy), frame(det.mask)
         conf = None if det.confidence is None else frame(det.confidence)
+        cls = None if det.classes is None else frame(det.classes)
+        if classed is not None:
+            assoc = classed._replace(association=assoc, group_class=frame(classed.group_class))
         ext = os.path.splitext(args.out)[1].lower()
         if ext == ".json":
-            _write(args.out, "--out", lambda: save_association_json(args.out, assoc, xy, mask, confidence=conf))
+            _write(args.out, "--out", lambda: save_association_json(args.out, assoc, xy, mask, confidence=conf, classes=cls))
         elif ext == ".npz":
-            _write(args.out, "--out", lambda: save_association_npz(args.out, assoc, xy=xy, mask=mask, confidence=conf))
+            _write(args.out, "--out", lambda: save_association_npz(args.out, assoc, xy=xy, mask=mask, confidence=conf, classes=cls))
         else:
             _write(args.out, "--out", lambda: save_association_csv(args.out, assoc))
         lines.append(f"Wrote {args.out}")
@@ -293,6 +362,28 @@ def run_associate(args: argparse.Namespace) -> int:
 
     _emit(lines)
     return 0
+
+
+def _class_summary(classed, det) -> str:
+    """Groups per class per frame against the most detections of that class in one view."""
+    a = classed.association
+    valid = np.asarray(a.valid)
+    gc = np.asarray(classed.group_class)
+    C = classed.num_classes
+    F = valid.shape[0]
+    per = np.zeros((F, C), np.int64)
+    f, g = np.nonzero(valid)
+    np.add.at(per, (f, gc[f, g]), 1)
+    most = np.zeros((F, C), np.int64)  # the fullest view of each class
+    for c in range(C):
+        most[:, c] = ((det.classes == c) & det.mask).sum(axis=2).max(axis=1)
+    seen = most > 0
+    fewer = int(np.count_nonzero(per[seen] < most[seen]))
+    more = int(np.count_nonzero(per[seen] > most[seen]))
+    return (
+        f"  classes: {C}; groups per class and frame: mean {per[seen].mean() if seen.any() else 0:.2f}; "
+        f"fewer than the fullest view's detections in {fewer}, more in {more} of {int(seen.sum())} (frame, class) pairs"
+    )
 
 
 def run_rig(args: argparse.Namespace) -> int:

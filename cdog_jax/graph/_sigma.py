@@ -113,7 +113,16 @@ def estimate_sigma(
     than ``MIN_MATCHES`` expected true pairs, or ``σ̂ > MAX_SIGMA_PER_FOCAL · focal_px``), and
     then ``sigma = FALLBACK_SIGMA_PX``. Always finite.
     """
-    x, w, count = (a.reshape(-1) for a in nearest_samples(d, mask))
+    return sigma_from_samples(*nearest_samples(d, mask), focal_px)
+
+
+def sigma_from_samples(
+    x: Float[Array, "*S"], w: Float[Array, "*S"], count: Float[Array, "*S"], focal_px: Float[Array, ""]
+) -> tuple[Float[Array, ""], Bool[Array, ""]]:
+    """:func:`estimate_sigma` from the samples of :func:`nearest_samples` (any shape, e.g.
+    those of several scenes pooled; weight 0 marks an unused entry)."""
+    x, w, count = (a.reshape(-1) for a in (x, w, count))
+    dtype = x.dtype
     n = jnp.sum(w > 0)
     focal_px = jnp.where(jnp.isfinite(focal_px) & (focal_px > 0), focal_px, 1.0)
     width = jnp.maximum(jnp.max(x), UNIFORM_PER_FOCAL * focal_px)
@@ -137,7 +146,7 @@ def estimate_sigma(
     best = jnp.argmax(log_lik >= top - TIE_RELATIVE * (1.0 + jnp.abs(top)))
     sigma = c[best] / jnp.sqrt(2.0)
     fallback = ~((n_match[best] >= MIN_MATCHES) & (sigma <= MAX_SIGMA_PER_FOCAL * focal_px) & jnp.isfinite(sigma))
-    return jnp.where(fallback, FALLBACK_SIGMA_PX, sigma).astype(d.dtype), fallback
+    return jnp.where(fallback, FALLBACK_SIGMA_PX, sigma).astype(dtype), fallback
 
 
 def focal_scale(K: Float[Array, "M 3 3"]) -> Float[Array, ""]:

@@ -2,12 +2,13 @@
 
 Rigs: EasyVis/OpenMVG folders, JSON, NPZ, anipose ``calibration.toml``, COLMAP text models,
 EasyMocap ``intri.yml``/``extri.yml`` and nerfstudio ``transforms.json`` (``load_rig`` and
-the ``save_rig_*`` writers); in memory, an aniposelib ``CameraGroup``, a pycolmap
+the ``save_rig_*`` writers); Qualisys ``.qca.txt`` (read only); in memory, an aniposelib ``CameraGroup``, a pycolmap
 ``Reconstruction`` and OpenCV arrays (``rig_from_*`` / ``*_from_rig``; the libraries are
 optional); exact Rodrigues and quaternion conversions.
 Detections: JSON and NPZ, one scene or many frames, and converters from the encodings of
 "missing" (``load_detections``, ``detections_from_lists``, ``detections_from_array``), and
 a writer of the JSON form (``save_detections_json``).
+Classed keypoints: OpenPose folders (``load_openpose``) and tables (``load_keypoint_table``).
 Results: the groups of an :class:`cdog_jax.Association` as JSON, NPZ or CSV.
 Every writer replaces its file atomically (``_atomic.py``); a problem with a file's
 content raises :class:`InputError` (a ``ValueError``) naming the file.
@@ -38,6 +39,9 @@ from ._detections import detections_from_lists as detections_from_lists
 from ._detections import load_detections as load_detections
 from ._detections_out import save_detections_json as save_detections_json
 from ._easymocap import save_rig_easymocap as save_rig_easymocap
+from ._keypoints import SKELETONS as SKELETONS
+from ._keypoints import load_keypoint_table as load_keypoint_table
+from ._keypoints import load_openpose as load_openpose
 from ._errors import InputError as InputError
 from ._rig_files import FORMATS as FORMATS
 from ._rig_files import RigFile as RigFile

@@ -13,6 +13,13 @@ CSV (and the CLI's summary reports ``err_px``):
 
 Numbers are written with ``repr`` (exact float64 round trip); a non-finite number is
 written as ``null``.
+
+Classes: every writer also takes what :func:`cdog_jax.associate_classes` returns (a
+``ClassAssociation``). Each group then carries its class: ``"class"`` (id) and
+``"class_name"`` (when names are known) in the JSON, with the names by id as top-level
+``"class_names"`` and the classes of the unassigned detections as ``"unassigned_classes"``
+(when the detections' ``classes`` are given); columns ``class, class_name`` at the end of
+the CSV; arrays ``group_class``, ``class_names`` (and ``classes``) in the NPZ.
 """
 
 from __future__ import annotations
@@ -43,7 +50,17 @@ CSV_NOTE = (
 )
 
 
-def association_records(assoc: Any, xy: Any, mask: Any, *, confidence: Any = None, rig: Any = None) -> dict:
+def association_records(
+    assoc: Any,
+    xy: Any,
+    mask: Any,
+    *,
+    confidence: Any = None,
+    rig: Any = None,
+    group_class: Any = None,
+    class_names: Any = None,
+    classes: Any = None,
+) -> dict:
     """One scene's association as JSON-ready records.
 
     Args:
@@ -55,6 +72,10 @@ def association_records(assoc: Any, xy: Any, mask: Any, *, confidence: Any = Non
         confidence: optional ``(M, P)``; appended to every row.
         rig: optional cameras (``K, R (M, 3, 3)``, ``t (M, 3)``); then each group also gets
             ``member_err_px``, the reprojection distance (px) of each member, in member order.
+        group_class: optional ``(G,)`` class id of every group: each group gets ``"class"``
+            (and ``"class_name"`` from ``class_names``, the names by id).
+        classes: optional ``(M, P)`` class ids of the detections: ``"unassigned_classes"``
+            lists those of the unassigned rows, in their order.
 
     Returns:
         ``{"groups": [{"id", "members": [[view, slot, x, y], …], "point3d": [X, Y, Z],
@@ -97,9 +118,12 @@ def association_records(assoc: Any, xy: Any, mask: Any, *, confidence: Any = Non
         }
         if cams is not None:
             record["member_err_px"] = [_num(e) for e in _member_errors(cams, X, views, xy[views, slots])]
+        if group_class is not None:
+            record.update(_class_fields(int(np.asarray(group_class)[g]), class_names))
         groups.append(record)
-    unassigned = [row(int(m), int(i)) for m, i in np.argwhere(mask & ~used)]
-    return {
+    left = np.argwhere(mask & ~used)
+    unassigned = [row(int(m), int(i)) for m, i in left]
+    out = {
         "groups": groups,
         "unassigned": unassigned,
         "num_views": M,
@@ -107,13 +131,35 @@ def association_records(assoc: Any, xy: Any, mask: Any, *, confidence: Any = Non
         "sigma_px": _num(a["sigma_px"]),
         "tau_px": _num(a["tau_px"]),
     }
+    if classes is not None:
+        cls = np.asarray(classes)
+        out["unassigned_classes"] = [int(cls[m, i]) for m, i in left]
+    return out
 
 
-def save_association_json(path: PathLike, assoc: Any, xy: Any, mask: Any, *, confidence: Any = None, rig: Any = None) -> None:
+def _class_fields(c: int, names: Any) -> dict:
+    fields: dict = {"class": c}
+    if names is not None:
+        fields["class_name"] = names[c] if 0 <= c < len(names) else None
+    return fields
+
+
+def _unpack(result: Any) -> tuple[Any, np.ndarray | None, tuple | None]:
+    """``(association, group_class, class_names)`` of an Association or a ClassAssociation."""
+    if hasattr(result, "group_class") and hasattr(result, "association"):
+        return result.association, np.asarray(result.group_class), result.class_names
+    return result, None, None
+
+
+def save_association_json(
+    path: PathLike, assoc: Any, xy: Any, mask: Any, *, confidence: Any = None, rig: Any = None, classes: Any = None
+) -> None:
     """Write :func:`association_records` as JSON: one scene (``labels (M, P)``, ``xy (M, P, 2)``),
     or a batch (``labels (B, M, P)``, ``xy (B, M, P, 2)``, ``mask (B, M, P)``, from
     :func:`cdog_jax.associate_batch`) as ``{"frames": [one object per scene, …]}``.
-    ``rig`` is shared by all scenes."""
+    ``rig`` is shared by all scenes. ``assoc`` may be a ``ClassAssociation`` (frames;
+    ``classes (F, M, P)``, the detections' class ids, optional): see the module docstring."""
+    assoc, group_class, names = _unpack(assoc)
     expect_args("save_association_json", path=(path, PATH), assoc=(assoc, _ASSOCIATION), xy=(xy, ARRAY), mask=(mask, ARRAY))
     labels = np.asarray(assoc.labels)
     if labels.ndim == 3:
@@ -122,11 +168,23 @@ def save_association_json(path: PathLike, assoc: Any, xy: Any, mask: Any, *, con
         if xy.shape[:1] != (B,) or mask.shape[:1] != (B,):
             raise ValueError(f"a batch of {B} results needs xy (B, M, P, 2) and mask (B, M, P); got {xy.shape}, {mask.shape}")
         conf = [None] * B if confidence is None else np.asarray(confidence)
+        gc = [None] * B if group_class is None else group_class
+        cls = [None] * B if classes is None else np.asarray(classes)
         data: dict = {
-            "frames": [association_records(_scene(assoc, b), xy[b], mask[b], confidence=conf[b], rig=rig) for b in range(B)]
+            "frames": [
+                association_records(
+                    _scene(assoc, b), xy[b], mask[b], confidence=conf[b], rig=rig, group_class=gc[b], class_names=names,
+                    classes=cls[b],
+                )  # fmt: skip
+                for b in range(B)
+            ]
         }
     else:
-        data = association_records(assoc, xy, mask, confidence=confidence, rig=rig)
+        data = association_records(
+            assoc, xy, mask, confidence=confidence, rig=rig, group_class=group_class, class_names=names, classes=classes
+        )
+    if names is not None:
+        data["class_names"] = list(names)
     with atomic_write(path, "w") as f:
         json.dump(data, f, allow_nan=False)
         f.write("\n")
@@ -152,14 +210,22 @@ def load_association_json(path: PathLike) -> dict:
     return data
 
 
-def save_association_npz(path: PathLike, assoc: Any, *, xy: Any = None, mask: Any = None, confidence: Any = None) -> None:
+def save_association_npz(
+    path: PathLike, assoc: Any, *, xy: Any = None, mask: Any = None, confidence: Any = None, classes: Any = None
+) -> None:
     """Write every :class:`cdog_jax.Association` field as an array (``labels``, ``groups``,
     ``valid``, ``points3d``, ``bpe`` (px²), ``err_px``, ``n_views``, ``num_groups``,
-    ``sigma_px``, ``tau_px``; with a leading ``B`` for a batch), plus ``xy``, ``mask`` and
-    ``confidence`` when given. Read it with ``np.load``."""
+    ``sigma_px``, ``tau_px``; with a leading ``B`` for a batch), plus ``xy``, ``mask``,
+    ``confidence`` and ``classes`` when given; for a ``ClassAssociation`` also
+    ``group_class (F, G)`` and ``class_names`` (strings, when known). Read it with ``np.load``."""
+    assoc, group_class, names = _unpack(assoc)
     expect_args("save_association_npz", path=(path, PATH), assoc=(assoc, _ASSOCIATION))
     arrays = _host(assoc)
-    for name, v in (("xy", xy), ("mask", mask), ("confidence", confidence)):
+    if group_class is not None:
+        arrays["group_class"] = group_class
+    if names is not None:
+        arrays["class_names"] = np.asarray(names, dtype=str)
+    for name, v in (("xy", xy), ("mask", mask), ("confidence", confidence), ("classes", classes)):
         if v is not None:
             arrays[name] = np.asarray(v)
     with atomic_write(path, "wb") as f:  # a file object: np.savez would append ".npz" to a str path
@@ -173,14 +239,17 @@ def save_association_csv(path: PathLike, assoc: Any) -> None:
     pixel distance over its member views, and ``bpe_px2`` its BPE (px²), exactly the
     result's ``err_px`` and ``bpe``; ``x, y, z`` are in scene units. ``frame`` is the scene index of a batch (``labels (B, M, P)``), 0 for one
     scene. The file starts with a ``#`` comment line saying so (pandas: ``comment="#"``).
+    A ``ClassAssociation`` adds the columns ``class, class_name`` (the name empty when
+    names are not known).
     """
+    assoc, group_class, names = _unpack(assoc)
     expect_args("save_association_csv", path=(path, PATH), assoc=(assoc, _ASSOCIATION))
     a = _host(assoc)
     batch = a["labels"].ndim == 3
     with atomic_write(path, "w", newline="") as f:
         f.write(CSV_NOTE + "\n")
         writer = csv.writer(f)
-        writer.writerow(CSV_COLUMNS)
+        writer.writerow(CSV_COLUMNS + (("class", "class_name") if group_class is not None else ()))
         for b in range(a["labels"].shape[0] if batch else 1):
             valid = a["valid"][b] if batch else a["valid"]
             for g in np.flatnonzero(valid):
@@ -194,11 +263,19 @@ def save_association_csv(path: PathLike, assoc: Any) -> None:
                         repr(float(a["err_px"][at])),
                         repr(float(a["bpe"][at])),
                         int(a["n_views"][at]),
+                        *_class_columns(group_class, at, names),
                     ]
                 )
 
 
 # Helpers -----------------------------------------------------------------------------------
+
+
+def _class_columns(group_class: np.ndarray | None, at: tuple, names: Any) -> list:
+    if group_class is None:
+        return []
+    c = int(group_class[at])
+    return [c, names[c] if names is not None and 0 <= c < len(names) else ""]
 
 
 def _host(assoc: Any) -> dict[str, np.ndarray]:

@@ -32,6 +32,7 @@ import numpy as np
 from .._expect import ARRAY, PATH, expect_args
 from ._errors import InputError, too_large
 from ._rig_files import open_npz, read_json
+from ._class_labels import check_names, class_array, views_and_labels
 from ._scores import clip_scores
 
 PathLike = str | os.PathLike  # a file name
@@ -54,6 +55,12 @@ class Detections(NamedTuple):
         counts: ``(F, M)`` int64 detections per view.
         notes: non-fatal findings (empty views, the encoding ``missing="auto"`` chose,
             views packed to fit ``capacity``), one sentence each.
+        classes: ``(F, M, P)`` int64 class id of every detection (``-1`` where ``mask`` is
+            False), or ``None`` when the input has no classes (see
+            :mod:`cdog_jax.io._class_labels`); associate with :func:`cdog_jax.associate_classes`.
+        class_names: the class names by id, or ``None`` when only ids are known.
+        frame_ids: ``(F,)`` int64 frame numbers as the files name them (keypoint readers),
+            or ``None`` when frames are numbered ``0 … F-1``.
     """
 
     xy: np.ndarray
@@ -62,6 +69,9 @@ class Detections(NamedTuple):
     frames: bool
     counts: np.ndarray
     notes: list[str]
+    classes: np.ndarray | None = None
+    class_names: tuple[str, ...] | None = None
+    frame_ids: np.ndarray | None = None
 
     def scene(self, f: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """``(xy (M, P, 2), mask (M, P), confidence (M, P) or None)`` of frame ``f``, ready
@@ -85,6 +95,9 @@ def load_detections(
     - JSON, one scene: ``{"views": [[[x, y], …], …]}``, one list per view in rig order; a
       view may be empty; an entry may be ``[x, y, confidence]`` (then all entries must be).
     - JSON, many frames: ``{"frames": [{"views": …}, …]}``, the same views in every frame.
+    - JSON with classes: ``"classes"`` beside ``"views"`` (one class per detection, an int
+      id or a name) or ``"by_class": {name: [per-view lists]}`` instead of ``"views"``, and
+      an optional top-level ``"class_names"`` (:mod:`cdog_jax.io._class_labels`).
     - NPZ: ``xy (M, P, 2)`` and ``mask (M, P)`` bool, optional ``confidence (M, P)``, or the
       same with a leading frame axis ``(F, M, P, …)``. Without ``mask``, ``xy (…, 2|3)``
       encodes missing rows as NaN, sentinel or confidence 0 (see ``missing``).
@@ -116,10 +129,13 @@ def load_detections(
     _check_options(missing, capacity, num_views, image_size)
     suffix = os.path.splitext(path)[1].lower()
     if suffix == ".json":
-        frames_views, frames = _read_json(path)
+        frames_views, frames, labels, names = _read_json(path)
         where = _Where(path, frames)
         a, present = _array_from_lists(frames_views, where, num_views)
-        return _from_rows(a, present, frames, where, missing, -1.0, num_views, capacity, image_size)
+        classes = None
+        if any(lab is not None for lab in labels) or names is not None:
+            classes, names = class_array(labels, frames_views, present.shape, names, where.error)
+        return _from_rows(a, present, frames, where, missing, -1.0, num_views, capacity, image_size, classes, names)
     if suffix == ".npz":
         return _read_npz(path, num_views, capacity, image_size, missing)
     raise ValueError(f"{path}: cannot tell the detections format; expected a .json or .npz file")
@@ -217,21 +233,26 @@ def _check_options(missing: str, capacity: int | None, num_views: int | None, im
 # Readers -----------------------------------------------------------------------------------
 
 
-def _read_json(path: str) -> tuple[list, bool]:
-    """The views of every frame, and whether the file held a list of frames."""
+def _read_json(path: str) -> tuple[list, bool, list, Any]:
+    """The views of every frame, whether the file held a list of frames, the per-detection
+    class labels of every frame (``None`` entries without classes) and ``class_names``."""
     data = read_json(path)
+    names = data.get("class_names") if isinstance(data, dict) else None
     if isinstance(data, dict) and "frames" in data:
         frames = data["frames"]
         if not isinstance(frames, list) or not frames:
             raise ValueError(f'{path}: "frames" must be a non-empty list of {{"views": …}} objects')
-        out = []
+        out, labels = [], []
         for f, frame in enumerate(frames):
-            if not isinstance(frame, dict) or "views" not in frame:
+            if not isinstance(frame, dict) or not ("views" in frame or "by_class" in frame):
                 raise ValueError(f'{path}: frame {f}: expected an object {{"views": [[[x, y], …], …]}}')
-            out.append(frame["views"])
-        return out, True
-    if isinstance(data, dict) and "views" in data:
-        return [data["views"]], False
+            views, labs = views_and_labels(frame, f"{path}: frame {f}")
+            out.append(views)
+            labels.append(labs)
+        return out, True, labels, names
+    if isinstance(data, dict) and ("views" in data or "by_class" in data):
+        views, labs = views_and_labels(data, path)
+        return [views], False, [labs], names
     raise ValueError(f'{path}: expected {{"views": [[[x, y], …], …]}} or {{"frames": [{{"views": …}}, …]}}')
 
 
@@ -239,7 +260,7 @@ def _read_npz(path: str, num_views, capacity, image_size, missing) -> Detections
     with open_npz(path) as npz:
         if "xy" not in npz.files:
             raise ValueError(f'{path}: missing array "xy" (expected xy (M, P, 2) and mask (M, P), or a frame axis first)')
-        arrays = {k: npz[k] for k in ("xy", "mask", "confidence") if k in npz.files}
+        arrays = {k: npz[k] for k in ("xy", "mask", "confidence", "classes", "class_names") if k in npz.files}
     xy = arrays["xy"]
     frames = xy.ndim == 4
     where = _Where(path, frames)
@@ -253,9 +274,10 @@ def _read_npz(path: str, num_views, capacity, image_size, missing) -> Detections
         if conf.shape != xy.shape[:-1]:
             raise where.error(f'array "confidence": expected shape {xy.shape[:-1]} to match xy {xy.shape}; got {conf.shape}')
         rows = np.concatenate([rows, conf.reshape(lead)[..., None]], axis=-1)
+    classes, names = _npz_classes(arrays, xy.shape[:-1], lead, where)
     if "mask" not in arrays:
         present = np.ones(lead, bool)
-        return _from_rows(rows, present, frames, where, missing, -1.0, num_views, capacity, image_size)
+        return _from_rows(rows, present, frames, where, missing, -1.0, num_views, capacity, image_size, classes, names)
     mask = arrays["mask"]
     if mask.shape != xy.shape[:-1]:
         raise where.error(f'array "mask": expected shape {xy.shape[:-1]} to match xy {xy.shape}; got {mask.shape}')
@@ -267,7 +289,31 @@ def _read_npz(path: str, num_views, capacity, image_size, missing) -> Detections
     _check_views(lead[1], where, num_views)
     _check_coordinates(rows[..., :2], mask, where, "where mask is True")
     conf = rows[..., 2] if rows.shape[-1] == 3 else None
-    return _finish(rows[..., :2], mask, conf, frames, where, [], capacity, image_size)
+    return _finish(rows[..., :2], mask, conf, frames, where, [], capacity, image_size, classes, names)
+
+
+def _npz_classes(arrays: dict, shape: tuple, lead: tuple, where: _Where) -> tuple[np.ndarray | None, tuple | None]:
+    """Optional ``classes`` (int ids, the shape of ``mask``) and ``class_names`` (strings)."""
+    names = None
+    if "class_names" in arrays:
+        raw = arrays["class_names"]
+        if raw.ndim != 1 or raw.dtype.kind not in "US":
+            raise where.error(f'array "class_names": expected a 1-D array of strings; got dtype {raw.dtype}, shape {raw.shape}')
+        names = check_names([str(n) for n in raw], where.error)
+    if "classes" not in arrays:
+        if names is not None:
+            raise where.error('array "class_names" without an array "classes"')
+        return None, None
+    c = arrays["classes"]
+    if c.shape != shape or not np.issubdtype(c.dtype, np.integer):
+        raise where.error(f'array "classes": expected integer class ids of shape {shape}; got dtype {c.dtype}, shape {c.shape}')
+    c = c.reshape(lead).astype(np.int64)
+    limit = np.iinfo(np.int64).max if names is None else len(names)
+    bad = (c < 0) | (c >= limit)
+    if bad.any():
+        f, m, i = (int(v) for v in np.argwhere(bad)[0])
+        raise where.error(f"class id {c[f, m, i]} must be >= 0" + ("" if names is None else f" and < {len(names)} (class_names)"), f, m, i)
+    return c, names
 
 
 # Lists and arrays to rows ------------------------------------------------------------------
@@ -367,7 +413,7 @@ def _check_coordinates(xy: np.ndarray, rows: np.ndarray, where: _Where, why: str
             raise where.error(f"({x}, {y}) has {text}", f, m, i)
 
 
-def _from_rows(rows, present, frames, where, missing, sentinel, num_views, capacity, image_size) -> Detections:
+def _from_rows(rows, present, frames, where, missing, sentinel, num_views, capacity, image_size, classes=None, names=None) -> Detections:
     """Rows ``(F, M, L, 2|3)`` of which ``present (F, M, L)`` exist, "missing" decoded."""
     _check_views(rows.shape[1], where, num_views)
     coords = rows[..., :2]
@@ -395,27 +441,29 @@ def _from_rows(rows, present, frames, where, missing, sentinel, num_views, capac
         gone = by[missing]
     mask = present & ~gone
     _check_coordinates(coords, mask, where, f"where they do not mean missing (missing={missing!r})")
-    return _finish(coords, mask, conf, frames, where, notes, capacity, image_size)
+    return _finish(coords, mask, conf, frames, where, notes, capacity, image_size, classes, names)
 
 
 # Checks on the decoded detections, and the capacity ----------------------------------------
 
 
-def _finish(xy, mask, conf, frames, where, notes, capacity, image_size) -> Detections:
+def _finish(xy, mask, conf, frames, where, notes, capacity, image_size, classes=None, names=None, frame_ids=None) -> Detections:
     xy = np.where(mask[..., None], xy, 0.0)
     if conf is not None:
         conf, note = clip_scores(conf, mask, where.error)
         notes += [note] if note else []
+    if classes is not None:
+        classes = np.where(mask, classes, -1)
     counts = mask.sum(axis=-1).astype(np.int64)
     if capacity is not None:
-        xy, mask, conf = _fit_capacity(xy, mask, conf, counts, capacity, where, notes)
-    _check_duplicates(xy, mask, where)
+        xy, mask, conf, classes = _fit_capacity(xy, mask, conf, counts, capacity, where, notes, classes)
+    _check_duplicates(xy, mask, where, classes)
     if image_size is not None:
         _check_in_image(xy, mask, image_size, where)
     _check_groups_possible(counts, frames, where, notes)
     for f, m in np.argwhere(counts == 0):
         notes.append(f"{where.loc(int(f), int(m))}: empty view")
-    return Detections(xy, mask, conf, bool(frames), counts, notes)
+    return Detections(xy, mask, conf, bool(frames), counts, notes, classes, names, frame_ids)
 
 
 def _check_groups_possible(counts: np.ndarray, frames: bool, where: _Where, notes: list[str]) -> None:
@@ -454,7 +502,7 @@ def check_float_range(det: Detections, dtype: Any, source: str | None = None) ->
         )  # fmt: skip
 
 
-def _fit_capacity(xy, mask, conf, counts, capacity, where, notes):
+def _fit_capacity(xy, mask, conf, counts, capacity, where, notes, classes=None):
     """Pad to ``capacity`` slots, or shrink to it when every view fits, packing views whose
     detections sit beyond it (slots change; said in ``notes``)."""
     over = counts > capacity
@@ -469,25 +517,32 @@ def _fit_capacity(xy, mask, conf, counts, capacity, where, notes):
     if P <= capacity:
         pad = ((0, 0), (0, 0), (0, capacity - P))
         conf = None if conf is None else np.pad(conf, pad)
-        return np.pad(xy, (*pad, (0, 0))), np.pad(mask, pad), conf
+        classes = None if classes is None else np.pad(classes, pad, constant_values=-1)
+        return np.pad(xy, (*pad, (0, 0))), np.pad(mask, pad), conf, classes
     for f, m in np.argwhere(mask[..., capacity:].any(axis=-1)):
         order = np.argsort(~mask[f, m], kind="stable")  # detections first, in slot order
         xy[f, m], mask[f, m] = xy[f, m, order], mask[f, m, order]
         if conf is not None:
             conf[f, m] = conf[f, m, order]
+        if classes is not None:
+            classes[f, m] = classes[f, m, order]
         notes.append(f"{where.loc(int(f), int(m))}: detections moved to slots 0…{counts[f, m] - 1} to fit capacity {capacity}")
     conf = None if conf is None else conf[..., :capacity]
-    return xy[..., :capacity, :], mask[..., :capacity], conf
+    classes = None if classes is None else classes[..., :capacity]
+    return xy[..., :capacity, :], mask[..., :capacity], conf, classes
 
 
-def _check_duplicates(xy, mask, where) -> None:
+def _check_duplicates(xy, mask, where, classes=None) -> None:
+    """Two detections of one view (and one class, when classes are given: keypoints of
+    different types may coincide) at the same pixel are refused."""
     f, m, i = np.nonzero(mask)
     if len(f) < 2:
         return
     x, y = xy[f, m, i, 0], xy[f, m, i, 1]
-    order = np.lexsort((i, y, x, m, f))
-    f, m, i, x, y = f[order], m[order], i[order], x[order], y[order]
-    same = (f[1:] == f[:-1]) & (m[1:] == m[:-1]) & (x[1:] == x[:-1]) & (y[1:] == y[:-1])
+    c = np.zeros_like(f) if classes is None else classes[f, m, i]
+    order = np.lexsort((i, y, x, c, m, f))
+    f, m, i, x, y, c = f[order], m[order], i[order], x[order], y[order], c[order]
+    same = (f[1:] == f[:-1]) & (m[1:] == m[:-1]) & (c[1:] == c[:-1]) & (x[1:] == x[:-1]) & (y[1:] == y[:-1])
     if same.any():
         # Report the pair earliest in (frame, view, first index) order.
         k = min(np.flatnonzero(same), key=lambda k: (f[k], m[k], i[k]))

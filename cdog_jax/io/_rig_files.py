@@ -40,7 +40,7 @@ from ._errors import InputError, read_text, too_large
 
 PathLike = str | os.PathLike  # a folder or file name
 
-FORMATS = ("easyvis", "json", "npz", "anipose", "colmap", "easymocap", "nerfstudio")
+FORMATS = ("easyvis", "json", "npz", "anipose", "colmap", "easymocap", "nerfstudio", "qualisys")
 _EASYVIS_FILE = re.compile(r"^([KRT])(0|[1-9][0-9]*)\.txt$")
 
 
@@ -121,7 +121,9 @@ def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigF
       :func:`read_colmap`); COLMAP's half-pixel principal point is shifted to OpenCV's.
     - ``"easymocap"``: EasyMocap ``intri.yml`` + ``extri.yml`` (see :func:`read_easymocap`).
     - ``"nerfstudio"``: a nerfstudio ``transforms.json`` (see :func:`read_nerfstudio`).
-    - ``"auto"``: a file named ``transforms.json`` is nerfstudio; ``.json``, ``.npz``,
+    - ``"qualisys"``: a Qualisys ``.qca.txt`` calibration, as Pose2Sim reads it (see
+      :func:`read_qualisys`); scene units metres.
+    - ``"auto"``: ``.qca.txt`` is qualisys; a file named ``transforms.json`` is nerfstudio; ``.json``, ``.npz``,
       ``.toml`` (anipose) by suffix; ``cameras.txt`` or
       ``images.txt`` (COLMAP) and ``intri.yml`` or ``extri.yml`` (EasyMocap) by name, their
       folder being read; a folder holding ``cameras.txt`` and ``images.txt`` is COLMAP, one
@@ -142,7 +144,7 @@ def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigF
     """
     expect_args("load_rig", path=(path, PATH))
     check_rig_dtype(dtype, "load_rig")
-    from . import _anipose, _colmap, _easymocap, _nerfstudio  # they import this module's helpers
+    from . import _anipose, _colmap, _easymocap, _nerfstudio, _qualisys  # they import this module's helpers
 
     path = os.fspath(path)
     fmt = _resolve_format(path, format)
@@ -154,6 +156,7 @@ def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigF
         "colmap": _colmap.read_colmap,
         "easymocap": _easymocap.read_easymocap,
         "nerfstudio": _nerfstudio.read_nerfstudio,
+        "qualisys": _qualisys.read_qualisys,
     }
     views = readers[fmt](path)
     return rig_file_from_views(views, dtype, path)

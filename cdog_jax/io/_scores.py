@@ -47,3 +47,26 @@ def clip_scores(
             f"(scores up to {SCORE_TOLERANCE:g} are taken as 1)"
         )
     return np.where(mask, np.minimum(conf, 1.0), 0.0), note
+
+
+def normalise_keypoint_scores(
+    conf: np.ndarray, mask: np.ndarray, error: Callable[[str, int, int, int], Exception]
+) -> tuple[np.ndarray, str | None]:
+    """Keypoint detector scores ``conf (F, M, P)`` on ``mask (F, M, P)`` mapped to [0, 1].
+
+    The rule of the keypoint readers (OpenPose folders, tables), which take any
+    non-negative score: when the file's largest score is at most :data:`SCORE_TOLERANCE`
+    the scores are probabilities and :func:`clip_scores` applies (above 1 clipped to 1);
+    when it is larger, the scores are on another scale and every score is divided by the
+    largest, which becomes 1 (ratios kept; a note says so). A negative, infinite or NaN
+    score refuses the file (``error(text, f, m, i)`` as in :func:`clip_scores`).
+    """
+    bad = mask & ~((conf >= 0.0) & np.isfinite(conf))
+    if bad.any():
+        f, m, i = (int(v) for v in np.argwhere(bad)[0])
+        raise error(f"score {conf[f, m, i]} is negative, infinite or NaN (scores must be finite and >= 0)", f, m, i)
+    largest = float(conf[mask].max()) if mask.any() else 0.0
+    if largest <= SCORE_TOLERANCE:
+        return clip_scores(conf, mask, error)
+    note = f"scores up to {largest:.4g} are not probabilities: all divided by the largest ({largest:.4g}), which becomes 1"
+    return np.where(mask, conf / largest, 0.0), note

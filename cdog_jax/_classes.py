@@ -1,0 +1,342 @@
+"""Association of classed detections (keypoint types, marker colours, object categories).
+
+Detections of different classes are never joined. Every (frame, class) pair with
+detections in at least two views becomes one small scene of capacity ``P_c`` (the most
+detections of one class in one view), and :func:`cdog_jax.associate_batch` runs all of
+them in one compiled call; the groups are then mapped back to the input's slots, one
+table of groups per frame, each group with its class (ALGORITHM.md §15).
+
+Why scenes per class rather than one graph per frame with cross-class edges removed:
+every stage (graph, IQR, recovery by reprojection, regrouping, support) then sees only
+one class by construction, and the graph of a class costs ``(M · P_c)²`` instead of
+``(M · C · P_c)²`` (``experiments/bench_classes.py`` measures both).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._config import config_from
+from ._expect import INT, expect, expect_args
+from ._pipeline import associate_batch
+from ._postprocess import undistorted
+from ._result import Association
+from ._validate import as_array, check_observations, check_rig
+from .geometry._camera import Rig
+from .geometry._epipolar import epipolar_distances
+from .graph._sigma import focal_scale, nearest_samples, sigma_from_samples
+
+SIGMA_POOLS = ("frame", "all", "scene")
+
+
+class ClassAssociation(NamedTuple):
+    """What :func:`associate_classes` returns.
+
+    Attributes:
+        association: an :class:`Association` with a leading frame axis ``F``, in the input's
+            slots: ``labels (F, M, P)``, ``groups (F, G, M)`` (slot of the member in each
+            view, ``-1``), ``valid (F, G)``, ``points3d (F, G, 3)``, ``bpe``, ``err_px``,
+            ``n_views (F, G)``, ``num_groups (F,)``, ``sigma_px``, ``tau_px`` and ``status``
+            ``(F,)`` (flags of all the frame's classes). ``G`` is the most groups of any
+            frame; valid groups come first, by class, then as the pipeline orders them.
+        group_class: ``(F, G)`` int32 class id of every group, ``-1`` where not valid.
+        class_names: the names by class id, or ``None``.
+        num_classes: ``C``, the number of class ids.
+    """
+
+    association: Association
+    group_class: np.ndarray
+    class_names: tuple[str, ...] | None
+    num_classes: int
+
+
+class _Scenes(NamedTuple):
+    """Detections regrouped into one scene per live (frame, class) pair."""
+
+    xy: np.ndarray  # (B, M, Pc, 2)
+    mask: np.ndarray  # (B, M, Pc)
+    slot: np.ndarray  # (B, M, Pc) int64: the input slot of each scene slot, -1 padding
+    frame: np.ndarray  # (B,) frame of each scene
+    cls: np.ndarray  # (B,) class of each scene
+    weights: np.ndarray | None  # (B, M, Pc)
+
+
+def associate_classes(
+    rig: Rig,
+    xy,
+    mask,
+    classes,
+    *,
+    class_names=None,
+    num_classes: int | None = None,
+    config="paper",
+    sigma: float | str = "auto",
+    sigma_pool: str = "frame",
+    dist=None,
+    weights=None,
+    min_views: int = 2,
+    batch_size: int = 64,
+    memory_budget_gb: float | None = None,
+) -> ClassAssociation:
+    """Associate detections that carry a class, every class of every frame in one call.
+
+    Args:
+        rig: the ``M`` cameras (shared by all frames).
+        xy: ``(F, M, P, 2)`` detections (pixels, as detected when ``dist`` is given).
+        mask: ``(F, M, P)`` bool.
+        classes: ``(F, M, P)`` int class id ``>= 0`` of every detection (ignored where
+            ``mask`` is False).
+        class_names: optional names by class id (``C`` of them).
+        num_classes: ``C``; default ``len(class_names)``, else the largest id + 1.
+        config, dist, weights (``(F, M, P)``), min_views, memory_budget_gb: as in
+            :func:`cdog_jax.associate_batch`.
+        sigma: the noise σ in pixels, or ``"auto"``: estimated from the epipolar
+            nearest-neighbour distances of all classes pooled (see ``sigma_pool``): one
+            class in one view holds too few detections for its own estimate.
+        sigma_pool: ``"frame"`` (one σ per frame, default), ``"all"`` (one for all frames)
+            or ``"scene"`` (each (frame, class) scene its own, as ``associate_batch``).
+        batch_size: scenes per compiled call (memory bound; scenes are small). The scenes
+            are padded with empty ones to a multiple of it, so one compiled program serves
+            any number of frames and classes.
+
+    Returns:
+        A :class:`ClassAssociation`. Raises ``ValueError`` before any work for a wrong shape,
+        a negative class or one ``>= num_classes``, or names of the wrong length.
+    """
+    expect_args("associate_classes", rig=(rig, Rig))
+    expect(batch_size, INT, "batch_size", "associate_classes")
+    config = config_from(config, "associate_classes")
+    xy, mask = np.asarray(as_array(xy)), np.asarray(as_array(mask))
+    check_rig(rig)
+    check_observations(xy, mask, rig.num_views, batched=True)
+    classes = _check_classes(classes, mask)
+    C = _num_classes(classes, mask, class_names, num_classes)
+    if sigma_pool not in SIGMA_POOLS:
+        raise ValueError(f"sigma_pool must be one of {SIGMA_POOLS}; got {sigma_pool!r}")
+    if batch_size < 1:
+        raise ValueError(f"batch_size must be >= 1; got {batch_size}")
+    if weights is not None:
+        weights = np.asarray(weights)
+        if weights.shape != mask.shape:
+            raise ValueError(f"weights must have the shape of mask {mask.shape}; got {weights.shape}")
+    F, M, P = mask.shape
+    scenes = _regroup(xy, mask, classes, C, weights)
+    B = len(scenes.frame)
+    if B == 0:
+        return _empty(rig, F, M, P, xy.dtype, C, class_names)
+    dtype = jax.dtypes.canonicalize_dtype(xy.dtype if np.issubdtype(xy.dtype, np.floating) else np.float64)
+    auto = sigma == "auto" or config.sigma_mode == "auto"
+    if auto and sigma_pool != "scene":
+        frame_sigma = _pooled_sigma(rig, scenes, F, dist, dtype, pool=sigma_pool)
+        sigma_arg = np.asarray(frame_sigma[scenes.frame], dtype)
+        config = config.replace(sigma_mode="given")
+    else:
+        sigma_arg = "auto" if auto else sigma
+    # Chunks of exactly batch_size scenes: one compiled program for any number of frames
+    # and classes (it depends on M, P_c, the dtype and the options only).
+    padded = _pad_scenes(scenes, batch_size, sigma_arg)
+    chunks = []
+    for lo in range(0, len(padded.xy), batch_size):
+        part = slice(lo, lo + batch_size)
+        chunks.append(associate_batch(
+            rig, jnp.asarray(padded.xy[part], dtype), jnp.asarray(padded.mask[part]), config=config,
+            sigma=jnp.asarray(padded.sigma[part]) if isinstance(padded.sigma, np.ndarray) else padded.sigma,
+            dist=dist, weights=None if weights is None else jnp.asarray(padded.weights[part], dtype),
+            min_views=min_views, batch_size=batch_size, memory_budget_gb=memory_budget_gb,
+        ))  # fmt: skip
+    result = jax.tree_util.tree_map(lambda *a: np.concatenate([np.asarray(x) for x in a])[:B], *chunks)
+    return _map_back(result, scenes, F, M, P, C, class_names)
+
+
+def _check_classes(classes, mask: np.ndarray) -> np.ndarray:
+    c = np.asarray(classes)
+    if c.shape != mask.shape:
+        raise ValueError(f"classes must have the shape of mask {mask.shape}; got {c.shape}")
+    if not np.issubdtype(c.dtype, np.integer):
+        raise ValueError(f"classes must be integer class ids; got dtype {c.dtype}")
+    bad = mask & (c < 0)
+    if bad.any():
+        f, m, i = (int(v) for v in np.argwhere(bad)[0])
+        raise ValueError(f"classes must be >= 0 where mask is True; got {int(c[f, m, i])} at frame {f}, view {m}, slot {i}")
+    return np.where(mask, c, 0).astype(np.int64)
+
+
+def _num_classes(classes: np.ndarray, mask: np.ndarray, names, num_classes) -> int:
+    largest = int(classes[mask].max()) + 1 if mask.any() else 0
+    if names is not None:
+        if isinstance(names, str) or not all(isinstance(n, str) for n in names):
+            raise ValueError(f"class_names must be a list of strings; got {names!r}")
+        if num_classes is not None and num_classes != len(names):
+            raise ValueError(f"num_classes = {num_classes} but class_names has {len(names)} names")
+        num_classes = len(names)
+    if num_classes is None:
+        return max(largest, 1)
+    if isinstance(num_classes, bool) or not isinstance(num_classes, (int, np.integer)) or num_classes < 1:
+        raise ValueError(f"num_classes must be a positive int; got {num_classes!r}")
+    if largest > num_classes:
+        f, m, i = (int(v) for v in np.argwhere(mask & (classes >= num_classes))[0])
+        raise ValueError(f"class id {int(classes[f, m, i])} at frame {f}, view {m}, slot {i} is >= num_classes = {num_classes}")
+    return int(num_classes)
+
+
+def _regroup(xy, mask, classes, C, weights) -> _Scenes:
+    """One scene per (frame, class) with detections in >= 2 views; slots by input order."""
+    M = mask.shape[1]
+    f, m, p = np.nonzero(mask)
+    c = classes[f, m, p]
+    key = f * C + c
+    order = np.lexsort((p, m, key))
+    f, m, p, c, key = f[order], m[order], p[order], c[order], key[order]
+    cell = key * M + m
+    start = np.r_[0, np.flatnonzero(np.diff(cell)) + 1]
+    rank = np.arange(len(cell)) - np.repeat(start, np.diff(np.r_[start, len(cell)]))
+    views = np.zeros(0, np.int64) if len(cell) == 0 else key[start]  # one entry per (scene, view) cell
+    scene_keys, views_per_scene = np.unique(views, return_counts=True)
+    live = scene_keys[views_per_scene >= 2]
+    keep = np.isin(key, live)
+    b = np.searchsorted(live, key[keep])
+    Pc = int(rank[keep].max()) + 1 if keep.any() else 1
+    B = len(live)
+    s_xy = np.zeros((B, M, Pc, 2), xy.dtype)
+    s_mask = np.zeros((B, M, Pc), bool)
+    slot = np.full((B, M, Pc), -1, np.int64)
+    fk, mk, pk, rk = f[keep], m[keep], p[keep], rank[keep]
+    s_xy[b, mk, rk] = xy[fk, mk, pk]
+    s_mask[b, mk, rk] = True
+    slot[b, mk, rk] = pk
+    s_w = None
+    if weights is not None:
+        s_w = np.zeros((B, M, Pc), weights.dtype)
+        s_w[b, mk, rk] = weights[fk, mk, pk]
+    return _Scenes(s_xy, s_mask, slot, live // C, live % C, s_w)
+
+
+class _Padded(NamedTuple):
+    xy: np.ndarray
+    mask: np.ndarray
+    weights: np.ndarray | None
+    sigma: object
+
+
+def _pad_scenes(scenes: _Scenes, batch: int, sigma) -> _Padded:
+    """Empty scenes appended up to a multiple of ``batch`` (one compiled chunk shape)."""
+    B = len(scenes.frame)
+    extra = -B % batch
+    pad = lambda a: np.concatenate([a, np.zeros((extra, *a.shape[1:]), a.dtype)])  # noqa: E731
+    if isinstance(sigma, np.ndarray):
+        sigma = np.concatenate([sigma, np.full(extra, sigma.max() if B else 0.0, sigma.dtype)])
+    return _Padded(pad(scenes.xy), pad(scenes.mask), None if scenes.weights is None else pad(scenes.weights), sigma)
+
+
+@jax.jit
+def _nearest_samples(rig, xy, mask, dist):
+    """The σ estimator's samples of every scene, each ``(B, M, Pc, M)``: a detection's
+    epipolar distance to the nearest detection of its scene in every other view, its weight
+    (0: none) and that view's count, on undistorted pixels when ``dist`` is given."""
+
+    def one(x, m):
+        if dist is not None:
+            x = undistorted(rig, x, m, dist)
+        return nearest_samples(epipolar_distances(rig, x, m), m)
+
+    return jax.vmap(one)(xy, mask)
+
+
+def _pooled_sigma(rig, scenes: _Scenes, F: int, dist, dtype, pool: str) -> np.ndarray:
+    """``(F,)`` σ per frame by the estimator of ``sigma="auto"`` on the nearest-distance
+    samples of all the frame's class scenes (``pool="all"``: of all frames, one value)."""
+    d = None if dist is None else jnp.asarray(dist, dtype)
+    samples = _nearest_samples(rig, jnp.asarray(scenes.xy, dtype), jnp.asarray(scenes.mask), d)
+    group = scenes.frame if pool == "frame" else np.zeros_like(scenes.frame)
+    G = F if pool == "frame" else 1
+    start = np.r_[0, np.flatnonzero(np.diff(group)) + 1]  # scenes are sorted by frame
+    rank = np.arange(len(group)) - np.repeat(start, np.diff(np.r_[start, len(group)]))
+    tables = []
+    for a in samples:  # distance, weight, count; weight 0 marks an unused entry
+        a = np.asarray(a).reshape(len(scenes.frame), -1)
+        table = np.zeros((G, int(rank.max()) + 1, a.shape[1]), a.dtype)
+        table[group, rank] = a
+        tables.append(jnp.asarray(table.reshape(G, -1)))
+    focal = focal_scale(rig.K)
+    sigma, _ = jax.vmap(sigma_from_samples, in_axes=(0, 0, 0, None))(*tables, focal)
+    sigma = np.asarray(sigma)
+    return sigma if pool == "frame" else np.full(F, sigma[0])
+
+
+def _map_back(r, scenes: _Scenes, F, M, P, C, names) -> ClassAssociation:
+    """Scene results ``(B, …)`` as one table of groups per frame, in the input's slots."""
+    b, g = np.nonzero(r.valid)
+    f, c = scenes.frame[b], scenes.cls[b]
+    order = np.lexsort((g, c, f))
+    b, g, f, c = b[order], g[order], f[order], c[order]
+    count = np.bincount(f, minlength=F)
+    row = np.arange(len(f)) - np.repeat(np.cumsum(count) - count, count)
+    G = max(1, int(count.max()) if len(count) else 1)
+    slots = r.groups[b, g]  # (K, M) scene slots
+    views = np.arange(M)[None, :]
+    orig = np.where(slots >= 0, scenes.slot[b[:, None], views, np.maximum(slots, 0)], -1)
+    groups = np.full((F, G, M), -1, np.int32)
+    groups[f, row] = orig
+    valid = np.zeros((F, G), bool)
+    valid[f, row] = True
+    labels = np.full((F, M, P), -1, np.int32)
+    k, mm = np.nonzero(orig >= 0)
+    labels[f[k], mm, orig[k, mm]] = row[k]
+    group_class = np.full((F, G), -1, np.int32)
+    group_class[f, row] = c
+
+    def place(a, fill=0):
+        out = np.full((F, G, *a.shape[2:]), fill, a.dtype)
+        out[f, row] = a[b, g]
+        return out
+
+    status = np.zeros(F, np.int32)
+    np.bitwise_or.at(status, scenes.frame, r.status.astype(np.int32))
+    sigma = _per_frame(r.sigma_px, scenes.frame, F)
+    tau = _per_frame(r.tau_px, scenes.frame, F)
+    assoc = _batched(
+        labels=jnp.asarray(labels),
+        groups=jnp.asarray(groups),
+        valid=jnp.asarray(valid),
+        points3d=jnp.asarray(place(r.points3d)),
+        bpe=jnp.asarray(place(r.bpe)),
+        err_px=jnp.asarray(place(r.err_px)),
+        n_views=jnp.asarray(place(r.n_views)),
+        num_groups=jnp.asarray(count.astype(np.int32)),
+        sigma_px=jnp.asarray(sigma),
+        tau_px=jnp.asarray(tau),
+        status=jnp.asarray(status),
+    )
+    return ClassAssociation(assoc, group_class, None if names is None else tuple(names), C)
+
+
+def _batched(**fields) -> Association:
+    """An :class:`Association` with a leading frame axis (built per frame, so that each
+    field's shape is checked as for one scene)."""
+    names = tuple(fields)
+    return jax.vmap(lambda *values: Association(**dict(zip(names, values))))(*fields.values())
+
+
+def _per_frame(values: np.ndarray, frame: np.ndarray, F: int) -> np.ndarray:
+    """The median over each frame's scenes (one value when σ was pooled); 0 without scenes."""
+    out = np.zeros(F, values.dtype)
+    start = np.r_[0, np.flatnonzero(np.diff(frame)) + 1]  # scenes are sorted by frame
+    for lo, hi in zip(start, np.r_[start[1:], len(frame)]):
+        out[frame[lo]] = np.median(values[lo:hi])
+    return out
+
+
+def _empty(rig, F, M, P, dtype, C, names) -> ClassAssociation:
+    dtype = dtype if np.issubdtype(dtype, np.floating) else np.float64
+    z = lambda *shape, dt=dtype: jnp.zeros(shape, dt)  # noqa: E731
+    assoc = _batched(
+        labels=jnp.full((F, M, P), -1, jnp.int32), groups=jnp.full((F, 1, M), -1, jnp.int32),
+        valid=jnp.zeros((F, 1), bool), points3d=z(F, 1, 3), bpe=z(F, 1), err_px=z(F, 1),
+        n_views=z(F, 1, dt=np.int32), num_groups=z(F, dt=np.int32), sigma_px=z(F), tau_px=z(F),
+        status=z(F, dt=np.int32),
+    )  # fmt: skip
+    return ClassAssociation(assoc, np.full((F, 1), -1, np.int32), None if names is None else tuple(names), C)

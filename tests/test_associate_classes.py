@@ -1,0 +1,168 @@
+"""associate_classes: different classes are never joined (even where their detections
+coincide), every (frame, class) is associated as `associate` would on that class alone,
+results keep the input's slots and carry the class in JSON, CSV and NPZ, and the
+command line associates an OpenPose folder by keypoint type."""
+
+import csv
+import json
+import os
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import cdog_jax
+from cdog_jax import associate_classes
+from cdog_jax._cli import main
+from cdog_jax.io import save_association_csv, save_association_json, save_association_npz, save_rig_json
+from cdog_jax.synthetic import DEFAULT_BOX, default_rig
+
+F, C, K, M = 2, 3, 2, 4  # frames, classes, instances per class, views
+
+
+@pytest.fixture(scope="module")
+def scene():
+    """Classes 0 and 1 sit at the same 3D points (their detections coincide pixel for
+    pixel); slots are shuffled per view; two detections are missing."""
+    rig = default_rig(num_views=M)
+    rng = np.random.default_rng(0)
+    lo, hi = (np.asarray(b) for b in DEFAULT_BOX)
+    X = rng.uniform(lo, hi, (F, C, K, 3))
+    X[:, 1] = X[:, 0]
+    xy_true, _ = cdog_jax.project(rig, jnp.asarray(X.reshape(-1, 3), jnp.float32))
+    xy_true = np.asarray(xy_true).reshape(F, C * K, M, 2).transpose(0, 2, 1, 3)  # (F, M, C·K, 2)
+    xy_true = xy_true + rng.normal(0.0, 0.3, xy_true.shape)
+    xy_true[:, :, C * 0 + 0] = xy_true[:, :, K]  # class 1's first instance coincides exactly with class 0's
+    truth = np.broadcast_to(np.arange(C * K), (F, M, C * K)).copy()  # c · K + k
+    for f in range(F):
+        for m in range(M):
+            order = rng.permutation(C * K)
+            xy_true[f, m], truth[f, m] = xy_true[f, m, order], truth[f, m, order]
+    mask = np.ones((F, M, C * K), bool)
+    mask[0, 2, 3] = mask[1, 0, 1] = False
+    return rig, xy_true.astype(np.float32), mask, truth // K, truth
+
+
+def _groups(assoc, f):
+    """Valid groups of frame ``f`` as sets of ``(view, slot)``."""
+    groups = np.asarray(assoc.groups[f])
+    return [{(m, int(s)) for m, s in enumerate(g) if s >= 0} for g in groups[np.asarray(assoc.valid[f])]]
+
+
+def test_classes_never_joined_and_truth_recovered(scene):
+    rig, xy, mask, classes, truth = scene
+    out = associate_classes(rig, xy, mask, classes, class_names=["a", "b", "c"], sigma=1.0)
+    a = out.association
+    assert out.num_classes == C and out.class_names == ("a", "b", "c")
+    for f in range(F):
+        groups = _groups(a, f)
+        assert len(groups) == C * K  # every point of every class, nothing joined across classes
+        for g, c in zip(groups, out.group_class[f][np.asarray(a.valid[f])]):
+            assert {int(classes[f, m, s]) for m, s in g} == {int(c)}
+            assert len({int(truth[f, m, s]) for m, s in g}) == 1
+        labels = np.asarray(a.labels[f])
+        for row, g in enumerate(groups):  # labels point back at the group's row
+            assert all(labels[m, s] == row for m, s in g)
+        assert (labels[~mask[f]] == -1).all()
+
+
+def test_each_class_as_associate_on_that_class_alone(scene):
+    rig, xy, mask, classes, _ = scene
+    out = associate_classes(rig, xy, mask, classes, sigma=1.0)
+    a = out.association
+    f, c = 1, 2
+    sub_xy = np.zeros((M, K, 2), np.float32)
+    sub_mask = np.zeros((M, K), bool)
+    slot_of = np.full((M, K), -1)
+    for m in range(M):
+        slots = np.flatnonzero(mask[f, m] & (classes[f, m] == c))
+        sub_xy[m, : len(slots)], sub_mask[m, : len(slots)], slot_of[m, : len(slots)] = xy[f, m, slots], True, slots
+    ref = cdog_jax.associate(rig, sub_xy, sub_mask, sigma=1.0)
+    want = {}
+    for g in range(int(ref.num_groups)):
+        members = frozenset((m, int(slot_of[m, s])) for m, s in enumerate(np.asarray(ref.groups[g])) if s >= 0)
+        want[members] = np.asarray(ref.points3d[g])
+    got = {}
+    for g in np.flatnonzero(np.asarray(a.valid[f]) & (out.group_class[f] == c)):
+        members = frozenset((m, int(s)) for m, s in enumerate(np.asarray(a.groups[f, g])) if s >= 0)
+        got[members] = np.asarray(a.points3d[f, g])
+    assert set(got) == set(want) and len(want) == K
+    for members, X in want.items():
+        np.testing.assert_allclose(got[members], X, rtol=1e-5, atol=1e-5)
+
+
+def test_pooled_sigma_one_per_frame(scene):
+    rig, xy, mask, classes, _ = scene
+    a = associate_classes(rig, xy, mask, classes, sigma="auto").association
+    sigma = np.asarray(a.sigma_px)
+    assert sigma.shape == (F,) and (sigma > 0).all() and (sigma < 5).all()
+
+
+def test_bad_classes_refused(scene):
+    rig, xy, mask, classes, _ = scene
+    bad = classes.copy()
+    bad[1, 2, 0] = -3
+    with pytest.raises(ValueError, match="classes must be >= 0 where mask is True; got -3 at frame 1, view 2, slot 0"):
+        associate_classes(rig, xy, mask, bad)
+    with pytest.raises(ValueError, match="class id 2 at frame 0, .* is >= num_classes = 2"):
+        associate_classes(rig, xy, mask, classes, num_classes=2)
+
+
+def test_results_carry_the_class(scene, tmp_path):
+    rig, xy, mask, classes, _ = scene
+    out = associate_classes(rig, xy, mask, classes, class_names=["a", "b", "c"], sigma=1.0)
+    save_association_json(tmp_path / "r.json", out, xy, mask, classes=classes)
+    data = json.loads((tmp_path / "r.json").read_text())
+    assert data["class_names"] == ["a", "b", "c"]
+    for f, frame in enumerate(data["frames"]):
+        for g in frame["groups"]:
+            assert g["class_name"] == "abc"[g["class"]]
+            assert {int(classes[f, r[0], r[1]]) for r in g["members"]} == {g["class"]}
+        assert len(frame["unassigned_classes"]) == len(frame["unassigned"])
+    save_association_csv(tmp_path / "r.csv", out)
+    with open(tmp_path / "r.csv") as fh:
+        rows = list(csv.DictReader(line for line in fh if not line.startswith("#")))
+    assert len(rows) == int(np.asarray(out.association.num_groups).sum())
+    assert all(r["class_name"] == "abc"[int(r["class"])] for r in rows)
+    save_association_npz(tmp_path / "r.npz", out, classes=classes)
+    with np.load(tmp_path / "r.npz") as z:
+        np.testing.assert_array_equal(z["group_class"], out.group_class)
+        assert z["class_names"].tolist() == ["a", "b", "c"] and z["classes"].shape == classes.shape
+
+
+def test_cli_associates_openpose_folder_by_keypoint(scene, tmp_path, capsys):
+    rig, xy, mask, classes, truth = scene
+    save_rig_json(tmp_path / "rig.json", rig)
+    # One OpenPose person per instance k; keypoint j = class; the person order differs per view.
+    for m in range(M):
+        os.makedirs(tmp_path / "pose" / f"cam{m + 1}")
+        for f in range(F):
+            people = np.zeros((K, C, 3))
+            for s in np.flatnonzero(mask[f, m]):
+                c, k = divmod(int(truth[f, m, s]), K)
+                people[(k + m) % K, c] = [*xy[f, m, s], 0.9]
+            with open(tmp_path / "pose" / f"cam{m + 1}" / f"f.{f:04d}.json", "w") as fh:
+                json.dump({"people": [{"pose_keypoints_2d": p.reshape(-1).tolist()} for p in people]}, fh)
+    out = tmp_path / "out.csv"
+    code = main(["associate", "--rig", str(tmp_path / "rig.json"), "--points", str(tmp_path / "pose"), "--sigma", "1", "--out", str(out)])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "classes: 3" in text
+    with open(out) as fh:
+        rows = list(csv.DictReader(line for line in fh if not line.startswith("#")))
+    assert len(rows) == F * C * K
+    assert sorted(int(r["class"]) for r in rows if r["frame"] == "0") == [0, 0, 1, 1, 2, 2]
+
+
+def test_cli_keypoint_options_checked_before_work(scene, tmp_path, capsys):
+    rig, *_ = scene
+    save_rig_json(tmp_path / "rig.json", rig)
+    points = tmp_path / "points.json"
+    points.write_text(json.dumps({"views": [[[1, 2]], [[3, 4]], [[5, 6]], [[7, 8]]]}))
+    code = main(["associate", "--rig", str(tmp_path / "rig.json"), "--points", str(points), "--keypoints", "BODY_25"])
+    assert code == 2
+    assert "--keypoints names OpenPose keypoints" in capsys.readouterr().err
+    os.makedirs(tmp_path / "pose" / "cam1")
+    code = main(["associate", "--rig", str(tmp_path / "rig.json"), "--points", str(tmp_path / "pose")])
+    assert code == 2
+    assert "expected one folder per camera" in capsys.readouterr().err
