@@ -42,7 +42,7 @@ def make_scenes(rig, frames, classes, people, seed=0, noise_px=1.0):
     X = centres + rng.uniform(-spread, spread, (frames, classes, people, 3))
     M = rig.num_views
     xy, _ = cdog_jax.project(rig, jnp.asarray(X.reshape(-1, 3), jnp.float32))
-    xy = np.asarray(xy).reshape(frames, classes * people, M, 2).transpose(0, 2, 1, 3)
+    xy = np.asarray(xy).reshape(M, frames, classes * people, 2).transpose(1, 0, 2, 3)
     xy = xy + rng.normal(0.0, noise_px, xy.shape)
     truth = np.broadcast_to(np.arange(classes * people), (frames, M, classes * people)).copy()
     for f in range(frames):

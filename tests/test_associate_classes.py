@@ -30,7 +30,7 @@ def scene():
     X = rng.uniform(lo, hi, (F, C, K, 3))
     X[:, 1] = X[:, 0]
     xy_true, _ = cdog_jax.project(rig, jnp.asarray(X.reshape(-1, 3), jnp.float32))
-    xy_true = np.asarray(xy_true).reshape(F, C * K, M, 2).transpose(0, 2, 1, 3)  # (F, M, C·K, 2)
+    xy_true = np.asarray(xy_true).reshape(M, F, C * K, 2).transpose(1, 0, 2, 3)  # (F, M, C·K, 2)
     xy_true = xy_true + rng.normal(0.0, 0.3, xy_true.shape)
     xy_true[:, :, C * 0 + 0] = xy_true[:, :, K]  # class 1's first instance coincides exactly with class 0's
     truth = np.broadcast_to(np.arange(C * K), (F, M, C * K)).copy()  # c · K + k

@@ -301,6 +301,8 @@ def _resolve_format(path: str, format: str) -> str:
             raise InputError(f"{path}: is a folder; a {suffix} rig is a file")
         return "easyvis"
     base = os.path.basename(path)
+    if base.lower().endswith((".qca.txt", ".qca")):
+        return "qualisys"
     if base == "transforms.json":
         return "nerfstudio"
     if base in ("cameras.txt", "images.txt"):
@@ -314,7 +316,7 @@ def _resolve_format(path: str, format: str) -> str:
         return "anipose"
     raise ValueError(
         f"{path}: cannot tell the rig format; expected a folder (easyvis, or colmap with cameras.txt and "
-        "images.txt, or easymocap with intri.yml and extri.yml), a .json, .npz or .toml (anipose) file "
+        "images.txt, or easymocap with intri.yml and extri.yml), a .json, .npz or .toml (anipose) file, transforms.json (nerfstudio), a .qca.txt (qualisys) "
         f"(or pass format= one of {FORMATS})"
     )
 
