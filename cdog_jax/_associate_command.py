@@ -66,7 +66,8 @@ def _min_views(text: str) -> int:
 
 _RIG_FORMATS_TEXT = (
     "an EasyVis/OpenMVG folder (K0.txt, R0.txt, T0.txt, ...), the project's .json or .npz, an anipose "
-    "calibration.toml, a COLMAP text model (cameras.txt + images.txt) or EasyMocap intri.yml + extri.yml"
+    "calibration.toml, a COLMAP text model (cameras.txt + images.txt), EasyMocap intri.yml + extri.yml, "
+    "a nerfstudio transforms.json or a Qualisys .qca.txt"
 )
 _ASSOCIATE_DESCRIPTION = (
     "Associate the detections of your cameras: read a rig (" + _RIG_FORMATS_TEXT + ") and a "

@@ -12,7 +12,7 @@ from cdog_jax.io import FORMATS
 
 # Words of a rig format that a help text naming it must contain (one per format).
 _FORMAT_WORDS = {"easyvis": "EasyVis", "json": ".json", "npz": ".npz", "anipose": "anipose",
-                 "colmap": "COLMAP", "easymocap": "EasyMocap"}
+                 "colmap": "COLMAP", "easymocap": "EasyMocap", "nerfstudio": "nerfstudio", "qualisys": "Qualisys"}
 
 
 def _subparsers(parser):

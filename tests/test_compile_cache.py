@@ -36,7 +36,7 @@ _CHILD = textwrap.dedent(
     from cdog_jax.geometry import triangulate
     from cdog_jax.synthetic import default_rig
     rig = default_rig()
-    X, ok = jax.jit(triangulate)(rig, jnp.zeros((4, 10, 2)), jnp.ones((4, 10), bool))
+    X, ok = jax.jit(triangulate)(rig, jnp.zeros((10, 4, 2)), jnp.ones((10, 4), bool))
     print("dir", jax.config.jax_compilation_cache_dir)
     print("hits", len(hits))
     """
