@@ -68,7 +68,7 @@ def add_parsers(subparsers) -> None:
     p.add_argument("--rig-format", default="auto", choices=("auto", *FORMATS), help="rig format (default: from the path)")
     p.add_argument("--points", required=True, help="detections file (.json or .npz): one scene or many frames")
     p.add_argument("--sigma", type=_sigma, default="auto", help='detection noise σ in px, or "auto" (default) to estimate it')
-    p.add_argument("--preset", choices=_PRESETS, default="paper", help="method preset (default paper)")
+    p.add_argument("--preset", choices=_PRESETS, default="extended", help="method preset (default extended, the most accurate; paper and reference reproduce the paper and the original code)")
     p.add_argument("--min-views", type=_min_views, default=2, help="report only groups seen in at least K views (default 2)")
     p.add_argument(
         "--confidence-weights",
