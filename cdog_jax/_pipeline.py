@@ -441,6 +441,19 @@ def associate_batch(
     if extras is not None and extras[1] is not None:
         extras = (extras[0], pad_scenes(pad_slots(extras[1], capacity, axis=2), padded), extras[2])
     results = []
+    if chunk == 1:  # one scene at a time: the single-scene program (no vmap to trace)
+        for b in range(B):
+            rig_b = rig if shared else Rig(*(jnp.asarray(a[b]) for a in rig_arrays))
+            th_b = Thresholds(*(v[b] for v in th))
+            if extras is None:
+                one = _associate_jit(rig_b, xy[b], mask[b], th_b, config=static)
+            else:
+                one = _associate_extras_jit(
+                    rig_b, xy[b], mask[b], th_b, extras[0], None if extras[1] is None else extras[1][b], extras[2],
+                    config=static,
+                )
+            results.append(jax.tree.map(lambda a: np.asarray(a)[None], one))
+        padded = 0
     for start in range(0, padded, chunk):
         part = slice(start, start + chunk)
         rig_part = rig if shared else Rig(*(jnp.asarray(a[part]) for a in rig_arrays))

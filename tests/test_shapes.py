@@ -79,3 +79,11 @@ def test_padded_batch_is_bitwise_one_scene_at_a_time():
     for b in range(5):
         one = _unpadded(xy[b], mask[b], Config.extended(), float(sigma[b]))
         _assert_same(jax.tree.map(lambda a: a[b], batch), one)
+
+
+def test_one_scene_batch_runs_the_single_scene_program():
+    xy, mask = _scene(5)
+    batch = associate_batch(RIG, xy[None], mask[None], config=Config.extended(), sigma=1.0)
+    one = associate(RIG, xy, mask, config=Config.extended(), sigma=1.0)
+    _assert_same(jax.tree.map(lambda a: a[0], batch), one)
+    assert batch.labels.shape == (1, RIG.num_views, P) and isinstance(batch.labels, jax.Array)
