@@ -51,6 +51,9 @@ def _group_fit(rig, xy_g, member, N_g, r_g, origin):
     return X, group_errors(rig, X, xy_g, member)
 
 
+# The graph stage and the IQR run twice in extended() (regroup): as nested jits they are
+# traced and lowered once and the second call reuses them.
+@partial(jax.jit, static_argnames=("config",))
 def _graph_groups(d, valid, tau, th, config):
     """Alg. 1–2 on the valid nodes: epipolar graph, δ-pruning, view-unique components;
     returns the group table ``(G, M)``, its validity ``(G,)`` and an int32 status ``()``."""
@@ -82,6 +85,7 @@ def _flag(condition, flag: Status):
     return jnp.where(condition, jnp.int32(int(flag)), jnp.int32(0))
 
 
+@partial(jax.jit, static_argnames=("config",))
 def _iqr(rig, xy, groups, gvalid, blocks, th, config):
     """Alg. 3 on the group table; returns the cleaned table, validity and int32 status."""
     N_node, r_node, origin = blocks
