@@ -87,3 +87,16 @@ def test_one_scene_batch_runs_the_single_scene_program():
     one = associate(RIG, xy, mask, config=Config.extended(), sigma=1.0)
     _assert_same(jax.tree.map(lambda a: a[0], batch), one)
     assert batch.labels.shape == (1, RIG.num_views, P) and isinstance(batch.labels, jax.Array)
+
+
+def test_capacity_falls_back_to_the_unpadded_shape_only_where_the_budget_needs_it():
+    from cdog_jax._memory import estimate_peak_bytes
+    from cdog_jax._pipeline import _capacity
+
+    config = Config.extended()
+    at_33, at_64 = (estimate_peak_bytes(10, p, config) for p in (33, 64))
+    between = (at_33 + at_64) / 2 / 1e9
+    assert _capacity("associate", 10, 33, config, np.float32, 1, 2 * at_64 / 1e9, None) == 64
+    assert _capacity("associate", 10, 33, config, np.float32, 1, between, None) == 33
+    with pytest.raises(MemoryError, match="10 views × 33 slots"):
+        _capacity("associate", 10, 33, config, np.float32, 1, at_33 / 2 / 1e9, None)
