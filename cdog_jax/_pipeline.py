@@ -236,8 +236,11 @@ def _prepare(config: Config, sigma, thresholds: Thresholds | None, dtype):
 
 
 def _float_dtype(xy):
-    dtype = jnp.asarray(xy).dtype
-    return dtype if jnp.issubdtype(dtype, jnp.floating) else jnp.asarray(0.0).dtype
+    """The float dtype the pipeline runs in: ``xy``'s (canonical: float64 only with x64), or
+    the default float for integers. From the dtype alone: a JAX array made from ``xy`` would
+    be a compiled program per shape."""
+    dtype = np.dtype(xy.dtype)
+    return jax.dtypes.canonicalize_dtype(dtype if np.issubdtype(dtype, np.floating) else np.float64)
 
 
 def associate(
