@@ -113,7 +113,7 @@ def add_parsers(subparsers) -> None:
         help="names of the OpenPose keypoint types: " + ", ".join(SKELETONS) + " (default: ids only)",
     )
     p.add_argument("--sigma", type=_sigma, default="auto", help='detection noise σ in px, or "auto" (default) to estimate it')
-    p.add_argument("--preset", choices=_PRESETS, default="paper", help="method preset (default paper)")
+    p.add_argument("--preset", choices=_PRESETS, default="extended", help="method preset (default extended, the most accurate; paper and reference reproduce the paper and the original code)")
     p.add_argument("--min-views", type=_min_views, default=2, help="report only groups seen in at least K views (default 2)")
     p.add_argument(
         "--confidence-weights",

@@ -2,8 +2,8 @@
 
 ``associate_traced`` is the pure function (jit/vmap it yourself; ``config`` must be
 static). ``associate`` checks its inputs eagerly and runs the jitted pipeline on one
-scene; ``associate_batch`` runs many scenes in one compiled call, chunked with ``lax.map``
-so memory stays bounded.
+scene; ``associate_batch`` runs many scenes in chunks of one compiled, vmapped program, so
+memory stays bounded. Both pad their shapes to a short ladder (``_shapes.py``).
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from ._config import Config, Thresholds, check_thresholds, config_from, tau_px
 from ._expect import INT, expect, expect_args
 from ._memory import check_memory
 from ._result import Association
+from ._shapes import chunk_size, pad_scenes, pad_slots, slot_capacity, trim
 from ._status import Status
 from ._types import Array, ArrayLike, Bool, Float
 from ._validate import as_array, check_batch_rig, check_observations, check_rig, check_sigma, check_threshold_shapes
@@ -51,6 +52,9 @@ def _group_fit(rig, xy_g, member, N_g, r_g, origin):
     return X, group_errors(rig, X, xy_g, member)
 
 
+# The graph stage and the IQR run twice in extended() (regroup): as nested jits they are
+# traced and lowered once and the second call reuses them.
+@partial(jax.jit, static_argnames=("config",))
 def _graph_groups(d, valid, tau, th, config):
     """Alg. 1–2 on the valid nodes: epipolar graph, δ-pruning, view-unique components;
     returns the group table ``(G, M)``, its validity ``(G,)`` and an int32 status ``()``."""
@@ -82,6 +86,7 @@ def _flag(condition, flag: Status):
     return jnp.where(condition, jnp.int32(int(flag)), jnp.int32(0))
 
 
+@partial(jax.jit, static_argnames=("config",))
 def _iqr(rig, xy, groups, gvalid, blocks, th, config):
     """Alg. 3 on the group table; returns the cleaned table, validity and int32 status."""
     N_node, r_node, origin = blocks
@@ -232,8 +237,11 @@ def _prepare(config: Config, sigma, thresholds: Thresholds | None, dtype):
 
 
 def _float_dtype(xy):
-    dtype = jnp.asarray(xy).dtype
-    return dtype if jnp.issubdtype(dtype, jnp.floating) else jnp.asarray(0.0).dtype
+    """The float dtype the pipeline runs in: ``xy``'s (canonical: float64 only with x64), or
+    the default float for integers. From the dtype alone: a JAX array made from ``xy`` would
+    be a compiled program per shape."""
+    dtype = np.dtype(xy.dtype)
+    return jax.dtypes.canonicalize_dtype(dtype if np.issubdtype(dtype, np.floating) else np.float64)
 
 
 def associate(
@@ -241,7 +249,7 @@ def associate(
     xy: ArrayLike,  # (M, P, 2); checked eagerly with a clear message
     mask: ArrayLike,  # (M, P) bool
     *,
-    config: Config | str = Config.paper(),
+    config: Config | str = Config.extended(),
     sigma: float | str = 1.0,
     thresholds: Thresholds | None = None,
     dist: ArrayLike | Fisheye | None = None,
@@ -255,8 +263,9 @@ def associate(
         rig: the cameras (``M`` views).
         xy: ``(M, P, 2)`` detections (pixels); ``P`` is a padded capacity.
         mask: ``(M, P)`` bool, True where a slot holds a detection.
-        config: structure and default thresholds (``Config.paper()``, ``Config.reference()``),
-            or a preset's name: ``"paper"``, ``"extended"``, ``"reference"``.
+        config: structure and default thresholds, or a preset's name: ``"extended"`` (the
+            default, our best), ``"paper"`` (the paper's method), ``"reference"`` (the
+            original code's choices).
         sigma: 2D noise std in pixels, or ``"auto"`` to estimate it (ALGORITHM.md §0.1).
         thresholds: overrides the config's numeric thresholds (for sweeps; arrays welcome).
         dist: optional ``(M, 5)`` OpenCV distortion ``(k1, k2, p1, p2, k3)`` per view (or a
@@ -275,6 +284,10 @@ def associate(
     at most the image diagonal: twice the largest principal point of ``rig.K``, or the
     detections' extent ``hypot(max |x|, max |y|)`` where that is larger.
 
+    The compiled program runs at a padded capacity (the smallest power of two ``>= P``, at
+    least 32; ``P`` itself where only that fits the memory budget), so that frames of
+    different counts share a handful of programs; the result is trimmed back to ``P``.
+
     Returns:
         An :class:`Association` (labels, groups, points, errors). Its ``status`` is
         non-zero when a loop stopped at its bound or ``sigma="auto"`` fell back
@@ -289,18 +302,37 @@ def associate(
     if thresholds is not None:
         check_threshold_shapes(thresholds, None)
     dtype = _float_dtype(xy)
-    check_memory("associate", *np.shape(mask), config, dtype, budget_gb=memory_budget_gb)
+    M, P = np.shape(mask)
+    capacity = _capacity("associate", M, P, config, dtype, 1, memory_budget_gb, vmapped=None)
     static, th = _prepare(config, sigma, thresholds, dtype)
-    xy, mask = jnp.asarray(xy, dtype), jnp.asarray(mask)
-    extras = _check_extras(dist, weights, min_views, mask.shape, dtype)
+    np_dtype = np.dtype(dtype)
+    xy = pad_slots(np.asarray(xy, np_dtype), capacity, axis=1)
+    mask = pad_slots(np.asarray(mask, bool), capacity, axis=1, fill=False)
+    extras = _check_extras(dist, weights, min_views, (M, P), np_dtype)
     if extras is None:
-        return _associate_jit(rig, xy, mask, th, config=static)
-    return _associate_extras_jit(rig, xy, mask, th, *extras, config=static)
+        result = _associate_jit(rig, xy, mask, th, config=static)
+    else:
+        dist, weights, min_views = extras
+        weights = None if weights is None else pad_slots(weights, capacity, axis=1)
+        result = _associate_extras_jit(rig, xy, mask, th, dist, weights, min_views, config=static)
+    return trim(result, P)
+
+
+def _capacity(where, M, P, config, dtype, batch_size, budget_gb, vmapped) -> int:
+    """The padded slot capacity (:func:`slot_capacity`), or ``P`` itself where only the
+    unpadded shapes fit the memory budget; raises ``MemoryError`` where neither does."""
+    capacity = slot_capacity(P)
+    try:
+        check_memory(where, M, capacity, config, dtype, batch_size, budget_gb, vmapped=vmapped)
+    except MemoryError:
+        check_memory(where, M, P, config, dtype, batch_size, budget_gb, vmapped=vmapped)
+        return P
+    return capacity
 
 
 def _check_extras(dist, weights, min_views, mask_shape, dtype):
-    """Checked ``(dist, weights, min_views)`` as arrays, or None when all are defaults
-    (then the plain pipeline runs)."""
+    """Checked ``(dist, weights, min_views)`` as NumPy arrays of ``dtype``, or None when all
+    are defaults (then the plain pipeline runs)."""
     if not isinstance(min_views, (int, np.integer)) or isinstance(min_views, bool) or min_views < 2:
         raise ValueError(f"min_views must be an int >= 2 (a group needs two views); got {min_views!r}")
     if dist is None and weights is None and min_views == 2:
@@ -318,7 +350,7 @@ def _check_extras(dist, weights, min_views, mask_shape, dtype):
         if not np.isfinite(dist_h).all():
             view = int(np.argwhere(~np.isfinite(dist_h))[0, 0])
             raise ValueError(f"dist of view {view} has non-finite entries")
-        dist = jnp.asarray(dist, dtype)
+        dist = np.asarray(dist, dtype)
     if weights is not None:
         w_h = np.asarray(weights)
         if w_h.shape != tuple(mask_shape):
@@ -327,7 +359,7 @@ def _check_extras(dist, weights, min_views, mask_shape, dtype):
         if bad.any():
             where = ", ".join(str(int(i)) for i in np.argwhere(bad)[0])
             raise ValueError(f"weights must be finite and >= 0; got {float(w_h[bad][0])!r} at index ({where})")
-        weights = jnp.asarray(weights, dtype)
+        weights = np.asarray(weights, dtype)
     return dist, weights, np.asarray(min_views, np.int32)
 
 
@@ -345,8 +377,9 @@ def _associate_extras_jit(rig, xy, mask, th, dist, weights, min_views, *, config
     return _associate_one(rig, xy, mask, th, dist, weights, min_views, config)
 
 
-@partial(jax.jit, static_argnames=("config", "batch_size", "shared_rig"))
-def _associate_batch_jit(rig, xy, mask, th, extras, *, config, batch_size, shared_rig):
+@partial(jax.jit, static_argnames=("config", "shared_rig"))
+def _associate_batch_jit(rig, xy, mask, th, extras, *, config, shared_rig):
+    """One chunk of scenes, vmapped (the caller loops over chunks, so memory stays bounded)."""
     if extras is None:
         run = lambda r, x, m, t, e: associate_traced(r, x, m, t, config)  # noqa: E731
     else:
@@ -356,9 +389,9 @@ def _associate_batch_jit(rig, xy, mask, th, extras, *, config, batch_size, share
     per_scene = None if extras is None else extras[1]
     if shared_rig:
         one = lambda a: run(rig, a[0], a[1], a[2], _join(shared, a[3]))  # noqa: E731
-        return jax.lax.map(one, (xy, mask, th, per_scene), batch_size=batch_size)
+        return jax.vmap(one)((xy, mask, th, per_scene))
     one = lambda a: run(a[0], a[1], a[2], a[3], _join(shared, a[4]))  # noqa: E731
-    return jax.lax.map(one, (rig, xy, mask, th, per_scene), batch_size=batch_size)
+    return jax.vmap(one)((rig, xy, mask, th, per_scene))
 
 
 def _join(shared, weights):
@@ -370,7 +403,7 @@ def associate_batch(
     xy: ArrayLike,  # (B, M, P, 2); checked eagerly
     mask: ArrayLike,  # (B, M, P) bool
     *,
-    config: Config | str = Config.paper(),
+    config: Config | str = Config.extended(),
     sigma: float | str | Float[Array, " B"] = 1.0,
     thresholds: Thresholds | None = None,
     batch_size: int = 16,
@@ -379,11 +412,12 @@ def associate_batch(
     min_views: int = 2,
     memory_budget_gb: float | None = None,
 ) -> Association:
-    """:func:`associate` for ``B`` scenes in one compiled call.
+    """:func:`associate` for ``B`` scenes, ``batch_size`` at a time in one compiled program.
 
     The rig is shared (``K (M, 3, 3)``) or per scene (``K (B, M, 3, 3)``); ``sigma`` and the
     thresholds may be scalars or ``(B,)`` arrays. Scenes run ``batch_size`` at a time
-    (vmapped inside ``lax.map``), which bounds memory. Every field of the result gains a
+    (vmapped), which bounds memory; fewer scenes run as the smallest power of two that
+    holds them, and ``P`` is padded as in :func:`associate`, so few programs are compiled. Every field of the result gains a
     leading ``B`` axis. ``dist (M, 5)`` and ``min_views`` are shared by all scenes,
     ``weights (B, M, P)`` are per scene. Inputs are checked as in :func:`associate`; an
     error names the scene. The memory budget counts ``batch_size`` scenes (see
@@ -404,13 +438,44 @@ def associate_batch(
     if thresholds is not None:
         check_threshold_shapes(thresholds, B)
     dtype = _float_dtype(xy)
-    check_memory("associate_batch", *np.shape(mask)[1:], config, dtype, min(batch_size, B), memory_budget_gb, vmapped=True)
+    M, P = np.shape(mask)[1:]
+    chunk = chunk_size(B, batch_size)
+    capacity = _capacity("associate_batch", M, P, config, dtype, chunk, memory_budget_gb, vmapped=True)
     static, th = _prepare(config, sigma, thresholds, dtype)
-    th = Thresholds(*(jnp.broadcast_to(v, (B,)) for v in th))
     if dist is not None and not shared:
         raise ValueError("dist needs a shared rig (K of shape (M, 3, 3)); undistort per-scene rigs yourself")
-    extras = _check_extras(dist, weights, min_views, tuple(np.shape(mask)), dtype)
-    return _associate_batch_jit(
-        rig, jnp.asarray(xy, dtype), jnp.asarray(mask), th, extras,
-        config=static, batch_size=min(batch_size, B), shared_rig=shared,
-    )
+    np_dtype = np.dtype(dtype)
+    extras = _check_extras(dist, weights, min_views, tuple(np.shape(mask)), np_dtype)
+    padded = -(-B // chunk) * chunk  # whole chunks; padded scenes repeat the last one
+    xy = pad_scenes(pad_slots(np.asarray(xy, np_dtype), capacity, axis=2), padded)
+    mask = pad_scenes(pad_slots(np.asarray(mask, bool), capacity, axis=2, fill=False), padded)
+    th = Thresholds(*(pad_scenes(np.broadcast_to(np.asarray(v, np_dtype), (B,)), padded) for v in th))
+    if not shared:
+        rig_arrays = [pad_scenes(np.asarray(a), padded) for a in (rig.K, rig.R, rig.t)]
+    if extras is not None and extras[1] is not None:
+        extras = (extras[0], pad_scenes(pad_slots(extras[1], capacity, axis=2), padded), extras[2])
+    results = []
+    if chunk == 1:  # one scene at a time: the single-scene program (no vmap to trace)
+        for b in range(B):
+            rig_b = rig if shared else Rig(*(jnp.asarray(a[b]) for a in rig_arrays))
+            th_b = Thresholds(*(v[b] for v in th))
+            if extras is None:
+                one = _associate_jit(rig_b, xy[b], mask[b], th_b, config=static)
+            else:
+                one = _associate_extras_jit(
+                    rig_b, xy[b], mask[b], th_b, extras[0], None if extras[1] is None else extras[1][b], extras[2],
+                    config=static,
+                )
+            results.append(jax.tree.map(lambda a: np.asarray(a)[None], one))
+        padded = 0
+    for start in range(0, padded, chunk):
+        part = slice(start, start + chunk)
+        rig_part = rig if shared else Rig(*(jnp.asarray(a[part]) for a in rig_arrays))
+        extras_part = None if extras is None else (extras[0], None if extras[1] is None else extras[1][part], extras[2])
+        results.append(_associate_batch_jit(
+            rig_part, xy[part], mask[part], Thresholds(*(v[part] for v in th)), extras_part,
+            config=static, shared_rig=shared,
+        ))
+    if len(results) > 1:
+        results = [jax.tree.map(lambda *parts: np.concatenate([np.asarray(p) for p in parts]), *results)]
+    return trim(results[0], P, num_scenes=B)

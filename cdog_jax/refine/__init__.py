@@ -12,12 +12,23 @@ from ._validity import (
     validity_gate as validity_gate,
 )
 from ._bpe_loss import bpe as bpe, group_bpe as group_bpe
-from ._calibration import (
-    CalibrationHistory as CalibrationHistory,
-    RefineInfo as RefineInfo,
-    RigErrors as RigErrors,
-    align_rigs as align_rigs,
-    calibrate as calibrate,
-    refine_rig as refine_rig,
-    rig_errors as rig_errors,
-)
+
+# Calibration needs optimistix, a large import: loaded on first use (``import cdog_jax`` stays light).
+_CALIBRATION = ("CalibrationHistory", "RefineInfo", "RigErrors", "align_rigs", "calibrate", "refine_rig", "rig_errors")
+__all__ = [
+    "bpe_jump_keep", "refine_points", "iqr_outliers", "node_scores", "percentile_linear", "remove_outliers",
+    "second_association", "in_front_of_members", "max_parallax_deg", "validity_gate", "bpe", "group_bpe",
+    *_CALIBRATION,
+]
+
+
+def __getattr__(name: str):
+    if name in _CALIBRATION:
+        from . import _calibration
+
+        return getattr(_calibration, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(__all__)

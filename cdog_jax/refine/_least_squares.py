@@ -8,7 +8,6 @@ stopped at ``max_steps`` is reported (``Status.REFINE_CAPPED``).
 
 import jax
 import jax.numpy as jnp
-import optimistix as optx
 
 from .._expect import ARRAY, INT, expect_args
 from .._types import Array, Bool, Float
@@ -33,6 +32,8 @@ def refine_points(
     ``member (G, M)``; groups with < 2 members are unchanged. Also ``()`` True when the
     solver of some group (of ≥ 2 members) stopped at ``max_steps`` before converging."""
     expect_args("refine_points", rig=(rig, Rig), X0=(X0, ARRAY), xy_g=(xy_g, ARRAY), member=(member, ARRAY), max_steps=(max_steps, INT))
+    import optimistix as optx  # here, not at import: only refinement needs it (a large import)
+
     solver = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-6)
 
     def one(X, xy, mem):

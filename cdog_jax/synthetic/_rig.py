@@ -8,7 +8,7 @@ origin in ``x, y`` and standing on ``z = 0``; every camera sits above the box to
 
 from __future__ import annotations
 
-import jax.numpy as jnp
+import jax
 import numpy as np
 
 from .._expect import ARRAY, INT, expect_args
@@ -90,7 +90,7 @@ def default_rig(*, num_views: int = 10, dtype=None) -> Rig:
     expect_args("default_rig", num_views=(num_views, INT))
     if num_views < 1:
         raise ValueError(f"num_views must be >= 1; got {num_views}")
-    dtype = dtype or jnp.asarray(0.0).dtype
+    dtype = np.dtype(dtype or jax.dtypes.canonicalize_dtype(np.float64))
     rng = np.random.default_rng(_SEED)
     lo, hi = (np.asarray(c, dtype=np.float64) for c in DEFAULT_BOX)
     box_center = 0.5 * (lo + hi)
@@ -115,7 +115,8 @@ def default_rig(*, num_views: int = 10, dtype=None) -> Rig:
         cx = 0.5 * w + _PRINCIPAL_JITTER_PX[0] * u[8]
         cy = 0.5 * h + _PRINCIPAL_JITTER_PX[1] * rng.uniform(-1.0, 1.0)
         K[m] = [[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]]
-    return Rig(jnp.asarray(K, dtype), jnp.asarray(R, dtype), jnp.asarray(t, dtype))
+    # device_put of host arrays: a JAX conversion would compile a program per shape.
+    return Rig(*(jax.device_put(np.asarray(a, dtype)) for a in (K, R, t)))
 
 
 def negate_intrinsics(rig: Rig, views) -> Rig:

@@ -1,0 +1,102 @@
+"""Padded shapes: ``associate`` / ``associate_batch`` run at a capacity from a short ladder
+and pad the batch, and return bitwise what the unpadded program returns."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from helpers import random_scene, ring_rig
+
+from cdog_jax import Config, associate, associate_batch
+from cdog_jax._pipeline import _associate_extras_jit, _associate_jit, _check_extras, _prepare
+from cdog_jax._shapes import chunk_size, slot_capacity
+
+RIG = ring_rig(5)
+P = 13  # not on the ladder: associate runs at 32
+
+
+def _unpadded(xy, mask, config, sigma=1.0, dist=None, weights=None, min_views=2):
+    """The jitted pipeline at the caller's own shapes (what associate ran before padding)."""
+    static, th = _prepare(config, sigma, None, np.float32)
+    extras = _check_extras(dist, weights, min_views, mask.shape, np.float32)
+    if extras is None:
+        return _associate_jit(RIG, xy, mask, th, config=static)
+    return _associate_extras_jit(RIG, xy, mask, th, *extras, config=static)
+
+
+DISCRETE = ("labels", "groups", "valid", "n_views", "num_groups", "status")
+FLOATS = ("points3d", "bpe", "err_px", "sigma_px", "tau_px")
+
+
+def _assert_same(got, want, float_rtol=0.0):
+    """Bitwise equal, except floats within ``float_rtol`` where given."""
+    for name in DISCRETE + FLOATS:
+        a, b = np.asarray(getattr(got, name)), np.asarray(getattr(want, name))
+        assert a.shape == b.shape, name
+        if name in FLOATS and float_rtol:
+            np.testing.assert_allclose(a, b, rtol=float_rtol, atol=0.0, err_msg=name)
+        else:
+            np.testing.assert_array_equal(a, b, err_msg=name)
+
+
+def test_ladders():
+    assert [slot_capacity(p) for p in (1, 5, 32, 33, 64, 65, 118, 129, 600)] == [32, 32, 32, 64, 64, 128, 128, 256, 1024]
+    assert [chunk_size(b, 16) for b in (1, 2, 3, 5, 16, 17, 100)] == [1, 2, 4, 8, 16, 16, 16]
+    assert chunk_size(9, 10) == 10
+
+
+def _scene(seed, clutter=0):
+    xy, mask, _, _ = random_scene(RIG, 9, P, sigma=1.0, seed=seed, clutter=clutter)
+    return np.asarray(xy, np.float32), mask
+
+
+@pytest.mark.parametrize(
+    "config, sigma, seed",
+    [(Config.paper(), 1.0, 0), (Config.extended(), "auto", 1), (Config.reference(), 1.0, 2), (Config.extended(), 1.0, 3)],
+    ids=["paper", "extended-auto", "reference", "extended"],
+)
+def test_padded_capacity_is_bitwise_unpadded(config, sigma, seed):
+    xy, mask = _scene(seed, clutter=1)
+    # σ's estimate sums over all (padded) samples: its float sums may group terms differently.
+    rtol = 1e-6 if sigma == "auto" else 0.0
+    _assert_same(associate(RIG, xy, mask, config=config, sigma=sigma), _unpadded(xy, mask, config, sigma), rtol)
+
+
+def test_padded_capacity_with_dist_weights_min_views():
+    xy, mask = _scene(4)
+    dist = np.tile(np.array([[1e-3, 0.0, 0.0, 0.0, 0.0]], np.float32), (RIG.num_views, 1))
+    weights = np.random.default_rng(0).uniform(0.5, 1.0, mask.shape).astype(np.float32)
+    kwargs = dict(dist=dist, weights=weights, min_views=3)
+    _assert_same(associate(RIG, xy, mask, config=Config.extended(), **kwargs), _unpadded(xy, mask, Config.extended(), **kwargs))
+
+
+def test_padded_batch_is_bitwise_one_scene_at_a_time():
+    scenes = [_scene(seed) for seed in range(5)]  # 5 scenes, batch_size 2: chunks of 2, one padded scene
+    xy, mask = np.stack([s[0] for s in scenes]), np.stack([s[1] for s in scenes])
+    sigma = jnp.asarray([1.0, 0.8, 1.2, 1.0, 0.9], jnp.float32)
+    batch = associate_batch(RIG, xy, mask, config=Config.extended(), sigma=sigma, batch_size=2)
+    assert batch.labels.shape == (5, RIG.num_views, P)
+    for b in range(5):
+        one = _unpadded(xy[b], mask[b], Config.extended(), float(sigma[b]))
+        _assert_same(jax.tree.map(lambda a: a[b], batch), one)
+
+
+def test_one_scene_batch_runs_the_single_scene_program():
+    xy, mask = _scene(5)
+    batch = associate_batch(RIG, xy[None], mask[None], config=Config.extended(), sigma=1.0)
+    one = associate(RIG, xy, mask, config=Config.extended(), sigma=1.0)
+    _assert_same(jax.tree.map(lambda a: a[0], batch), one)
+    assert batch.labels.shape == (1, RIG.num_views, P) and isinstance(batch.labels, jax.Array)
+
+
+def test_capacity_falls_back_to_the_unpadded_shape_only_where_the_budget_needs_it():
+    from cdog_jax._memory import estimate_peak_bytes
+    from cdog_jax._pipeline import _capacity
+
+    config = Config.extended()
+    at_33, at_64 = (estimate_peak_bytes(10, p, config) for p in (33, 64))
+    between = (at_33 + at_64) / 2 / 1e9
+    assert _capacity("associate", 10, 33, config, np.float32, 1, 2 * at_64 / 1e9, None) == 64
+    assert _capacity("associate", 10, 33, config, np.float32, 1, between, None) == 33
+    with pytest.raises(MemoryError, match="10 views × 33 slots"):
+        _capacity("associate", 10, 33, config, np.float32, 1, at_33 / 2 / 1e9, None)
