@@ -73,7 +73,7 @@ def associate_classes(
     *,
     class_names=None,
     num_classes: int | None = None,
-    config="paper",
+    config="extended",
     sigma: float | str = "auto",
     sigma_pool: str = "frame",
     dist=None,

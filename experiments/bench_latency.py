@@ -133,7 +133,7 @@ def main(runs: int = 3, counts=(10, 40, 130), out: str | None = None, notebook: 
         for r in range(runs if notebook else 0):
             env = dict(os.environ, CDOG_JAX_CACHE_DIR=str(tmp / f"nb_{r}"), CDOG_JAX_CACHE="1")
             cmd = [sys.executable, "-c", _NOTEBOOK, str(tmp / "frames.npz")]
-            done = subprocess.run(cmd, env=env, check=True, capture_output=True, text=True)
+            done = subprocess.run(cmd, env=env, cwd=tmp, check=True, capture_output=True, text=True)
             loops.append(json.loads(done.stdout.strip().splitlines()[-1]))
         if loops:
             results["notebook"] = {
