@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from ._cli import _positive_int, check_sigma_fits
+from ._cli import _positive_int, check_sigma_fits, int_at_least
 from ._paths import check_distinct, check_input, check_output, input_files
 from ._paths import write_output as _write
 from .io._errors import InputError
@@ -54,14 +54,7 @@ def _sigma(text: str) -> float | str:
     return value
 
 
-def _min_views(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 2; got {text!r}") from None
-    if value < 2:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 2 (a group needs two views); got {text}")
-    return value
+_min_views = int_at_least(2, " (a group needs two views)")
 
 
 _RIG_FORMATS_TEXT = (
