@@ -1,9 +1,18 @@
 """cdog_jax: multi-view, multi-instance point association with connected δ-overlap graphs."""
 
 from ._classes import ClassAssociation as ClassAssociation, associate_classes as associate_classes
-from ._config import Config as Config, Thresholds as Thresholds
+from ._associate import associate as associate, associate_batch as associate_batch
+from ._cdog import Config as Config, STAGES as STAGES, associate_traced as associate_traced
+from ._config import Thresholds as Thresholds
 from ._memory import estimate_peak_bytes as estimate_peak_bytes
-from ._pipeline import associate as associate, associate_batch as associate_batch, associate_traced as associate_traced
+from ._method import (
+    Method as Method,
+    Observations as Observations,
+    method_from as method_from,
+    method_names as method_names,
+    register_method as register_method,
+    unregister_method as unregister_method,
+)
 from ._result import Association as Association
 from ._status import Status as Status, check_status as check_status, status_messages as status_messages
 from ._rig_plot import plot_rays as plot_rays, plot_rig as plot_rig

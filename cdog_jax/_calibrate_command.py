@@ -31,7 +31,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._config import Config
+from ._cdog import Config
 from ._progress import bar, compiling
 from .geometry._camera import Rig
 from .geometry._parameters import so3_exp
@@ -98,7 +98,7 @@ def run_experiment(
     generated with the true rig at noise ``sigma`` (px); the coarse stage runs one round
     per gate in ``gates_px``, the fine stage ``rounds`` rounds (the last with free focal
     lengths)."""
-    from ._pipeline import associate_traced
+    from ._cdog import associate_traced
     from .metrics._scores import scene_metrics
     from .refine._calibration import calibrate, rig_errors
     from .synthetic import DEFAULT_BOX, default_rig, generate_scenes

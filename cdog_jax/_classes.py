@@ -20,13 +20,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._config import config_from
+from ._associate import method_argument, associate_batch
 from ._expect import INT, expect, expect_args
-from ._pipeline import associate_batch
-from ._postprocess import undistorted
 from ._result import Association
 from ._validate import as_array, check_observations, check_rig
 from .geometry._camera import Rig
+from .geometry._distortion import undistorted
 from .geometry._epipolar import epipolar_distances
 from .graph._sigma import focal_scale, nearest_samples, sigma_from_samples
 
@@ -73,7 +72,7 @@ def associate_classes(
     *,
     class_names=None,
     num_classes: int | None = None,
-    config="extended",
+    method=None,
     sigma: float | str = "auto",
     sigma_pool: str = "frame",
     dist=None,
@@ -81,6 +80,7 @@ def associate_classes(
     min_views: int = 2,
     batch_size: int = 64,
     memory_budget_gb: float | None = None,
+    config=None,
 ) -> ClassAssociation:
     """Associate detections that carry a class, every class of every frame in one call.
 
@@ -92,7 +92,7 @@ def associate_classes(
             ``mask`` is False).
         class_names: optional names by class id (``C`` of them).
         num_classes: ``C``; default ``len(class_names)``, else the largest id + 1.
-        config, dist, weights (``(F, M, P)``), min_views, memory_budget_gb: as in
+        method, dist, weights (``(F, M, P)``), min_views, memory_budget_gb, config: as in
             :func:`cdog_jax.associate_batch`.
         sigma: the noise σ in pixels, or ``"auto"``: estimated from the epipolar
             nearest-neighbour distances of all classes pooled (see ``sigma_pool``): one
@@ -109,7 +109,7 @@ def associate_classes(
     """
     expect_args("associate_classes", rig=(rig, Rig))
     expect(batch_size, INT, "batch_size", "associate_classes")
-    config = config_from(config, "associate_classes")
+    method = method_argument(method, config, "associate_classes")
     xy, mask = np.asarray(as_array(xy)), np.asarray(as_array(mask))
     check_rig(rig)
     check_observations(xy, mask, rig.num_views, batched=True)
@@ -129,11 +129,11 @@ def associate_classes(
     if B == 0:
         return _empty(rig, F, M, P, xy.dtype, C, class_names)
     dtype = jax.dtypes.canonicalize_dtype(xy.dtype if np.issubdtype(xy.dtype, np.floating) else np.float64)
-    auto = sigma == "auto" or config.sigma_mode == "auto"
+    auto = sigma == "auto" or method.sigma_mode == "auto"
     if auto and sigma_pool != "scene":
         frame_sigma = _pooled_sigma(rig, scenes, F, dist, dtype, pool=sigma_pool)
         sigma_arg = np.asarray(frame_sigma[scenes.frame], dtype)
-        config = config.replace(sigma_mode="given")
+        method = method.replace(sigma_mode="given")
     else:
         sigma_arg = "auto" if auto else sigma
     # Chunks of exactly batch_size scenes: one compiled program for any number of frames
@@ -143,7 +143,7 @@ def associate_classes(
     for lo in range(0, len(padded.xy), batch_size):
         part = slice(lo, lo + batch_size)
         chunks.append(associate_batch(
-            rig, jnp.asarray(padded.xy[part], dtype), jnp.asarray(padded.mask[part]), config=config,
+            rig, jnp.asarray(padded.xy[part], dtype), jnp.asarray(padded.mask[part]), method=method,
             sigma=jnp.asarray(padded.sigma[part]) if isinstance(padded.sigma, np.ndarray) else padded.sigma,
             dist=dist, weights=None if weights is None else jnp.asarray(padded.weights[part], dtype),
             min_views=min_views, batch_size=batch_size, memory_budget_gb=memory_budget_gb,

@@ -2,7 +2,7 @@
 
 The pipeline works on dense tables over the ``N = M·P`` detection slots of a scene: the
 epipolar distance table ``d (M, P, M, P)`` and its masked copy (floats), the proposal and
-adjacency matrices ``(N, N)`` (bools), and, depending on the config, the second
+adjacency matrices ``(N, N)`` (bools), and, depending on the method's stages, the second
 association's ``(G, M, N)`` member-to-node distances (``G = N/2``), the recovery's
 ``(G, N, 2)`` reprojection differences and the support filter's ``(G, M, P, 2)`` ones.
 Its peak memory is therefore ``c · N²`` bytes plus terms linear in ``N·M``, with ``c`` set
@@ -18,7 +18,7 @@ import os
 
 import numpy as np
 
-from ._config import Config
+from ._method import Method
 
 ENV_BUDGET = "CDOG_JAX_MEMORY_BUDGET"
 """Environment variable: the memory budget in GB (10⁹ bytes), e.g. ``"8"``."""
@@ -31,37 +31,26 @@ _MARGIN = 1.1  # the estimate sits 5–40 % above XLA's number on the shapes che
 _BATCH_EXTRA = 1.0  # float tables per scene that vmap adds (a cond runs both branches)
 
 
-def quadratic_bytes(M: int, config: Config, itemsize: int, batched: bool = False) -> float:
-    """Bytes per ``N²`` (``N = M·P``) at the peak of one scene's pipeline."""
-    f = float(itemsize)
-    # d and its masked copy, the proposal/adjacency bool tables, and (above N ≈ 10⁴, where
-    # XLA stops reusing some of them) about 2 more bytes per pair.
-    stages = [2.0 * f + 5.0]
-    if config.second_association:
-        stages.append(f * (M / 2.0 + 1.0))  # (G, M, N) distances beside d
-    if config.recover or config.regroup:
-        stages.append(3.0 * f + 6.0)  # d kept for regrouping, (G, N, 2) differences
-    coeff = max(stages)
-    if config.support_filter and (config.recover or config.regroup):
-        coeff += f  # (G, M, P, 2) differences while the regrouped tables are alive
-    if config.refine:
-        coeff += 0.5 * f
+def quadratic_bytes(M: int, method: Method, itemsize: int, batched: bool = False) -> float:
+    """Bytes per ``N²`` (``N = M·P``) at the peak of one scene's run of ``method``
+    (:meth:`Method.table_bytes`), plus what ``vmap`` adds."""
+    coeff = method.table_bytes(M, itemsize)
     if batched:
-        coeff += _BATCH_EXTRA * f
+        coeff += _BATCH_EXTRA * float(itemsize)
     return coeff
 
 
 def estimate_peak_bytes(
-    M: int, P: int, config: Config, *, dtype=np.float32, batch_size: int = 1, vmapped: bool | None = None
+    M: int, P: int, method: Method, *, dtype=np.float32, batch_size: int = 1, vmapped: bool | None = None
 ) -> int:
     """Estimated peak bytes of :func:`cdog_jax.associate` on ``M`` views of ``P`` slots, or
     of :func:`cdog_jax.associate_batch` (``vmapped``; default ``batch_size > 1``), which
-    runs ``batch_size`` scenes at a time. A pure function of the shapes and the config's
+    runs ``batch_size`` scenes at a time. A pure function of the shapes and the method.s
     structure."""
     itemsize = np.dtype(dtype).itemsize
     N = M * P
     vmapped = batch_size > 1 if vmapped is None else vmapped
-    per_scene = quadratic_bytes(M, config, itemsize, batched=vmapped) * N * N + 16.0 * itemsize * M * N
+    per_scene = quadratic_bytes(M, method, itemsize, batched=vmapped) * N * N + 16.0 * itemsize * M * N
     return int(_MARGIN * batch_size * per_scene)
 
 
@@ -106,10 +95,10 @@ def memory_budget_bytes(budget_gb: float | None = None) -> tuple[float, str]:
     return BUDGET_FRACTION * limit, f"{BUDGET_FRACTION:.0%} of {limit / 1e9:.1f} GB {where}"
 
 
-def largest_capacity(M: int, config: Config, dtype, batch_size: int, budget: float, vmapped: bool | None = None) -> int:
+def largest_capacity(M: int, method: Method, dtype, batch_size: int, budget: float, vmapped: bool | None = None) -> int:
     """The largest ``P`` whose estimate fits ``budget`` bytes (0 if none)."""
     lo, hi = 0, 1
-    fits = lambda p: estimate_peak_bytes(M, p, config, dtype=dtype, batch_size=batch_size, vmapped=vmapped) <= budget  # noqa: E731
+    fits = lambda p: estimate_peak_bytes(M, p, method, dtype=dtype, batch_size=batch_size, vmapped=vmapped) <= budget  # noqa: E731
     while fits(hi) and hi < 1 << 40:
         lo, hi = hi, 2 * hi
     while hi - lo > 1:
@@ -119,17 +108,17 @@ def largest_capacity(M: int, config: Config, dtype, batch_size: int, budget: flo
 
 
 def check_memory(
-    where: str, M: int, P: int, config: Config, dtype, batch_size: int = 1,
+    where: str, M: int, P: int, method: Method, dtype, batch_size: int = 1,
     budget_gb: float | None = None, vmapped: bool | None = None,
 ) -> int:
     """Raise ``MemoryError`` before compiling when the estimate for ``M`` views of ``P`` slots
     (``batch_size`` scenes at a time) exceeds the budget; return the estimate (bytes)."""
-    need = estimate_peak_bytes(M, P, config, dtype=dtype, batch_size=batch_size, vmapped=vmapped)
+    need = estimate_peak_bytes(M, P, method, dtype=dtype, batch_size=batch_size, vmapped=vmapped)
     budget, source = memory_budget_bytes(budget_gb)
     if need <= budget:
         return need
     scenes = f", {batch_size} scenes at a time" if batch_size > 1 else ""
-    fit = largest_capacity(M, config, dtype, batch_size, budget, vmapped)
+    fit = largest_capacity(M, method, dtype, batch_size, budget, vmapped)
     changes = [f"a smaller capacity P (at most {fit} slots per view fits)" if fit else "a smaller capacity P", "fewer views"]
     if batch_size > 1:
         changes.append("a smaller batch_size")

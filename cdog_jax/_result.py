@@ -1,8 +1,10 @@
 """The association result pytree (docs/ALGORITHM.md §11)."""
 
 import equinox as eqx
+import jax.numpy as jnp
 
 from ._types import Array, Bool, Float, Int
+from .graph._groups import compact_groups, labels_from_groups
 
 
 class Association(eqx.Module):
@@ -38,3 +40,36 @@ class Association(eqx.Module):
     sigma_px: Float[Array, ""]
     tau_px: Float[Array, ""]
     status: Int[Array, ""]
+
+
+def association_from_groups(
+    groups: Int[Array, "G M"],
+    valid: Bool[Array, " G"],
+    member: Bool[Array, "G M"],
+    points3d: Float[Array, "G 3"],
+    bpe: Float[Array, " G"],
+    err_px: Float[Array, " G"],
+    num_slots: int,
+    sigma_px: Float[Array, ""],
+    tau_px: Float[Array, ""],
+    status: Int[Array, ""],
+) -> Association:
+    """The one place an :class:`Association` is built: the group table ``(G, M)`` restricted
+    to ``member (G, M)``, valid groups moved to the front (order kept), their points
+    ``(G, 3)``, BPE (px²) and mean error (px) permuted alike and zeroed where invalid, and
+    the labels ``(M, num_slots)`` rebuilt."""
+    groups = jnp.where(member, groups, -1)
+    groups, valid, order = compact_groups(groups, valid)
+    return Association(
+        labels=labels_from_groups(groups, valid, num_slots),
+        groups=groups,
+        valid=valid,
+        points3d=jnp.where(valid[:, None], points3d[order], 0.0),
+        bpe=jnp.where(valid, bpe[order], 0.0),
+        err_px=jnp.where(valid, err_px[order], 0.0),
+        n_views=jnp.sum(groups >= 0, dtype=jnp.int32, axis=1),
+        num_groups=jnp.sum(valid, dtype=jnp.int32),
+        sigma_px=sigma_px,
+        tau_px=tau_px,
+        status=status,
+    )

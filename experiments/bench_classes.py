@@ -28,7 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import cdog_jax
-import cdog_jax._pipeline as pipeline
+import cdog_jax._cdog as pipeline
 from cdog_jax import Config, associate_classes
 from cdog_jax.synthetic import DEFAULT_BOX, default_rig
 

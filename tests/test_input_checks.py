@@ -168,17 +168,20 @@ def test_thresholds_out_of_range_are_refused(scene, batch):
         associate_batch(rig, xy_b, mask_b, thresholds=th._replace(delta=np.full(3, 0.5, np.float32)))
 
 
-# --- config presets by name ----------------------------------------------------------------
+# --- methods by name ------------------------------------------------------------------------
 
 
-def test_config_by_preset_name(scene):
+def test_method_by_registered_name(scene):
     rig, xy, mask = scene
-    by_name = associate(rig, xy, mask, config="paper")
-    np.testing.assert_array_equal(by_name.labels, associate(rig, xy, mask, config=Config.paper()).labels)
-    with pytest.raises(ValueError, match=r"config must be a Config or a preset name \('paper', 'extended', 'reference'\); got 'papr'"):
-        associate(rig, xy, mask, config="papr")
-    with pytest.raises(TypeError, match="associate_batch: config must be a Config or a preset name .*got int"):
-        plain(associate_batch)(rig, xy[None], mask[None], config=3)
+    by_name = associate(rig, xy, mask, method="paper")
+    np.testing.assert_array_equal(by_name.labels, associate(rig, xy, mask, method=Config.paper()).labels)
+    np.testing.assert_array_equal(by_name.labels, associate(rig, xy, mask, config="paper").labels)  # the older name
+    with pytest.raises(ValueError, match=r"associate: unknown method 'papr'; registered: extended, paper, reference"):
+        associate(rig, xy, mask, method="papr")
+    with pytest.raises(TypeError, match="associate_batch: method must be a Method or a registered name .*got int"):
+        plain(associate_batch)(rig, xy[None], mask[None], method=3)
+    with pytest.raises(TypeError, match="associate: give method= or config=.*not both"):
+        associate(rig, xy, mask, method="paper", config="paper")
 
 
 # --- associate_batch: lists, per-scene rigs -------------------------------------------------

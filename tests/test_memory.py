@@ -10,7 +10,7 @@ from helpers import ring_rig
 import cdog_jax
 from cdog_jax import Config, associate, associate_batch
 from cdog_jax._memory import ENV_BUDGET, check_memory, estimate_peak_bytes, memory_budget_bytes
-from cdog_jax._pipeline import _associate_jit, _prepare
+from cdog_jax._associate import _associate_jit, _prepare
 
 
 def test_ten_thousand_detections_per_view_are_refused_before_compiling(monkeypatch):
@@ -61,7 +61,7 @@ def test_estimate_is_monotone():
 def test_estimate_is_within_a_factor_of_xla(name, M, P):
     config = getattr(Config, name)()
     static, th = _prepare(config, 1.0, None, jnp.float32)
-    compiled = _associate_jit.lower(ring_rig(M), jnp.zeros((M, P, 2)), jnp.ones((M, P), bool), th, config=static).compile()
+    compiled = _associate_jit.lower(ring_rig(M), jnp.zeros((M, P, 2)), jnp.ones((M, P), bool), th, method=static).compile()
     analysis = compiled.memory_analysis()
     xla = analysis.temp_size_in_bytes + analysis.argument_size_in_bytes + analysis.output_size_in_bytes
     ratio = estimate_peak_bytes(M, P, config) / xla

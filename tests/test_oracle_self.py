@@ -5,7 +5,7 @@ import itertools
 import numpy as np
 import pytest
 
-from cdog_jax._config import Config
+from cdog_jax import Config
 
 from oracle import (
     adjacency,

@@ -143,9 +143,9 @@ def test_sigma_fallback_is_flagged():
 def test_thresholds_override_does_not_recompile():
     xy, mask, _, _ = random_scene(RIG, 6, P, sigma=1.0, seed=11)
     associate(RIG, xy, mask, sigma=1.0)
-    before = cdog_jax._pipeline._associate_jit._cache_size()
+    before = cdog_jax._associate._associate_jit._cache_size()
     associate(RIG, xy, mask, sigma=3.0, config=Config.paper(delta=0.6, iqr_alpha=1.5))
-    assert cdog_jax._pipeline._associate_jit._cache_size() == before
+    assert cdog_jax._associate._associate_jit._cache_size() == before
 
 
 @pytest.mark.parametrize(

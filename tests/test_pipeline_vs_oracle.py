@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 import cdog_jax
-from cdog_jax._config import Config
+from cdog_jax import Config
 
 from oracle import make_rig, make_scene, oracle_associate
 

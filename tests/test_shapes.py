@@ -8,7 +8,7 @@ import pytest
 from helpers import random_scene, ring_rig
 
 from cdog_jax import Config, associate, associate_batch
-from cdog_jax._pipeline import _associate_extras_jit, _associate_jit, _check_extras, _prepare
+from cdog_jax._associate import _associate_extras_jit, _associate_jit, _check_extras, _prepare
 from cdog_jax._shapes import chunk_size, slot_capacity
 
 RIG = ring_rig(5)
@@ -20,8 +20,8 @@ def _unpadded(xy, mask, config, sigma=1.0, dist=None, weights=None, min_views=2)
     static, th = _prepare(config, sigma, None, np.float32)
     extras = _check_extras(dist, weights, min_views, mask.shape, np.float32)
     if extras is None:
-        return _associate_jit(RIG, xy, mask, th, config=static)
-    return _associate_extras_jit(RIG, xy, mask, th, *extras, config=static)
+        return _associate_jit(RIG, xy, mask, th, method=static)
+    return _associate_extras_jit(RIG, xy, mask, th, *extras, method=static)
 
 
 DISCRETE = ("labels", "groups", "valid", "n_views", "num_groups", "status")
@@ -93,7 +93,7 @@ def test_one_scene_batch_runs_the_single_scene_program():
 
 def test_capacity_falls_back_to_the_unpadded_shape_only_where_the_budget_needs_it():
     from cdog_jax._memory import estimate_peak_bytes
-    from cdog_jax._pipeline import _capacity
+    from cdog_jax._associate import _capacity
 
     config = Config.extended()
     at_33, at_64 = (estimate_peak_bytes(10, p, config) for p in (33, 64))

@@ -11,7 +11,7 @@ import argparse
 import os
 import time
 
-from .._config import Config
+from .._cdog import Config
 from ..io._rig_files import FORMATS
 
 METHODS = {

@@ -23,7 +23,7 @@ it and scores it with :func:`cdog_jax.metrics.scene_metrics`, all inside one ``j
 
 Time per scene is an *estimate*: after the sweep, one chunk of each bucket (``TIMING_SCENES``
 scenes spread over the bucket, rounded up to a multiple of its batch size) is associated
-per config by a jitted ``lax.map`` of :func:`cdog_jax.associate_traced` with the sweep's
+per config by a jitted ``lax.map`` of each method's per-scene function with the sweep's
 batch size (what :func:`cdog_jax.associate_batch` does), warm, median of ``timing_runs``
 runs; every scene of the bucket gets ``chunk time / chunk size``. It excludes scene
 generation and scoring, and on several devices it is the time of one device.
@@ -44,9 +44,9 @@ from jax.experimental import io_callback
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from .._expect import expect_args
-from .._config import Config
+from .._cdog import Config
+from .._method import Method, Observations, method_from
 from .._memory import check_memory
-from .._pipeline import associate_traced
 from ..geometry._camera import Rig
 from ..metrics._scores import Metrics, scene_metrics
 from ..synthetic._rig import DEFAULT_BOX, IMAGE_SIZE
@@ -167,7 +167,7 @@ def _equal(a, b) -> bool:
 class _Plan:
     """Everything static about one sweep program (hashable: the compile cache key)."""
 
-    groups: tuple[tuple[Config, tuple[int, ...]], ...]  # (structure, config positions)
+    groups: tuple[tuple[Method, tuple[int, ...]], ...]  # (structure, config positions)
     capacities: tuple[int, ...]  # bucket capacities that hold scenes
     batch_sizes: tuple[int, ...]  # per-device lax.map batch size per bucket
     draw_capacity: int
@@ -187,7 +187,7 @@ def _scene_outputs(rig, box, thresholds, plan, capacity, batch, args):
     for th, (structure, members) in zip(thresholds, plan.groups):
 
         def run(th, structure=structure):
-            res = associate_traced(rig, scene.xy, scene.mask, th._replace(sigma_px=sigma), structure)
+            res = structure.associate_scene(rig, Observations(scene.xy, scene.mask), th._replace(sigma_px=sigma))
             return scene_metrics(rig, res, scene), (res.sigma_px, res.tau_px, res.num_groups)
 
         if len(members) == 1:
@@ -391,16 +391,28 @@ def _check_memory(num_views: int, layout: _Layout, groups: dict, dtype) -> None:
             check_memory(f"sweep (bucket {capacity})", num_views, capacity, structure, dtype, at_once, vmapped=batch > 1)
 
 
-def _check_configs(configs) -> dict[str, Config]:
-    configs = dict(configs) if configs is not None else {"paper": Config.paper()}
-    if not configs:
-        raise ValueError("configs must name at least one Config")
-    for name, config in configs.items():
+def _check_methods(methods, configs) -> dict[str, Method]:
+    """``{name: Method}`` from ``methods`` (a mapping of names to methods or registered
+    names, or a sequence of registered names) or the older ``configs``; not both."""
+    if configs is not None:
+        if methods is not None:
+            raise TypeError("sweep: give methods= or configs= (its older name), not both")
+        methods = configs
+    if methods is None:
+        methods = {"paper": Config.paper()}
+    elif isinstance(methods, str):
+        raise TypeError(f"sweep: methods must be a mapping {{name: method}} or a list of registered names; got the string {methods!r}")
+    elif not isinstance(methods, Mapping):
+        methods = {name: name for name in methods}
+    methods = dict(methods)
+    if not methods:
+        raise ValueError("sweep: methods must name at least one method")
+    checked = {}
+    for name, method in methods.items():
         if not isinstance(name, str) or not name or "/" in name or "," in name:
-            raise ValueError(f"config names must be non-empty strings without '/' or ','; got {name!r}")
-        if not isinstance(config, Config):
-            raise ValueError(f"configs[{name!r}] must be a Config; got {type(config).__name__}")
-    return configs
+            raise ValueError(f"sweep: method names must be non-empty strings without '/' or ','; got {name!r}")
+        checked[name] = method_from(method, f"sweep (method {name!r})")
+    return checked
 
 
 def _check_batch_size(batch_size, buckets, mesh: Mesh) -> tuple[int, ...]:
@@ -420,7 +432,7 @@ def sweep(
     rig: Rig,
     grid: Grid,
     *,
-    configs: Mapping[str, Config] | None = None,
+    methods: Mapping[str, Method | str] | Sequence[str] | None = None,
     buckets: tuple[int, ...] = (20, 50, 90, 130),
     batch_size: int | tuple[int, ...] | None = None,
     box=DEFAULT_BOX,
@@ -428,7 +440,8 @@ def sweep(
     mesh: Mesh | None = None,
     timing: bool = True,
     timing_runs: int = 3,
-    progress: Callable[[SweepProgress], None] | str | None = "auto",
+    progress: Callable[[SweepProgress], None] | str | bool | None = "auto",
+    configs: Mapping[str, Method | str] | None = None,
 ) -> SweepResult:
     """Generate, associate and score every scene of ``grid`` in one compiled call.
 
@@ -436,10 +449,11 @@ def sweep(
         rig: the cameras, ``K (M, 3, 3)``, ``R (M, 3, 3)``, ``t (M, 3)``; ``grid.views``
             selects a subset.
         grid: the scenes (σ × count × scenes per cell, seed).
-        configs: ``{name: Config}`` to run on every scene (default ``{"paper": paper()}``).
-            Each scene gets ``config.thresholds(σ)`` with its true σ (configs with
-            ``sigma_mode="auto"`` estimate it themselves). Numeric config fields are traced:
-            changing only them reuses the compiled program, and configs that differ only
+        methods: ``{name: method}`` to run on every scene (a :class:`~cdog_jax.Method` or a
+            registered name), or a list of registered names (default
+            ``{"paper": Config.paper()}``). Each scene gets ``method.thresholds(σ)`` with
+            its true σ (methods with ``sigma_mode="auto"`` estimate it themselves). Numbers
+            are traced: changing only them reuses the compiled program, and methods that differ only
             in numbers (a tuning grid) share one pipeline, mapped over their thresholds.
         buckets: increasing slot capacities; a scene runs at the smallest one ``>=`` its
             count. The largest must hold the largest count.
@@ -454,28 +468,35 @@ def sweep(
             finishes, while the compiled call runs (e.g. :func:`print_progress`). Buckets
             are the only points where the one compiled call reports back; a sweep with
             and one without progress are two programs (each compiled once). ``"auto"``
-            (default): a progress bar on stderr when it is a terminal, else none. In a
-            terminal a line also says while the sweep compiles.
+            (default, or ``True``): a progress bar on stderr when it is a terminal, else none;
+            ``False``: none. In a terminal a line also says while the sweep
+            compiles.
+        configs: the older name of ``methods`` (give one of them).
 
     Returns:
         A :class:`SweepResult` with ``(S,)`` arrays in :meth:`Grid.flat` order.
     """
     expect_args("sweep", rig=(rig, Rig), grid=(grid, Grid))
+    if isinstance(progress, bool):
+        progress = "auto" if progress else None
     if isinstance(progress, str) and progress != "auto":
-        raise ValueError(f"sweep: progress must be a callable, None or 'auto'; got {progress!r}")
+        raise ValueError(f"sweep: progress must be a callable, None, a bool or 'auto'; got {progress!r}")
+    if progress is not None and not isinstance(progress, str) and not callable(progress):
+        raise TypeError(f"sweep: progress must be a callable, None, a bool or 'auto'; got {type(progress).__name__}")
+    methods = _check_methods(methods, configs)
     close_bar = None
     if progress == "auto":
         progress, close_bar = sweep_bar(grid.num_scenes) if interactive() else (None, None)
     try:
-        return _sweep(rig, grid, configs, buckets, batch_size, box, image_size, mesh, timing, timing_runs, progress)
+        return _sweep(rig, grid, methods, buckets, batch_size, box, image_size, mesh, timing, timing_runs, progress)
     finally:
         if close_bar is not None:
             close_bar()
 
 
 def _sweep(rig, grid, configs, buckets, batch_size, box, image_size, mesh, timing, timing_runs, progress) -> SweepResult:
-    """:func:`sweep` after its ``progress`` is resolved to a callable or ``None``."""
-    configs = _check_configs(configs)
+    """:func:`sweep` after its ``progress`` is resolved to a callable or ``None`` and its
+    methods to ``{name: Method}`` (``configs``)."""
     mesh = default_mesh() if mesh is None else mesh
     if tuple(mesh.axis_names) != (AXIS,):
         raise ValueError(f"mesh must have exactly one axis named {AXIS!r}; got {tuple(mesh.axis_names)}")
@@ -494,7 +515,7 @@ def _sweep(rig, grid, configs, buckets, batch_size, box, image_size, mesh, timin
 
     layout = _layout(grid, buckets, batch_size, mesh.devices.size, dtype)
     # Configs that share a structure share one traced pipeline (mapped over their thresholds).
-    groups: dict[Config, list[int]] = {}
+    groups: dict[Method, list[int]] = {}
     for i, config in enumerate(configs.values()):
         groups.setdefault(config.structure(), []).append(i)
     _check_memory(rig.num_views, layout, groups, dtype)
@@ -575,7 +596,7 @@ def _per_config(per_group, plan: _Plan, names: list[str]) -> dict[str, dict[str,
     return {name: metrics[name] for name in names}
 
 
-def _host_thresholds(config: Config, dtype):
+def _host_thresholds(config: Method, dtype):
     """``config.thresholds(0)`` as numpy scalars of ``dtype`` (σ is set per scene)."""
     return jax.tree.map(lambda a: np.asarray(a, dtype), config.thresholds(0.0, dtype=dtype))
 
@@ -595,7 +616,7 @@ TIMING_SCENES = 8
 @functools.partial(jax.jit, static_argnames=("config", "batch"))
 def _associate_chunk(rig, xy, mask, thresholds, *, config, batch):
     """The sweep's association step alone on a chunk of scenes (``lax.map`` as in the sweep)."""
-    one = lambda a: associate_traced(rig, a[0], a[1], a[2], config)  # noqa: E731
+    one = lambda a: config.associate_scene(rig, Observations(a[0], a[1]), a[2])  # noqa: E731
     return _map(one, (xy, mask, thresholds), batch)
 
 

@@ -248,7 +248,7 @@ def _short_baselines(centers, target, target_name, dist_cc, names) -> list[str]:
     """One warning per pair of distinct cameras whose baseline subtends less than
     ``Config.min_parallax_deg`` at ``target``: a point they alone see cannot pass the
     validity gate (and is poorly determined)."""
-    from .._config import Config
+    from .._cdog import Config
 
     limit = Config().min_parallax_deg
     to_target = target[None, :] - centers

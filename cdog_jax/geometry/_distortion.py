@@ -31,7 +31,8 @@ import numpy as np
 from jax import lax
 
 from .._expect import ARRAY, INT, expect_args
-from .._types import Array, Float
+from .._types import Array, Bool, Float
+from ._camera import Rig
 
 
 class Fisheye(eqx.Module):
@@ -274,3 +275,12 @@ def _fisheye_undistort_offset(k, xd, yd, iterations: int):
     theta = jnp.clip(theta, 0.0, jnp.pi / 2 - 1e-3)
     scale_m1 = jnp.where(pos, jnp.tan(theta) / rd - 1, 0.0)
     return xd * scale_m1, yd * scale_m1
+
+
+def undistorted(
+    rig: Rig, xy: Float[Array, "M P 2"], mask: Bool[Array, "M P"], dist: Float[Array, "M 5"] | Fisheye
+) -> Float[Array, "M P 2"]:
+    """Detections ``xy (M, P, 2)`` (pixels, as the lens saw them) mapped to the ideal pinhole
+    pixels of ``rig`` through OpenCV distortion ``dist (M, 5)`` or a :class:`Fisheye`;
+    padding stays 0."""
+    return jnp.where(mask[..., None], undistort_pixels(rig.K, dist, jnp.where(mask[..., None], xy, 0.0)), 0.0)

@@ -6,11 +6,14 @@ it and larger than an absolute floor ``floor_px2 + (floor_sigma · σ)²``; ever
 it is discarded.
 """
 
+from typing import NamedTuple
+
 import jax
 import jax.numpy as jnp
 
 from .._expect import ARRAY, INT, expect_args
 from .._config import Thresholds
+from .._stage import Scene, Stage, State
 from .._types import Array, Bool, Float, Int
 
 
@@ -69,3 +72,20 @@ def bpe_jump_keep(
     rank_keep = jnp.arange(G, dtype=jnp.int32) <= first
     keep = jnp.zeros((G,), bool).at[order].set(rank_keep)
     return keep & valid
+
+
+class BpeFilterOptions(NamedTuple):
+    """The BPE jump filter's option (a field of :class:`cdog_jax.Config`): gaps needed
+    before a jump can be declared. Its numbers: ``th.jump_kappa``, ``jump_floor_px2``,
+    ``jump_floor_sigma``."""
+
+    jump_min_gaps: int
+
+
+def bpe_filter_stage(scene: Scene, state: State, options: BpeFilterOptions) -> State:
+    """Drop the groups after the first jump of the sorted BPEs (needs a fit)."""
+    keep = bpe_jump_keep(state.fit.bpe, state.table.valid, scene.sigma, scene.th, options.jump_min_gaps)
+    return state._replace(table=state.table.keep(keep), fit=state.fit._replace(member=state.fit.member & keep[:, None]))
+
+
+BPE_FILTER = Stage("bpe_filter", bpe_filter_stage, BpeFilterOptions, lambda config: config.bpe_filter)

@@ -31,7 +31,8 @@ import optimistix as optx
 from jaxtyping import ArrayLike, Real
 
 from .._expect import ARRAY, expect_args
-from .._config import Config, Thresholds
+from .._cdog import Config
+from .._config import Thresholds
 from .._result import Association
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
@@ -452,7 +453,7 @@ def calibrate(
 def _calibrate(rig, xy, mask, th, traced, *, config, options):
     # Imported here: the pipeline imports the refine stages, so a module-level import
     # would be circular.
-    from .._pipeline import associate_traced
+    from .._cdog import associate_traced
 
     rounds = th.sigma_px.shape[0] - 1
 

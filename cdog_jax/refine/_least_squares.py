@@ -6,10 +6,14 @@ it lowers the group's BPE, so refinement never makes a group worse. A group whos
 stopped at ``max_steps`` is reported (``Status.REFINE_CAPPED``).
 """
 
+from typing import NamedTuple
+
 import jax
 import jax.numpy as jnp
 
 from .._expect import ARRAY, INT, expect_args
+from .._stage import Scene, Stage, State
+from .._status import Status
 from .._types import Array, Bool, Float
 from ..geometry._camera import Rig
 from ..geometry._projection import project
@@ -50,3 +54,20 @@ def refine_points(
 
     X, capped = jax.vmap(one)(X0, xy_g, member)
     return X, jnp.any(capped)
+
+
+class RefineOptions(NamedTuple):
+    """The refinement stage's option (a field of :class:`cdog_jax.Config`): the solver's
+    step bound."""
+
+    refine_max_steps: int
+
+
+def refine_stage(scene: Scene, state: State, options: RefineOptions) -> State:
+    """Each fitted point refined by Levenberg–Marquardt (``Status.REFINE_CAPPED`` at the bound)."""
+    fit = state.fit
+    X, capped = refine_points(scene.rig, fit.X, fit.xy_g, fit.member, options.refine_max_steps)
+    return state._replace(fit=fit._replace(X=X)).flag(capped, Status.REFINE_CAPPED)
+
+
+REFINE = Stage("refine", refine_stage, RefineOptions, lambda config: config.refine)

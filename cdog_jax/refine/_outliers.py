@@ -7,16 +7,35 @@ and reprojected into the other members; a node's score is its mean reprojection 
 that is still changing groups at that bound is reported (``Status.IQR_CAPPED``).
 """
 
+from __future__ import annotations
+
+from functools import partial
+from typing import NamedTuple
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .._expect import ARRAY, expect_args
-from .._config import Config, Thresholds
+from .._config import IqrQuartiles, IqrScore, Thresholds
+from .._stage import GroupTable, Scene, Stage, State
+from .._status import Status
 from .._types import Array, Bool, Float
+from ..graph._groups import gather_groups
 from ..geometry._camera import Rig
 from ..geometry._projection import reprojection_errors_views_last
 from ..geometry._triangulate import solve_normal_3x3
+
+
+class IqrOptions(NamedTuple):
+    """The IQR stage's options (fields of :class:`cdog_jax.Config`): which score and
+    quartiles, the reference's guards, and the bound of the removal loop. Its numbers:
+    ``th.iqr_alpha``, ``iqr_floor_px``, ``iqr_min_px``, ``iqr_force_px``."""
+
+    iqr_score: IqrScore
+    iqr_quartiles: IqrQuartiles
+    iqr_guards: bool
+    max_iqr_iters: int
 
 
 def percentile_linear(values: Float[Array, " K"], count, q: float) -> Float[Array, ""]:
@@ -60,11 +79,11 @@ def node_scores(
 
 
 def iqr_outliers(
-    score: Float[Array, " M"], member: Bool[Array, " M"], th: Thresholds, config: Config
+    score: Float[Array, " M"], member: Bool[Array, " M"], th: Thresholds, options: IqrOptions
 ) -> Bool[Array, " M"]:
     """Members whose score lies outside ``[max(0, Q1 − α IQR), Q3 + α IQR]``."""
-    expect_args("iqr_outliers", score=(score, ARRAY), member=(member, ARRAY), th=(th, Thresholds), config=(config, Config))
-    if config.iqr_quartiles == "zero_pad":
+    expect_args("iqr_outliers", score=(score, ARRAY), member=(member, ARRAY), th=(th, Thresholds), options=(options, IqrOptions))
+    if options.iqr_quartiles == "zero_pad":
         vals = jnp.concatenate([jnp.where(member, score, jnp.inf), jnp.zeros((1,), score.dtype)])
         count = jnp.sum(member, dtype=jnp.int32) + 1
     else:
@@ -78,7 +97,7 @@ def iqr_outliers(
     ub = q3 + th.iqr_alpha * iqr
     # The floor keeps float round-off (σ = 0: every score ~1e-4 px) from making outliers.
     out = member & ((score < lb) | (score > ub)) & (score > th.iqr_floor_px) & (count > 0)
-    if config.iqr_guards:
+    if options.iqr_guards:
         top = jnp.max(jnp.where(member, score, -jnp.inf))
         out = out & (top >= th.iqr_min_px)
         worst = jnp.argmax(jnp.where(member, score, -jnp.inf)).astype(jnp.int32)
@@ -99,10 +118,10 @@ def remove_outliers(
     xy_g: Float[Array, "G M 2"],
     member: Bool[Array, "G M"],
     th: Thresholds,
-    config: Config,
+    options: IqrOptions,
 ) -> tuple[Bool[Array, "G M"], Bool[Array, ""]]:
     """Iterated IQR removal over all groups; returns the members ``(G, M)`` and ``()`` True
-    when some chunk's loop stopped at ``config.max_iqr_iters`` while its last round still
+    when some chunk's loop stopped at ``options.max_iqr_iters`` while its last round still
     removed members (more outliers may be left).
 
     Per group ``N_g (G, M, 3, 3)``, ``r_g (G, M, 3)`` DLT blocks, ``xy_g (G, M, 2)`` pixels,
@@ -110,11 +129,11 @@ def remove_outliers(
 
     Groups are independent, so only those with ≥ 3 members are visited: they are moved to
     the front and cleaned ``IQR_CHUNK`` at a time, each chunk iterated until none of its
-    groups changes (at most ``config.max_iqr_iters`` rounds). The static capacity ``G`` is
+    groups changes (at most ``options.max_iqr_iters`` rounds). The static capacity ``G`` is
     far larger than the number of real groups, so this costs what the real groups cost.
     """
-    expect_args("remove_outliers", rig=(rig, Rig), th=(th, Thresholds), config=(config, Config))
-    own = config.iqr_score == "include_own"
+    expect_args("remove_outliers", rig=(rig, Rig), th=(th, Thresholds), options=(options, IqrOptions))
+    own = options.iqr_score == "include_own"
     G, M = member.shape
     C = min(IQR_CHUNK, G)
     G_pad = -(-G // C) * C
@@ -123,13 +142,13 @@ def remove_outliers(
         big = jnp.sum(mem, dtype=jnp.int32) >= 3
         w = mem.astype(N.dtype)
         score, _ = node_scores(rig, N * w[:, None, None], r * w[:, None], origin, xy, mem, own)
-        out = iqr_outliers(score, mem, th, config) & big
+        out = iqr_outliers(score, mem, th, options) & big
         return mem & ~out
 
     def clean_chunk(N, r, xy, mem):
         def cond(carry):
             _, changed, it = carry
-            return changed & (it < config.max_iqr_iters)
+            return changed & (it < options.max_iqr_iters)
 
         def body(carry):
             mem, _, it = carry
@@ -161,3 +180,36 @@ def remove_outliers(
     cleaned = jnp.zeros((G, M), bool).at[order].max(mem_s & live[:, None])  # padding rows add nothing
     keep = jnp.where(big[:, None], cleaned, member)  # groups of 2 are left as they are
     return keep & (jnp.sum(keep, dtype=jnp.int32, axis=1, keepdims=True) >= 2), capped
+
+
+# The IQR runs twice in extended() (regroup): as a nested jit it is traced and lowered once
+# and the second call reuses it.
+@partial(jax.jit, static_argnames=("options",))
+def iqr_table(
+    rig: Rig, xy: Float[Array, "M P 2"], table: GroupTable, blocks: tuple, th: Thresholds, options: IqrOptions
+) -> tuple[GroupTable, Bool[Array, ""]]:
+    """Alg. 3 on the group table (per-node DLT ``blocks`` as in :func:`dlt_blocks`); returns
+    the cleaned table (groups left with < 2 members are no longer valid) and ``()`` True
+    when the loop stopped at its bound."""
+    N_node, r_node, origin = blocks
+    groups, valid = table
+    member, capped = remove_outliers(
+        rig,
+        gather_groups(groups, N_node),
+        gather_groups(groups, r_node),
+        origin,
+        gather_groups(groups, xy),
+        valid[:, None] & (groups >= 0),
+        th,
+        options,
+    )
+    return GroupTable(jnp.where(member, groups, -1), jnp.sum(member, dtype=jnp.int32, axis=1) >= 2), capped
+
+
+def iqr_stage(scene: Scene, state: State, options: IqrOptions) -> State:
+    """The group table with IQR outliers removed (``Status.IQR_CAPPED`` at the bound)."""
+    table, capped = iqr_table(scene.rig, scene.xy, state.table, scene.blocks, scene.th, options)
+    return state._replace(table=table, fit=None).flag(capped, Status.IQR_CAPPED)
+
+
+IQR = Stage("iqr", iqr_stage, IqrOptions, lambda config: config.iqr)

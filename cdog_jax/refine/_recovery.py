@@ -10,6 +10,7 @@ one view compete for a group, the closest wins (ties: smallest node index).
 import jax.numpy as jnp
 
 from .._config import Thresholds
+from .._stage import Scene, Stage, State
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..geometry._projection import project_views_last
@@ -43,3 +44,12 @@ def recover_leftovers(
     err = jnp.where(allowed, err, jnp.inf)
 
     return attach_cheapest(groups, err, th.recover_frac * tau_px)
+
+
+def recover_stage(scene: Scene, state: State, options: None) -> State:
+    """Attach leftover detections to the groups whose fitted point reprojects near them."""
+    groups = recover_leftovers(scene.rig, scene.xy, scene.mask, *state.table, state.fit.X, scene.tau, scene.th)
+    return state._replace(table=state.table._replace(groups=groups), fit=None)
+
+
+RECOVER = Stage("recover", recover_stage, None, lambda config: config.recover)

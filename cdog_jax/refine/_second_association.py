@@ -9,6 +9,7 @@ import jax.numpy as jnp
 
 from .._expect import ARRAY, expect_args
 from .._config import Thresholds
+from .._stage import Scene, Stage, State
 from .._types import Array, Bool, Float, Int
 from ._attach import attach_cheapest, leftover_nodes
 
@@ -42,3 +43,13 @@ def second_association(
     cost = jnp.where(allowed, cost, jnp.inf)
 
     return attach_cheapest(groups, cost, th.second_frac * tau_px)
+
+
+def second_association_stage(scene: Scene, state: State, options: None) -> State:
+    """The group table with leftover nodes attached by their epipolar cost."""
+    M, P = scene.mask.shape
+    groups = second_association(scene.d.reshape(M * P, M * P), *state.table, scene.node_valid, scene.tau, scene.th)
+    return state._replace(table=state.table._replace(groups=groups), fit=None)
+
+
+SECOND_ASSOCIATION = Stage("second_association", second_association_stage, None, lambda config: config.second_association)

@@ -23,6 +23,7 @@ import jax
 import jax.numpy as jnp
 
 from .._config import Thresholds
+from .._stage import Scene, Stage, State
 from .._types import Array, Bool, Float
 from ..geometry._camera import Rig
 from ..geometry._projection import project_views_last
@@ -89,3 +90,13 @@ def support_keep(
     )
     tail = jnp.sum(jnp.where(j_ok & (j >= kc), jnp.exp(log_pmf), 0.0), axis=1)  # (G,)
     return valid & ~behind & ((k == 0) | (tail >= th.support_alpha))
+
+
+def support_stage(scene: Scene, state: State, options: None) -> State:
+    """Drop the groups that views seeing their point do not detect (needs a fit)."""
+    fit = state.fit
+    keep = support_keep(scene.rig, scene.xy, scene.mask, fit.X, fit.member, state.table.valid, scene.tau, scene.th)
+    return state._replace(table=state.table.keep(keep), fit=fit._replace(member=fit.member & keep[:, None]))
+
+
+SUPPORT = Stage("support", support_stage, None, lambda config: config.support_filter)

@@ -21,9 +21,11 @@ groups, vmappable like the rest of the pipeline.
 import jax
 import jax.numpy as jnp
 
+from .._stage import GroupTable, Scene, Stage, State, always
+
 from .._types import Array, Bool, Float
 from ..geometry._camera import Rig, affine_per_view
-from ..geometry._projection import reprojection_errors_views_last
+from ..geometry._projection import group_errors, reprojection_errors_views_last
 from ..geometry._triangulate import dlt_blocks_views_last, solve_normal_3x3
 
 
@@ -136,3 +138,18 @@ def validity_gate(
         & errors_within(member_errors(rig, X, xy_g, member), bound)
     )
     return member & valid[:, None], valid, X
+
+
+def validity_stage(scene: Scene, state: State, options: None) -> State:
+    """The last stage: every valid group passes the gate (needs a fit); the fit holds the
+    gated members, points and their errors."""
+    fit = state.fit
+    member, valid, X = validity_gate(
+        scene.rig, fit.xy_g, fit.member & state.table.valid[:, None], fit.X, scene.tau,
+        scene.th.max_err_frac, scene.th.min_parallax_deg,
+    )
+    bpe, err_px = group_errors(scene.rig, X, fit.xy_g, member)
+    return state._replace(table=GroupTable(state.table.groups, valid), fit=fit._replace(member=member, X=X, bpe=bpe, err_px=err_px))
+
+
+VALIDITY = Stage("validity_gate", validity_stage, None, always)

@@ -1,31 +1,21 @@
-"""What happens around the association of one scene when the input is real data: lens
-undistortion before it, and after it confidence-weighted triangulation and a minimum
-number of views per group. Pure, traced functions (jit/vmap them), used by
-:func:`cdog_jax.associate` and :func:`cdog_jax.associate_batch`.
+"""What happens after any method has associated one scene of real data: confidence-weighted
+triangulation, a minimum number of views per group, and the validity gate again. A pure,
+traced function (jit/vmap it), used by :func:`cdog_jax.associate` and
+:func:`cdog_jax.associate_batch`.
 """
 
 from __future__ import annotations
 
 import jax.numpy as jnp
 
-from ._config import Thresholds
-from ._result import Association
-from ._types import Array, Bool, Float, Int
+
+from ._result import Association, association_from_groups
+from ._types import Array, Float, Int
 from .geometry._camera import Rig
-from .geometry._distortion import Fisheye, undistort_pixels
 from .geometry._projection import group_errors
 from .geometry._triangulate import triangulate_views_last
-from .graph._groups import compact_groups, gather_groups, labels_from_groups
+from .graph._groups import gather_groups
 from .refine._validity import validity_gate
-
-
-def undistorted(
-    rig: Rig, xy: Float[Array, "M P 2"], mask: Bool[Array, "M P"], dist: Float[Array, "M 5"] | Fisheye
-) -> Float[Array, "M P 2"]:
-    """Detections ``xy (M, P, 2)`` (pixels, as the lens saw them) mapped to the ideal pinhole
-    pixels of ``rig`` through OpenCV distortion ``dist (M, 5)`` or a :class:`Fisheye`;
-    padding stays 0."""
-    return jnp.where(mask[..., None], undistort_pixels(rig.K, dist, jnp.where(mask[..., None], xy, 0.0)), 0.0)
 
 
 def finish_groups(
@@ -34,7 +24,7 @@ def finish_groups(
     result: Association,
     weights: Float[Array, "M P"] | None,
     min_views: Int[Array, ""],
-    th: Thresholds,
+    th: tuple,
 ) -> Association:
     """``result`` with groups of fewer than ``min_views`` views dropped (their detections
     become unassigned) and, when ``weights (M, P)`` is given (e.g. detector confidence, ≥ 0),
@@ -64,17 +54,4 @@ def finish_groups(
     member = member & keep[:, None]
     groups = jnp.where(member, groups, -1)
     bpe, err_px = group_errors(rig, X, xy_g, member)
-    groups, keep, order = compact_groups(groups, keep)
-    return Association(
-        labels=labels_from_groups(groups, keep, P),
-        groups=groups,
-        valid=keep,
-        points3d=jnp.where(keep[:, None], X[order], 0.0),
-        bpe=jnp.where(keep, bpe[order], 0.0),
-        err_px=jnp.where(keep, err_px[order], 0.0),
-        n_views=jnp.sum(groups >= 0, dtype=jnp.int32, axis=1),
-        num_groups=jnp.sum(keep, dtype=jnp.int32),
-        sigma_px=result.sigma_px,
-        tau_px=result.tau_px,
-        status=result.status,
-    )
+    return association_from_groups(groups, keep, member, X, bpe, err_px, P, result.sigma_px, result.tau_px, result.status)

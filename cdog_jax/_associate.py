@@ -1,0 +1,325 @@
+"""The public entry points: :func:`associate` (one scene) and :func:`associate_batch`.
+
+Whatever the method (C-DOG's presets or any registered :class:`~cdog_jax.Method`), they
+check the inputs eagerly, undistort, pad the shapes to a short ladder (``_shapes.py``),
+compile the method's per-scene function once per shape (``jit``; ``vmap`` for batches, in
+chunks so memory stays bounded), and finish with confidence weights, the minimum number of
+views and the validity gate (``_finish.py``).
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._cdog import Config
+from ._expect import INT, expect, expect_args
+from ._finish import finish_groups
+from ._memory import check_memory
+from ._method import Method, Observations, method_from
+from ._result import Association
+from ._shapes import chunk_size, pad_scenes, pad_slots, slot_capacity, trim
+from ._types import Array, ArrayLike, Float
+from ._validate import as_array, check_batch_rig, check_observations, check_rig, check_sigma, check_threshold_shapes
+from .geometry._camera import Rig
+from .geometry._distortion import Fisheye, undistorted
+
+
+def method_argument(method, config, where: str) -> Method:
+    """The method of a call: ``method`` (a :class:`Method` or a registered name), or the
+    older keyword ``config`` (the same thing); not both."""
+    if config is not None:
+        if method is not None:
+            raise TypeError(f"{where}: give method= or config= (its older name), not both")
+        method = config
+    return method_from("extended" if method is None else method, where)
+
+
+def check_thresholds_type(thresholds, method: Method, where: str) -> None:
+    """``thresholds`` is None or of the type of ``method.thresholds()``."""
+    kind = type(method.thresholds())
+    if thresholds is not None and not isinstance(thresholds, kind):
+        raise TypeError(f"{where}: thresholds must be {kind.__name__} or None; got {type(thresholds).__name__}")
+
+
+def _run_scene(rig, xy, mask, th, method):
+    """The method's per-scene function on plain observations (no weights)."""
+    return method.associate_scene(rig, Observations(xy, mask), th)
+
+
+_associate_jit = jax.jit(_run_scene, static_argnames=("method",))
+
+
+def _prepare(method: Method, sigma, thresholds, dtype):
+    """Static method and traced thresholds; ``sigma`` and ``thresholds`` are checked."""
+    if thresholds is not None:
+        method.check_thresholds(thresholds)
+    if isinstance(sigma, str):
+        method = method.replace(sigma_mode="auto")
+        sigma = 0.0
+    elif method.sigma_mode == "auto":
+        pass  # the method asks for the estimate; a given sigma is ignored
+    if thresholds is None:
+        thresholds = method.thresholds(sigma, dtype=dtype)
+    else:
+        thresholds = thresholds._replace(sigma_px=sigma)
+    # NumPy scalars go to the jitted call as they are (cheaper than one device array each).
+    np_dtype = np.dtype(jax.dtypes.canonicalize_dtype(dtype))
+    thresholds = type(thresholds)(*(jnp.asarray(v, dtype) if isinstance(v, jax.Array) else np.asarray(v, np_dtype) for v in thresholds))
+    return method.structure(), thresholds
+
+
+def _float_dtype(xy):
+    """The float dtype the pipeline runs in: ``xy``'s (canonical: float64 only with x64), or
+    the default float for integers. From the dtype alone: a JAX array made from ``xy`` would
+    be a compiled program per shape."""
+    dtype = np.dtype(xy.dtype)
+    return jax.dtypes.canonicalize_dtype(dtype if np.issubdtype(dtype, np.floating) else np.float64)
+
+
+def associate(
+    rig: Rig,
+    xy: ArrayLike,  # (M, P, 2); checked eagerly with a clear message
+    mask: ArrayLike,  # (M, P) bool
+    *,
+    method: Method | str | None = None,
+    sigma: float | str = 1.0,
+    thresholds: tuple | None = None,
+    dist: ArrayLike | Fisheye | None = None,
+    weights: ArrayLike | None = None,
+    min_views: int = 2,
+    memory_budget_gb: float | None = None,
+    config: Method | str | None = None,
+) -> Association:
+    """Associate the detections of one scene and triangulate every group.
+
+    Args:
+        rig: the cameras (``M`` views).
+        xy: ``(M, P, 2)`` detections (pixels); ``P`` is a padded capacity.
+        mask: ``(M, P)`` bool, True where a slot holds a detection.
+        method: a :class:`~cdog_jax.Method` (e.g. a C-DOG :class:`~cdog_jax.Config`) or the
+            name of a registered one (:func:`cdog_jax.method_names`): ``"extended"`` (the
+            default, our best), ``"paper"`` (the paper's C-DOG), ``"reference"`` (the
+            original code's choices), or any method registered with
+            :func:`cdog_jax.register_method`.
+        sigma: 2D noise std in pixels, or ``"auto"`` to estimate it (ALGORITHM.md §0.1).
+        thresholds: overrides the method's numbers (``method.thresholds()``'s type; for
+            sweeps, arrays welcome).
+        dist: optional ``(M, 5)`` OpenCV distortion ``(k1, k2, p1, p2, k3)`` per view (or a
+            :class:`cdog_jax.geometry.Fisheye`, OpenCV's fisheye model); ``xy``
+            are then the distorted (as-detected) pixels and are undistorted first. The
+            result's points and errors refer to the undistorted (pinhole) pixels.
+        weights: optional ``(M, P)`` non-negative weights (e.g. detector confidence) of the
+            members' DLT equations when the final points are triangulated.
+        min_views: keep only groups seen in at least this many views (≥ 2).
+        memory_budget_gb: refuse (``MemoryError``, before compiling) when the estimated
+            peak memory exceeds this many GB; default: ``CDOG_JAX_MEMORY_BUDGET`` or 80 %
+            of the device's (CPU: the machine's) memory (ALGORITHM.md §14).
+        config: the older name of ``method`` (give one of them).
+
+    ``xy`` may be float32 or float64 (integers are converted to the default float dtype);
+    float16, bfloat16, complex and bool are refused. ``sigma`` must be finite, ``>= 0`` and
+    at most the image diagonal: twice the largest principal point of ``rig.K``, or the
+    detections' extent ``hypot(max |x|, max |y|)`` where that is larger.
+
+    The compiled program runs at a padded capacity (the smallest power of two ``>= P``, at
+    least 32; ``P`` itself where only that fits the memory budget), so that frames of
+    different counts share a handful of programs; the result is trimmed back to ``P``.
+
+    Returns:
+        An :class:`Association` (labels, groups, points, errors). Its ``status`` is
+        non-zero when a loop stopped at its bound or ``sigma="auto"`` fell back
+        (:class:`cdog_jax.Status`, :func:`cdog_jax.check_status`).
+    """
+    expect_args("associate", rig=(rig, Rig))
+    method = method_argument(method, config, "associate")
+    check_thresholds_type(thresholds, method, "associate")
+    xy, mask = as_array(xy), as_array(mask)
+    check_rig(rig)
+    check_observations(xy, mask, rig.num_views)
+    check_sigma(sigma, rig, xy, mask)
+    if thresholds is not None:
+        check_threshold_shapes(thresholds, None)
+    dtype = _float_dtype(xy)
+    M, P = np.shape(mask)
+    capacity = _capacity("associate", M, P, method, dtype, 1, memory_budget_gb, vmapped=None)
+    static, th = _prepare(method, sigma, thresholds, dtype)
+    np_dtype = np.dtype(dtype)
+    xy = pad_slots(np.asarray(xy, np_dtype), capacity, axis=1)
+    mask = pad_slots(np.asarray(mask, bool), capacity, axis=1, fill=False)
+    extras = _check_extras(dist, weights, min_views, (M, P), np_dtype)
+    if extras is None:
+        result = _associate_jit(rig, xy, mask, th, method=static)
+    else:
+        dist, weights, min_views = extras
+        weights = None if weights is None else pad_slots(weights, capacity, axis=1)
+        result = _associate_extras_jit(rig, xy, mask, th, dist, weights, min_views, method=static)
+    return trim(result, P)
+
+
+def _capacity(where, M, P, method, dtype, batch_size, budget_gb, vmapped) -> int:
+    """The padded slot capacity (:func:`slot_capacity`), or ``P`` itself where only the
+    unpadded shapes fit the memory budget; raises ``MemoryError`` where neither does."""
+    capacity = slot_capacity(P)
+    try:
+        check_memory(where, M, capacity, method, dtype, batch_size, budget_gb, vmapped=vmapped)
+    except MemoryError:
+        check_memory(where, M, P, method, dtype, batch_size, budget_gb, vmapped=vmapped)
+        return P
+    return capacity
+
+
+def _check_extras(dist, weights, min_views, mask_shape, dtype):
+    """Checked ``(dist, weights, min_views)`` as NumPy arrays of ``dtype``, or None when all
+    are defaults (then the plain pipeline runs)."""
+    if not isinstance(min_views, (int, np.integer)) or isinstance(min_views, bool) or min_views < 2:
+        raise ValueError(f"min_views must be an int >= 2 (a group needs two views); got {min_views!r}")
+    if dist is None and weights is None and min_views == 2:
+        return None
+    M = mask_shape[-2]
+    if isinstance(dist, Fisheye):
+        coeffs = np.asarray(dist.coeffs)
+        if coeffs.shape != (M, 4) or not np.isfinite(coeffs).all():
+            raise ValueError(f"dist: Fisheye coefficients must be finite with shape (M, 4) = ({M}, 4); got shape {coeffs.shape}")
+        dist = Fisheye(jnp.asarray(coeffs, dtype))
+    elif dist is not None:
+        dist_h = np.asarray(dist)
+        if dist_h.shape != (M, 5):
+            raise ValueError(f"dist must have shape (M, 5) = ({M}, 5), OpenCV (k1, k2, p1, p2, k3) per view; got {dist_h.shape}")
+        if not np.isfinite(dist_h).all():
+            view = int(np.argwhere(~np.isfinite(dist_h))[0, 0])
+            raise ValueError(f"dist of view {view} has non-finite entries")
+        dist = np.asarray(dist, dtype)
+    if weights is not None:
+        w_h = np.asarray(weights)
+        if w_h.shape != tuple(mask_shape):
+            raise ValueError(f"weights must have the shape of mask {tuple(mask_shape)}; got {w_h.shape}")
+        bad = ~(np.isfinite(w_h) & (w_h >= 0))
+        if bad.any():
+            where = ", ".join(str(int(i)) for i in np.argwhere(bad)[0])
+            raise ValueError(f"weights must be finite and >= 0; got {float(w_h[bad][0])!r} at index ({where})")
+        weights = np.asarray(weights, dtype)
+    return dist, weights, np.asarray(min_views, np.int32)
+
+
+def _associate_one(rig, xy, mask, th, dist, weights, min_views, method):
+    """One scene with undistortion before and :func:`finish_groups` after the method;
+    ``dist``/``weights`` may be None (static absence)."""
+    if dist is not None:
+        xy = undistorted(rig, xy, mask, dist)
+    result = method.associate_scene(rig, Observations(xy, mask, weights), th)
+    return finish_groups(rig, jnp.where(mask[..., None], xy, 0.0), result, weights, min_views, th)
+
+
+@partial(jax.jit, static_argnames=("method",))
+def _associate_extras_jit(rig, xy, mask, th, dist, weights, min_views, *, method):
+    return _associate_one(rig, xy, mask, th, dist, weights, min_views, method)
+
+
+@partial(jax.jit, static_argnames=("method", "shared_rig"))
+def _associate_batch_jit(rig, xy, mask, th, extras, *, method, shared_rig):
+    """One chunk of scenes, vmapped (the caller loops over chunks, so memory stays bounded)."""
+    if extras is None:
+        run = lambda r, x, m, t, e: _run_scene(r, x, m, t, method)  # noqa: E731
+    else:
+        run = lambda r, x, m, t, e: _associate_one(r, x, m, t, e[0], e[1], e[2], method)  # noqa: E731
+    # dist and min_views are shared by all scenes; weights are per scene.
+    shared = None if extras is None else (extras[0], None, extras[2])
+    per_scene = None if extras is None else extras[1]
+    if shared_rig:
+        one = lambda a: run(rig, a[0], a[1], a[2], _join(shared, a[3]))  # noqa: E731
+        return jax.vmap(one)((xy, mask, th, per_scene))
+    one = lambda a: run(a[0], a[1], a[2], a[3], _join(shared, a[4]))  # noqa: E731
+    return jax.vmap(one)((rig, xy, mask, th, per_scene))
+
+
+def _join(shared, weights):
+    return None if shared is None else (shared[0], weights, shared[2])
+
+
+def associate_batch(
+    rig: Rig,
+    xy: ArrayLike,  # (B, M, P, 2); checked eagerly
+    mask: ArrayLike,  # (B, M, P) bool
+    *,
+    method: Method | str | None = None,
+    sigma: float | str | Float[Array, " B"] = 1.0,
+    thresholds: tuple | None = None,
+    batch_size: int = 16,
+    dist: ArrayLike | Fisheye | None = None,
+    weights: ArrayLike | None = None,
+    min_views: int = 2,
+    memory_budget_gb: float | None = None,
+    config: Method | str | None = None,
+) -> Association:
+    """:func:`associate` for ``B`` scenes, ``batch_size`` at a time in one compiled program.
+
+    The rig is shared (``K (M, 3, 3)``) or per scene (``K (B, M, 3, 3)``); ``sigma`` and the
+    thresholds may be scalars or ``(B,)`` arrays. Scenes run ``batch_size`` at a time
+    (vmapped), which bounds memory; fewer scenes run as the smallest power of two that
+    holds them, and ``P`` is padded as in :func:`associate`, so few programs are compiled. Every field of the result gains a
+    leading ``B`` axis. ``dist (M, 5)`` and ``min_views`` are shared by all scenes,
+    ``weights (B, M, P)`` are per scene. Inputs are checked as in :func:`associate`; an
+    error names the scene. The memory budget counts ``batch_size`` scenes (see
+    :func:`associate`); ``status`` is per scene.
+    """
+    expect_args("associate_batch", rig=(rig, Rig))
+    expect(batch_size, INT, "batch_size", "associate_batch")
+    method = method_argument(method, config, "associate_batch")
+    check_thresholds_type(thresholds, method, "associate_batch")
+    xy, mask = as_array(xy), as_array(mask)
+    shared = rig.K.ndim == 3
+    check_rig(rig, batched=not shared)
+    check_observations(xy, mask, rig.num_views, batched=True)
+    if batch_size < 1:
+        raise ValueError(f"batch_size must be >= 1; got {batch_size}")
+    B = xy.shape[0]
+    check_batch_rig(rig, B)
+    check_sigma(sigma, rig, xy, mask, num_scenes=B)
+    if thresholds is not None:
+        check_threshold_shapes(thresholds, B)
+    dtype = _float_dtype(xy)
+    M, P = np.shape(mask)[1:]
+    chunk = chunk_size(B, batch_size)
+    capacity = _capacity("associate_batch", M, P, method, dtype, chunk, memory_budget_gb, vmapped=True)
+    static, th = _prepare(method, sigma, thresholds, dtype)
+    if dist is not None and not shared:
+        raise ValueError("dist needs a shared rig (K of shape (M, 3, 3)); undistort per-scene rigs yourself")
+    np_dtype = np.dtype(dtype)
+    extras = _check_extras(dist, weights, min_views, tuple(np.shape(mask)), np_dtype)
+    padded = -(-B // chunk) * chunk  # whole chunks; padded scenes repeat the last one
+    xy = pad_scenes(pad_slots(np.asarray(xy, np_dtype), capacity, axis=2), padded)
+    mask = pad_scenes(pad_slots(np.asarray(mask, bool), capacity, axis=2, fill=False), padded)
+    th = type(th)(*(pad_scenes(np.broadcast_to(np.asarray(v, np_dtype), (B,)), padded) for v in th))
+    if not shared:
+        rig_arrays = [pad_scenes(np.asarray(a), padded) for a in (rig.K, rig.R, rig.t)]
+    if extras is not None and extras[1] is not None:
+        extras = (extras[0], pad_scenes(pad_slots(extras[1], capacity, axis=2), padded), extras[2])
+    results = []
+    if chunk == 1:  # one scene at a time: the single-scene program (no vmap to trace)
+        for b in range(B):
+            rig_b = rig if shared else Rig(*(jnp.asarray(a[b]) for a in rig_arrays))
+            th_b = type(th)(*(v[b] for v in th))
+            if extras is None:
+                one = _associate_jit(rig_b, xy[b], mask[b], th_b, method=static)
+            else:
+                one = _associate_extras_jit(
+                    rig_b, xy[b], mask[b], th_b, extras[0], None if extras[1] is None else extras[1][b], extras[2],
+                    method=static,
+                )
+            results.append(jax.tree.map(lambda a: np.asarray(a)[None], one))
+        padded = 0
+    for start in range(0, padded, chunk):
+        part = slice(start, start + chunk)
+        rig_part = rig if shared else Rig(*(jnp.asarray(a[part]) for a in rig_arrays))
+        extras_part = None if extras is None else (extras[0], None if extras[1] is None else extras[1][part], extras[2])
+        results.append(_associate_batch_jit(
+            rig_part, xy[part], mask[part], type(th)(*(v[part] for v in th)), extras_part,
+            method=static, shared_rig=shared,
+        ))
+    if len(results) > 1:
+        results = [jax.tree.map(lambda *parts: np.concatenate([np.asarray(p) for p in parts]), *results)]
+    return trim(results[0], P, num_scenes=B)

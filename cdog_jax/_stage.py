@@ -1,0 +1,98 @@
+"""What C-DOG's stages share: the scene's tables, the group table, and the stage record
+(docs/ARCHITECTURE.md, "How to add a stage").
+
+Every stage has one signature, ``stage(scene, state, options) -> state``: ``scene`` holds the
+per-scene tables computed once (detections, epipolar distances, DLT blocks, σ, τ and the
+traced thresholds), ``state`` the group table and the latest fit, ``options`` the stage's own
+static options (a small ``NamedTuple`` whose fields are named as in :class:`cdog_jax.Config`).
+A stage reads its numbers from ``scene.th`` (traced).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import jax.numpy as jnp
+
+from ._config import Thresholds
+from ._status import Status
+from ._types import Array, Bool, Float, Int
+from .geometry._camera import Rig
+
+
+class Scene(NamedTuple):
+    """One scene's tables, computed once and read by every stage.
+
+    ``xy (M, P, 2)`` pixels (padding zeroed), ``mask (M, P)``, ``node_valid (N,)`` the nodes a
+    graph stage may use (``mask`` flattened; fewer when regrouping leftovers), ``d (M, P, M, P)``
+    epipolar distances (px), ``blocks`` the per-node DLT normal blocks ``(M, P, 3, 3)``,
+    ``(M, P, 3)`` and their origin ``(3,)``, ``sigma`` and ``tau`` (px), ``th`` the thresholds.
+    """
+
+    rig: Rig
+    xy: Float[Array, "M P 2"]
+    mask: Bool[Array, "M P"]
+    node_valid: Bool[Array, " N"]
+    d: Float[Array, "M P M P"]
+    blocks: tuple
+    sigma: Float[Array, ""]
+    tau: Float[Array, ""]
+    th: Thresholds
+
+
+class GroupTable(NamedTuple):
+    """``groups (G, M)`` slot per view or -1, and ``valid (G,)``; a group that is not valid
+    has a row of -1 (stages that drop groups clear their rows)."""
+
+    groups: Int[Array, "G M"]
+    valid: Bool[Array, " G"]
+
+    def keep(self, valid: Bool[Array, " G"]) -> "GroupTable":
+        """Only the groups of ``valid`` (a subset of ``self.valid``), their rows cleared."""
+        return GroupTable(jnp.where(valid[:, None], self.groups, -1), valid)
+
+
+class Fit(NamedTuple):
+    """Each group's members ``(G, M)``, their pixels ``(G, M, 2)``, the multi-view DLT point
+    ``X (G, 3)`` (scene units), its BPE ``(G,)`` (px²) and mean error ``(G,)`` (px)."""
+
+    member: Bool[Array, "G M"]
+    xy_g: Float[Array, "G M 2"]
+    X: Float[Array, "G 3"]
+    bpe: Float[Array, " G"]
+    err_px: Float[Array, " G"]
+
+
+class State(NamedTuple):
+    """The group table, the fit of the table as it was last fitted (``None`` before the
+    first fit), and the int32 :class:`~cdog_jax.Status` bits raised so far."""
+
+    table: GroupTable
+    fit: Fit | None
+    status: Int[Array, ""]
+
+    def flag(self, condition: Bool[Array, ""], flag: Status) -> "State":
+        """This state with ``flag`` raised where ``condition`` holds."""
+        return self._replace(status=self.status | raise_flag(condition, flag))
+
+
+def raise_flag(condition: Bool[Array, ""], flag: Status) -> Int[Array, ""]:
+    """``()`` int32: ``flag`` where ``condition`` holds, else 0."""
+    return jnp.where(condition, jnp.int32(int(flag)), jnp.int32(0))
+
+
+class Stage(NamedTuple):
+    """One entry of C-DOG's stage list: its name, the function, the ``NamedTuple`` class of
+    its options (fields named as in :class:`cdog_jax.Config`; ``None``: no options), and when
+    it runs (a predicate of the config)."""
+
+    name: str
+    run: Callable
+    options: type | None
+    when: Callable[[object], bool]
+
+
+def always(config) -> bool:
+    """The predicate of a stage that always runs."""
+    return True
