@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import sys
 
-from cdog_jax._cli import main
+from cdog_jax.cli import main
 
 if __name__ == "__main__":
     argv = sys.argv[1:]

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import cdog_jax
-from cdog_jax._cli import main
+from cdog_jax.cli import main
 from cdog_jax._plot import plot_association
 from cdog_jax.synthetic import default_rig, generate_scene
 

@@ -31,11 +31,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._config import Config
-from ._progress import bar, compiling
-from .geometry._camera import Rig
-from .geometry._parameters import so3_exp
-from .io._atomic import atomic_savefig
+from .._config import Config
+from .._progress import bar, compiling
+from ..geometry._camera import Rig
+from ..geometry._parameters import so3_exp
+from ..io._atomic import atomic_savefig
 
 
 @dataclasses.dataclass(frozen=True)
@@ -98,10 +98,10 @@ def run_experiment(
     generated with the true rig at noise ``sigma`` (px); the coarse stage runs one round
     per gate in ``gates_px``, the fine stage ``rounds`` rounds (the last with free focal
     lengths)."""
-    from ._pipeline import associate_traced
-    from .metrics._scores import scene_metrics
-    from .refine._calibration import calibrate, rig_errors
-    from .synthetic import DEFAULT_BOX, default_rig, generate_scenes
+    from .._pipeline import associate_traced
+    from ..metrics._scores import scene_metrics
+    from ..refine._calibration import calibrate, rig_errors
+    from ..synthetic import DEFAULT_BOX, default_rig, generate_scenes
 
     if rounds < 1 or not gates_px:
         raise ValueError(f"need rounds >= 1 and at least one coarse gate; got rounds={rounds}, gates={gates_px}")
@@ -286,7 +286,7 @@ def run(args: argparse.Namespace) -> int:
 
     from ._cli import _FIGURE_EXTENSIONS, check_sigma_fits
     from ._paths import check_output, write_output
-    from .synthetic import IMAGE_SIZE
+    from ..synthetic import IMAGE_SIZE
 
     check_output(str(args.out), "--out", _FIGURE_EXTENSIONS, {})
     check_sigma_fits(args.sigma, math.hypot(*IMAGE_SIZE), f"the built-in rig ({IMAGE_SIZE[0]}×{IMAGE_SIZE[1]} px)")

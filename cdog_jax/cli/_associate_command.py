@@ -32,9 +32,9 @@ import numpy as np
 from ._cli import _positive_int, check_sigma_fits, int_at_least
 from ._paths import check_distinct, check_input, check_output, input_files
 from ._paths import write_output as _write
-from .io._errors import InputError
-from .io._keypoints import SKELETONS
-from .io._rig_files import FORMATS
+from ..io._errors import InputError
+from ..io._keypoints import SKELETONS
+from ..io._rig_files import FORMATS
 
 _PRESETS = ("paper", "extended", "reference")
 _POINT_FORMATS = ("auto", "detections", "openpose", "table")
@@ -138,7 +138,7 @@ def _associate_frames(call, xy, mask, weights, batch_size: int):
     import jax
     import jax.numpy as jnp
 
-    from ._progress import bar, compiling
+    from .._progress import bar, compiling
 
     F = xy.shape[0]
     chunk = batch_size * max(1, math.ceil(F / (batch_size * _PROGRESS_STEPS)))
@@ -197,7 +197,7 @@ def _points_format(path: str, given: str) -> str:
     if suffix == ".csv":
         return "table"
     if suffix == ".npz":
-        from .io._rig_files import open_npz
+        from ..io._rig_files import open_npz
 
         with open_npz(path) as npz:
             return "table" if "frame" in npz.files else "detections"
@@ -206,7 +206,7 @@ def _points_format(path: str, given: str) -> str:
 
 def _load(args):
     """Rig file and detections, checked against each other (views, image size, capacity)."""
-    from .io import load_detections, load_keypoint_table, load_openpose, load_rig
+    from ..io import load_detections, load_keypoint_table, load_openpose, load_rig
 
     rig_file = load_rig(args.rig, format=args.rig_format)
     detections = None
@@ -243,13 +243,13 @@ def run_associate(args: argparse.Namespace) -> int:
     import jax
     import jax.numpy as jnp
 
-    from . import Config, Status, associate_batch, associate_classes
-    from .graph._sigma import FALLBACK_SIGMA_PX
-    from .geometry._distortion import Fisheye
-    from .io import save_association_csv, save_association_json, save_association_npz
+    from .. import Config, Status, associate_batch, associate_classes
+    from ..graph._sigma import FALLBACK_SIGMA_PX
+    from ..geometry._distortion import Fisheye
+    from ..io import save_association_csv, save_association_json, save_association_npz
 
     from ._cli import _FIGURE_EXTENSIONS
-    from .io._detections import check_float_range
+    from ..io._detections import check_float_range
 
     _check_paths(args, {"--out": (args.out, _OUT_FORMATS), "--plot": (args.plot, _FIGURE_EXTENSIONS)})
     rig_file, det = _load(args)
@@ -318,7 +318,7 @@ def run_associate(args: argparse.Namespace) -> int:
         + (f" (the fallback {FALLBACK_SIGMA_PX:g} px in {len(fallback)} of {F} frame(s), e.g. frame {fallback[0]}: "
            "too little evidence to estimate σ; pass --sigma)" if fallback.size else "")
     )
-    from ._status import status_messages
+    from .._status import status_messages
 
     status = np.asarray(result.status).reshape(-1)
     for flag in Status:  # the σ fallback is said on the line above
@@ -343,8 +343,8 @@ def run_associate(args: argparse.Namespace) -> int:
             _write(args.out, "--out", lambda: save_association_csv(args.out, assoc))
         lines.append(f"Wrote {args.out}")
     if args.plot is not None:
-        from ._plot import plot_association
-        from .synthetic import intrinsics_image_size
+        from .._plot import plot_association
+        from ..synthetic import intrinsics_image_size
 
         first = jax.tree_util.tree_map(lambda a: a[0], result)
         size = rig_file.image_size or intrinsics_image_size(rig.K)
@@ -399,9 +399,9 @@ def run_rig(args: argparse.Namespace) -> int:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        from ._rig_plot import plot_rig
+        from .._rig_plot import plot_rig
 
-        from .io._atomic import atomic_savefig
+        from ..io._atomic import atomic_savefig
 
         ax = plot_rig(rig_file.rig, names=rig_file.names, image_size=rig_file.image_size)
         try:
@@ -415,6 +415,6 @@ def run_rig(args: argparse.Namespace) -> int:
 
 def _has_lens(dist) -> bool:
     """Whether a rig file's lens does anything (a fisheye lens always does)."""
-    from .geometry._distortion import Fisheye
+    from ..geometry._distortion import Fisheye
 
     return isinstance(dist, Fisheye) or (dist is not None and bool(np.any(dist)))

@@ -42,8 +42,8 @@ _DESCRIPTION = (
 
 def add_parser(subparsers) -> None:
     """Declare ``benchmark`` and its flags."""
-    from .._associate_command import _RIG_FORMATS_TEXT
-    from .._cli import _nonnegative_float, _nonnegative_int, _positive_int
+    from ._associate_command import _RIG_FORMATS_TEXT
+    from ._cli import _nonnegative_float, _nonnegative_int, _positive_int
 
     p = subparsers.add_parser(
         "benchmark",
@@ -75,7 +75,7 @@ def add_parser(subparsers) -> None:
 
 
 def _grid_from_args(args):
-    from ._grid import Grid
+    from ..benchmark._grid import Grid
 
     grid = Grid.quick() if args.quick else Grid.paper()
     changes = {}
@@ -139,7 +139,7 @@ def _scene_setup(args, grid):
 def _check_paths(args) -> None:
     """The rig exists; ``--out`` is (or can be made) a writable folder whose files are
     not the rig's. Before any work."""
-    from .._paths import check_input, check_output_folder, input_files
+    from ._paths import check_input, check_output_folder, input_files
 
     inputs = {}
     if args.rig:
@@ -152,10 +152,10 @@ def _check_paths(args) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark; returns the exit code."""
-    from . import _figures as figures
-    from ._io import save_results, summary_table
+    from ..benchmark import _figures as figures
+    from ..benchmark._io import save_results, summary_table
     from .._progress import interactive, sweep_bar
-    from ._sweep import print_progress, sweep
+    from ..benchmark._sweep import print_progress, sweep
 
     _check_paths(args)
     grid = _grid_from_args(args)
@@ -196,7 +196,7 @@ def run(args: argparse.Namespace) -> int:
     print(summary_table(result, sigmas=standard if len(standard) >= 2 else grid.sigmas))
     print()
 
-    from .._paths import write_output
+    from ._paths import write_output
 
     write_output(args.out, "--out", lambda: (os.makedirs(args.out, exist_ok=True), save_results(result, args.out)))
     print(f"Results: {args.out}/ (NPZ, CSV, JSON)")
@@ -208,7 +208,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _figures(figures, result, args) -> None:
     """The benchmark's PNG figures in ``args.out``."""
-    from ._grid import Grid
+    from ..benchmark._grid import Grid
 
     metrics = {name: result.metrics[name] for name in result.configs}
     for name in result.configs:

@@ -31,7 +31,7 @@ import sys
 import time
 from collections.abc import Sequence
 
-from .io._errors import InputError
+from ..io._errors import InputError
 
 # Rows of the metrics table: (Metrics field, docs/BENCHMARK.md §2 name, format, unit / meaning).
 _METRIC_ROWS = (
@@ -150,9 +150,9 @@ def _save_scene(folder: str, rig, scene, sigma: float, seed: int) -> None:
 
     import numpy as np
 
-    from .io import save_detections_json, save_rig_json
-    from .io._atomic import atomic_write
-    from .synthetic import IMAGE_SIZE
+    from ..io import save_detections_json, save_rig_json
+    from ..io._atomic import atomic_write
+    from ..synthetic import IMAGE_SIZE
 
     os.makedirs(folder, exist_ok=True)
     mask = np.asarray(scene.mask)
@@ -176,10 +176,10 @@ def _run_demo(args: argparse.Namespace) -> int:
     import jax
     import numpy as np
 
-    from . import Config, associate
-    from ._plot import plot_association
-    from .metrics import scene_metrics
-    from .synthetic import IMAGE_SIZE, default_rig, generate_scene
+    from .. import Config, associate
+    from .._plot import plot_association
+    from ..metrics import scene_metrics
+    from ..synthetic import IMAGE_SIZE, default_rig, generate_scene
 
     from ._paths import check_output, write_output
 
@@ -191,7 +191,7 @@ def _run_demo(args: argparse.Namespace) -> int:
         from ._paths import check_output_folder
 
         check_output_folder(args.save_scene, "--save-scene", _SCENE_FILES, {})
-    from .synthetic import IMAGE_SIZE as _SIZE
+    from ..synthetic import IMAGE_SIZE as _SIZE
 
     check_sigma_fits(args.sigma, math.hypot(*_SIZE), f"the built-in rig ({_SIZE[0]}×{_SIZE[1]} px)")
     config = getattr(Config, args.preset)()
@@ -280,7 +280,7 @@ def _run_demo(args: argparse.Namespace) -> int:
 # --- entry point ----------------------------------------------------------------------
 
 def _add_benchmark(subparsers) -> None:
-    from .benchmark._command import add_parser
+    from ._benchmark_command import add_parser
 
     add_parser(subparsers)
 
@@ -302,7 +302,7 @@ _SUBCOMMANDS = (_add_demo, _add_benchmark, _add_calibrate, _add_associate_and_ri
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``cdog-jax`` parser with every subcommand of ``_SUBCOMMANDS``."""
-    from . import __version__
+    from .. import __version__
 
     parser = argparse.ArgumentParser(
         prog="cdog-jax",
@@ -329,7 +329,7 @@ def main(argv: Sequence[str | os.PathLike[str]] | None = None) -> int:
     ``os.PathLike``); returns the exit code: 0, or 2 for a user error (one line on stderr)."""
     args = build_parser().parse_args(None if argv is None else [str(a) for a in argv])
     if args.no_cache:
-        from ._compile_cache import disable_compilation_cache
+        from .._compile_cache import disable_compilation_cache
 
         disable_compilation_cache()
     try:
