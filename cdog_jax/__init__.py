@@ -12,7 +12,7 @@ from ._epipolar_plot import plot_epipolar as plot_epipolar
 from ._bpe_plot import plot_bpe_histogram as plot_bpe_histogram
 from .geometry import Rig as Rig, project as project, rig_from_arrays as rig_from_arrays, triangulate as triangulate
 
-__version__ = "0.1.0"
+from ._version import __version__ as __version__  # noqa: E402
 
 from ._compile_cache import enable_compilation_cache as _enable_compilation_cache  # noqa: E402
 

@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from ._cli import _positive_int, check_sigma_fits, int_at_least
+from ._common import _FIGURE_EXTENSIONS, _emit, _positive_int, check_sigma_fits, int_at_least
 from ._paths import check_distinct, check_input, check_output, input_files
 from ._paths import write_output as _write
 from ..io._errors import InputError
@@ -247,8 +247,6 @@ def run_associate(args: argparse.Namespace) -> int:
     from ..graph._sigma import FALLBACK_SIGMA_PX
     from ..geometry._distortion import Fisheye
     from ..io import save_association_csv, save_association_json, save_association_npz
-
-    from ._cli import _FIGURE_EXTENSIONS
     from ..io._detections import check_float_range
 
     _check_paths(args, {"--out": (args.out, _OUT_FORMATS), "--plot": (args.plot, _FIGURE_EXTENSIONS)})
@@ -352,8 +350,6 @@ def run_associate(args: argparse.Namespace) -> int:
             rig, det.xy[0], det.mask[0], first, image_size=size, title=f"{args.points}, frame 0", path=args.plot
         ))  # fmt: skip
         lines.append(f"Figure: {args.plot}")
-    from ._cli import _emit
-
     _emit(lines)
     return 0
 
@@ -382,8 +378,6 @@ def _class_summary(classed, det) -> str:
 
 def run_rig(args: argparse.Namespace) -> int:
     """Print the rig's description (and warnings); optionally draw it."""
-    from ._cli import _FIGURE_EXTENSIONS, _emit
-
     _check_paths(args, {"--plot": (args.plot, _FIGURE_EXTENSIONS)})
     rig_file, det = _load(args)
     xy = mask = None

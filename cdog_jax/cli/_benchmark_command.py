@@ -13,6 +13,8 @@ import time
 
 from .._config import Config
 from ..io._rig_files import FORMATS
+from ._associate_command import _RIG_FORMATS_TEXT
+from ._common import _nonnegative_float, _nonnegative_int, _positive_int
 
 METHODS = {
     "paper": lambda: Config.paper(),
@@ -42,9 +44,6 @@ _DESCRIPTION = (
 
 def add_parser(subparsers) -> None:
     """Declare ``benchmark`` and its flags."""
-    from ._associate_command import _RIG_FORMATS_TEXT
-    from ._cli import _nonnegative_float, _nonnegative_int, _positive_int
-
     p = subparsers.add_parser(
         "benchmark",
         help="run the noise x density benchmark grid, print tables, write figures",

@@ -36,6 +36,7 @@ from .._progress import bar, compiling
 from ..geometry._camera import Rig
 from ..geometry._parameters import so3_exp
 from ..io._atomic import atomic_savefig
+from ._common import _FIGURE_EXTENSIONS, _nonnegative_float, _positive_int, check_sigma_fits
 
 
 @dataclasses.dataclass(frozen=True)
@@ -266,8 +267,6 @@ def add_parser(subparsers) -> None:
     """Declare ``calibrate`` and its flags."""
     p = subparsers.add_parser("calibrate", help="refine a perturbed built-in rig from detections", description=_DESCRIPTION)
     p.add_argument("--quick", action="store_true", help="one level (large), 2 scenes of 30 points, 16 wand frames, 2 + 1 rounds, no timing")
-    from ._cli import _nonnegative_float, _positive_int
-
     p.add_argument("--scenes", type=_positive_int, default=4, help="dense scenes (fine stage)")
     p.add_argument("--points", type=_positive_int, default=60, help="points per dense scene")
     p.add_argument("--wand-frames", type=_positive_int, default=48, help="sparse frames (coarse stage)")
@@ -284,7 +283,6 @@ def run(args: argparse.Namespace) -> int:
     """Run the experiment, print the table, write the figure; returns the exit code."""
     import math
 
-    from ._cli import _FIGURE_EXTENSIONS, check_sigma_fits
     from ._paths import check_output, write_output
     from ..synthetic import IMAGE_SIZE
 
