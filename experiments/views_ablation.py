@@ -42,7 +42,7 @@ import numpy as np
 
 from cdog_jax import Config
 from cdog_jax.benchmark import Grid, sweep
-from cdog_jax.benchmark._figures import _PAPER_VIEWS_PG_F1, views_ablation
+from cdog_jax.viz._benchmark_figures import _PAPER_VIEWS_PG_F1, views_ablation
 from cdog_jax.benchmark._sweep import metric_fields
 from cdog_jax.synthetic import default_rig
 

@@ -341,7 +341,7 @@ def run_associate(args: argparse.Namespace) -> int:
             _write(args.out, "--out", lambda: save_association_csv(args.out, assoc))
         lines.append(f"Wrote {args.out}")
     if args.plot is not None:
-        from .._plot import plot_association
+        from ..viz import plot_association
         from ..synthetic import intrinsics_image_size
 
         first = jax.tree_util.tree_map(lambda a: a[0], result)
@@ -393,7 +393,7 @@ def run_rig(args: argparse.Namespace) -> int:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        from .._rig_plot import plot_rig
+        from ..viz import plot_rig
 
         from ..io._atomic import atomic_savefig
 

@@ -2,7 +2,7 @@
 
 Runs :func:`~cdog_jax.benchmark.sweep` once (every method and scene in one compiled call),
 prints the paper-style table at σ = 0, 1, 3, 5, saves the per-scene results (NPZ, CSV,
-JSON) and writes the figures of :mod:`cdog_jax.benchmark._figures` into ``--out``.
+JSON) and writes the figures of :mod:`cdog_jax.viz` into ``--out``.
 """
 
 from __future__ import annotations
@@ -151,7 +151,7 @@ def _check_paths(args) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark; returns the exit code."""
-    from ..benchmark import _figures as figures
+    from .. import viz as figures
     from ..benchmark._io import save_results, summary_table
     from .._progress import interactive, sweep_bar
     from ..benchmark._sweep import print_progress, sweep

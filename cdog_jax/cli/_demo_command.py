@@ -101,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from .. import Config, associate
-    from .._plot import plot_association
+    from ..viz import plot_association
     from ..metrics import scene_metrics
     from ..synthetic import IMAGE_SIZE, default_rig, generate_scene
 
