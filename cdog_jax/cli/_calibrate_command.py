@@ -101,7 +101,7 @@ def run_experiment(
     lengths)."""
     from .._pipeline import associate_traced
     from ..metrics._scores import scene_metrics
-    from ..refine._calibration import calibrate, rig_errors
+    from ..calibration import calibrate, rig_errors
     from ..synthetic import DEFAULT_BOX, default_rig, generate_scenes
 
     if rounds < 1 or not gates_px:

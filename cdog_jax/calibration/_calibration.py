@@ -32,6 +32,7 @@ from jaxtyping import ArrayLike, Real
 
 from .._expect import ARRAY, expect_args
 from .._config import Config, Thresholds
+from .._pipeline import associate_traced
 from .._result import Association
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
@@ -450,10 +451,6 @@ def calibrate(
 
 @functools.partial(jax.jit, static_argnames=("config", "options"))
 def _calibrate(rig, xy, mask, th, traced, *, config, options):
-    # Imported here: the pipeline imports the refine stages, so a module-level import
-    # would be circular.
-    from .._pipeline import associate_traced
-
     rounds = th.sigma_px.shape[0] - 1
 
     def one_round(rig, step):
