@@ -5,10 +5,10 @@ differentiable loss. Needs optimistix, a large import: ``import cdog_jax`` does 
 this package."""
 
 from ._bpe_loss import bpe as bpe, group_bpe as group_bpe
-from ._calibration import CalibrationHistory as CalibrationHistory
-from ._calibration import RefineInfo as RefineInfo
-from ._calibration import RigErrors as RigErrors
-from ._calibration import align_rigs as align_rigs
-from ._calibration import calibrate as calibrate
-from ._calibration import refine_rig as refine_rig
-from ._calibration import rig_errors as rig_errors
+from ._alignment import RigErrors as RigErrors
+from ._alignment import align_rigs as align_rigs
+from ._alignment import rig_errors as rig_errors
+from ._calibrate import CalibrationHistory as CalibrationHistory
+from ._calibrate import calibrate as calibrate
+from ._refine_rig import RefineInfo as RefineInfo
+from ._refine_rig import refine_rig as refine_rig
