@@ -378,14 +378,16 @@ def _class_summary(classed, det) -> str:
 
 def run_rig(args: argparse.Namespace) -> int:
     """Print the rig's description (and warnings); optionally draw it."""
+    from ..geometry import describe_rig
+
     _check_paths(args, {"--plot": (args.plot, _FIGURE_EXTENSIONS)})
     rig_file, det = _load(args)
     xy = mask = None
     if det is not None:
         xy, mask = det.xy[0], det.mask[0]
-    text = rig_file.rig.describe(
-        xy=xy, mask=mask, image_size=rig_file.image_size, names=rig_file.names, dist=rig_file.dist
-    )
+    text = describe_rig(
+        rig_file.rig, xy=xy, mask=mask, image_size=rig_file.image_size, names=rig_file.names, dist=rig_file.dist
+    ).format()
     lines = [f"Rig: {args.rig}", text]
     if args.plot is not None:
         import matplotlib
@@ -393,9 +395,8 @@ def run_rig(args: argparse.Namespace) -> int:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        from ..viz import plot_rig
-
         from ..io._atomic import atomic_savefig
+        from ..viz import plot_rig
 
         ax = plot_rig(rig_file.rig, names=rig_file.names, image_size=rig_file.image_size)
         try:
