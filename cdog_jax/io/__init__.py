@@ -45,7 +45,7 @@ from ._keypoints import load_openpose as load_openpose
 from ._errors import InputError as InputError
 from ._rig_files import FORMATS as FORMATS
 from ._rig_files import RigFile as RigFile
-from ._rig_files import load_rig as load_rig
+from ._load_rig import load_rig as load_rig
 from ._rig_files import save_rig_easyvis as save_rig_easyvis
 from ._rig_files import save_rig_json as save_rig_json
 from ._rig_files import save_rig_npz as save_rig_npz
