@@ -15,7 +15,7 @@ from .._pipeline import associate_traced
 from .._result import Association
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
-from ._refine_rig import RefineInfo, refine_rig
+from ._refine_rig import _STATIC, RefineInfo, _check_xy, refine_rig
 
 
 class CalibrationHistory(NamedTuple):
