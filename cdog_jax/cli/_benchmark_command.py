@@ -11,19 +11,10 @@ import argparse
 import os
 import time
 
-from .._config import Config
+from ..benchmark._methods import DEFAULT_METHODS, METHODS
 from ..io._rig_files import FORMATS
 from ._associate_command import _RIG_FORMATS_TEXT
 from ._common import _nonnegative_float, _nonnegative_int, _positive_int
-
-METHODS = {
-    "paper": lambda: Config.paper(),
-    "no_iqr": lambda: Config.paper(iqr=False),
-    "reference": lambda: Config.reference(),
-    "extended": lambda: Config.extended(),
-}
-DEFAULT_METHODS = ("paper", "no_iqr", "reference", "extended")
-
 
 def _method_list(text: str) -> tuple[str, ...]:
     names = tuple(n.strip() for n in text.split(",") if n.strip())

@@ -27,6 +27,7 @@ from ._rotations import quaternion_from_rotation as quaternion_from_rotation
 from ._rotations import rodrigues_from_rotation as rodrigues_from_rotation
 from ._rotations import rotation_from_quaternion as rotation_from_quaternion
 from ._rotations import rotation_from_rodrigues as rotation_from_rodrigues
+from ._atomic import atomic_savefig as atomic_savefig
 from ._association_files import association_records as association_records
 from ._association_files import load_association_json as load_association_json
 from ._association_files import save_association_csv as save_association_csv

@@ -2,6 +2,7 @@
 histogram, the benchmark's figures (docs/BENCHMARK.md) and the calibration convergence.
 matplotlib is imported when a figure is drawn, not with this package."""
 
+from ._benchmark_figures import PAPER_VIEWS_PG_F1 as PAPER_VIEWS_PG_F1
 from ._benchmark_figures import heatmaps as heatmaps
 from ._benchmark_figures import metrics_vs_sigma as metrics_vs_sigma
 from ._benchmark_figures import surfaces as surfaces
