@@ -13,7 +13,7 @@ output carries each group's class. ``rig`` prints
 :meth:`cdog_jax.Rig.describe` and optionally draws the rig.
 
 Before any work: the inputs exist and are of the right kind, the outputs can be written
-and are none of the inputs (``cdog_jax/_paths.py``), the files are read and checked, and
+and are none of the inputs (``_paths.py``), the files are read and checked, and
 σ is finite and at most the image diagonal (the rig file's image size, else twice the
 principal point). Frames that cannot give a group (fewer than 2 views with detections)
 get zero groups and a note.
