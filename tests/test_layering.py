@@ -10,6 +10,7 @@ runs ``pkg/sub/__init__.py`` first, so it counts as an import of that package to
 from __future__ import annotations
 
 import ast
+import re
 import sys
 from pathlib import Path
 
@@ -157,6 +158,15 @@ def test_only_the_entry_points_import_the_command_line():
                  for name, targets in graph.items() if not inside(name) and name not in CLI_IMPORTERS
                  for target, line in targets.items() if inside(target)]
     assert not offenders, "the command line is imported from outside it:\n" + "\n".join(offenders)
+
+
+def test_the_architecture_page_shows_the_same_layers():
+    text = (ROOT.parent / "docs" / "ARCHITECTURE.md").read_text(encoding="utf-8")
+    section = text.split("## Layers", 1)[1].split("\n## ", 1)[0]
+    rows = [line.split("|") for line in section.splitlines() if re.match(r"\| \d+ \|", line)]
+    documented = [(cells[2].strip(), tuple(name.replace("/", ".") for name in re.findall(r"`([^`]+)`", cells[3])))
+                  for cells in rows]
+    assert documented == LAYERS, f"docs/ARCHITECTURE.md lists\n{documented}\nthe test\n{LAYERS}"
 
 
 def test_the_checker_sees_every_kind_of_import(tmp_path, monkeypatch):
