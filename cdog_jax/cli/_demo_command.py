@@ -28,6 +28,7 @@ def _seconds(s: float) -> str:
 
 
 def add_parser(subparsers) -> None:
+    """Declare ``demo`` and its flags."""
     p = subparsers.add_parser(
         "demo",
         help="associate a synthetic scene on the built-in rig, print metrics, save a figure",
