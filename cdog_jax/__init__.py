@@ -15,13 +15,13 @@ from ._method import (
 )
 from ._result import Association as Association
 from ._status import Status as Status, check_status as check_status, status_messages as status_messages
-from ._rig_plot import plot_rays as plot_rays, plot_rig as plot_rig
-from ._plot import plot_association as plot_association
-from ._epipolar_plot import plot_epipolar as plot_epipolar
-from ._bpe_plot import plot_bpe_histogram as plot_bpe_histogram
+from .viz import plot_rays as plot_rays, plot_rig as plot_rig
+from .viz import plot_association as plot_association
+from .viz import plot_epipolar as plot_epipolar
+from .viz import plot_bpe_histogram as plot_bpe_histogram
 from .geometry import Rig as Rig, project as project, rig_from_arrays as rig_from_arrays, triangulate as triangulate
 
-__version__ = "0.1.0"
+from ._version import __version__ as __version__  # noqa: E402
 
 from ._compile_cache import enable_compilation_cache as _enable_compilation_cache  # noqa: E402
 

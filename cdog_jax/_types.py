@@ -1,5 +1,5 @@
-"""Shape aliases shared by all modules (dimension letters: B scenes, M views, P slots per
-view, N = M*P nodes, G groups)."""
+"""The array types every module annotates with (jaxtyping; dimension letters: B scenes,
+M views, P slots per view, N = M*P nodes, G groups), and ``lift`` for explicit broadcasting."""
 
 from typing import Union
 
@@ -9,14 +9,7 @@ from jaxtyping import Array, Bool, Float, Int, UInt
 # Public entry points accept NumPy arrays and nested lists too; internals take jax Arrays.
 ArrayLike = Union[Array, np.ndarray, list, tuple]
 
-Scalar = Float[Array, ""]
-Mat3 = Float[Array, "M 3 3"]
-Vec3 = Float[Array, "M 3"]
-Pixels = Float[Array, "M P 2"]
-Mask = Bool[Array, "M P"]
-Labels = Int[Array, "M P"]
-
-__all__ = ["Array", "ArrayLike", "Bool", "Float", "Int", "UInt", "Scalar", "Mat3", "Vec3", "Pixels", "Mask", "Labels", "lift"]
+__all__ = ["Array", "ArrayLike", "Bool", "Float", "Int", "UInt", "lift"]
 
 
 def lift(a, ndim: int):  # noqa: D401

@@ -38,8 +38,7 @@ def _child(methods: list[str], quick: bool, warm_runs: int) -> dict:
     t_start = time.perf_counter()
     import jax
 
-    from cdog_jax.benchmark import Grid, sweep
-    from cdog_jax.benchmark._command import METHODS
+    from cdog_jax.benchmark import METHODS, Grid, sweep
     from cdog_jax.synthetic import default_rig
 
     grid = Grid.quick() if quick else Grid.paper()
@@ -94,7 +93,7 @@ def single_scene(methods: list[str], counts=SINGLE_COUNTS, runs: int = 7) -> lis
     import jax
 
     import cdog_jax
-    from cdog_jax.benchmark._command import METHODS
+    from cdog_jax.benchmark import METHODS
     from cdog_jax.synthetic import default_rig, generate_scene
 
     rig = default_rig()

@@ -149,7 +149,7 @@ def plot_frame(rig_file, det, out, frame: int, path: str, title: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from cdog_jax.io._atomic import atomic_savefig
+    from cdog_jax.io import atomic_savefig
 
     a = out.association
     labels = np.asarray(a.labels[frame])

@@ -39,7 +39,6 @@ prints Markdown tables.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import os
 import time
@@ -49,16 +48,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from cdog_jax import Config, associate_batch
+from cdog_jax.benchmark import ablation_stages
 from cdog_jax.metrics import scene_metrics
 from cdog_jax.synthetic import default_rig, generate_scenes
-
-
-def _load_stage_ablation():
-    """experiments/stage_ablation.py as a module (the experiments are scripts, not a package)."""
-    spec = importlib.util.spec_from_file_location("stage_ablation", os.path.join(os.path.dirname(os.path.abspath(__file__)), "stage_ablation.py"))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 SIGMA = 1.0
 DROP_RATES = (0.0, 0.05, 0.1, 0.2, 0.3)
@@ -75,7 +67,7 @@ CONFIGS = {
 }
 # The cumulative stages of stage_ablation.py (one list, so the two tables stay comparable),
 # plus the filter this experiment motivated.
-STAGES = {**_load_stage_ablation().STAGES, "+ support filter": Config.extended(support_filter=True)}
+STAGES = {**ablation_stages(), "+ support filter": Config.extended(support_filter=True)}
 
 _metrics_batch = jax.jit(jax.vmap(scene_metrics, in_axes=(None, 0, 0)))
 

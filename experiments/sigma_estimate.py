@@ -2,7 +2,7 @@
 cannot?
 
 Question: the ratio σ̂/σ (median and 10–90 % range over scenes) of the estimator in
-:mod:`cdog_jax.graph._sigma` against the previous one (half-normal + exponential EM on every
+:func:`cdog_jax.graph.estimate_sigma` against the previous one (half-normal + exponential EM on every
 node's nearest epipolar distance, kept here as :func:`old_estimate_sigma`), and how often
 the new one falls back, on
 
@@ -40,7 +40,7 @@ import numpy as np
 
 from cdog_jax import Config, associate_batch
 from cdog_jax.geometry import epipolar_distances
-from cdog_jax.graph._sigma import estimate_sigma, focal_scale
+from cdog_jax.graph import estimate_sigma, focal_scale
 from cdog_jax.synthetic import default_rig, generate_scenes
 
 GRID_SIGMAS = (0.25, 1.0, 3.0, 5.0)

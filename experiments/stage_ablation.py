@@ -16,19 +16,10 @@ import os
 
 import numpy as np
 
-from cdog_jax import Config
-from cdog_jax.benchmark import Grid, sweep
+from cdog_jax.benchmark import Grid, ablation_stages, sweep
 from cdog_jax.synthetic import default_rig
 
-STAGES = {
-    "graph + split": Config.paper(prune_scope="none", iqr=False, bpe_filter=False),
-    "+ δ-pruning": Config.paper(iqr=False, bpe_filter=False),
-    "+ IQR": Config.paper(bpe_filter=False),
-    "+ BPE filter = paper()": Config.paper(),
-    "+ union adjacency": Config.paper(adjacency="union"),
-    "+ recovery": Config.paper(adjacency="union", recover=True, recover_frac=2.0),
-    "+ regroup = extended()": Config.extended(),
-}
+STAGES = ablation_stages()
 FIELDS = ("pg_r", "pg_p", "pg_f1", "g_f1", "num_unassigned")
 
 

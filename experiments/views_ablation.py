@@ -42,13 +42,13 @@ import numpy as np
 
 from cdog_jax import Config
 from cdog_jax.benchmark import Grid, sweep
-from cdog_jax.benchmark._figures import _PAPER_VIEWS_PG_F1, views_ablation
-from cdog_jax.benchmark._sweep import metric_fields
+from cdog_jax.benchmark import metric_fields
+from cdog_jax.viz import PAPER_VIEWS_PG_F1, views_ablation
 from cdog_jax.synthetic import default_rig
 
 SIGMA = 3.0
 FIELDS = ("pg_f1", "mp_f1", "g_f1")
-PAPER_TABLE_I = dict(zip(range(2, 2 + len(_PAPER_VIEWS_PG_F1)), _PAPER_VIEWS_PG_F1))
+PAPER_TABLE_I = dict(zip(range(2, 2 + len(PAPER_VIEWS_PG_F1)), PAPER_VIEWS_PG_F1))
 
 
 def draw_subsets(num_views: int, k: int, subsets: int, rng: np.random.Generator) -> list[tuple[int, ...]]:

@@ -7,14 +7,18 @@ import re
 import pytest
 
 import cdog_jax
+import cdog_jax.benchmark
+import cdog_jax.calibration
 import cdog_jax.geometry
 import cdog_jax.graph
 import cdog_jax.io
 import cdog_jax.metrics
 import cdog_jax.refine
 import cdog_jax.synthetic
+import cdog_jax.viz
 
-MODULES = [cdog_jax, cdog_jax.geometry, cdog_jax.graph, cdog_jax.io, cdog_jax.refine, cdog_jax.synthetic, cdog_jax.metrics]
+MODULES = [cdog_jax, cdog_jax.geometry, cdog_jax.graph, cdog_jax.io, cdog_jax.refine, cdog_jax.synthetic, cdog_jax.metrics,
+           cdog_jax.calibration, cdog_jax.viz, cdog_jax.benchmark]
 PUBLIC = sorted(
     {
         (mod.__name__, name): obj

@@ -13,7 +13,7 @@ import pytest
 
 import cdog_jax
 from cdog_jax import associate_classes
-from cdog_jax._cli import main
+from cdog_jax.cli import main
 from cdog_jax.io import save_association_csv, save_association_json, save_association_npz, save_rig_json
 from cdog_jax.synthetic import DEFAULT_BOX, default_rig
 

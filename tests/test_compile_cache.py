@@ -62,7 +62,7 @@ def test_second_process_loads_the_compiled_program(tmp_path):
 def test_no_cache_flag_turns_it_off(tmp_path):
     import jax
 
-    from cdog_jax._cli import main
+    from cdog_jax.cli import main
     from cdog_jax.io import save_rig_json
     from cdog_jax.synthetic import default_rig
 

@@ -231,6 +231,7 @@ def test_triangulate_refuses_a_batched_rig(scene):
 # --- argument types of public functions ------------------------------------------------------
 
 import cdog_jax.benchmark  # noqa: E402
+import cdog_jax.calibration  # noqa: E402
 import cdog_jax.io  # noqa: E402
 import cdog_jax.metrics  # noqa: E402
 import cdog_jax.refine  # noqa: E402
@@ -285,10 +286,10 @@ WRONG_TYPES = [
     (cdog_jax.benchmark.save_results, ("out", "result"), {}, "save_results: result must be SweepResult; got str 'out'"),
     (cdog_jax.benchmark.load_results, (None,), {}, f"load_results: directory must be {_PATH_MSG}; got None"),
     (cdog_jax.benchmark.summary_table, ("results",), {}, "summary_table: result must be SweepResult; got str"),
-    (cdog_jax.refine.rig_errors, (_RIG, _RIG.K), {}, "rig_errors: reference must be Rig; got ArrayImpl"),
-    (cdog_jax.refine.align_rigs, ("rig.json", _RIG), {}, "align_rigs: rig must be Rig; got str"),
-    (cdog_jax.refine.calibrate, (_RIG, _XY[None], _MASK[None]), {"thresholds": Config(), "config": _TH}, "calibrate: thresholds must be Thresholds; got Config"),
-    (cdog_jax.refine.bpe, (_XY, _RIG, jnp.zeros((2, 3), jnp.int32), jnp.ones(2, bool)), {}, "bpe: rig must be Rig; got ArrayImpl"),
+    (cdog_jax.calibration.rig_errors, (_RIG, _RIG.K), {}, "rig_errors: reference must be Rig; got ArrayImpl"),
+    (cdog_jax.calibration.align_rigs, ("rig.json", _RIG), {}, "align_rigs: rig must be Rig; got str"),
+    (cdog_jax.calibration.calibrate, (_RIG, _XY[None], _MASK[None]), {"thresholds": Config(), "config": _TH}, "calibrate: thresholds must be Thresholds; got Config"),
+    (cdog_jax.calibration.bpe, (_XY, _RIG, jnp.zeros((2, 3), jnp.int32), jnp.ones(2, bool)), {}, "bpe: rig must be Rig; got ArrayImpl"),
 ]
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from cdog_jax import _progress
-from cdog_jax._associate_command import _associate_frames
+from cdog_jax.cli._associate_command import _associate_frames
 from cdog_jax.benchmark import SweepProgress
 
 

@@ -653,7 +653,7 @@ def versions() -> dict[str, str]:
     """Versions of the libraries that produce a sweep: jax, jaxlib, cdog_jax, numpy."""
     import jaxlib
 
-    from .. import __version__
+    from .._version import __version__
 
     return {"jax": jax.__version__, "jaxlib": jaxlib.__version__, "cdog_jax": __version__, "numpy": np.__version__}
 

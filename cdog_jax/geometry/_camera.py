@@ -51,19 +51,6 @@ class Rig(eqx.Module):
         views = np.asarray(views)
         return Rig(self.K[..., views, :, :], self.R[..., views, :, :], self.t[..., views, :])
 
-    def describe(self, *, xy=None, mask=None, image_size=None, names=None, dist=None) -> str:
-        """A multi-line, human-readable summary of this (unbatched) rig, ending in warnings.
-
-        Per view: centre, viewing direction, focal lengths and principal point; baselines;
-        the point nearest to all optical axes; with detections ``xy (M, P, 2)`` (+ ``mask
-        (M, P)``, ``dist (M, 5)``), their triangulated centroid. Warnings flag cameras that
-        look away from the scene, axes that meet behind the cameras (camera→world ``R, t``),
-        duplicated cameras. The same facts as data: :func:`cdog_jax.geometry.describe_rig`.
-        """
-        from ._describe import describe_rig
-
-        return describe_rig(self, xy=xy, mask=mask, image_size=image_size, names=names, dist=dist).format()
-
 
 def rig_from_arrays(K, R, t, *, dtype=None) -> Rig:
     """Build a :class:`Rig` from array-likes, with eager shape and value checks.

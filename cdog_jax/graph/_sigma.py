@@ -150,5 +150,6 @@ def sigma_from_samples(
 
 
 def focal_scale(K: Float[Array, "M 3 3"]) -> Float[Array, ""]:
-    """The rig's focal length (pixels): the median over views of ``(|f_x| + |f_y|) / 2``."""
+    """The rig's focal length ``()`` (pixels) from ``K (M, 3, 3)``: the median over views of
+    ``(|f_x| + |f_y|) / 2``."""
     return jnp.median(0.5 * (jnp.abs(K[..., 0, 0]) + jnp.abs(K[..., 1, 1])))

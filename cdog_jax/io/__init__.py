@@ -27,6 +27,7 @@ from ._rotations import quaternion_from_rotation as quaternion_from_rotation
 from ._rotations import rodrigues_from_rotation as rodrigues_from_rotation
 from ._rotations import rotation_from_quaternion as rotation_from_quaternion
 from ._rotations import rotation_from_rodrigues as rotation_from_rodrigues
+from ._atomic import atomic_savefig as atomic_savefig
 from ._association_files import association_records as association_records
 from ._association_files import load_association_json as load_association_json
 from ._association_files import save_association_csv as save_association_csv
@@ -45,7 +46,7 @@ from ._keypoints import load_openpose as load_openpose
 from ._errors import InputError as InputError
 from ._rig_files import FORMATS as FORMATS
 from ._rig_files import RigFile as RigFile
-from ._rig_files import load_rig as load_rig
+from ._load_rig import load_rig as load_rig
 from ._rig_files import save_rig_easyvis as save_rig_easyvis
 from ._rig_files import save_rig_json as save_rig_json
 from ._rig_files import save_rig_npz as save_rig_npz

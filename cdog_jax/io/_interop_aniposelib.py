@@ -16,7 +16,7 @@ import numpy as np
 
 from ..geometry._camera import Rig
 from ._opencv_arrays import opencv_from_rig, rig_from_opencv
-from ._rig_files import RigFile
+from ._rig_files import RigFile, _check_names
 
 
 def rig_from_aniposelib(camera_group: Any, *, dtype: Any = None) -> RigFile:
@@ -68,8 +68,6 @@ def aniposelib_from_rig(rig: Rig, *, image_size: Any, dist: Any = None, names: A
     M = cams.K.shape[0]
     if names is None:
         names = [f"cam_{m}" for m in range(M)]
-    from ._rig_files import _check_names
-
     names = _check_names(names, M, "cam_{}")
     kind = FisheyeCamera if cams.fisheye else Camera
     cameras = [

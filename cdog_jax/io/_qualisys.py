@@ -30,6 +30,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 
 from ._errors import InputError, read_text
+from ._keypoints import natural_key
 from ._rig_files import _Views
 
 SUBPIXEL = 64.0  # QTM stores intrinsics in 1/64 pixel
@@ -48,8 +49,6 @@ def read_qualisys(path: str) -> _Views:
     cameras = root.findall("cameras/camera")
     if not cameras:
         raise InputError(f"{path}: no <cameras><camera …> elements (not a Qualisys .qca.txt calibration?)")
-    from ._keypoints import natural_key
-
     video = [c for c in cameras if c.get("model") in VIDEO_MODELS]
     chosen = sorted(video, key=lambda c: natural_key(c.get("serial") or ""))
     if len(chosen) < 2:

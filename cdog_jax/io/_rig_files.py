@@ -1,6 +1,7 @@
-"""Rig files (docs/CONVENTIONS.md §3): EasyVis/OpenMVG text folders, the project's JSON, NPZ, and (in their own
-modules) anipose ``calibration.toml``, COLMAP text models, EasyMocap
-``intri.yml``/``extri.yml`` and nerfstudio ``transforms.json``.
+"""Rig files (docs/CONVENTIONS.md §3): EasyVis/OpenMVG text folders, the project's JSON, NPZ, and the
+helpers that the modules of the other formats share (anipose ``calibration.toml``, COLMAP
+text models, EasyMocap ``intri.yml``/``extri.yml``, nerfstudio ``transforms.json``,
+Qualisys); ``load_rig``, above them all, is in ``_load_rig.py``.
 
 Every reader returns the convention of docs/CONVENTIONS.md §1: world→camera ``X_cam = R X_world + t``
 with ``R`` a 3×3 rotation matrix (rows are the camera axes in world coordinates: x right,
@@ -101,65 +102,6 @@ class _Views(NamedTuple):
     view_sizes: np.ndarray | None = None
     dist: np.ndarray | Fisheye | None = None
     names: tuple[str, ...] | None = None
-
-
-def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigFile:
-    """Read a rig file: ``K, R (M, 3, 3)``, ``t (M, 3)`` and optional sizes, distortion, names.
-
-    Formats (all read into world→camera ``X_cam = R X + t``, ``K`` general, OpenCV pixels):
-
-    - ``"easyvis"``: a folder of ``K{i}.txt``, ``R{i}.txt`` (3×3 Python-literal nested
-      lists) and ``T{i}.txt`` (``[[x], [y], [z]]`` or ``[x, y, z]``), ``i = 0 … M-1``;
-      other files are ignored. Parsed with ``ast.literal_eval``. No image size, no ``dist``.
-    - ``"json"``: ``{"views": [{"K", "R", "t", "dist" (optional, 5) or "fisheye"
-      (optional, 4: OpenCV's fisheye k1…k4), "image_size" (optional, [w, h])}, …]}``;
-      views without ``dist`` get zeros.
-    - ``"npz"``: ``K (M, 3, 3)``, ``R (M, 3, 3)``, ``t (M, 3)``, optional ``dist (M, 5)``
-      or ``fisheye (M, 4)``, and ``image_size (2,)``.
-    - ``"anipose"``: an aniposelib ``calibration.toml`` (see :func:`read_anipose`).
-    - ``"colmap"``: a COLMAP text model, ``cameras.txt`` + ``images.txt`` (see
-      :func:`read_colmap`); COLMAP's half-pixel principal point is shifted to OpenCV's.
-    - ``"easymocap"``: EasyMocap ``intri.yml`` + ``extri.yml`` (see :func:`read_easymocap`).
-    - ``"nerfstudio"``: a nerfstudio ``transforms.json`` (see :func:`read_nerfstudio`).
-    - ``"qualisys"``: a Qualisys ``.qca.txt`` calibration, as Pose2Sim reads it (see
-      :func:`read_qualisys`); scene units metres.
-    - ``"auto"``: ``.qca.txt`` is qualisys; a file named ``transforms.json`` is nerfstudio; ``.json``, ``.npz``,
-      ``.toml`` (anipose) by suffix; ``cameras.txt`` or
-      ``images.txt`` (COLMAP) and ``intri.yml`` or ``extri.yml`` (EasyMocap) by name, their
-      folder being read; a folder holding ``cameras.txt`` and ``images.txt`` is COLMAP, one
-      holding ``intri.yml`` and ``extri.yml`` is EasyMocap, any other folder is EasyVis.
-
-    Args:
-        path: the folder or file.
-        format: ``"auto"`` or one of :data:`FORMATS`.
-        dtype: float dtype of the rig (default: JAX's default float). ``float64`` needs
-            64-bit JAX (``jax.config.update("jax_enable_x64", True)``), else it raises.
-
-    Returns:
-        A :class:`RigFile`; ``image_size`` is the common size when all views agree, else
-        ``None`` (``view_sizes`` has every view's); ``dist`` is zeros when the file gives
-        none. Raises ``ValueError`` naming the file
-        (and view, camera, line or key) for an unreadable file, a missing view or key, a
-        wrong shape, a non-finite number, a singular ``K`` or a ``R`` that is not a rotation.
-    """
-    expect_args("load_rig", path=(path, PATH))
-    check_rig_dtype(dtype, "load_rig")
-    from . import _anipose, _colmap, _easymocap, _nerfstudio, _qualisys  # they import this module's helpers
-
-    path = os.fspath(path)
-    fmt = _resolve_format(path, format)
-    readers = {
-        "easyvis": _read_easyvis,
-        "json": _read_json,
-        "npz": _read_npz,
-        "anipose": _anipose.read_anipose,
-        "colmap": _colmap.read_colmap,
-        "easymocap": _easymocap.read_easymocap,
-        "nerfstudio": _nerfstudio.read_nerfstudio,
-        "qualisys": _qualisys.read_qualisys,
-    }
-    views = readers[fmt](path)
-    return rig_file_from_views(views, dtype, path)
 
 
 def check_rig_dtype(dtype: Any, function: str) -> None:
@@ -268,7 +210,7 @@ def save_rig_easyvis(folder: PathLike, rig: Rig) -> None:
     folder = os.fspath(folder)
     os.makedirs(folder, exist_ok=True)
     M = K.shape[0]
-    stale = sorted(name for name, _, i in _easyvis_files(folder) if i >= M)
+    stale = sorted(name for name, _, i in easyvis_files(folder) if i >= M)
     if stale:
         raise ValueError(f"{folder}: holds {stale[0]}, beyond the {M} views of the rig; remove it or use an empty folder")
     for m in range(M):
@@ -280,48 +222,7 @@ def save_rig_easyvis(folder: PathLike, rig: Rig) -> None:
 # Readers ---------------------------------------------------------------------------------
 
 
-def _resolve_format(path: str, format: str) -> str:
-    if format in FORMATS:
-        return format
-    if format != "auto":
-        raise ValueError(f"{path}: unknown rig format {format!r}; expected 'auto' or one of {FORMATS}")
-    if os.path.isdir(path):
-        entries = set(os.listdir(path))
-        if {"cameras.txt", "images.txt"} <= entries:
-            return "colmap"
-        if {"intri.yml", "extri.yml"} <= entries:
-            return "easymocap"
-        if {"cameras.bin", "images.bin"} <= entries:
-            raise ValueError(
-                f"{path}: a binary COLMAP model (cameras.bin, images.bin); only text models are read: "
-                "convert it with `colmap model_converter --output_type TXT`"
-            )
-        suffix = os.path.splitext(os.path.normpath(path))[1].lower()
-        if suffix in (".json", ".npz", ".toml") and not _easyvis_files(path):
-            raise InputError(f"{path}: is a folder; a {suffix} rig is a file")
-        return "easyvis"
-    base = os.path.basename(path)
-    if base.lower().endswith((".qca.txt", ".qca")):
-        return "qualisys"
-    if base == "transforms.json":
-        return "nerfstudio"
-    if base in ("cameras.txt", "images.txt"):
-        return "colmap"
-    if base in ("intri.yml", "extri.yml"):
-        return "easymocap"
-    suffix = os.path.splitext(path)[1].lower()
-    if suffix in (".json", ".npz"):
-        return suffix[1:]
-    if suffix == ".toml":
-        return "anipose"
-    raise ValueError(
-        f"{path}: cannot tell the rig format; expected a folder (easyvis, or colmap with cameras.txt and "
-        "images.txt, or easymocap with intri.yml and extri.yml), a .json, .npz or .toml (anipose) file, transforms.json (nerfstudio), a .qca.txt (qualisys) "
-        f"(or pass format= one of {FORMATS})"
-    )
-
-
-def _easyvis_files(folder: str) -> list[tuple[str, str, int]]:
+def easyvis_files(folder: str) -> list[tuple[str, str, int]]:
     """``(file name, letter, view index)`` of every ``K/R/T{i}.txt`` in ``folder``."""
     out = []
     for name in os.listdir(folder):
@@ -331,10 +232,10 @@ def _easyvis_files(folder: str) -> list[tuple[str, str, int]]:
     return out
 
 
-def _read_easyvis(folder: str):
+def read_easyvis(folder: str):
     if not os.path.isdir(folder):
         raise ValueError(f"{folder}: not a folder (the easyvis format is a folder of K/R/T{{i}}.txt files)")
-    files = _easyvis_files(folder)
+    files = easyvis_files(folder)
     if not files:
         raise ValueError(f"{folder}: no K{{i}}.txt, R{{i}}.txt, T{{i}}.txt files (zero views)")
     present = {(letter, i) for _, letter, i in files}
@@ -382,7 +283,7 @@ def read_json(path: str) -> Any:
         raise InputError(f"{path}: not readable JSON: {digits}; at most {sys.get_int_max_str_digits()} are read") from None
 
 
-def _read_json(path: str):
+def read_json_rig(path: str):
     data = read_json(path)
     if not isinstance(data, dict) or "views" not in data:
         raise ValueError(f'{path}: missing key "views" (expected {{"views": [{{"K", "R", "t"}}, …]}})')
@@ -455,7 +356,7 @@ class _NpzFile:
         self._npz.close()
 
 
-def _read_npz(path: str):
+def read_npz(path: str):
     with open_npz(path) as npz:
         for key in ("K", "R", "t"):
             if key not in npz.files:

@@ -39,7 +39,7 @@ def test_default_rig_with_scene_has_no_warnings(rig, scene):
     lo, hi = np.asarray(DEFAULT_BOX)
     assert np.all(desc.centroid >= lo) and np.all(desc.centroid <= hi), desc.centroid
     assert np.all(desc.centroid_angle_deg < 20.0)
-    text = rig.describe(xy=scene.xy, mask=scene.mask, image_size=IMAGE_SIZE)
+    text = desc.format()
     assert text == str(desc) and "No warnings." in text and "WARNING" not in text
     assert len(text.splitlines()) >= rig.num_views + 4
     assert describe_rig(rig).warnings == []  # without detections
@@ -88,7 +88,7 @@ def test_camera_to_world_rig_is_flagged(rig, scene):
         pointing = [w for w in desc.warnings if "points away" in w or "outside its" in w or "converge" in w]
         assert len(pointing) >= 2, desc.warnings
         assert any("camera→world" in w for w in desc.warnings), desc.warnings
-    assert "WARNINGS" in bad.describe(xy=scene.xy, mask=scene.mask)
+    assert "WARNINGS" in describe_rig(bad, xy=scene.xy, mask=scene.mask).format()
 
 
 def test_identical_cameras_are_flagged(rig, scene):

@@ -55,7 +55,7 @@ def _figure(path):
     import jax.numpy as jnp
 
     from cdog_jax import Association
-    from cdog_jax._plot import plot_association
+    from cdog_jax.viz import plot_association
 
     a = _assoc()
     G_full = M * P // 2  # the static group capacity of an Association

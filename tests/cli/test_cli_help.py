@@ -7,7 +7,7 @@ import re
 
 import pytest
 
-from cdog_jax._cli import build_parser
+from cdog_jax.cli import build_parser
 from cdog_jax.io import FORMATS
 
 # Words of a rig format that a help text naming it must contain (one per format).

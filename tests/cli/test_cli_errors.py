@@ -11,7 +11,7 @@ import os
 import numpy as np
 import pytest
 
-from cdog_jax._cli import main
+from cdog_jax.cli import main
 from cdog_jax.io import load_detections, save_rig_json
 from cdog_jax.synthetic import IMAGE_SIZE, default_rig
 

@@ -15,7 +15,8 @@ from cdog_jax import Config, Rig
 from cdog_jax.geometry import project
 from cdog_jax.geometry._parameters import so3_exp
 from cdog_jax.metrics import scene_metrics
-from cdog_jax.refine._calibration import _robust_weight, align_rigs, calibrate, refine_rig, rig_errors
+from cdog_jax.calibration import align_rigs, calibrate, refine_rig, rig_errors
+from cdog_jax.calibration._refine_rig import _robust_weight
 from cdog_jax.synthetic import default_rig, generate_scenes
 
 S, N_POINTS = 2, 30  # scenes and points per scene (slot capacity P = N_POINTS)

@@ -13,10 +13,10 @@ import os
 
 import numpy as np
 
-from ._result import Association
-from .geometry._camera import Rig
-from .io._atomic import atomic_savefig
-from .synthetic._rig import IMAGE_SIZE
+from .._result import Association
+from ..geometry._camera import Rig
+from ..io._atomic import atomic_savefig
+from ..synthetic._rig import IMAGE_SIZE
 
 # Every group gets its own colour: hues stepped by the golden ratio (neighbouring ids far
 # apart on the colour wheel, no hue ever repeats exactly), two lightness levels, and four

@@ -10,7 +10,7 @@ import pytest
 
 import cdog_jax
 from cdog_jax import plot_association, plot_bpe_histogram, plot_epipolar, plot_rays
-from cdog_jax._plot import group_style, wrong_groups
+from cdog_jax.viz._plot import group_style, wrong_groups
 from cdog_jax.synthetic import default_rig, generate_scene
 
 

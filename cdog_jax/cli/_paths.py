@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Iterable, Mapping
 
-from .io._errors import InputError
+from ..io._errors import InputError
 
 # Files a rig path stands for: the rig formats that read a whole folder when given one file.
 _FOLDER_FILES = ("cameras.txt", "images.txt", "intri.yml", "extri.yml")

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from cdog_jax.benchmark._figures import (
+from cdog_jax.viz._benchmark_figures import (
     cell_means,
     heatmaps,
     metrics_vs_sigma,

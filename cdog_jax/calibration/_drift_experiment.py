@@ -1,9 +1,9 @@
-"""``cdog-jax calibrate``: recover a drifted calibration of the built-in rig from detections.
-
-The experiment, also run by ``experiments/calibrate.py``: for each
+"""The drift-recovery experiment of ``cdog-jax calibrate`` (also run by
+``experiments/calibrate.py``): recover a drifted calibration of the built-in rig from
+detections alone. For each
 perturbation level, every view of the built-in rig is perturbed (rotation about a random
 axis, camera centre moved, focal lengths scaled), detections are generated with the *true*
-rig, and ``calibrate`` (``cdog_jax/refine/_calibration.py``) alternates association and
+rig, and ``calibrate`` (``_calibrate.py``) alternates association and
 joint camera + point refinement (Huber loss), starting from the perturbed rig, in two stages:
 
 1. coarse: sparse frames (a "wand": 2 points per frame, 48 frames) associated with a wide
@@ -22,7 +22,6 @@ are the estimator's own (noise and weakly observable directions), the floor for 
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import dataclasses
 import time
@@ -31,11 +30,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._cdog import Config
-from ._progress import bar, compiling
-from .geometry._camera import Rig
-from .geometry._parameters import so3_exp
-from .io._atomic import atomic_savefig
+from .._cdog import Config
+from .._cdog import associate_traced
+from .._progress import bar, compiling
+from ..geometry._camera import Rig
+from ..geometry._parameters import so3_exp
+from ..metrics._scores import scene_metrics
+from ..synthetic import DEFAULT_BOX, default_rig, generate_scenes
+from ._alignment import rig_errors
+from ._calibrate import calibrate
 
 
 @dataclasses.dataclass(frozen=True)
@@ -98,11 +101,6 @@ def run_experiment(
     generated with the true rig at noise ``sigma`` (px); the coarse stage runs one round
     per gate in ``gates_px``, the fine stage ``rounds`` rounds (the last with free focal
     lengths)."""
-    from ._cdog import associate_traced
-    from .metrics._scores import scene_metrics
-    from .refine._calibration import calibrate, rig_errors
-    from .synthetic import DEFAULT_BOX, default_rig, generate_scenes
-
     if rounds < 1 or not gates_px:
         raise ValueError(f"need rounds >= 1 and at least one coarse gate; got rounds={rounds}, gates={gates_px}")
     truth = default_rig()
@@ -194,117 +192,3 @@ def run_experiment(
         levels_bar.update(1)
     levels_bar.close()
     return rows
-
-
-def format_table(rows: list[dict]) -> str:
-    """The before → after table (markdown)."""
-    out = [
-        "| level (rot°, shift, focal) | rotation err (°) | centre err (scene units) | focal err (%) "
-        "| median BPE (px²) | PG-F1 (truth) | time warm / compile (s) |",
-        "|---|---|---|---|---|---|---|",
-    ]
-    for r in rows:
-        lv = r["level"]
-        out.append(
-            f"| {lv.name} ({lv.rotation_deg:g}°, {100 * lv.translation_frac:g} %, {100 * lv.focal_frac:g} %) "
-            f"| {r['rotation_deg'][0]:.3f} → {r['rotation_deg'][1]:.4f} "
-            f"| {r['center'][0]:.4f} → {r['center'][1]:.5f} "
-            f"| {r['focal_pct'][0]:.2f} → {r['focal_pct'][1]:.3f} "
-            f"| {r['bpe'][0]:.1f} → {r['bpe'][1]:.2f} "
-            f"| {r['pg_f1'][0]:.3f} → {r['pg_f1'][1]:.3f} ({r['pg_f1_truth']:.3f}) "
-            + (f"| first call {r['first_s']:.1f} |" if np.isnan(r["warm_s"]) else f"| {r['warm_s']:.2f} / " + ("–" if np.isnan(r["compile_s"]) else f"{r['compile_s']:.1f}") + " |")
-        )
-    return "\n".join(out)
-
-
-def convergence_figure(rows: list[dict], path: str) -> str:
-    """Mean rotation error (degrees) and focal error (%) against the truth, at the start and
-    after each round, one line per level; the boundary between the coarse rounds (wand
-    frames, shrinking gate) and the fine rounds (dense scenes) is marked."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(10.0, 4.0), constrained_layout=True)
-    panels = (("rotation_deg", "rotation_rounds", "mean rotation error (°, log)"), ("focal_pct", "focal_rounds", "mean |focal error| (%, log)"))
-    for ax, (start_key, key, label) in zip(axes, panels):
-        for r in rows:
-            values = np.concatenate([[r[start_key][0]], r[key]])
-            lv = r["level"]
-            ax.plot(np.arange(values.size), np.maximum(values, 1e-3), marker="o", label=f"{lv.name}: {lv.rotation_deg:g}°, {100 * lv.focal_frac:g} %")
-        if rows:
-            split = rows[0]["coarse_rounds"] + 0.5
-            ax.axvline(split, color="0.5", linestyle="--", linewidth=1)
-            ax.text(split - 0.1, 0.02, "coarse: wand frames ", transform=ax.get_xaxis_transform(), ha="right", va="bottom", fontsize=8)
-            ax.text(split + 0.1, 0.02, " fine: dense scenes", transform=ax.get_xaxis_transform(), ha="left", va="bottom", fontsize=8)
-        ax.set_yscale("log")
-        ax.set_xlabel("round (association + joint refinement)")
-        ax.set_ylabel(label)
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(title="perturbation", fontsize=8, loc="center right")
-    axes[1].set_title("focal lengths are freed in the last round only", fontsize=9)
-    fig.suptitle("Camera refinement from a drifted built-in rig (errors after a similarity alignment to the truth)")
-    atomic_savefig(fig, path, dpi=120)
-    plt.close(fig)
-    return path
-
-
-_DESCRIPTION = (
-    "Recover a drifted calibration of the built-in rig from detections alone. Every camera is "
-    "perturbed (rotated, moved, focal length scaled); detections are generated with the true "
-    "cameras; association and a joint camera + point fit then alternate, starting from the "
-    "perturbed cameras: first on sparse frames (2 points each) with a wide epipolar gate that "
-    "shrinks every round, then on dense scenes with σ estimated. Prints the rotation, centre "
-    "and focal errors against the truth, the BPE and PG-F1 before and after, and writes a "
-    "figure of the BPE per round. The level 'none' starts at the truth: its errors are the "
-    "floor. See docs/ALGORITHM.md and the README's 'Differentiating through cameras'."
-)
-
-
-def add_parser(subparsers) -> None:
-    """Declare ``calibrate`` and its flags."""
-    p = subparsers.add_parser("calibrate", help="refine a perturbed built-in rig from detections", description=_DESCRIPTION)
-    p.add_argument("--quick", action="store_true", help="one level (large), 2 scenes of 30 points, 16 wand frames, 2 + 1 rounds, no timing")
-    from ._cli import _nonnegative_float, _positive_int
-
-    p.add_argument("--scenes", type=_positive_int, default=4, help="dense scenes (fine stage)")
-    p.add_argument("--points", type=_positive_int, default=60, help="points per dense scene")
-    p.add_argument("--wand-frames", type=_positive_int, default=48, help="sparse frames (coarse stage)")
-    p.add_argument("--wand-points", type=_positive_int, default=2, help="points per sparse frame")
-    p.add_argument("--sigma", type=_nonnegative_float, default=1.0, help="detection noise σ (px)")
-    # Fine rounds: all but the last refine the poses only; the last frees the focal lengths too.
-    p.add_argument("--rounds", type=_positive_int, default=3, help="fine rounds (after one coarse round per gate)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", default="calibration.png", help="convergence figure, .png/.pdf/.svg/.jpg")
-    p.set_defaults(func=run)
-
-
-def run(args: argparse.Namespace) -> int:
-    """Run the experiment, print the table, write the figure; returns the exit code."""
-    import math
-
-    from ._cli import _FIGURE_EXTENSIONS, check_sigma_fits
-    from ._paths import check_output, write_output
-    from .synthetic import IMAGE_SIZE
-
-    check_output(str(args.out), "--out", _FIGURE_EXTENSIONS, {})
-    check_sigma_fits(args.sigma, math.hypot(*IMAGE_SIZE), f"the built-in rig ({IMAGE_SIZE[0]}×{IMAGE_SIZE[1]} px)")
-    if args.quick:
-        levels, scenes, points, rounds, frames, gates, timing = (LEVELS[2],), 2, 30, 1, 16, (120.0, 30.0), 0
-    else:
-        levels, scenes, points, rounds, frames, gates, timing = (NO_DRIFT, *LEVELS), args.scenes, args.points, args.rounds, args.wand_frames, COARSE_GATES_PX, 3
-    gate_text = " → ".join(f"{g:g}" for g in gates)
-    print(
-        f"Built-in rig, σ = {args.sigma:g} px. Coarse: {frames} frames × {args.wand_points} points, gate {gate_text} px. "
-        f"Fine: {scenes} scenes × {points} points, {rounds} rounds.",
-        flush=True,
-    )
-    rows = run_experiment(
-        levels, scenes=scenes, points=points, sigma=args.sigma, rounds=rounds, wand_frames=frames,
-        wand_points=args.wand_points, gates_px=gates, seed=args.seed, timing_runs=timing,
-    )
-    print(format_table(rows))
-    write_output(str(args.out), "--out", lambda: convergence_figure(rows, str(args.out)))
-    print(f"Figure: {args.out}")
-    return 0

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import cdog_jax
-from cdog_jax._cli import main
+from cdog_jax.cli import main
 from cdog_jax.io import load_detections, load_rig, save_detections_json
 from cdog_jax.io._detections_out import detection_order
 from cdog_jax.synthetic import default_rig, generate_scene

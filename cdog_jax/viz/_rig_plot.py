@@ -9,9 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._expect import expect_args
-from .geometry._camera import Rig
-from .geometry._describe import host_views, image_sizes
+from .._expect import expect_args
+from ..geometry._camera import Rig
+from ..geometry._describe import host_views, image_sizes
+from ._plot import group_style
 
 _CAMERA_COLOR = "0.2"
 _POINT_COLOR = "tab:blue"
@@ -122,8 +123,6 @@ def plot_rays(rig: Rig, xy, mask, *, result=None, depth=None, ax=None, names=Non
         The matplotlib ``Axes3D``. The rays are ``ax.lines[-n:]``, ``n`` the number of
         valid detections, in view-major slot order, each starting at its camera centre.
     """
-    from ._plot import group_style
-
     expect_args("plot_rays", rig=(rig, Rig))
     K, R, t, _ = host_views(rig, names, "plot_rays")
     xy = np.asarray(xy, dtype=np.float64)

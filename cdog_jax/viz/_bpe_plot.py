@@ -9,8 +9,8 @@ import os
 
 import numpy as np
 
-from ._result import Association
-from .io._atomic import atomic_savefig
+from .._result import Association
+from ..io._atomic import atomic_savefig
 
 _BAR_COLOR = "#3b6fb6"
 

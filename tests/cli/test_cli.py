@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 import cdog_jax
-from cdog_jax._cli import main
-from cdog_jax._plot import plot_association
+from cdog_jax.cli import main
+from cdog_jax.viz import plot_association
 from cdog_jax.synthetic import default_rig, generate_scene
 
 METRIC_NAMES = ("G-F1", "mP-F1", "PG-P", "PG-R", "PG-F1", "3DErr", "BPE")

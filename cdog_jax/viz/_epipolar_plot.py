@@ -12,13 +12,13 @@ import os
 
 import numpy as np
 
-from ._expect import expect_args
+from .._expect import expect_args
 from ._plot import _UNASSIGNED_COLOR, _WRONG_COLOR, group_style
-from ._result import Association
-from .geometry._camera import Rig
-from .geometry._epipolar import fundamental_from_rig
-from .io._atomic import atomic_savefig
-from .synthetic._rig import IMAGE_SIZE
+from .._result import Association
+from ..geometry._camera import Rig
+from ..geometry._epipolar import fundamental_from_rig
+from ..io._atomic import atomic_savefig
+from ..synthetic._rig import IMAGE_SIZE
 
 _LINE_COLOR = "#1f5fbf"
 _CANDIDATE_COLOR = "#f08c00"

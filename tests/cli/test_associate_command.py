@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import cdog_jax
-from cdog_jax._cli import main
+from cdog_jax.cli import main
 from cdog_jax.geometry import distort_pixels
 from cdog_jax.io import (
     load_association_json,

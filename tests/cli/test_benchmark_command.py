@@ -4,7 +4,7 @@ import os
 
 import numpy as np
 
-from cdog_jax._cli import main
+from cdog_jax.cli import main
 from cdog_jax.benchmark import load_results
 
 

@@ -11,7 +11,7 @@ from helpers import project_np, x64
 from cdog_jax import Rig
 from cdog_jax.geometry import triangulate
 from cdog_jax.geometry._parameters import CameraParams, params_from_rig, rig_from_params
-from cdog_jax.refine._bpe_loss import bpe, group_bpe
+from cdog_jax.calibration._bpe_loss import bpe, group_bpe
 from cdog_jax.synthetic import default_rig, generate_scene
 
 FIELDS = ("rotvec", "t", "focal", "principal", "skew")

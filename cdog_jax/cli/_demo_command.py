@@ -1,37 +1,15 @@
-"""The ``cdog-jax`` command line (also ``python -m cdog_jax``).
-
-One function per subcommand: ``_add_<name>(subparsers)`` declares its arguments and sets
-``func`` to ``_run_<name>(args) -> int``; register new ones in ``_SUBCOMMANDS``.
-
-Subcommands:
-    demo       built-in rig → synthetic scene → :func:`cdog_jax.associate` → summary, metrics
-               (docs/BENCHMARK.md §2), timings and a PNG figure; ``--save-scene`` writes files.
-    benchmark  the benchmark grid (docs/BENCHMARK.md §1) for several methods in one compiled call → tables, saved
-               results, figures (``cdog_jax/benchmark/_command.py``).
-    calibrate  perturb the built-in rig, refine it from associations, before/after table and
-               a convergence figure (``cdog_jax/_calibrate_command.py``).
-    associate  your rig file and detections file → groups, 3D points (JSON/NPZ/CSV), figure.
-    rig        describe a rig file (centres, directions, baselines, warnings), draw it
-               (both in ``cdog_jax/_associate_command.py``).
-
-Errors: a user error (a bad file, path or value: ``ValueError``, which includes
-:class:`cdog_jax.io.InputError`, and ``OSError``) prints one line ``cdog-jax: error: <file>:
-<what>`` on stderr and exits 2, as argparse's usage errors do; ``--debug`` shows its
-traceback instead. Any other exception is a bug of the library and keeps its traceback.
-Outputs are checked (``cdog_jax/_paths.py``) and every file is written atomically
-(``cdog_jax/io/_atomic.py``) before and while the work runs.
-"""
+"""``cdog-jax demo``: the built-in rig → a synthetic scene → :func:`cdog_jax.associate` →
+summary, metrics (docs/BENCHMARK.md §2), timings and a PNG figure; ``--save-scene`` writes
+the scene as files that ``cdog-jax associate`` reads."""
 
 from __future__ import annotations
 
 import argparse
 import math
 import os
-import sys
 import time
-from collections.abc import Sequence
 
-from .io._errors import InputError
+from ._common import _FIGURE_EXTENSIONS, _emit, _method_name, _nonnegative_float, _positive_int, check_sigma_fits
 
 # Rows of the metrics table: (Metrics field, docs/BENCHMARK.md §2 name, format, unit / meaning).
 _METRIC_ROWS = (
@@ -45,65 +23,12 @@ _METRIC_ROWS = (
 )
 
 
-def int_at_least(low: int, why: str = ""):
-    """An argparse ``type``: an integer ``>= low`` (``why`` is added to the refusal)."""
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"must be an integer >= {low}; got {text!r}") from None
-        if value < low:
-            raise argparse.ArgumentTypeError(f"must be an integer >= {low}{why}; got {text}")
-        return value
-
-    return parse
-
-
-_positive_int = int_at_least(1)
-_nonnegative_int = int_at_least(0)
-
-
-def _nonnegative_float(text: str) -> float:
-    """A finite number >= 0 (a σ in pixels, …)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number >= 0; got {text!r}") from None
-    if not (value >= 0.0 and math.isfinite(value)):  # also rejects NaN
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0; got {text}")
-    return value
-
-
-def check_sigma_fits(sigma: float, diagonal: float, where: str) -> None:
-    """Refuse a noise σ (px) larger than the image diagonal (px): no detection noise is
-    that large, and the thresholds it sets would accept every pairing."""
-    if sigma > diagonal:
-        raise InputError(f"{where}: --sigma {sigma:g} px is larger than the image diagonal ({diagonal:.0f} px)")
-
-
-_FIGURE_EXTENSIONS = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
-
-
 def _seconds(s: float) -> str:
     return f"{s * 1e3:.1f} ms" if s < 1.0 else f"{s:.2f} s"
 
 
-def _emit(lines: list[str]) -> None:
-    """Print ``lines``; characters the terminal cannot encode (σ, τ, █) are replaced."""
-    text = "\n".join(lines) + "\n"
-    try:
-        sys.stdout.write(text)
-    except UnicodeEncodeError:
-        encoding = getattr(sys.stdout, "encoding", None) or "ascii"
-        sys.stdout.write(text.encode(encoding, "replace").decode(encoding))
-    sys.stdout.flush()
-
-
-# --- demo -----------------------------------------------------------------------------
-
-
-def _add_demo(subparsers) -> None:
+def add_parser(subparsers) -> None:
+    """Declare ``demo`` and its flags."""
     p = subparsers.add_parser(
         "demo",
         help="associate a synthetic scene on the built-in rig, print metrics, save a figure",
@@ -116,10 +41,9 @@ def _add_demo(subparsers) -> None:
     p.add_argument("--points", type=_positive_int, default=60, help="3D points in the scene (default 60)")
     p.add_argument("--sigma", type=_nonnegative_float, default=1.0, help="pixel noise std σ (default 1.0)")
     p.add_argument(
-        "--preset",
-        choices=("paper", "extended", "reference"),
-        default="extended",
-        help="Config preset: ours beyond the paper (default, the most accurate), the paper's method, or the original code's",
+        "--method", "--preset", dest="method", type=_method_name, default="extended", metavar="NAME",
+        help="a registered method: extended (default, ours beyond the paper, the most accurate), paper (the "
+        "paper's C-DOG), reference (the original code's), or any other registered one; --preset is its older name",
     )
     p.add_argument("--seed", type=int, default=0, help="PRNG seed of the scene (default 0)")
     p.add_argument(
@@ -136,7 +60,7 @@ def _add_demo(subparsers) -> None:
         help="also write the scene into DIR: rig.json, detections.json (input of 'cdog-jax associate') and "
         "truth.json (the true 3D points and the point of every detection)",
     )
-    p.set_defaults(func=_run_demo, parser=p)
+    p.set_defaults(func=run, parser=p)
 
 
 _SCENE_FILES = ("rig.json", "detections.json", "truth.json")
@@ -150,9 +74,9 @@ def _save_scene(folder: str, rig, scene, sigma: float, seed: int) -> None:
 
     import numpy as np
 
-    from .io import save_detections_json, save_rig_json
-    from .io._atomic import atomic_write
-    from .synthetic import IMAGE_SIZE
+    from ..io import save_detections_json, save_rig_json
+    from ..io._atomic import atomic_write
+    from ..synthetic import IMAGE_SIZE
 
     os.makedirs(folder, exist_ok=True)
     mask = np.asarray(scene.mask)
@@ -172,14 +96,14 @@ def _save_scene(folder: str, rig, scene, sigma: float, seed: int) -> None:
         f.write("\n")
 
 
-def _run_demo(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> int:
     import jax
     import numpy as np
 
-    from . import Config, associate
-    from ._plot import plot_association
-    from .metrics import scene_metrics
-    from .synthetic import IMAGE_SIZE, default_rig, generate_scene
+    from .. import associate, method_from
+    from ..viz import plot_association
+    from ..metrics import scene_metrics
+    from ..synthetic import IMAGE_SIZE, default_rig, generate_scene
 
     from ._paths import check_output, write_output
 
@@ -191,10 +115,10 @@ def _run_demo(args: argparse.Namespace) -> int:
         from ._paths import check_output_folder
 
         check_output_folder(args.save_scene, "--save-scene", _SCENE_FILES, {})
-    from .synthetic import IMAGE_SIZE as _SIZE
+    from ..synthetic import IMAGE_SIZE as _SIZE
 
     check_sigma_fits(args.sigma, math.hypot(*_SIZE), f"the built-in rig ({_SIZE[0]}×{_SIZE[1]} px)")
-    config = getattr(Config, args.preset)()
+    config = method_from(args.method, "cdog-jax demo")
     sigma_arg = "auto" if args.sigma_auto else args.sigma
     timings: list[tuple[str, float]] = []
 
@@ -208,9 +132,9 @@ def _run_demo(args: argparse.Namespace) -> int:
     scene = timed("generate scene (incl. compile)", generate_scene,
                   jax.random.PRNGKey(args.seed), rig, args.points, args.sigma, capacity=capacity)
     result = timed("associate, 1st call (compile + run)", associate,
-                   rig, scene.xy, scene.mask, config=config, sigma=sigma_arg)
+                   rig, scene.xy, scene.mask, method=config, sigma=sigma_arg)
     result = timed("associate, 2nd call (warm)", associate,
-                   rig, scene.xy, scene.mask, config=config, sigma=sigma_arg)
+                   rig, scene.xy, scene.mask, method=config, sigma=sigma_arg)
     metrics = timed("metrics (incl. compile)", jax.jit(scene_metrics), rig, result, scene)
 
     mask = np.asarray(scene.mask)
@@ -223,7 +147,7 @@ def _run_demo(args: argparse.Namespace) -> int:
     w, h = IMAGE_SIZE
 
     lines = [
-        f"C-DOG demo: preset {args.preset}, seed {args.seed}",
+        f"C-DOG demo: method {args.method}, seed {args.seed}",
         "",
         f"Rig     built-in synthetic rig, {M} views, {w}×{h} px",
         f"Scene   {n_inst} points, {n_det} detections ({n_det / max(n_inst, 1):.1f} views per point), "
@@ -275,78 +199,3 @@ def _run_demo(args: argparse.Namespace) -> int:
                   f"--points {os.path.join(args.save_scene, 'detections.json')} --out groups.json"]
     _emit(lines)
     return 0
-
-
-# --- entry point ----------------------------------------------------------------------
-
-def _add_benchmark(subparsers) -> None:
-    from .benchmark._command import add_parser
-
-    add_parser(subparsers)
-
-
-def _add_calibrate(subparsers) -> None:
-    from ._calibrate_command import add_parser
-
-    add_parser(subparsers)
-
-
-def _add_associate_and_rig(subparsers) -> None:
-    from ._associate_command import add_parsers
-
-    add_parsers(subparsers)
-
-
-_SUBCOMMANDS = (_add_demo, _add_benchmark, _add_calibrate, _add_associate_and_rig)
-
-
-def build_parser() -> argparse.ArgumentParser:
-    """The ``cdog-jax`` parser with every subcommand of ``_SUBCOMMANDS``."""
-    from . import __version__
-
-    parser = argparse.ArgumentParser(
-        prog="cdog-jax",
-        description="C-DOG multi-view multi-instance point association in JAX.",
-    )
-    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    parser.add_argument("--debug", action="store_true", help=_DEBUG_HELP)
-    parser.add_argument("--no-cache", action="store_true", help=_NO_CACHE_HELP)
-    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in _SUBCOMMANDS:
-        add(subparsers)
-    for sub in subparsers.choices.values():  # also accepted after the command's name
-        sub.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=_DEBUG_HELP)
-        sub.add_argument("--no-cache", action="store_true", default=argparse.SUPPRESS, help=_NO_CACHE_HELP)
-    return parser
-
-
-_DEBUG_HELP = "on an error, show the Python traceback instead of one line"
-_NO_CACHE_HELP = "neither load nor store compiled programs on disk (as CDOG_JAX_CACHE=0)"
-
-
-def main(argv: Sequence[str | os.PathLike[str]] | None = None) -> int:
-    """Run the command line with ``argv`` (default ``sys.argv[1:]``; paths may be
-    ``os.PathLike``); returns the exit code: 0, or 2 for a user error (one line on stderr)."""
-    args = build_parser().parse_args(None if argv is None else [str(a) for a in argv])
-    if args.no_cache:
-        from ._compile_cache import disable_compilation_cache
-
-        disable_compilation_cache()
-    try:
-        return args.func(args)
-    # A bad file, path or value, or a scene too large for memory; other exceptions are bugs.
-    except (ValueError, OSError, MemoryError) as e:
-        if args.debug:
-            raise
-        print(f"cdog-jax: error: {_one_line(e)}", file=sys.stderr, flush=True)
-        return 2
-
-
-def _one_line(error: Exception) -> str:
-    """The message of a user error on one line; an ``OSError`` as ``"<file>: <reason>"``."""
-    if isinstance(error, OSError) and error.strerror:
-        files = [os.fspath(f) for f in (error.filename, error.filename2) if f is not None]
-        text = ": ".join([*files, error.strerror])
-    else:
-        text = str(error) or type(error).__name__
-    return " ".join(line.strip() for line in text.splitlines() if line.strip())

@@ -1,6 +1,6 @@
 """Camera refinement from associations: a joint Levenberg–Marquardt fit of the
-cameras and the 3D points of the groups of ``S`` scenes seen by one rig, alternated with
-association; and a similarity alignment of rigs for evaluation.
+cameras and the 3D points of the groups of ``S`` scenes seen by one rig (alternated with
+association in ``_calibrate.py``; rigs compared in ``_alignment.py``).
 
 Gauge. Pixels do not change under a similarity transform of the world (7 DoF), so the
 refinement fixes one: camera 0's rotation and translation are not unknowns, and camera
@@ -31,12 +31,9 @@ import optimistix as optx
 from jaxtyping import ArrayLike, Real
 
 from .._expect import ARRAY, expect_args
-from .._cdog import Config
-from .._config import Thresholds
-from .._result import Association
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
-from ..geometry._parameters import CameraParams, params_from_rig, rig_from_params, so3_exp, so3_log
+from ..geometry._parameters import CameraParams, params_from_rig, rig_from_params, so3_exp
 from ..geometry._projection import project_views_last
 from ..geometry._triangulate import triangulate_views_last
 from ..graph._groups import gather_groups
@@ -63,47 +60,6 @@ class RefineInfo(NamedTuple):
     converged: Bool[Array, ""]
     accepted: Bool[Array, ""]
     num_groups: Int[Array, ""]
-
-
-class CalibrationHistory(NamedTuple):
-    """Per-round record of :func:`calibrate`.
-
-    Attributes:
-        bpe_before, bpe_after: ``(rounds,)`` px², as :class:`RefineInfo` (the plain BPE,
-            which may rise in a round under a robust ``loss`` that still falls).
-        num_groups_used: ``(rounds,)`` int, groups that informed the refinement (all scenes).
-        mean_groups_found: ``(rounds + 1,)`` mean number of groups associated per scene.
-        num_steps: ``(rounds,)`` int, Levenberg–Marquardt steps.
-        converged: ``(rounds,)`` bool.
-        rigs: the rig after each round, fields ``(rounds, M, ...)``.
-        associations: the :class:`Association` of every scene before each round and with the
-            final rig, fields ``(rounds + 1, S, ...)``.
-    """
-
-    bpe_before: Float[Array, " R"]
-    bpe_after: Float[Array, " R"]
-    num_groups_used: Int[Array, " R"]
-    mean_groups_found: Float[Array, " R1"]
-    num_steps: Int[Array, " R"]
-    converged: Bool[Array, " R"]
-    rigs: Rig
-    associations: Association
-
-
-class RigErrors(NamedTuple):
-    """Per-view errors of a rig against a reference (:func:`rig_errors`).
-
-    Attributes:
-        rotation_deg: ``(M,)`` angle of ``R_est R_refᵀ`` (degrees).
-        center: ``(M,)`` camera centre distance (scene units of the reference).
-        focal_rel: ``(M,)`` relative focal error, the larger of ``fx`` and ``fy``.
-        principal_px: ``(M,)`` principal point distance (pixels).
-    """
-
-    rotation_deg: Float[Array, " M"]
-    center: Float[Array, " M"]
-    focal_rel: Float[Array, " M"]
-    principal_px: Float[Array, " M"]
 
 
 class _Start(eqx.Module):
@@ -394,154 +350,3 @@ def _refine_rig(
         num_groups=jnp.sum(jnp.any(member, axis=-1), dtype=jnp.int32),
     )
     return out, info
-
-
-def calibrate(
-    rig: Rig,
-    xy: Float[Array, "S M P 2"],
-    mask: Bool[Array, "S M P"],
-    *,
-    thresholds: Thresholds,
-    config: Config,
-    rounds: int = 3,
-    **refine_options,
-) -> tuple[Rig, CalibrationHistory]:
-    """Alternate association and :func:`refine_rig` for ``rounds`` rounds (``lax.scan``).
-
-    Each round associates every scene with the current rig (``associate_traced``, vmapped
-    over scenes), then refines the rig from those groups; a last association with the
-    final rig follows, so the history holds ``rounds + 1`` associations (the first with
-    the starting rig). With a drifted rig the epipolar errors exceed the noise: associate
-    with a gate that allows for them (``config.sigma_mode="auto"`` or a larger
-    ``thresholds.sigma_px``) and prefer ``loss="huber"``, since early groups hold mistakes.
-    Leaves of ``thresholds`` may be scalars or ``(rounds,)`` arrays (e.g. σ shrinking as the
-    rig improves; the last association reuses the last entry).
-
-    Args:
-        rig: starting ``M`` cameras.
-        xy: ``(S, M, P, 2)`` detections (pixels) of ``S`` scenes; ``mask (S, M, P)`` bool.
-        thresholds: association thresholds (cast to the dtype of ``xy``).
-        config: association structure (static); ``rounds`` static ≥ 1.
-        **refine_options: keyword options of :func:`refine_rig`, all static but ``scale_px``.
-
-    Returns:
-        The rig after the last round and a :class:`CalibrationHistory`. Jit with ``config``,
-        ``rounds`` and the static refine options in ``static_argnames``.
-    """
-    expect_args("calibrate", rig=(rig, Rig), xy=(xy, ARRAY), mask=(mask, ARRAY), thresholds=(thresholds, Thresholds), config=(config, Config))
-    if not isinstance(rounds, int) or rounds < 1:
-        raise ValueError(f"rounds must be a Python int >= 1; got {rounds!r}")
-    _check_xy(rig, xy)
-    if mask.shape != xy.shape[:3]:
-        raise ValueError(f"mask must have shape (S, M, P) = {xy.shape[:3]} from xy; got {mask.shape}")
-    unknown = sorted(set(refine_options) - set(_STATIC) - {"scale_px"})
-    if unknown:
-        raise TypeError(f"calibrate got unknown options {unknown}; refine_rig takes {_STATIC + ('scale_px',)}")
-    th = []
-    for name, v in zip(Thresholds._fields, thresholds):
-        v = jnp.asarray(v, xy.dtype)
-        if v.shape not in ((), (rounds,)):
-            raise ValueError(f"thresholds.{name} must have shape () or (rounds,) = ({rounds},); got {v.shape}")
-        v = jnp.broadcast_to(v, (rounds,))
-        th.append(jnp.concatenate([v, v[-1:]]))  # the final association reuses the last
-    traced = {k: jnp.asarray(v, xy.dtype) for k, v in refine_options.items() if k == "scale_px"}
-    static = tuple(sorted((k, v) for k, v in refine_options.items() if k != "scale_px"))
-    return _calibrate(rig, xy, mask, Thresholds(*th), traced, config=config.structure(), options=static)
-
-
-@functools.partial(jax.jit, static_argnames=("config", "options"))
-def _calibrate(rig, xy, mask, th, traced, *, config, options):
-    # Imported here: the pipeline imports the refine stages, so a module-level import
-    # would be circular.
-    from .._cdog import associate_traced
-
-    rounds = th.sigma_px.shape[0] - 1
-
-    def one_round(rig, step):
-        i, th_i = step
-        assoc = jax.vmap(lambda x, m: associate_traced(rig, x, m, th_i, config))(xy, mask)
-        # The extra last step only associates (lax.cond runs one branch under jit).
-        new_rig, info = jax.lax.cond(
-            i < rounds,
-            lambda: refine_rig(rig, xy, assoc.groups, assoc.valid, **dict(options), **traced),
-            lambda: (rig, _no_refinement(xy.dtype)),
-        )
-        return new_rig, (info, new_rig, assoc)
-
-    rig, (info, rigs, assoc) = jax.lax.scan(one_round, rig, (jnp.arange(rounds + 1), th))
-    history = CalibrationHistory(
-        bpe_before=info.bpe_before[:rounds],
-        bpe_after=info.bpe_after[:rounds],
-        num_groups_used=info.num_groups[:rounds],
-        mean_groups_found=jnp.mean(assoc.num_groups.astype(xy.dtype), axis=1),
-        num_steps=info.num_steps[:rounds],
-        converged=info.converged[:rounds],
-        rigs=jax.tree_util.tree_map(lambda a: a[:rounds], rigs),
-        associations=assoc,
-    )
-    return rig, history
-
-
-def _no_refinement(dtype) -> RefineInfo:
-    zero = jnp.zeros((), dtype)
-    izero = jnp.zeros((), jnp.int32)
-    return RefineInfo(zero, zero, izero, jnp.array(False), jnp.array(False), izero)
-
-
-def _similarity(src: Float[Array, "M 3"], dst: Float[Array, "M 3"]):
-    """Umeyama: ``(s, Q, c)`` minimising ``Σ ‖dst − (s Q src + c)‖²`` (rotation ``Q``)."""
-    mu_s, mu_d = jnp.mean(src, axis=0), jnp.mean(dst, axis=0)
-    a, b = src - mu_s[None], dst - mu_d[None]
-    U, D, Vt = jnp.linalg.svd(jnp.einsum("mi,mj->ij", b, a) / src.shape[0])
-    # Reflections are not similarities: flip the weakest direction if det(U Vt) < 0.
-    sign = jnp.sign(jnp.linalg.det(U) * jnp.linalg.det(Vt))
-    flip = jnp.stack([jnp.ones_like(sign), jnp.ones_like(sign), sign])
-    Q = jnp.einsum("ij,j,jk->ik", U, flip, Vt)
-    var = jnp.mean(jnp.sum(a * a, axis=1))
-    s = jnp.where(var > 0, jnp.sum(D * flip) / jnp.where(var > 0, var, 1.0), 1.0)
-    return s, Q, mu_d - s * (Q @ mu_s)
-
-
-def align_rigs(rig: Rig, reference: Rig) -> Rig:
-    """``rig`` moved into the frame of ``reference`` by the similarity (rotation, translation,
-    scale; Umeyama on the camera centres) that best maps its centres onto the reference's.
-
-    The whole rig is transformed (``X_ref = s Q X + c``): ``R' = R Qᵀ``, ``t' = s t − R' c``,
-    ``K`` unchanged, so pixels of correspondingly transformed points do not change. Needs
-    ``M ≥ 3`` centres not on one line. ``K, R (M, 3, 3)``, ``t (M, 3)``.
-    """
-    expect_args("align_rigs", rig=(rig, Rig), reference=(reference, Rig))
-    return _align_rigs(rig, reference)
-
-
-# Jitted here (as is _rig_errors) so that eager calls compile once; inlined under jit.
-@jax.jit
-def _align_rigs(rig: Rig, reference: Rig) -> Rig:
-    s, Q, c = _similarity(rig.centers, reference.centers)
-    R = jnp.einsum("mij,kj->mik", rig.R, Q)
-    return Rig(rig.K, R, s * rig.t - jnp.einsum("mij,j->mi", R, c))
-
-
-def rig_errors(rig: Rig, reference: Rig, *, align: bool = True) -> RigErrors:
-    """Per-view errors ``(M,)`` of ``rig`` against ``reference`` (after :func:`align_rigs`
-    unless ``align=False``): rotation (degrees), centre (scene units), relative focal,
-    principal point (pixels). Intrinsics are compared with ``K`` normalised to ``K[2,2] = 1``."""
-    expect_args("rig_errors", rig=(rig, Rig), reference=(reference, Rig))
-    return _rig_errors(rig, reference, align=align)
-
-
-@functools.partial(jax.jit, static_argnames="align")
-def _rig_errors(rig: Rig, reference: Rig, *, align: bool) -> RigErrors:
-    if align:
-        rig = _align_rigs(rig, reference)
-    rotation = so3_log(jnp.einsum("mij,mkj->mik", rig.R, reference.R))
-    d_center = rig.centers - reference.centers
-    K, K_ref = rig.K / rig.K[:, 2:3, 2:3], reference.K / reference.K[:, 2:3, 2:3]
-    f, f_ref = jnp.stack([K[:, 0, 0], K[:, 1, 1]], -1), jnp.stack([K_ref[:, 0, 0], K_ref[:, 1, 1]], -1)
-    d_principal = K[:, :2, 2] - K_ref[:, :2, 2]
-    return RigErrors(
-        rotation_deg=jnp.rad2deg(jnp.linalg.norm(rotation, axis=-1)),
-        center=jnp.linalg.norm(d_center, axis=-1),
-        focal_rel=jnp.max(jnp.abs(f - f_ref) / jnp.abs(f_ref), axis=-1),
-        principal_px=jnp.linalg.norm(d_principal, axis=-1),
-    )

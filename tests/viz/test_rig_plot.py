@@ -4,7 +4,7 @@ import matplotlib
 import numpy as np
 import pytest
 
-from cdog_jax._rig_plot import plot_rig
+from cdog_jax.viz import plot_rig
 from cdog_jax.synthetic import IMAGE_SIZE, default_rig, negate_intrinsics
 
 

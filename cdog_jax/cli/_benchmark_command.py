@@ -2,7 +2,7 @@
 
 Runs :func:`~cdog_jax.benchmark.sweep` once (every method and scene in one compiled call),
 prints the paper-style table at σ = 0, 1, 3, 5, saves the per-scene results (NPZ, CSV,
-JSON) and writes the figures of :mod:`cdog_jax.benchmark._figures` into ``--out``.
+JSON) and writes the figures of :mod:`cdog_jax.viz` into ``--out``.
 """
 
 from __future__ import annotations
@@ -11,23 +11,21 @@ import argparse
 import os
 import time
 
-from .._cdog import Config
+from ..benchmark._methods import DEFAULT_METHODS, METHODS
 from ..io._rig_files import FORMATS
+from ._associate_command import _RIG_FORMATS_TEXT
+from ._common import _nonnegative_float, _nonnegative_int, _positive_int
 
-METHODS = {
-    "paper": lambda: Config.paper(),
-    "no_iqr": lambda: Config.paper(iqr=False),
-    "reference": lambda: Config.reference(),
-    "extended": lambda: Config.extended(),
-}
-DEFAULT_METHODS = ("paper", "no_iqr", "reference", "extended")
 
 
 def _method_list(text: str) -> tuple[str, ...]:
+    """Names from ``a,b,c``; ``all`` is every named method (registered ones and the ablation)."""
     names = tuple(n.strip() for n in text.split(",") if n.strip())
+    if names == ("all",):
+        return tuple(METHODS)
     unknown = [n for n in names if n not in METHODS]
     if unknown or not names:
-        raise argparse.ArgumentTypeError(f"methods must be a comma list of {sorted(METHODS)}; got {text!r}")
+        raise argparse.ArgumentTypeError(f"methods must be 'all' or a comma list of {', '.join(METHODS)}; got {text!r}")
     return names
 
 
@@ -42,9 +40,6 @@ _DESCRIPTION = (
 
 def add_parser(subparsers) -> None:
     """Declare ``benchmark`` and its flags."""
-    from .._associate_command import _RIG_FORMATS_TEXT
-    from .._cli import _nonnegative_float, _nonnegative_int, _positive_int
-
     p = subparsers.add_parser(
         "benchmark",
         help="run the noise x density benchmark grid, print tables, write figures",
@@ -52,7 +47,7 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument("--quick", action="store_true", help="tiny grid (σ 0,1,3,5 × counts 5,20,60 × 2 scenes)")
     p.add_argument("--out", default="benchmark_results", help="output folder (default: %(default)s)")
-    p.add_argument("--methods", type=_method_list, default=DEFAULT_METHODS, help="comma list of " + ",".join(METHODS))
+    p.add_argument("--methods", type=_method_list, default=DEFAULT_METHODS, help="'all' or a comma list of the named methods (default " + ",".join(DEFAULT_METHODS) + "); registered: " + ", ".join(METHODS))
     p.add_argument("--sigmas", type=_nonnegative_float, nargs="+", help="noise levels σ in px (default: the grid's)")
     p.add_argument("--counts", type=_positive_int, nargs="+", help="point counts (default: the grid's)")
     p.add_argument("--scenes", type=_positive_int, help="scenes per (σ, count) cell")
@@ -75,7 +70,7 @@ def add_parser(subparsers) -> None:
 
 
 def _grid_from_args(args):
-    from ._grid import Grid
+    from ..benchmark._grid import Grid
 
     grid = Grid.quick() if args.quick else Grid.paper()
     changes = {}
@@ -139,7 +134,7 @@ def _scene_setup(args, grid):
 def _check_paths(args) -> None:
     """The rig exists; ``--out`` is (or can be made) a writable folder whose files are
     not the rig's. Before any work."""
-    from .._paths import check_input, check_output_folder, input_files
+    from ._paths import check_input, check_output_folder, input_files
 
     inputs = {}
     if args.rig:
@@ -152,10 +147,10 @@ def _check_paths(args) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark; returns the exit code."""
-    from . import _figures as figures
-    from ._io import save_results, summary_table
+    from .. import viz as figures
+    from ..benchmark._io import save_results, summary_table
     from .._progress import interactive, sweep_bar
-    from ._sweep import print_progress, sweep
+    from ..benchmark._sweep import print_progress, sweep
 
     _check_paths(args)
     grid = _grid_from_args(args)
@@ -196,7 +191,7 @@ def run(args: argparse.Namespace) -> int:
     print(summary_table(result, sigmas=standard if len(standard) >= 2 else grid.sigmas))
     print()
 
-    from .._paths import write_output
+    from ._paths import write_output
 
     write_output(args.out, "--out", lambda: (os.makedirs(args.out, exist_ok=True), save_results(result, args.out)))
     print(f"Results: {args.out}/ (NPZ, CSV, JSON)")
@@ -208,7 +203,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _figures(figures, result, args) -> None:
     """The benchmark's PNG figures in ``args.out``."""
-    from ._grid import Grid
+    from ..benchmark._grid import Grid
 
     metrics = {name: result.metrics[name] for name in result.configs}
     for name in result.configs:

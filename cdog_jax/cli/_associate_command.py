@@ -13,7 +13,7 @@ output carries each group's class. ``rig`` prints
 :meth:`cdog_jax.Rig.describe` and optionally draws the rig.
 
 Before any work: the inputs exist and are of the right kind, the outputs can be written
-and are none of the inputs (``cdog_jax/_paths.py``), the files are read and checked, and
+and are none of the inputs (``_paths.py``), the files are read and checked, and
 σ is finite and at most the image diagonal (the rig file's image size, else twice the
 principal point). Frames that cannot give a group (fewer than 2 views with detections)
 get zero groups and a note.
@@ -29,14 +29,13 @@ import time
 
 import numpy as np
 
-from ._cli import _positive_int, check_sigma_fits, int_at_least
+from ._common import _FIGURE_EXTENSIONS, _emit, _method_name, _positive_int, check_sigma_fits, int_at_least
 from ._paths import check_distinct, check_input, check_output, input_files
 from ._paths import write_output as _write
-from .io._errors import InputError
-from .io._keypoints import SKELETONS
-from .io._rig_files import FORMATS
+from ..io._errors import InputError
+from ..io._keypoints import SKELETONS
+from ..io._rig_files import FORMATS
 
-_PRESETS = ("paper", "extended", "reference")
 _POINT_FORMATS = ("auto", "detections", "openpose", "table")
 _OUT_FORMATS = (".json", ".npz", ".csv")
 _NOTES_SHOWN = 12  # notes printed in the summary; a long video can have thousands
@@ -106,7 +105,11 @@ def add_parsers(subparsers) -> None:
         help="names of the OpenPose keypoint types: " + ", ".join(SKELETONS) + " (default: ids only)",
     )
     p.add_argument("--sigma", type=_sigma, default="auto", help='detection noise σ in px, or "auto" (default) to estimate it')
-    p.add_argument("--preset", choices=_PRESETS, default="extended", help="method preset (default extended, the most accurate; paper and reference reproduce the paper and the original code)")
+    p.add_argument(
+        "--method", "--preset", dest="method", type=_method_name, default="extended", metavar="NAME",
+        help="a registered method (default extended, the most accurate; paper and reference reproduce the paper "
+        "and the original code; --preset is its older name)",
+    )
     p.add_argument("--min-views", type=_min_views, default=2, help="report only groups seen in at least K views (default 2)")
     p.add_argument(
         "--confidence-weights",
@@ -138,7 +141,7 @@ def _associate_frames(call, xy, mask, weights, batch_size: int):
     import jax
     import jax.numpy as jnp
 
-    from ._progress import bar, compiling
+    from .._progress import bar, compiling
 
     F = xy.shape[0]
     chunk = batch_size * max(1, math.ceil(F / (batch_size * _PROGRESS_STEPS)))
@@ -197,7 +200,7 @@ def _points_format(path: str, given: str) -> str:
     if suffix == ".csv":
         return "table"
     if suffix == ".npz":
-        from .io._rig_files import open_npz
+        from ..io._rig_files import open_npz
 
         with open_npz(path) as npz:
             return "table" if "frame" in npz.files else "detections"
@@ -206,7 +209,7 @@ def _points_format(path: str, given: str) -> str:
 
 def _load(args):
     """Rig file and detections, checked against each other (views, image size, capacity)."""
-    from .io import load_detections, load_keypoint_table, load_openpose, load_rig
+    from ..io import load_detections, load_keypoint_table, load_openpose, load_rig
 
     rig_file = load_rig(args.rig, format=args.rig_format)
     detections = None
@@ -243,13 +246,11 @@ def run_associate(args: argparse.Namespace) -> int:
     import jax
     import jax.numpy as jnp
 
-    from . import Config, Status, associate_batch, associate_classes
-    from .graph._sigma import FALLBACK_SIGMA_PX
-    from .geometry._distortion import Fisheye
-    from .io import save_association_csv, save_association_json, save_association_npz
-
-    from ._cli import _FIGURE_EXTENSIONS
-    from .io._detections import check_float_range
+    from .. import Status, associate_batch, associate_classes, method_from
+    from ..graph._sigma import FALLBACK_SIGMA_PX
+    from ..geometry._distortion import Fisheye
+    from ..io import save_association_csv, save_association_json, save_association_npz
+    from ..io._detections import check_float_range
 
     _check_paths(args, {"--out": (args.out, _OUT_FORMATS), "--plot": (args.plot, _FIGURE_EXTENSIONS)})
     rig_file, det = _load(args)
@@ -261,7 +262,7 @@ def run_associate(args: argparse.Namespace) -> int:
     if args.sigma != "auto":
         diagonal, source = _image_diagonal(rig_file)
         check_sigma_fits(args.sigma, diagonal, f"{args.rig} ({source})")
-    config = getattr(Config, args.preset)()
+    method = method_from(args.method, "cdog-jax associate")
     F, M, P = det.mask.shape
     lines = [
         f"Rig: {args.rig} ({M} views" + (f", {rig_file.image_size[0]}×{rig_file.image_size[1]} px" if rig_file.image_size else "")
@@ -280,14 +281,14 @@ def run_associate(args: argparse.Namespace) -> int:
     classed = None
     if det.classes is not None:
         classed = associate_classes(
-            rig, np.asarray(det.xy, dtype), det.mask, det.classes, class_names=det.class_names, config=config,
+            rig, np.asarray(det.xy, dtype), det.mask, det.classes, class_names=det.class_names, method=method,
             sigma=args.sigma, dist=dist, weights=weights, min_views=args.min_views, batch_size=max(args.batch_size, 64),
         )  # fmt: skip
         result = classed.association
     else:
         result = _associate_frames(
             lambda xy, mask, w: associate_batch(
-                rig, xy, mask, config=config, sigma=args.sigma, dist=dist, weights=w, min_views=args.min_views,
+                rig, xy, mask, method=method, sigma=args.sigma, dist=dist, weights=w, min_views=args.min_views,
                 batch_size=args.batch_size,
             ),
             jnp.asarray(det.xy, dtype), jnp.asarray(det.mask), weights, args.batch_size,
@@ -298,7 +299,7 @@ def run_associate(args: argparse.Namespace) -> int:
     err = np.asarray(result.err_px)[np.asarray(result.valid)]
     assigned = int((np.asarray(result.labels) >= 0).sum())
     lines += [
-        f"Associated with {args.preset}() (σ {'estimated' if args.sigma == 'auto' else f'= {args.sigma:g} px'}, "
+        f"Associated with {args.method} (σ {'estimated' if args.sigma == 'auto' else f'= {args.sigma:g} px'}, "
         f"min views {args.min_views}) in {elapsed:.2f} s including compilation",
         f"  3D points: {int(num_groups.sum())} ({num_groups.min()}–{num_groups.max()} per frame)" if F > 1 else f"  3D points: {int(num_groups.sum())}",
         f"  detections assigned: {assigned} of {int(det.mask.sum())}",
@@ -318,7 +319,7 @@ def run_associate(args: argparse.Namespace) -> int:
         + (f" (the fallback {FALLBACK_SIGMA_PX:g} px in {len(fallback)} of {F} frame(s), e.g. frame {fallback[0]}: "
            "too little evidence to estimate σ; pass --sigma)" if fallback.size else "")
     )
-    from ._status import status_messages
+    from .._status import status_messages
 
     status = np.asarray(result.status).reshape(-1)
     for flag in Status:  # the σ fallback is said on the line above
@@ -343,8 +344,8 @@ def run_associate(args: argparse.Namespace) -> int:
             _write(args.out, "--out", lambda: save_association_csv(args.out, assoc))
         lines.append(f"Wrote {args.out}")
     if args.plot is not None:
-        from ._plot import plot_association
-        from .synthetic import intrinsics_image_size
+        from ..viz import plot_association
+        from ..synthetic import intrinsics_image_size
 
         first = jax.tree_util.tree_map(lambda a: a[0], result)
         size = rig_file.image_size or intrinsics_image_size(rig.K)
@@ -352,8 +353,6 @@ def run_associate(args: argparse.Namespace) -> int:
             rig, det.xy[0], det.mask[0], first, image_size=size, title=f"{args.points}, frame 0", path=args.plot
         ))  # fmt: skip
         lines.append(f"Figure: {args.plot}")
-    from ._cli import _emit
-
     _emit(lines)
     return 0
 
@@ -382,16 +381,16 @@ def _class_summary(classed, det) -> str:
 
 def run_rig(args: argparse.Namespace) -> int:
     """Print the rig's description (and warnings); optionally draw it."""
-    from ._cli import _FIGURE_EXTENSIONS, _emit
+    from ..geometry import describe_rig
 
     _check_paths(args, {"--plot": (args.plot, _FIGURE_EXTENSIONS)})
     rig_file, det = _load(args)
     xy = mask = None
     if det is not None:
         xy, mask = det.xy[0], det.mask[0]
-    text = rig_file.rig.describe(
-        xy=xy, mask=mask, image_size=rig_file.image_size, names=rig_file.names, dist=rig_file.dist
-    )
+    text = describe_rig(
+        rig_file.rig, xy=xy, mask=mask, image_size=rig_file.image_size, names=rig_file.names, dist=rig_file.dist
+    ).format()
     lines = [f"Rig: {args.rig}", text]
     if args.plot is not None:
         import matplotlib
@@ -399,9 +398,8 @@ def run_rig(args: argparse.Namespace) -> int:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        from ._rig_plot import plot_rig
-
-        from .io._atomic import atomic_savefig
+        from ..io._atomic import atomic_savefig
+        from ..viz import plot_rig
 
         ax = plot_rig(rig_file.rig, names=rig_file.names, image_size=rig_file.image_size)
         try:
@@ -415,6 +413,6 @@ def run_rig(args: argparse.Namespace) -> int:
 
 def _has_lens(dist) -> bool:
     """Whether a rig file's lens does anything (a fisheye lens always does)."""
-    from .geometry._distortion import Fisheye
+    from ..geometry._distortion import Fisheye
 
     return isinstance(dist, Fisheye) or (dist is not None and bool(np.any(dist)))
