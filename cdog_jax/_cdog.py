@@ -19,6 +19,7 @@ import jax
 
 from ._config import (
     _NUMERIC,
+    DEFAULT_MIN_PARALLAX_DEG,
     Adjacency,
     IqrQuartiles,
     IqrScore,
@@ -102,7 +103,7 @@ class Config(Method):
     # The validity gate every valid group passes (ALGORITHM.md §12). 1° is far below the
     # parallax of any benchmark group and well above what float32 can triangulate; 3 τ
     # leaves room above recovery's attach gate (recover_frac · τ, 2 τ in extended()).
-    min_parallax_deg: float = 1.0
+    min_parallax_deg: float = DEFAULT_MIN_PARALLAX_DEG
     max_err_frac: float = 3.0
 
     def __post_init__(self):

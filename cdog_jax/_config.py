@@ -52,6 +52,9 @@ class Thresholds(NamedTuple):
     max_err_frac: Float[Array, ""]  # validity gate: every member's reprojection error <= frac * tau
 
 
+DEFAULT_MIN_PARALLAX_DEG = 1.0
+"""The validity gate's default parallax bound (degrees; ``Config.min_parallax_deg``)."""
+
 _NUMERIC = tuple(f for f in Thresholds._fields if f != "sigma_px")
 
 

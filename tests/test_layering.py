@@ -22,11 +22,12 @@ ROOT = Path(__file__).resolve().parents[1] / PACKAGE
 # exist (yet) are tolerated. Keep in step with docs/ARCHITECTURE.md.
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("base", ("_types", "_expect", "_status", "_progress", "_compile_cache", "_version",
-              "_config", "_method", "_shapes")),
+              "_config", "_method")),
     ("geometry", ("geometry.",)),
     ("stage", ("_stage",)),
     ("stages", ("graph.", "refine.")),
-    ("core", ("_result", "_memory", "_validate", "_finish", "_cdog", "_associate", "_classes")),
+    ("core", ("_result", "_shapes", "_memory", "_validate", "_finish", "_cdog", "_table_method", "_associate", "_classes")),
+    ("methods", ("baselines.",)),
     ("data", ("io.", "synthetic.", "metrics.")),
     ("harness", ("benchmark.", "calibration.")),
     ("viz", ("viz.",)),

@@ -18,6 +18,7 @@ import dataclasses
 import jax.numpy as jnp
 import numpy as np
 
+from .._config import DEFAULT_MIN_PARALLAX_DEG
 from .._expect import expect_args
 from ._camera import Rig
 from ._distortion import Fisheye, undistort_pixels
@@ -246,11 +247,9 @@ def _describe(K, R, t, xy, mask, sizes, names) -> tuple[RigDescription, int]:
 
 def _short_baselines(centers, target, target_name, dist_cc, names) -> list[str]:
     """One warning per pair of distinct cameras whose baseline subtends less than
-    ``Config.min_parallax_deg`` at ``target``: a point they alone see cannot pass the
+    the default ``Config.min_parallax_deg`` at ``target``: a point they alone see cannot pass the
     validity gate (and is poorly determined)."""
-    from .._cdog import Config
-
-    limit = Config().min_parallax_deg
+    limit = DEFAULT_MIN_PARALLAX_DEG
     to_target = target[None, :] - centers
     norm = np.linalg.norm(to_target, axis=-1)
     u = to_target / np.where(norm > 0, norm, 1.0)[:, None]

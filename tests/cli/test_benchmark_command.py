@@ -26,7 +26,7 @@ def test_unknown_method_is_refused(capsys):
         main(["benchmark", "--methods", "paper,magic"])
     except SystemExit as e:
         assert e.code == 2
-    assert "methods must be a comma list" in capsys.readouterr().err
+    assert "methods must be 'all' or a comma list" in capsys.readouterr().err
 
 
 def test_benchmark_on_a_rig_file(tmp_path, capsys):
