@@ -20,8 +20,8 @@ from ..geometry._camera import Rig
 from ..geometry._parameters import so3_exp
 
 _GAUSS_MAD = 0.6744897501960817  # Φ⁻¹(3/4): the median of |N(0, 1)|
-# Above this ν the Student-t draw is replaced by the Gaussian (its limit): the gamma draw
-# and the quantile search lose precision in float32 long before ν = ∞.
+# Above this ν the Student-t is replaced by the Gaussian (its limit): the quantile search
+# loses precision in float32 long before ν = ∞.
 _NU_GAUSSIAN = 1.0e4
 
 
@@ -89,39 +89,46 @@ def student_t_mad(nu: Float[Array, ""]) -> Float[Array, ""]:
     gives the Gaussian value ``Φ⁻¹(3/4)``.
     """
     dtype = nu.dtype
+
+    def solve(nu):
+        def step(_, bounds):
+            lo, hi = bounds
+            mid = 0.5 * (lo + hi)
+            above = jax.scipy.special.betainc(0.5 * nu, jnp.asarray(0.5, dtype), mid) > 0.5
+            return jnp.where(above, lo, mid), jnp.where(above, mid, hi)
+
+        lo, hi = jax.lax.fori_loop(0, 60, step, (jnp.asarray(0.0, dtype), jnp.asarray(1.0, dtype)))
+        x = jnp.clip(0.5 * (lo + hi), jnp.finfo(dtype).tiny, 1.0)
+        return jnp.sqrt(nu * (1.0 - x) / x)
+
+    # A cond, not a where: outside jit (and in a jitted scalar call) the Gaussian skips the search.
     big = nu >= _NU_GAUSSIAN
-    nu_safe = jnp.where(big, 1.0, nu)
-
-    def step(_, bounds):
-        lo, hi = bounds
-        mid = 0.5 * (lo + hi)
-        above = jax.scipy.special.betainc(0.5 * nu_safe, jnp.asarray(0.5, dtype), mid) > 0.5
-        return jnp.where(above, lo, mid), jnp.where(above, mid, hi)
-
-    lo, hi = jax.lax.fori_loop(0, 60, step, (jnp.asarray(0.0, dtype), jnp.asarray(1.0, dtype)))
-    x = jnp.clip(0.5 * (lo + hi), jnp.finfo(dtype).tiny, 1.0)
-    q = jnp.sqrt(nu_safe * (1.0 - x) / x)
-    return jnp.where(big, jnp.asarray(_GAUSS_MAD, dtype), q)
+    return jax.lax.cond(big, lambda nu: jnp.asarray(_GAUSS_MAD, dtype), solve, jnp.where(big, 1.0, nu))
 
 
 def unit_noise(key: PRNGKeyArray, shape: tuple[int, ...], realism: Realism, dtype) -> Float[Array, "*S 2"]:
-    """2D noise of unit scale, ``(*shape, 2)``: multivariate Student-t (one scale per
-    detection, shared by x and y, as a detector's miss is off in both coordinates) with
-    per-coordinate MAD ``Φ⁻¹(3/4)`` (that of ``N(0, 1)``), times ``far_scale`` on a
-    ``far_share`` of detections. Multiply by σ (pixels)."""
-    k_normal, k_gamma, k_far = jax.random.split(key, 3)
+    """2D noise of unit scale, ``(*shape, 2)``: bivariate Student-t (isotropic, one radius per
+    detection, as a detector's miss is off in both coordinates; each coordinate is a
+    Student-t with ``nu`` degrees of freedom) scaled so that each coordinate's MAD is
+    ``Φ⁻¹(3/4)`` (that of ``N(0, 1)``), times ``far_scale`` on a ``far_share`` of
+    detections. Multiply by σ (pixels).
+
+    Drawn in closed form, without a gamma draw: the squared radius of the standard bivariate
+    t is ``ν (W^(-2/ν) - 1)`` with ``W`` uniform in (0, 1] (its half is F(2, ν)-distributed),
+    and ``-2 ln W`` (the Gaussian's) in the limit ``ν → ∞``.
+    """
+    k_radius, k_angle, k_far = jax.random.split(key, 3)
     nu = jnp.asarray(realism.nu, dtype)
     gaussian = nu >= _NU_GAUSSIAN
     nu_safe = jnp.where(gaussian, 1.0, nu)
-    z = jax.random.normal(k_normal, (*shape, 2), dtype=dtype)
-    # t = z / sqrt(g / ν), g ~ χ²_ν = 2 Gamma(ν / 2); scaled to the Gaussian's MAD.
-    g = 2.0 * jax.random.gamma(k_gamma, 0.5 * nu_safe, shape, dtype=dtype)
-    g = jnp.maximum(g, jnp.finfo(dtype).tiny)
-    t_scale = jnp.sqrt(nu_safe / g) * (_GAUSS_MAD / student_t_mad(nu_safe))
-    scale = jnp.where(gaussian, 1.0, t_scale)
+    W = 1.0 - jax.random.uniform(k_radius, shape, dtype=dtype)  # (0, 1]
+    log_w = jnp.log(W)
+    r2_t = nu_safe * jnp.expm1(-2.0 * log_w / nu_safe) * (_GAUSS_MAD / student_t_mad(nu)) ** 2
+    r2 = jnp.where(gaussian, -2.0 * log_w, r2_t)
+    angle = (2.0 * math.pi) * jax.random.uniform(k_angle, shape, dtype=dtype)
     far = jax.random.uniform(k_far, shape, dtype=dtype) < jnp.asarray(realism.far_share, dtype)
-    scale = scale * jnp.where(far, jnp.asarray(realism.far_scale, dtype), 1.0)
-    return z * scale[..., None]
+    radius = jnp.sqrt(r2) * jnp.where(far, jnp.asarray(realism.far_scale, dtype), 1.0)
+    return radius[..., None] * jnp.stack([jnp.cos(angle), jnp.sin(angle)], axis=-1)
 
 
 def view_sigmas(key: PRNGKeyArray, sigma_px: Float[Array, ""], realism: Realism, M: int) -> Float[Array, " M"]:

@@ -69,15 +69,17 @@ class SkeletonScenes(eqx.Module):
     Attributes:
         frames: a :class:`RealScene` with a leading ``F`` on every field: ``xy (F, M, S, 2)``,
             ``mask``, ``class_id (F, M, S)`` (the joint), ``instance (F, M, S)`` (point id
-            ``person · 17 + joint``), ``kind``, ``points3d (F, K·17, 3)``; ``rig`` (the true
-            cameras) and ``sigma_view`` are the same in every frame.
+            ``person · 17 + joint``), ``kind``, ``points3d (F, K·17, 3)``; ``frames.rig`` and
+            ``sigma_view`` repeat the same values in every frame.
         joints3d: ``(F, K, 17, 3)`` ground-truth joints (metres).
         exists: ``(K,)`` bool, the person exists (the first ``num_people``).
+        rig: the true cameras of the sequence (``M`` views; the method gets the nominal rig).
     """
 
     frames: RealScene
     joints3d: Float[Array, "F K J 3"]
     exists: Bool[Array, " K"]
+    rig: Rig
 
     @property
     def person(self) -> Int[Array, "F M S"]:
@@ -118,7 +120,7 @@ def skeleton_motion(
     theta = swing[None, :] * jnp.sin(2.0 * math.pi * step_hz[None, :] * t[:, None] + phase[None, :])  # (F, K)
     body = scale[:, None, None] * jnp.asarray(SKELETON_TEMPLATE, dtype)[None]  # (K, J, 3)
     pivot = body[:, _SWING_PIVOT]  # (K, J, 3)
-    angle = theta[..., None] * jnp.asarray(_SWING_SIGN, dtype)  # (F, K, J)
+    angle = theta[..., None] * jnp.asarray(_SWING_SIGN, dtype)[None, None, :]  # (F, K, J)
     d = (body - pivot)[None]  # (1, K, J, 3)
     c, s = jnp.cos(angle), jnp.sin(angle)
     swung = pivot[None] + jnp.stack([c * d[..., 0] + s * d[..., 2], jnp.broadcast_to(d[..., 1], c.shape),
@@ -194,4 +196,4 @@ def _skeleton_scenes(key, rig, num_people, sigma_px, realism, *, num_frames, max
         )  # fmt: skip
 
     frames = jax.vmap(frame)(jax.random.split(k_render, num_frames), joints)
-    return SkeletonScenes(frames=frames, joints3d=joints, exists=exists)
+    return SkeletonScenes(frames=frames, joints3d=joints, exists=exists, rig=true_rig)
