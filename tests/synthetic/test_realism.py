@@ -13,12 +13,11 @@ from cdog_jax.synthetic import (
     default_rig,
     generate_realistic_scene,
     perturb_rig,
-    render_points,
     student_t_mad,
     unit_noise,
     view_sigmas,
 )
-from cdog_jax.synthetic._render import CLUTTER, DOUBLE, REAL, _realistic_scene
+from cdog_jax.synthetic._render import _realistic_scene
 
 RIG = default_rig()
 GAUSS_MAD = 0.6744897501960817
@@ -90,24 +89,6 @@ def _scene(seed, sigma=1.0, **realism):
     return generate_realistic_scene(jax.random.PRNGKey(seed), RIG, 20, sigma, Realism(**realism), **SHAPE)
 
 
-def test_truth_flags_and_doubles_rate():
-    real = doubles = 0
-    for seed in range(6):
-        s = _scene(seed, double_rate=0.3, double_offset_px=2.0, clutter_rate=3.0)
-        mask, kind, inst, xy = (np.asarray(a) for a in (s.mask, s.kind, s.instance, s.xy))
-        assert ((kind == -1) == ~mask).all() and (inst[kind == CLUTTER] == -1).all()
-        assert (inst[(kind == REAL) | (kind == DOUBLE)] >= 0).all()
-        np.testing.assert_array_equal((kind == DOUBLE).sum(axis=1), np.asarray(s.num_doubles))
-        np.testing.assert_array_equal((kind == CLUTTER).sum(axis=1), np.asarray(s.num_clutter))
-        assert (np.asarray(s.num_doubles) < SHAPE["double_capacity"]).all()  # never clipped here
-        for m, p in zip(*np.nonzero(kind == DOUBLE)):  # a double sits near its point's detection
-            twin = (kind[m] == REAL) & (inst[m] == inst[m, p])
-            assert twin.sum() == 1 and np.linalg.norm(xy[m, twin][0] - xy[m, p]) < 2.0 * 6
-        real += int((kind == REAL).sum())
-        doubles += int((kind == DOUBLE).sum())
-    assert doubles / real == pytest.approx(0.3, abs=0.05)
-
-
 def test_pose_errors_move_detections_not_points():
     exact = _scene(3, sigma=0.0)
     moved = _scene(3, sigma=0.0, rotation_deg=0.3, translation=0.01)
@@ -133,15 +114,18 @@ def test_sweep_compiles_once():
 
 
 def test_jit_equals_eager():
-    X = jnp.asarray([[0.1, 0.2, 0.1], [-0.3, 0.1, 0.3], [0.5, -0.4, 0.2]], jnp.float32)
-    args = (jax.random.PRNGKey(4), RIG, X, jnp.asarray([True, True, False]), jnp.zeros(3, jnp.int32),
-            jnp.linspace(0.5, 2.0, RIG.num_views, dtype=jnp.float32),
-            _opts(nu=3.0, far_share=0.3, double_rate=0.5, clutter_rate=1.0))  # fmt: skip
-    static = dict(image_size=(640, 480), double_capacity=2, clutter_capacity=2)
-    jitted = jax.jit(render_points, static_argnames=tuple(static))(*args, **static)
-    eager = render_points(*args, **static)  # op by op
-    for a, b in zip(jax.tree.leaves(jitted), jax.tree.leaves(eager)):
-        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-3)
+    """The numerically delicate kernels (the t radius through expm1 and the MAD search, the
+    rotation exponential); the rest of the renderer is indexing. Eager runs op by op, and
+    every op compiles on first use, so the whole renderer would take most of the test budget."""
+    key, realism = jax.random.PRNGKey(4), _opts(nu=3.0, far_share=0.3, rotation_deg=0.5, translation=0.1)
+    kernels = (
+        lambda key, realism: unit_noise(key, (7,), realism, jnp.float32),
+        lambda key, realism: perturb_rig(key, RIG, realism),
+    )
+    for kernel in kernels:
+        jitted, eager = jax.jit(kernel)(key, realism), kernel(key, realism)
+        for a, b in zip(jax.tree.leaves(jitted), jax.tree.leaves(eager)):
+            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-5)
 
 
 @pytest.mark.parametrize("name, value", [("nu", 0.0), ("far_share", 1.5), ("view_spread", -0.1), ("double_rate", -1.0),
