@@ -169,7 +169,7 @@ def box_batch(lv, scenes, family, seed, quick):
         for s in range(scenes):
             key = jax.random.fold_in(jax.random.PRNGKey(seed), 1000 * i + s)
             parts.append(generate_realistic_scene(
-                key, rig, 8 if quick else family["points"], family["sigma"], realism(factor, value, family),
+                key, rig, 8 if quick else family["points"], family["sigma"], realism=realism(factor, value, family),
                 capacity=family["points"], double_capacity=family["doubles"], clutter_capacity=family["clutter"],
             ))  # fmt: skip
     return rig, jax.tree.map(lambda *a: jnp.stack(a), *parts)
@@ -185,7 +185,7 @@ def skeleton_batch(lv, sequences, frames, family, seed, people=None, realism_of=
             n = family["people"] if people is None else people[q % len(people)]
             opts = realism(factor, value, family) if realism_of is None else realism_of
             sk = generate_skeleton_scenes(
-                key, rig, n, family["sigma"], opts, num_frames=frames, max_people=5,
+                key, rig, n, family["sigma"], realism=opts, num_frames=frames, max_people=5,
                 double_capacity=family["doubles"], clutter_capacity=family["clutter"],
             )  # fmt: skip
             parts.append(sk.frames)

@@ -139,7 +139,7 @@ def view_sigmas(key: PRNGKeyArray, sigma_px: Float[Array, ""], realism: Realism,
 
 
 def perturb_rig(key: PRNGKeyArray, rig: Rig, realism: Realism) -> Rig:
-    """The true cameras of a rig calibrated with errors: every view rotated about its centre
+    """The true cameras ``K, R (M, 3, 3)``, ``t (M, 3)`` of a rig calibrated with errors: every view rotated about its centre
     by a rotation vector of RMS angle ``rotation_deg`` and moved by a vector of RMS length
     ``translation`` (isotropic Gaussians), intrinsics unchanged. Detections are rendered
     with this rig; the method gets ``rig``."""

@@ -166,16 +166,17 @@ def generate_realistic_scene(
     rig: Rig,
     num_points: Int[ArrayLike, ""],
     sigma_px: Real[ArrayLike, ""],
-    realism: Realism = Realism(),
     *,
+    realism: Realism = Realism(),
     capacity: int,
     box=DEFAULT_BOX,
     image_size: tuple[int, int] = IMAGE_SIZE,
     double_capacity: int = 0,
     clutter_capacity: int = 0,
 ) -> RealScene:
-    """A benchmark box scene (the points of :func:`generate_scene`: uniform in ``box``, seen by
-    ≥ 2 views of the nominal ``rig``) rendered with the :class:`Realism` options.
+    """A benchmark box scene (the points of :func:`generate_scene`: uniform in ``box (2, 3)``,
+    seen by ≥ 2 views of the nominal ``rig``, ``K (M, 3, 3)``) rendered with the
+    :class:`Realism` options.
 
     Per scene: the true rig is ``rig`` with pose errors (:func:`perturb_rig`), the views'
     noise levels are :func:`view_sigmas` of ``sigma_px``; then :func:`render_points`.

@@ -15,8 +15,8 @@ RING_IMAGE_SIZE: tuple[int, int] = (1920, 1080)
 
 
 def ring_rig(
-    num_views: int = 5,
     *,
+    num_views: int = 5,
     radius: float = 5.0,
     height: float = 2.5,
     target_height: float = 1.0,

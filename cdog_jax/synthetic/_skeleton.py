@@ -137,8 +137,8 @@ def generate_skeleton_scenes(
     rig: Rig,
     num_people: Int[ArrayLike, ""],
     sigma_px: Real[ArrayLike, ""],
-    realism: Realism = Realism(),
     *,
+    realism: Realism = Realism(),
     num_frames: int,
     max_people: int = 5,
     fps: float = 10.0,
@@ -147,7 +147,8 @@ def generate_skeleton_scenes(
     clutter_capacity: int = 0,
 ) -> SkeletonScenes:
     """``num_frames`` frames of ``num_people`` walking people (:func:`skeleton_motion`) seen by
-    ``rig`` (e.g. :func:`ring_rig`), every joint type a class.
+    ``rig`` (e.g. :func:`ring_rig`; ``K (M, 3, 3)``), every joint type a class: detections
+    ``frames.xy (F, M, S, 2)`` with ``S = 17 · max_people + double_capacity + clutter_capacity``.
 
     The calibration error (:func:`perturb_rig`) and the views' noise levels
     (:func:`view_sigmas`) are drawn once for the sequence, as a real rig's would be; each

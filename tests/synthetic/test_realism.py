@@ -86,7 +86,7 @@ def test_perturb_rig_rms_errors():
 
 
 def _scene(seed, sigma=1.0, **realism):
-    return generate_realistic_scene(jax.random.PRNGKey(seed), RIG, 20, sigma, Realism(**realism), **SHAPE)
+    return generate_realistic_scene(jax.random.PRNGKey(seed), RIG, 20, sigma, realism=Realism(**realism), **SHAPE)
 
 
 def test_pose_errors_move_detections_not_points():

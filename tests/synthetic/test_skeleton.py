@@ -63,7 +63,7 @@ def test_frames_move_smoothly_and_people_start_apart():
 
 def test_scenes_truth_doubles_and_clutter():
     # The shapes of experiments/robustness_realistic.py --quick (one compile for both).
-    sk = generate_skeleton_scenes(jax.random.PRNGKey(0), RIG, 5, 2.0, Realism(double_rate=0.3, double_offset_px=2.0, clutter_rate=4.0),
+    sk = generate_skeleton_scenes(jax.random.PRNGKey(0), RIG, 5, 2.0, realism=Realism(double_rate=0.3, double_offset_px=2.0, clutter_rate=4.0),
                                   num_frames=2, double_capacity=40, clutter_capacity=48)  # fmt: skip
     fr = sk.frames
     mask, kind, inst, cls, xy = (np.asarray(a) for a in (fr.mask, fr.kind, fr.instance, fr.class_id, fr.xy))
