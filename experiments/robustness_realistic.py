@@ -35,6 +35,8 @@ Method (``cdog_jax.synthetic``):
   closest to 27 %. Targets: 4× the sequences of a level, 3, 4 or 5 people, with that ν and
   σ, σ estimated and σ given.
 
+Missed detections, and the per-stage view, on Gaussian box scenes: ``experiments/robustness.py``.
+
 Usage::
 
     python experiments/robustness_realistic.py [--scenes 10] [--sequences 3] [--frames 5]
