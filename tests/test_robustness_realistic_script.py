@@ -1,0 +1,36 @@
+"""experiments/robustness_realistic.py runs end to end with --quick (paper() only, tiny scenes)."""
+
+import importlib.util
+import math
+import pathlib
+
+SCRIPT = pathlib.Path(__file__).resolve().parents[1] / "experiments" / "robustness_realistic.py"
+
+
+def _load():
+    spec = importlib.util.spec_from_file_location("robustness_realistic_script", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_robustness_realistic_quick(tmp_path, capsys):
+    script = _load()
+    png = tmp_path / "r.png"
+    out = script.main(["--quick", "--figure", str(png), "--json", str(tmp_path / "r.json")])
+    assert png.stat().st_size > 0 and (tmp_path / "r.json").stat().st_size > 0
+    assert out["presets"] == ["paper"]
+    for name, fam in out["families"].items():
+        rows = fam["rows"]
+        assert (rows[0]["factor"], rows[0]["value"]) == ("tails", math.inf)
+        assert {r["factor"] for r in rows} == set(script.FACTORS)
+        for r in rows:
+            for k in ("pg_f1", "g_f1", "recall", "joined"):
+                assert 0.0 <= r["paper"][k] <= 1.0, (name, r)
+            assert r["paper"]["sigma_ratio"] > 0
+    # The clean skeleton level is easy: every joint is reconstructed within 10 cm.
+    assert out["families"]["skeleton"]["rows"][0]["paper"]["recall"] == 1.0
+    t = out["targets"]
+    assert t["nu"] in script.FIT_NUS and t["sigma"] > 0 and len(t["rows"]) >= 1
+    table = capsys.readouterr().out
+    assert "| level | paper PG-F1 |" in table and "recall within 10 cm" in table
