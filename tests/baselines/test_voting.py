@@ -1,0 +1,37 @@
+"""Triangulation voting: conformance, and inliers taken by reprojection.
+
+Noise-free bound: every point seen in ≥ 2 views is grouped exactly when every pair of
+detections of different points has symmetric epipolar cost ≥ ``reprojection_gate · τ``
+(and ≥ τ, which that implies for a gate ≥ 1). Then every hypothesis is a same-point pair
+whose two-view point is the true point; the point's own detection in a third view
+reprojects within round-off, and any other detection within ``reprojection_gate · τ`` of
+that reprojection would lie that close to both epipolar lines, i.e. cost less than the
+gate, which the bound excludes.
+"""
+
+import jax.numpy as jnp
+import numpy as np
+from pairwise_baseline_checks import check_table, conformance, group_sets, hand_scene, jitted
+
+from cdog_jax.baselines import VotingOptions, voting_groups
+
+
+def test_voting_conformance():
+    conformance(voting_groups, VotingOptions(), bound_scale=VotingOptions().reprojection_gate)
+
+
+def test_voting_third_view_joins_by_reprojection():
+    """A detection moved off its point's reprojection by more than the gate leaves the
+    group (it is seen by no hypothesis: its epipolar cost is too large too), one moved by
+    less stays."""
+    rig, xy, mask, expected = hand_scene()
+    f = jitted(voting_groups, VotingOptions())
+    moved = xy.at[2, 1].add(jnp.asarray([0.0, 1.5], xy.dtype))  # point 0 in view 2, 1.5 px off
+    g, v, st = f(rig, moved, mask, jnp.float32(0.0))
+    check_table(g, v, st, mask)
+    assert group_sets(g, v) == expected  # 1.5 px < 2 τ = 2 px: still an inlier
+    far = xy.at[2, 1].add(jnp.asarray([0.0, 4.0], xy.dtype))
+    g, v, _ = f(rig, far, mask, jnp.float32(0.0))
+    point0 = next(s for s in expected if (0, 5) in s)
+    assert group_sets(g, v) == (expected - {point0}) | {point0 - {(2, 1)}}
+    assert np.asarray(st) == 0
