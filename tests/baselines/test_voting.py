@@ -14,6 +14,7 @@ import numpy as np
 from pairwise_baseline_checks import check_table, conformance, group_sets, hand_scene, jitted
 
 from cdog_jax.baselines import VotingOptions, voting_groups
+from cdog_jax.geometry import project
 
 
 def test_voting_conformance():
@@ -35,3 +36,25 @@ def test_voting_third_view_joins_by_reprojection():
     point0 = next(s for s in expected if (0, 5) in s)
     assert group_sets(g, v) == (expected - {point0}) | {point0 - {(2, 1)}}
     assert np.asarray(st) == 0
+
+
+def test_voting_uses_each_detection_once():
+    """Point B lies on view 2's ray through point A and is not seen by view 2, so every
+    hypothesis reprojects into view 2 onto A's detection (or holds it): whichever is
+    accepted first takes it, and the other group must do without."""
+    rig, _, _, _ = hand_scene()
+    centre = np.asarray(rig.centers)[2]
+    A = np.zeros(3)
+    B = A + 0.3 * (A - centre) / np.linalg.norm(A - centre)
+    pix, front = project(rig, jnp.asarray(np.stack([A, B]), rig.K.dtype))
+    assert np.asarray(front)[:3].all()
+    xy = np.zeros((4, 12, 2), np.float32)
+    mask = np.zeros((4, 12), bool)
+    slots = {(0, 0): 3, (1, 0): 7, (2, 0): 1, (0, 1): 10, (1, 1): 2}  # (view, point) → slot
+    for (m, p), s in slots.items():
+        xy[m, s], mask[m, s] = np.asarray(pix)[m, p], True
+    f = jitted(voting_groups, VotingOptions())
+    g, v, st = f(rig, jnp.asarray(xy), jnp.asarray(mask), jnp.float32(0.0))
+    check_table(g, v, st, mask)
+    found = group_sets(g, v)
+    assert len(found) == 2 and set().union(*found) == {(m, s) for (m, _), s in slots.items()}
