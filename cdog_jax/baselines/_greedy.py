@@ -9,13 +9,13 @@ epipolar.
 import dataclasses
 from typing import ClassVar
 
-import jax
 import jax.numpy as jnp
 
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..graph._groups import groups_from_labels
 from ._candidates import nearest_candidates, symmetric_cost
+from ._merge import merge_in_order
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,22 +68,6 @@ def greedy_groups(
     lo, hi = jnp.minimum(src, dst), jnp.maximum(src, dst)
     order = jnp.lexsort((hi, lo, jnp.where(ok, cost, jnp.inf)))
     lo, hi = lo[order], hi[order]
-    num_edges = jnp.sum(ok, dtype=jnp.int32)
-
-    # Quick-find union-find: every node holds its group's root, the group's smallest node, so
-    # that the labels are those groups_from_labels expects; merging relabels one group (O(N)).
-    node_view = jnp.arange(N, dtype=jnp.int32) // P
-    views_of = (node_view[:, None] == jnp.arange(M, dtype=jnp.int32)[None, :]) & mask.reshape(N, 1)  # (N, M)
-
-    def body(e, carry):
-        labels, views_of = carry
-        a, b = labels[lo[e]], labels[hi[e]]
-        merge = (a != b) & ~jnp.any(views_of[a] & views_of[b])
-        root, other = jnp.minimum(a, b), jnp.maximum(a, b)
-        labels = jnp.where(merge & (labels == other), root, labels)
-        views_of = views_of.at[root].set(jnp.where(merge, views_of[a] | views_of[b], views_of[root]))
-        return labels, views_of
-
-    labels, _ = jax.lax.fori_loop(0, num_edges, body, (jnp.arange(N, dtype=jnp.int32), views_of))
+    labels = merge_in_order(lo, hi, jnp.sum(ok, dtype=jnp.int32), mask, freeze_on_conflict=False)
     groups, valid = groups_from_labels(labels, mask.reshape(N), M, P)
     return groups, valid, jnp.int32(0)
