@@ -34,8 +34,9 @@ class VotingOptions:
     over all members (smaller first), then index; in that order each hypothesis whose two
     detections are both still unused is accepted as a group of its pair and its inliers,
     recomputed among the detections still unused (the nearest unused one per view within
-    the gate). Each detection joins at most one group; one pass over the ranked hypotheses,
-    so no bound can be reached and the status is always 0.
+    the gate). Each detection joins at most one group. The loop steps from one accepted
+    hypothesis to the next (at most ``G = N // 2`` of them), so its bound cannot be reached
+    and the status is always 0.
 
     Attributes:
         reprojection_gate: traced; the inlier gate in units of ``τ`` (``2 τ ≈ 5.7 σ``:
@@ -78,8 +79,10 @@ def voting_groups(
 
     base = (views[None, :] == view_a[:, None]) | (views[None, :] == view_b[:, None])  # (H, M)
     votes = mask[None] & (front & ~base)[:, :, None]  # (H, M, P)
-    diff = jnp.where(votes[..., None], xy_hat[:, :, None, :] - xy[None], 0.0)
-    reproj = jnp.where(votes, jnp.sqrt(jnp.sum(diff * diff, axis=-1)), jnp.inf)  # (H, M, P) px
+    # x and y apart: a trailing axis of length 2 would keep XLA from vectorising the table.
+    dx = jnp.where(votes, xy_hat[:, :, None, 0] - xy[None, :, :, 0], 0.0)
+    dy = jnp.where(votes, xy_hat[:, :, None, 1] - xy[None, :, :, 1], 0.0)
+    reproj = jnp.where(votes, jnp.sqrt(dx * dx + dy * dy), jnp.inf)  # (H, M, P) px
 
     def base_error(node, view):
         e = jnp.where(ok[:, None], xy_hat[hyp, view] - xy.reshape(N, 2)[node], 0.0)
@@ -92,19 +95,35 @@ def voting_groups(
     err = jnp.where(ok, total / jnp.maximum(count, 1).astype(total.dtype), jnp.inf)
     order = jnp.lexsort((hyp, err, -count))
 
-    def body(k, carry):
-        used, groups, num_groups = carry
-        h = order[k]
+    src, dst = src[order], dst[order]  # ranked; the unusable ones last
+    reproj = reproj[order]
+    num_ranked = jnp.sum(ok, dtype=jnp.int32)
+    rank = jnp.arange(src.shape[0], dtype=jnp.int32)
+
+    # Each step jumps to the next ranked hypothesis whose two detections are unused and
+    # accepts it, so the loop runs once per group (not once per hypothesis); a step that
+    # finds none ends it. Every acceptance uses two unused detections, so at most G steps
+    # accept: the bound G + 1 cannot be reached.
+    def cond(carry):
+        _, _, num_groups, k = carry
+        return (k < num_ranked) & (num_groups <= G)
+
+    def body(carry):
+        used, groups, num_groups, k = carry
+        flat = used.reshape(N)
+        alive = (rank >= k) & (rank < num_ranked) & ~flat[src] & ~flat[dst]
+        k = jnp.min(jnp.where(alive, rank, num_ranked))
+        found = k < num_ranked
+        h = jnp.minimum(k, src.shape[0] - 1)
         a, b = src[h], dst[h]
-        free = ~used.reshape(N)[a] & ~used.reshape(N)[b]
         dist = jnp.where(used, jnp.inf, reproj[h])  # (M, P)
         slot = jnp.argmin(dist, axis=-1).astype(jnp.int32)  # first of equals: smallest slot
         row = jnp.where(jnp.min(dist, axis=-1) < gate, slot, -1)
         row = row.at[a // P].set(a % P).at[b // P].set(b % P)
-        groups = groups.at[num_groups].set(jnp.where(free, row, groups[num_groups]))
-        used = used | (free & (slots[None, :] == row[:, None]))
-        return used, groups, num_groups + free.astype(jnp.int32)
+        groups = groups.at[num_groups].set(jnp.where(found, row, groups[num_groups]), mode="drop")
+        used = used | (found & (slots[None, :] == row[:, None]))
+        return used, groups, num_groups + found.astype(jnp.int32), k + 1
 
-    init = (jnp.zeros((M, P), bool), jnp.full((G, M), -1, jnp.int32), jnp.int32(0))
-    _, groups, num_groups = jax.lax.fori_loop(0, jnp.sum(ok, dtype=jnp.int32), body, init)
+    init = (jnp.zeros((M, P), bool), jnp.full((G, M), -1, jnp.int32), jnp.int32(0), jnp.int32(0))
+    _, groups, num_groups, _ = jax.lax.while_loop(cond, body, init)
     return groups, jnp.arange(G, dtype=jnp.int32) < num_groups, jnp.int32(0)
