@@ -17,6 +17,7 @@ from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..geometry._projection import project_views_last
 from ..geometry._triangulate import dlt_blocks, solve_normal_3x3
+from ..graph._groups import groups_from_labels
 from ._candidates import nearest_candidates, symmetric_cost
 
 
@@ -57,9 +58,10 @@ def voting_groups(
     numbers: dict[str, Float[Array, ""]],
     options: VotingOptions,
 ) -> tuple[Int[Array, "G M"], Bool[Array, " G"], Int[Array, ""]]:
-    """Groups ``(G, M)`` (slot per view or -1, in acceptance order), ``valid (G,)`` and
-    status ``()`` (always 0) of triangulation voting; ``xy (M, P, 2)`` pixels, ``d`` the
-    epipolar distances (px), ``tau`` the gate (px), ``numbers["reprojection_gate"]``."""
+    """Groups ``(G, M)`` (slot per view or -1), ``valid (G,)`` and status ``()`` (always 0)
+    of triangulation voting; ``xy (M, P, 2)`` pixels, ``d`` the epipolar distances (px),
+    ``tau`` the gate (px), ``numbers["reprojection_gate"]``. Valid groups come first,
+    ordered by their smallest node ``m · P + i``, as in every method."""
     del sigma, options
     M, P = mask.shape
     N, G = M * P, max(M * P // 2, 1)
@@ -126,4 +128,10 @@ def voting_groups(
 
     init = (jnp.zeros((M, P), bool), jnp.full((G, M), -1, jnp.int32), jnp.int32(0), jnp.int32(0))
     _, groups, num_groups, _ = jax.lax.while_loop(cond, body, init)
-    return groups, jnp.arange(G, dtype=jnp.int32) < num_groups, jnp.int32(0)
+    # Renumber as every method does: groups ordered by their smallest node m * P + i.
+    member = (jnp.arange(G, dtype=jnp.int32) < num_groups)[:, None] & (groups >= 0)  # (G, M)
+    node = jnp.where(member, views[None, :] * P + groups, N)  # N = no member
+    root = jnp.min(node, axis=1)  # (G,)
+    labels = jnp.arange(N, dtype=jnp.int32).at[node.reshape(-1)].set(jnp.repeat(root, M), mode="drop")
+    groups, valid = groups_from_labels(labels, mask.reshape(N), M, P)
+    return groups, valid, jnp.int32(0)

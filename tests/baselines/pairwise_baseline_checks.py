@@ -69,15 +69,20 @@ def truth_sets(instance, mask) -> set[frozenset]:
 
 
 def check_table(groups, valid, status, mask) -> None:
-    """The contract of every group table: shapes and dtypes, ≥ 2 members per valid group,
-    at most one detection per view (by construction of the table), disjoint groups, only
-    masked-in slots, invalid rows ignored."""
+    """The contract of every group table: shapes and dtypes, valid groups first and ordered
+    by their smallest node ``m · P + i``, ≥ 2 members per valid group, at most one
+    detection per view (by construction of the table), disjoint groups, only masked-in
+    slots."""
     mask = np.asarray(mask)
     Mv, Pv = mask.shape
     assert groups.shape == (Mv * Pv // 2, Mv) and groups.dtype == jnp.int32
     assert valid.shape == (Mv * Pv // 2,) and valid.dtype == jnp.bool_
     assert status.shape == () and status.dtype == jnp.int32
-    g = np.asarray(groups)[np.asarray(valid)]
+    valid = np.asarray(valid)
+    assert not np.any(valid[np.argmin(valid):]) if not valid.all() else True, "valid groups must come first"
+    g = np.asarray(groups)[valid]
+    first_node = np.min(np.where(g >= 0, np.arange(Mv)[None, :] * Pv + g, Mv * Pv), axis=1)
+    assert np.all(np.diff(first_node) > 0), "groups must be ordered by their smallest node"
     assert np.all((g >= -1) & (g < Pv))
     assert np.all(np.sum(g >= 0, axis=1) >= 2)
     members = [(m, s) for row in g for m, s in enumerate(row) if s >= 0]

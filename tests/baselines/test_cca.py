@@ -8,13 +8,10 @@ cheapest one (cost ≈ 0), so every same-point pair is a mutual nearest neighbou
 components are the points, none of which needs a split.
 """
 
-import jax
 import numpy as np
-from pairwise_baseline_checks import check_table, conformance, gate, group_sets, jitted, random_scene, run
+from pairwise_baseline_checks import conformance, distances, gate, group_sets, jitted, random_scene
 
 from cdog_jax.baselines import ComponentsOptions, components_groups
-from cdog_jax.geometry import epipolar_distances
-from cdog_jax.synthetic import default_rig, generate_scene
 
 
 def cca_numpy(d, mask, tau, max_rounds):
@@ -77,26 +74,13 @@ def test_cca_conformance():
 
 def test_cca_matches_numpy():
     f = jitted(components_groups, ComponentsOptions())
-    splits = 0
-    for seed, sigma in [(1, 1.0), (2, 3.0), (3, 3.0), (4, 5.0), (5, 5.0), (6, 5.0), (7, 8.0), (8, 8.0)]:
+    rounds_seen = []
+    for seed, sigma in [(1, 1.0), (2, 3.0), (3, 3.0), (4, 5.0), (9, 5.0), (1, 10.0), (9, 10.0), (1, 15.0)]:
         rig, s = random_scene(seed, sigma, num_points=12)
         g, v, st = f(rig, s.xy, s.mask, np.float32(sigma))
-        d = np.asarray(epipolar_distances(rig, s.xy, s.mask))
+        d = np.asarray(distances(rig, s.xy, s.mask))
         want, rounds = cca_numpy(d, np.asarray(s.mask), np.float32(gate(sigma)), 10_000)
-        splits += rounds
+        rounds_seen.append(rounds)
         assert group_sets(g, v) == want and int(st) == 0, f"seed {seed}"
-    assert splits >= 5, "no scene needed a split: the comparison says little about it"
-
-
-
-
-def test_cca_matches_numpy_many_cuts():
-    """A noisy scene of the full rig, where the cuts take many rounds."""
-    rig = default_rig()
-    s = generate_scene(jax.random.PRNGKey(3), rig, 30, 3.0, capacity=32)
-    g, v, st = jax.jit(lambda rig, xy, mask: run(components_groups, ComponentsOptions(), rig, xy, mask, 3.0))(rig, s.xy, s.mask)
-    check_table(g, v, st, s.mask)
-    d = np.asarray(epipolar_distances(rig, s.xy, s.mask))
-    want, rounds = cca_numpy(d, np.asarray(s.mask), np.float32(gate(3.0)), 10_000)
-    assert rounds >= 20
-    assert group_sets(g, v) == want
+    # Scenes whose components take several rounds of cuts, or the comparison says little.
+    assert sum(rounds_seen) >= 30 and max(rounds_seen) >= 8, rounds_seen

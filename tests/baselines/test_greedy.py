@@ -8,10 +8,9 @@ detections of one view together.
 
 import numpy as np
 import pytest
-from pairwise_baseline_checks import conformance, gate, group_sets, jitted, random_scene
+from pairwise_baseline_checks import conformance, distances, gate, group_sets, jitted, random_scene
 
 from cdog_jax.baselines import GreedyOptions, greedy_groups
-from cdog_jax.geometry import epipolar_distances
 
 
 def greedy_numpy(d, mask, tau, k):
@@ -53,7 +52,7 @@ def test_greedy_matches_numpy(k):
     for seed, sigma in [(1, 1.0), (2, 3.0), (3, 3.0), (4, 5.0), (5, 5.0)]:
         rig, s = random_scene(seed, sigma, num_points=10)
         g, v, _ = f(rig, s.xy, s.mask, np.float32(sigma))
-        d = np.asarray(epipolar_distances(rig, s.xy, s.mask))
+        d = np.asarray(distances(rig, s.xy, s.mask))
         assert group_sets(g, v) == greedy_numpy(d, np.asarray(s.mask), np.float32(gate(sigma)), k), f"seed {seed}"
 
 
