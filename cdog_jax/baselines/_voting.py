@@ -8,6 +8,7 @@ accepted by consensus under view-uniqueness.
 """
 
 import dataclasses
+import math
 from typing import ClassVar
 
 import jax
@@ -46,6 +47,11 @@ class VotingOptions:
 
     reprojection_gate: float = 2.0
     NUMBERS: ClassVar[tuple[str, ...]] = ("reprojection_gate",)
+
+    def __post_init__(self):
+        g = self.reprojection_gate
+        if isinstance(g, bool) or not isinstance(g, (int, float)) or not math.isfinite(g) or g <= 0:
+            raise ValueError(f"VotingOptions.reprojection_gate must be a finite number > 0; got {g!r}")
 
 
 def voting_groups(

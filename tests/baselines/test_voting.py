@@ -11,6 +11,7 @@ gate, which the bound excludes.
 
 import jax.numpy as jnp
 import numpy as np
+import pytest
 from pairwise_baseline_checks import check_table, conformance, group_sets, hand_scene, jitted
 
 from cdog_jax.baselines import VotingOptions, voting_groups
@@ -58,3 +59,9 @@ def test_voting_uses_each_detection_once():
     check_table(g, v, st, mask)
     found = group_sets(g, v)
     assert len(found) == 2 and set().union(*found) == {(m, s) for (m, _), s in slots.items()}
+
+
+def test_voting_options_checked():
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="reprojection_gate"):
+            VotingOptions(reprojection_gate=bad)
