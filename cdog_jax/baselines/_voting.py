@@ -71,6 +71,8 @@ def voting_groups(
     del sigma, options
     M, P = mask.shape
     N, G = M * P, max(M * P // 2, 1)
+    if M < 2:  # no pair of views, no hypothesis
+        return groups_from_labels(jnp.arange(N, dtype=jnp.int32), jnp.zeros((N,), bool), M, P) + (jnp.int32(0),)
     views = jnp.arange(M, dtype=jnp.int32)
     slots = jnp.arange(P, dtype=jnp.int32)
     xy = jnp.where(mask[..., None], xy, 0.0)  # padding is neutral before any arithmetic

@@ -12,10 +12,11 @@ gate, which the bound excludes.
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from pairwise_baseline_checks import check_table, conformance, group_sets, hand_scene, jitted
+from pairwise_baseline_checks import check_table, conformance, group_sets, hand_scene, jitted, run
 
 from cdog_jax.baselines import VotingOptions, voting_groups
 from cdog_jax.geometry import project
+from cdog_jax.synthetic import default_rig
 
 
 def test_voting_conformance():
@@ -65,3 +66,9 @@ def test_voting_options_checked():
     for bad in (0.0, -1.0, float("nan")):
         with pytest.raises(ValueError, match="reprojection_gate"):
             VotingOptions(reprojection_gate=bad)
+
+
+def test_voting_single_view_has_no_groups():
+    rig = default_rig(num_views=1)
+    g, v, st = run(voting_groups, VotingOptions(), rig, jnp.zeros((1, 4, 2), jnp.float32), jnp.ones((1, 4), bool), 1.0)
+    assert g.shape == (2, 1) and not np.asarray(v).any() and int(st) == 0
