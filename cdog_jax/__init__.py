@@ -5,6 +5,7 @@ from ._associate import associate as associate, associate_batch as associate_bat
 from ._cdog import Config as Config, STAGES as STAGES, associate_traced as associate_traced
 from ._config import Thresholds as Thresholds
 from ._memory import estimate_peak_bytes as estimate_peak_bytes
+from ._table_method import GroupTableMethod as GroupTableMethod
 from ._method import (
     Method as Method,
     Observations as Observations,
@@ -20,6 +21,7 @@ from .viz import plot_association as plot_association
 from .viz import plot_epipolar as plot_epipolar
 from .viz import plot_bpe_histogram as plot_bpe_histogram
 from .geometry import Rig as Rig, project as project, rig_from_arrays as rig_from_arrays, triangulate as triangulate
+from . import baselines as baselines  # registers the baseline methods
 
 from ._version import __version__ as __version__  # noqa: E402
 

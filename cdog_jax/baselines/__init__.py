@@ -1,3 +1,7 @@
-from ._greedy import GreedyOptions as GreedyOptions, greedy_groups as greedy_groups
-from ._components import ComponentsOptions as ComponentsOptions, components_groups as components_groups
-from ._voting import VotingOptions as VotingOptions, voting_groups as voting_groups
+"""The field's other methods, each a registered :class:`cdog_jax.Method` built on
+:class:`cdog_jax.GroupTableMethod` (the same σ, gate, triangulation and validity gate as
+every group-table method), so that they compare with C-DOG on equal terms."""
+
+from ._greedy import Greedy as Greedy, GreedyOptions as GreedyOptions, greedy_groups as greedy_groups
+from ._components import Components as Components, ComponentsOptions as ComponentsOptions, components_groups as components_groups
+from ._voting import Voting as Voting, VotingOptions as VotingOptions, voting_groups as voting_groups

@@ -10,6 +10,8 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
+from .._method import register_method
+from .._table_method import GroupTableMethod
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..graph._adjacency import nearest_neighbour_edges
@@ -74,3 +76,18 @@ def components_groups(
     )
     groups, valid = groups_from_labels(labels, mask.reshape(N), M, P)
     return groups, valid, jnp.int32(0)
+
+
+@dataclasses.dataclass(frozen=True)
+class Components(GroupTableMethod, ComponentsOptions):
+    """Connected components of the gated epipolar graph, split to view-uniqueness (CCA) as a registered method (``"components"``): the options and algorithm of
+    :class:`ComponentsOptions`, with the σ, gate, triangulation and validity gate every group-table
+    method shares (:class:`cdog_jax.GroupTableMethod`).
+    """
+
+    def group_table(self, rig, xy, mask, d, sigma, tau, thresholds):
+        numbers = {name: getattr(thresholds, name) for name in self.NUMBERS}
+        return components_groups(rig, xy, mask, d, tau, sigma, numbers, self)
+
+
+register_method("components", Components)

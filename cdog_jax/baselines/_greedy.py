@@ -11,6 +11,8 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
+from .._method import register_method
+from .._table_method import GroupTableMethod
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..graph._groups import groups_from_labels
@@ -71,3 +73,22 @@ def greedy_groups(
     labels = merge_in_order(lo, hi, jnp.sum(ok, dtype=jnp.int32), mask, freeze_on_conflict=False)
     groups, valid = groups_from_labels(labels, mask.reshape(N), M, P)
     return groups, valid, jnp.int32(0)
+
+
+@dataclasses.dataclass(frozen=True)
+class Greedy(GroupTableMethod, GreedyOptions):
+    """Greedy epipolar matching as a registered method (``"greedy"``): the options and algorithm of
+    :class:`GreedyOptions`, with the σ, gate, triangulation and validity gate every group-table
+    method shares (:class:`cdog_jax.GroupTableMethod`).
+    """
+
+    def __post_init__(self):
+        GroupTableMethod.__post_init__(self)
+        GreedyOptions.__post_init__(self)
+
+    def group_table(self, rig, xy, mask, d, sigma, tau, thresholds):
+        numbers = {name: getattr(thresholds, name) for name in self.NUMBERS}
+        return greedy_groups(rig, xy, mask, d, tau, sigma, numbers, self)
+
+
+register_method("greedy", Greedy)

@@ -14,6 +14,8 @@ from typing import ClassVar
 import jax
 import jax.numpy as jnp
 
+from .._method import register_method
+from .._table_method import GroupTableMethod
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..geometry._projection import project_views_last
@@ -143,3 +145,22 @@ def voting_groups(
     labels = jnp.arange(N, dtype=jnp.int32).at[node.reshape(-1)].set(jnp.repeat(root, M), mode="drop")
     groups, valid = groups_from_labels(labels, mask.reshape(N), M, P)
     return groups, valid, jnp.int32(0)
+
+
+@dataclasses.dataclass(frozen=True)
+class Voting(GroupTableMethod, VotingOptions):
+    """Triangulation voting as a registered method (``"voting"``): the options and algorithm of
+    :class:`VotingOptions`, with the σ, gate, triangulation and validity gate every group-table
+    method shares (:class:`cdog_jax.GroupTableMethod`).
+    """
+
+    def __post_init__(self):
+        GroupTableMethod.__post_init__(self)
+        VotingOptions.__post_init__(self)
+
+    def group_table(self, rig, xy, mask, d, sigma, tau, thresholds):
+        numbers = {name: getattr(thresholds, name) for name in self.NUMBERS}
+        return voting_groups(rig, xy, mask, d, tau, sigma, numbers, self)
+
+
+register_method("voting", Voting)
