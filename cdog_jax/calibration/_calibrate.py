@@ -9,10 +9,8 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .._cdog import Config
-from .._config import Thresholds
+from .._method import Method, Observations, method_from
 from .._expect import ARRAY, expect_args
-from .._cdog import associate_traced
 from .._result import Association
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
@@ -49,18 +47,19 @@ def calibrate(
     xy: Float[Array, "S M P 2"],
     mask: Bool[Array, "S M P"],
     *,
-    thresholds: Thresholds,
-    config: Config,
+    thresholds: tuple,
+    method: Method | str | None = None,
     rounds: int = 3,
+    config: Method | str | None = None,
     **refine_options,
 ) -> tuple[Rig, CalibrationHistory]:
     """Alternate association and :func:`refine_rig` for ``rounds`` rounds (``lax.scan``).
 
-    Each round associates every scene with the current rig (``associate_traced``, vmapped
-    over scenes), then refines the rig from those groups; a last association with the
+    Each round associates every scene with the current rig (the method's per-scene function,
+    vmapped over scenes), then refines the rig from those groups; a last association with the
     final rig follows, so the history holds ``rounds + 1`` associations (the first with
     the starting rig). With a drifted rig the epipolar errors exceed the noise: associate
-    with a gate that allows for them (``config.sigma_mode="auto"`` or a larger
+    with a gate that allows for them (``sigma_mode="auto"`` or a larger
     ``thresholds.sigma_px``) and prefer ``loss="huber"``, since early groups hold mistakes.
     Leaves of ``thresholds`` may be scalars or ``(rounds,)`` arrays (e.g. σ shrinking as the
     rig improves; the last association reuses the last entry).
@@ -68,15 +67,27 @@ def calibrate(
     Args:
         rig: starting ``M`` cameras.
         xy: ``(S, M, P, 2)`` detections (pixels) of ``S`` scenes; ``mask (S, M, P)`` bool.
-        thresholds: association thresholds (cast to the dtype of ``xy``).
-        config: association structure (static); ``rounds`` static ≥ 1.
+        thresholds: the method's thresholds (``method.thresholds(σ)``; cast to the dtype of
+            ``xy``).
+        method: any :class:`~cdog_jax.Method` or a registered name (static); ``config`` is
+            its older name. ``rounds`` static ≥ 1.
         **refine_options: keyword options of :func:`refine_rig`, all static but ``scale_px``.
 
     Returns:
-        The rig after the last round and a :class:`CalibrationHistory`. Jit with ``config``,
+        The rig after the last round and a :class:`CalibrationHistory`. Jit with ``method``,
         ``rounds`` and the static refine options in ``static_argnames``.
     """
-    expect_args("calibrate", rig=(rig, Rig), xy=(xy, ARRAY), mask=(mask, ARRAY), thresholds=(thresholds, Thresholds), config=(config, Config))
+    expect_args("calibrate", rig=(rig, Rig), xy=(xy, ARRAY), mask=(mask, ARRAY))
+    if config is not None:
+        if method is not None:
+            raise TypeError("calibrate: give method= or config= (its older name), not both")
+        method = config
+    if method is None:
+        raise TypeError("calibrate: method= is required (a Method or a registered name)")
+    method = method_from(method, "calibrate")
+    kind = type(method.thresholds())
+    if not isinstance(thresholds, kind):
+        raise TypeError(f"calibrate: thresholds must be {kind.__name__} (method.thresholds()); got {type(thresholds).__name__}")
     if not isinstance(rounds, int) or rounds < 1:
         raise ValueError(f"rounds must be a Python int >= 1; got {rounds!r}")
     _check_xy(rig, xy)
@@ -86,7 +97,7 @@ def calibrate(
     if unknown:
         raise TypeError(f"calibrate got unknown options {unknown}; refine_rig takes {_STATIC + ('scale_px',)}")
     th = []
-    for name, v in zip(Thresholds._fields, thresholds):
+    for name, v in zip(kind._fields, thresholds):
         v = jnp.asarray(v, xy.dtype)
         if v.shape not in ((), (rounds,)):
             raise ValueError(f"thresholds.{name} must have shape () or (rounds,) = ({rounds},); got {v.shape}")
@@ -94,7 +105,7 @@ def calibrate(
         th.append(jnp.concatenate([v, v[-1:]]))  # the final association reuses the last
     traced = {k: jnp.asarray(v, xy.dtype) for k, v in refine_options.items() if k == "scale_px"}
     static = tuple(sorted((k, v) for k, v in refine_options.items() if k != "scale_px"))
-    return _calibrate(rig, xy, mask, Thresholds(*th), traced, config=config.structure(), options=static)
+    return _calibrate(rig, xy, mask, kind(*th), traced, config=method.structure(), options=static)
 
 
 @functools.partial(jax.jit, static_argnames=("config", "options"))
@@ -103,7 +114,7 @@ def _calibrate(rig, xy, mask, th, traced, *, config, options):
 
     def one_round(rig, step):
         i, th_i = step
-        assoc = jax.vmap(lambda x, m: associate_traced(rig, x, m, th_i, config))(xy, mask)
+        assoc = jax.vmap(lambda x, m: config.associate_scene(rig, Observations(x, m), th_i))(xy, mask)
         # The extra last step only associates (lax.cond runs one branch under jit).
         new_rig, info = jax.lax.cond(
             i < rounds,
