@@ -12,9 +12,9 @@ tau_min_px)``, the multi-view DLT point of each group, and the validity gate
 
 from __future__ import annotations
 
-import abc
 import dataclasses
-from typing import NamedTuple
+from collections.abc import Callable
+from typing import ClassVar, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -71,8 +71,15 @@ class GroupTableMethod(Method):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
                 raise ValueError(f"{type(self).__name__}.{name} must be a finite number >= 0; got {value!r}")
+        later = getattr(super(), "__post_init__", None)  # an options base class's own checks
+        if later is not None:
+            later()
 
-    @abc.abstractmethod
+    #: A baseline written as a plain function ``f(rig, xy, mask, d, tau, sigma, numbers, options)``
+    #: (``numbers``: ``{name: traced value}`` for the names in its ``NUMBERS``; ``options``: this
+    #: method) sets it instead of overriding :meth:`group_table`.
+    GROUPS: ClassVar[Callable | None] = None
+
     def group_table(
         self,
         rig: Rig,
@@ -88,6 +95,10 @@ class GroupTableMethod(Method):
         in image n from detection ``(n, j)`` to the epipolar line of ``(m, i)`` (``+inf``
         within a view and for padding); ``tau`` is the σ-matched gate (px). A valid group
         has ≥ 2 members, at most one per view, and groups are disjoint."""
+        if self.GROUPS is None:
+            raise NotImplementedError(f"{type(self).__name__} must override group_table or set GROUPS")
+        numbers = {name: getattr(thresholds, name) for name in getattr(self, "NUMBERS", ())}
+        return type(self).GROUPS(rig, xy, mask, d, tau, sigma, numbers, self)
 
     def structure(self) -> "GroupTableMethod":
         defaults = type(self)()

@@ -85,9 +85,7 @@ class Components(GroupTableMethod, ComponentsOptions):
     method shares (:class:`cdog_jax.GroupTableMethod`).
     """
 
-    def group_table(self, rig, xy, mask, d, sigma, tau, thresholds):
-        numbers = {name: getattr(thresholds, name) for name in self.NUMBERS}
-        return components_groups(rig, xy, mask, d, tau, sigma, numbers, self)
+    GROUPS = staticmethod(components_groups)
 
 
 register_method("components", Components)

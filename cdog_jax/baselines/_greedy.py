@@ -82,13 +82,7 @@ class Greedy(GroupTableMethod, GreedyOptions):
     method shares (:class:`cdog_jax.GroupTableMethod`).
     """
 
-    def __post_init__(self):
-        GroupTableMethod.__post_init__(self)
-        GreedyOptions.__post_init__(self)
-
-    def group_table(self, rig, xy, mask, d, sigma, tau, thresholds):
-        numbers = {name: getattr(thresholds, name) for name in self.NUMBERS}
-        return greedy_groups(rig, xy, mask, d, tau, sigma, numbers, self)
+    GROUPS = staticmethod(greedy_groups)
 
 
 register_method("greedy", Greedy)

@@ -154,13 +154,7 @@ class Voting(GroupTableMethod, VotingOptions):
     method shares (:class:`cdog_jax.GroupTableMethod`).
     """
 
-    def __post_init__(self):
-        GroupTableMethod.__post_init__(self)
-        VotingOptions.__post_init__(self)
-
-    def group_table(self, rig, xy, mask, d, sigma, tau, thresholds):
-        numbers = {name: getattr(thresholds, name) for name in self.NUMBERS}
-        return voting_groups(rig, xy, mask, d, tau, sigma, numbers, self)
+    GROUPS = staticmethod(voting_groups)
 
 
 register_method("voting", Voting)
