@@ -1,0 +1,3 @@
+from ._spectral_sync import SpectralSyncOptions as SpectralSyncOptions, spectral_sync_groups as spectral_sync_groups
+from ._svt import MatchSVTOptions as MatchSVTOptions, match_svt_groups as match_svt_groups
+from ._spectral_clustering import SpectralClusteringOptions as SpectralClusteringOptions, spectral_clustering_groups as spectral_clustering_groups
