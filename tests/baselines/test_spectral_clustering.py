@@ -1,0 +1,16 @@
+from cdog_jax.baselines import SpectralClusteringOptions, spectral_clustering_groups
+from matrix_baseline_checks import check_hand_scene, check_jit_vmap_padding_permutation, check_noise_free
+
+OPTIONS = SpectralClusteringOptions()
+
+
+def test_hand_made_scene():
+    check_hand_scene(spectral_clustering_groups, OPTIONS)
+
+
+def test_noise_free_scenes_exact_without_false_edges():
+    check_noise_free(spectral_clustering_groups, OPTIONS)
+
+
+def test_jit_vmap_padding_and_slot_permutation():
+    check_jit_vmap_padding_permutation(spectral_clustering_groups, OPTIONS)
