@@ -162,13 +162,14 @@ def check_jit_vmap_padding_permutation(fn, options, sigma=1.0, seeds=(1, 2)):
         for a, c in zip(single, batched):
             np.testing.assert_array_equal(np.asarray(a), np.asarray(c)[b])
 
-    # Garbage in padded slots: NaN / huge pixels, and NaN distances at padded entries.
+    # Garbage in padded slots: NaN / huge pixels, and NaN or 0 distances at padded entries.
     pad = ~scene.mask
     assert bool(pad.any())
     junk = jnp.where(pad[..., None], jnp.array([jnp.nan, 1e30], jnp.float32), scene.xy)
     d_junk = epipolar_distances(rig, junk, scene.mask)
     pad_pair = pad[:, :, None, None] | pad[None, None, :, :]
-    d_junk = jnp.where(pad_pair, jnp.nan, d_junk)
+    # NaN, and 0 (inside every gate) where a padded slot meets a valid one.
+    d_junk = jnp.where(pad_pair, jnp.where(pad[:, :, None, None] & pad[None, None, :, :], jnp.nan, 0.0), d_junk)
     dirty = jitted(fn, options)(rig, junk, scene.mask, sigma, d_junk)[:3]
     clean = jitted(fn, options)(rig, scene.xy, scene.mask, sigma)[:3]
     for a, b in zip(clean, dirty):
