@@ -56,9 +56,10 @@ class MatchSVTOptions:
         rank_weight: ``λ``, the weight of the nuclear norm against the affinity reward
             (traced). With the diagonal fixed to 1, ``‖X‖_*`` equals the trace (a constant)
             for a positive semi-definite ``X``, so the term penalises the negative
-            eigenvalues that inconsistent cycles create; 3 was the best of 0.1, 0.5, 1, 2,
-            3, 5 on 5-view, 20-point scenes at σ = 1 px (0.5 to 1 merged inconsistent
-            cycles: pair recall 0.79–0.83 against 0.95).
+            eigenvalues that inconsistent cycles create. Chosen on 20-point scenes (pair
+            precision / recall): 5 views at σ = 1 px, λ = 0.5 gave 0.83 / 0.79, 1 gave
+            0.86 / 0.83, 2–5 gave 0.96 / 0.95, 10 gave 0.97 / 0.95; 10 views at σ = 3 px,
+            λ = 3 gave 0.93 / 0.91, 6 and 10 gave 0.98 / 0.98.
         penalty: ``μ``, the ADMM penalty (traced).
         similarity_threshold: entries of ``X`` above it may join two detections in the
             rounding (traced).
@@ -66,7 +67,7 @@ class MatchSVTOptions:
 
     iterations: int = 50
     affinity_width: float = 0.5
-    rank_weight: float = 3.0
+    rank_weight: float = 10.0
     penalty: float = 4.0
     similarity_threshold: float = 0.5
     NUMBERS: ClassVar[tuple[str, ...]] = ("affinity_width", "rank_weight", "penalty", "similarity_threshold")
