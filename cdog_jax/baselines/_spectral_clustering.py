@@ -59,6 +59,14 @@ class SpectralClusteringOptions:
     affinity_width: float = 0.5
     NUMBERS: ClassVar[tuple[str, ...]] = ("affinity_width",)
 
+    def __post_init__(self):
+        if self.max_clusters is not None and (not isinstance(self.max_clusters, int) or self.max_clusters < 1):
+            raise ValueError(f"SpectralClusteringOptions.max_clusters must be None or an int >= 1; got {self.max_clusters!r}")
+        if not isinstance(self.kmeans_iterations, int) or self.kmeans_iterations < 0:
+            raise ValueError(
+                f"SpectralClusteringOptions.kmeans_iterations must be an int >= 0; got {self.kmeans_iterations!r}"
+            )
+
 
 def _farthest_point_centres(points, active, degree, k, num_centres):
     """``(K,)`` node indices of ``k`` (traced, ``≤ K``) farthest-point centres; unused ones 0."""

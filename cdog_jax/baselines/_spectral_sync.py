@@ -67,6 +67,10 @@ class SpectralSyncOptions:
     similarity_threshold: float = 0.5
     NUMBERS: ClassVar[tuple[str, ...]] = ("affinity_width", "eigen_threshold", "similarity_threshold")
 
+    def __post_init__(self):
+        if self.max_objects is not None and (not isinstance(self.max_objects, int) or self.max_objects < 1):
+            raise ValueError(f"SpectralSyncOptions.max_objects must be None or an int >= 1; got {self.max_objects!r}")
+
 
 def spectral_sync_groups(
     rig: Rig,

@@ -72,6 +72,10 @@ class MatchSVTOptions:
     similarity_threshold: float = 0.5
     NUMBERS: ClassVar[tuple[str, ...]] = ("affinity_width", "rank_weight", "penalty", "similarity_threshold")
 
+    def __post_init__(self):
+        if not isinstance(self.iterations, int) or self.iterations < 0:
+            raise ValueError(f"MatchSVTOptions.iterations must be an int >= 0; got {self.iterations!r}")
+
 
 def _project(A, allowed, diagonal):
     """``Π_C``: symmetrise, clip to ``[0, 1]``, 0 where not ``allowed``, 1 on ``diagonal``."""

@@ -30,3 +30,12 @@ def test_dense_gated_graph_keeps_at_least_one_cluster_per_detection_of_a_view():
         true = pairs(truth_sets(scene.instance))
         recalls.append(len(pairs(group_sets(groups, valid)) & true) / len(true))
     assert min(recalls) > 0.8, recalls
+
+
+def test_options_reject_bad_static_values():
+    import pytest
+
+    with pytest.raises(ValueError, match="max_clusters"):
+        SpectralClusteringOptions(max_clusters=0)
+    with pytest.raises(ValueError, match="kmeans_iterations"):
+        SpectralClusteringOptions(kmeans_iterations=2.5)

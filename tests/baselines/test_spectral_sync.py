@@ -14,3 +14,10 @@ def test_noise_free_scenes_exact_without_false_edges():
 
 def test_jit_vmap_padding_and_slot_permutation():
     check_jit_vmap_padding_permutation(spectral_sync_groups, OPTIONS)
+
+
+def test_options_reject_bad_static_values():
+    import pytest
+
+    with pytest.raises(ValueError, match="max_objects"):
+        SpectralSyncOptions(max_objects=0)

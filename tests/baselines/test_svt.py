@@ -14,3 +14,10 @@ def test_noise_free_scenes_exact_without_false_edges():
 
 def test_jit_vmap_padding_and_slot_permutation():
     check_jit_vmap_padding_permutation(match_svt_groups, OPTIONS)
+
+
+def test_options_reject_bad_static_values():
+    import pytest
+
+    with pytest.raises(ValueError, match="iterations"):
+        MatchSVTOptions(iterations=-1)
