@@ -38,4 +38,4 @@ def test_options_reject_bad_static_values():
     with pytest.raises(ValueError, match="max_clusters"):
         SpectralClusteringOptions(max_clusters=0)
     with pytest.raises(ValueError, match="kmeans_iterations"):
-        SpectralClusteringOptions(kmeans_iterations=2.5)
+        SpectralClusteringOptions(kmeans_iterations=-1)
