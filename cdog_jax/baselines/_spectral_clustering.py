@@ -56,7 +56,7 @@ class SpectralClusteringOptions:
 
     max_clusters: int | None = None
     kmeans_iterations: int = 20
-    affinity_width: float = 0.5
+    affinity_width: float = 1.0
     NUMBERS: ClassVar[tuple[str, ...]] = ("affinity_width",)
 
     def __post_init__(self):

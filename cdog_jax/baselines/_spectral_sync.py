@@ -53,8 +53,7 @@ class SpectralSyncOptions:
 
     Attributes:
         max_objects: static bound on the universe size ``k`` (default ``None``: ``N // 2``).
-        affinity_width: affinity scale as a fraction of the gate ``τ`` (traced; ½ makes it
-            ``√2·σ`` for ``τ = 2√2·σ``).
+        affinity_width: affinity scale as a fraction of the gate ``τ`` (traced).
         eigen_threshold: eigenvalues above it count as objects (traced; 1.5 sits in the
             noise-free eigengap between matched objects, ≥ 2, and unmatched detections, 1).
         similarity_threshold: cosine of embedding rows above which two detections may share
@@ -62,7 +61,7 @@ class SpectralSyncOptions:
     """
 
     max_objects: int | None = None
-    affinity_width: float = 0.5
+    affinity_width: float = 1.0
     eigen_threshold: float = 1.5
     similarity_threshold: float = 0.5
     NUMBERS: ClassVar[tuple[str, ...]] = ("affinity_width", "eigen_threshold", "similarity_threshold")

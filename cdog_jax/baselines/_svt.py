@@ -66,7 +66,7 @@ class MatchSVTOptions:
     """
 
     iterations: int = 50
-    affinity_width: float = 0.5
+    affinity_width: float = 1.0
     rank_weight: float = 10.0
     penalty: float = 4.0
     similarity_threshold: float = 0.5
