@@ -5,3 +5,6 @@ every group-table method), so that they compare with C-DOG on equal terms."""
 from ._greedy import Greedy as Greedy, GreedyOptions as GreedyOptions, greedy_groups as greedy_groups
 from ._components import Components as Components, ComponentsOptions as ComponentsOptions, components_groups as components_groups
 from ._voting import Voting as Voting, VotingOptions as VotingOptions, voting_groups as voting_groups
+from ._spectral_sync import SpectralSync as SpectralSync, SpectralSyncOptions as SpectralSyncOptions, spectral_sync_groups as spectral_sync_groups
+from ._svt import MatchSVT as MatchSVT, MatchSVTOptions as MatchSVTOptions, match_svt_groups as match_svt_groups
+from ._spectral_clustering import SpectralClustering as SpectralClustering, SpectralClusteringOptions as SpectralClusteringOptions, spectral_clustering_groups as spectral_clustering_groups
