@@ -5,3 +5,4 @@ every group-table method), so that they compare with C-DOG on equal terms."""
 from ._greedy import Greedy as Greedy, GreedyOptions as GreedyOptions, greedy_groups as greedy_groups
 from ._components import Components as Components, ComponentsOptions as ComponentsOptions, components_groups as components_groups
 from ._voting import Voting as Voting, VotingOptions as VotingOptions, voting_groups as voting_groups
+from ._soft_ba import SoftBA as SoftBA, SoftBAOptions as SoftBAOptions, soft_ba_groups as soft_ba_groups
