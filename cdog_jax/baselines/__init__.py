@@ -6,3 +6,4 @@ from ._greedy import Greedy as Greedy, GreedyOptions as GreedyOptions, greedy_gr
 from ._components import Components as Components, ComponentsOptions as ComponentsOptions, components_groups as components_groups
 from ._voting import Voting as Voting, VotingOptions as VotingOptions, voting_groups as voting_groups
 from ._soft_ba import SoftBA as SoftBA, SoftBAOptions as SoftBAOptions, soft_ba_groups as soft_ba_groups
+from ._exact import Exact as Exact, exact_groups as exact_groups
