@@ -22,10 +22,23 @@ def test_soft_ba_conformance():
     conformance(soft_ba_groups, SoftBAOptions(), bound_scale=SoftBAOptions().reprojection_gate)
 
 
-def test_soft_ba_recovers_a_detection_voting_drops():
+def test_soft_assignment_is_a_softassign_with_slack():
+    """Rows (points) and columns (detections) of every view sum to at most 1 (the rest is
+    slack), ``-inf`` entries stay impossible, and a clear match takes nearly all weight."""
+    from cdog_jax.baselines._soft_ba import _soft_assignment
+
+    e = np.array([[[0.1, 3.0, np.inf]], [[2.5, 0.2, 4.0]]], np.float32)  # (G=2, M=1, P=3) px
+    log_aff = jnp.where(jnp.isfinite(e), -0.5 * jnp.asarray(np.where(np.isfinite(e), e, 0.0)) ** 2, -jnp.inf)
+    w = np.exp(np.asarray(_soft_assignment(log_aff, jnp.float32(-2.0), 50)))
+    assert np.all(w.sum(axis=2) <= 1 + 1e-5) and np.all(w.sum(axis=0) <= 1 + 1e-5)
+    assert w[0, 0, 2] == 0.0
+    assert w[0, 0, 0] > 0.8 and w[1, 0, 1] > 0.8 and w[1, 0, 2] < 0.1
+
+
+def test_soft_ba_hardening_gate_admits_what_voting_drops():
     """A third-view detection 2.2 px off (σ = 0: τ = 1 px, voting's inlier gate 2 px) is
-    left out by voting's two-view hypotheses; the soft re-estimation, whose points average
-    all members, brings it back when the hardening gate allows it (gate 3 τ)."""
+    left out by voting; soft BA's points, re-estimated from all members, keep it when the
+    hardening gate allows it (gate 3 τ)."""
     rig, xy, mask, expected = hand_scene()
     moved = xy.at[2, 1].add(jnp.asarray([0.0, 2.2], xy.dtype))  # point 0 in view 2
     options = SoftBAOptions(reprojection_gate=3.0)
