@@ -133,3 +133,15 @@ def test_exact_refuses_large_scenes_and_tracing():
 def test_sweep_refuses_a_host_method():
     with pytest.raises(ValueError, match="runs on the host.*sweep_host"):
         sweep(RIG3, Grid(sigmas=(0.0,), counts=(3,), scenes=1), methods=["exact"], timing=False, progress=False)
+
+
+def test_exact_with_weights_and_min_views_is_finished_like_every_method():
+    rig = ring_rig(4)
+    xy, mask, _, _ = random_scene(rig, 6, 8, sigma=1.0, seed=3)
+    plain = associate(rig, xy, mask, method="exact", sigma=1.0)
+    weighted = associate(rig, xy, mask, method="exact", sigma=1.0, weights=np.ones(mask.shape, np.float32))
+    np.testing.assert_array_equal(weighted.labels, plain.labels)
+    three = associate(rig, xy, mask, method="exact", sigma=1.0, min_views=3)
+    keep = np.asarray(plain.n_views)[np.asarray(plain.valid)] >= 3
+    assert 0 < keep.sum() < np.asarray(plain.valid).sum()
+    assert int(three.num_groups) == int(keep.sum()) and np.all(np.asarray(three.n_views)[np.asarray(three.valid)] >= 3)
