@@ -151,6 +151,11 @@ def associate(
     xy = pad_slots(np.asarray(xy, np_dtype), capacity, axis=1)
     mask = pad_slots(np.asarray(mask, bool), capacity, axis=1, fill=False)
     extras = _check_extras(dist, weights, min_views, (M, P), np_dtype)
+    if not static.jittable:
+        static.check_scene(mask, "associate")
+        if extras is not None and extras[1] is not None:
+            extras = (extras[0], pad_slots(extras[1], capacity, axis=1), extras[2])
+        return trim(_associate_host(rig, xy, mask, th, extras, static), P)
     if extras is None:
         result = _associate_jit(rig, xy, mask, th, method=static)
     else:
@@ -212,6 +217,22 @@ def _associate_one(rig, xy, mask, th, dist, weights, min_views, method):
         xy = undistorted(rig, xy, mask, dist)
     result = method.associate_scene(rig, Observations(xy, mask, weights), th)
     return finish_groups(rig, jnp.where(mask[..., None], xy, 0.0), result, weights, min_views, th)
+
+
+_undistorted_jit = jax.jit(undistorted)
+_finish_jit = jax.jit(finish_groups)
+
+
+def _associate_host(rig, xy, mask, th, extras, method):
+    """One scene of a host method (``method.jittable`` False): undistortion and
+    :func:`finish_groups` compiled as usual, the method itself called eagerly on host arrays."""
+    if extras is None:
+        return method.associate_scene(rig, Observations(xy, mask), th)
+    dist, weights, min_views = extras
+    if dist is not None:
+        xy = np.asarray(_undistorted_jit(rig, xy, mask, dist))
+    result = method.associate_scene(rig, Observations(xy, mask, weights), th)
+    return _finish_jit(rig, np.where(mask[..., None], xy, 0.0), result, weights, min_views, th)
 
 
 @partial(jax.jit, static_argnames=("method",))
@@ -299,7 +320,16 @@ def associate_batch(
     if extras is not None and extras[1] is not None:
         extras = (extras[0], pad_scenes(pad_slots(extras[1], capacity, axis=2), padded), extras[2])
     results = []
-    if chunk == 1:  # one scene at a time: the single-scene program (no vmap to trace)
+    if not static.jittable:  # a host method: scene by scene, eagerly
+        for b in range(B):
+            static.check_scene(mask[b], f"associate_batch (scene {b})")
+        for b in range(B):
+            rig_b = rig if shared else Rig(*(jnp.asarray(a[b]) for a in rig_arrays))
+            extras_b = None if extras is None else (extras[0], None if extras[1] is None else extras[1][b], extras[2])
+            one = _associate_host(rig_b, xy[b], mask[b], type(th)(*(v[b] for v in th)), extras_b, static)
+            results.append(jax.tree.map(lambda a: np.asarray(a)[None], one))
+        padded = 0
+    elif chunk == 1:  # one scene at a time: the single-scene program (no vmap to trace)
         for b in range(B):
             rig_b = rig if shared else Rig(*(jnp.asarray(a[b]) for a in rig_arrays))
             th_b = type(th)(*(v[b] for v in th))

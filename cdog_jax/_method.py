@@ -23,7 +23,7 @@ from __future__ import annotations
 import abc
 import dataclasses
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import ClassVar, NamedTuple
 
 import jax
 import numpy as np
@@ -53,6 +53,12 @@ class Method(abc.ABC):
     #: method estimates it from the scene. A dataclass field in subclasses.
     sigma_mode: str
 
+    #: False for a method whose :meth:`associate_scene` runs NumPy on the host (e.g. an
+    #: integer program): the entry points then call it eagerly, scene by scene, on host
+    #: arrays (no ``jit``, no ``vmap``), and the compiled sweep refuses it
+    #: (:func:`cdog_jax.benchmark.sweep_host` runs it).
+    jittable: ClassVar[bool] = True
+
     @abc.abstractmethod
     def structure(self) -> "Method":
         """This method with its numbers reset to their defaults: the part a jit key needs."""
@@ -79,6 +85,11 @@ class Method(abc.ABC):
             host = np.asarray(value)
             if not np.issubdtype(host.dtype, np.number) or not np.isfinite(host).all():
                 raise ValueError(f"thresholds.{name} must be finite real numbers; got {value!r}")
+
+    def check_scene(self, mask, where: str) -> None:
+        """Raise ``ValueError`` (naming ``where``) for a scene, ``mask (M, P)`` bool on the
+        host, that this method cannot handle; called for every scene before any work.
+        Default: every scene is fine."""
 
     def replace(self, **changes) -> "Method":
         """A copy with ``changes`` applied (checked like a new instance)."""

@@ -112,22 +112,47 @@ class GroupTableMethod(Method):
 
     def associate_scene(self, rig: Rig, observations: Observations, thresholds: tuple) -> Association:
         th = type(thresholds)(*(jnp.asarray(v) for v in thresholds))
-        mask = observations.mask
-        P = mask.shape[1]
-        xy = jnp.where(mask[..., None], observations.xy, 0.0)
-        d = epipolar_distances(rig, xy, mask)
-        if self.sigma_mode == "auto":
-            sigma, fallback = estimate_sigma(d, mask, focal_scale(rig.K))
-        else:
-            sigma, fallback = th.sigma_px, jnp.asarray(False)
-        tau = jnp.maximum(th.alpha_tau * jnp.sqrt(2.0) * sigma, th.tau_min_px)
-        groups, valid, status = self.group_table(rig, xy, mask, d, sigma, tau, th)
-        member = valid[:, None] & (groups >= 0)
-        xy_g = gather_groups(groups, xy)
-        X, _ = triangulate_views_last(rig, xy_g, member)
-        member, valid, X = validity_gate(rig, xy_g, member, X, tau, th.max_err_frac, th.min_parallax_deg)
-        bpe, err_px = group_errors(rig, X, xy_g, member)
-        status = status | raise_flag(fallback, Status.SIGMA_FALLBACK)
-        return association_from_groups(
-            groups, valid, member, X, bpe, err_px, P, jnp.asarray(sigma, xy.dtype), jnp.asarray(tau, xy.dtype), status
-        )
+        xy, d, sigma, tau, fallback = scene_gate(rig, observations, th, self.sigma_mode)
+        groups, valid, status = self.group_table(rig, xy, observations.mask, d, sigma, tau, th)
+        return finish_table(rig, xy, groups, valid, status | raise_flag(fallback, Status.SIGMA_FALLBACK), sigma, tau, th)
+
+
+def scene_gate(
+    rig: Rig, observations: Observations, th: tuple, sigma_mode: str
+) -> tuple[Float[Array, "M P 2"], Float[Array, "M P M P"], Float[Array, ""], Float[Array, ""], Bool[Array, ""]]:
+    """What every group-table method starts from: ``xy (M, P, 2)`` with padding zeroed, the
+    epipolar distances ``d (M, P, M, P)`` (px), σ (given, or estimated when ``sigma_mode``
+    is ``"auto"``), the σ-matched gate τ (px) and whether the estimate fell back."""
+    mask = observations.mask
+    xy = jnp.where(mask[..., None], observations.xy, 0.0)
+    d = epipolar_distances(rig, xy, mask)
+    if sigma_mode == "auto":
+        sigma, fallback = estimate_sigma(d, mask, focal_scale(rig.K))
+    else:
+        sigma, fallback = th.sigma_px, jnp.asarray(False)
+    tau = jnp.maximum(th.alpha_tau * jnp.sqrt(2.0) * sigma, th.tau_min_px)
+    return xy, d, sigma, tau, fallback
+
+
+def finish_table(
+    rig: Rig,
+    xy: Float[Array, "M P 2"],
+    groups: Int[Array, "G M"],
+    valid: Bool[Array, " G"],
+    status: Int[Array, ""],
+    sigma: Float[Array, ""],
+    tau: Float[Array, ""],
+    th: tuple,
+) -> Association:
+    """The :class:`~cdog_jax.Association` of a group table ``(G, M)``: every valid group's
+    multi-view DLT point, the validity gate (with ``th.max_err_frac`` and
+    ``th.min_parallax_deg``), its errors; ``xy (M, P, 2)`` pixels (padding zeroed)."""
+    P = xy.shape[1]
+    member = valid[:, None] & (groups >= 0)
+    xy_g = gather_groups(groups, xy)
+    X, _ = triangulate_views_last(rig, xy_g, member)
+    member, valid, X = validity_gate(rig, xy_g, member, X, tau, th.max_err_frac, th.min_parallax_deg)
+    bpe, err_px = group_errors(rig, X, xy_g, member)
+    return association_from_groups(
+        groups, valid, member, X, bpe, err_px, P, jnp.asarray(sigma, xy.dtype), jnp.asarray(tau, xy.dtype), status
+    )

@@ -8,3 +8,5 @@ from ._voting import Voting as Voting, VotingOptions as VotingOptions, voting_gr
 from ._spectral_sync import SpectralSync as SpectralSync, SpectralSyncOptions as SpectralSyncOptions, spectral_sync_groups as spectral_sync_groups
 from ._svt import MatchSVT as MatchSVT, MatchSVTOptions as MatchSVTOptions, match_svt_groups as match_svt_groups
 from ._spectral_clustering import SpectralClustering as SpectralClustering, SpectralClusteringOptions as SpectralClusteringOptions, spectral_clustering_groups as spectral_clustering_groups
+from ._soft_ba import SoftBA as SoftBA, SoftBAOptions as SoftBAOptions, soft_ba_groups as soft_ba_groups
+from ._exact import Exact as Exact, exact_groups as exact_groups

@@ -20,3 +20,4 @@ from ._sweep import default_mesh as default_mesh
 from ._sweep import metric_fields as metric_fields
 from ._sweep import print_progress as print_progress
 from ._sweep import sweep as sweep
+from ._host_sweep import sweep_host as sweep_host

@@ -412,6 +412,11 @@ def _check_methods(methods, configs) -> dict[str, Method]:
         if not isinstance(name, str) or not name or "/" in name or "," in name:
             raise ValueError(f"sweep: method names must be non-empty strings without '/' or ','; got {name!r}")
         checked[name] = method_from(method, f"sweep (method {name!r})")
+        if not checked[name].jittable:
+            raise ValueError(
+                f"sweep: method {name!r} runs on the host (NumPy) and cannot join the compiled sweep; "
+                "run it on a sub-grid with cdog_jax.benchmark.sweep_host"
+            )
     return checked
 
 

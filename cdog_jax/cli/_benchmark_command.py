@@ -19,10 +19,11 @@ from ._common import _nonnegative_float, _nonnegative_int, _positive_int
 
 
 def _method_list(text: str) -> tuple[str, ...]:
-    """Names from ``a,b,c``; ``all`` is every named method (registered ones and the ablation)."""
+    """Names from ``a,b,c``; ``all`` is every named method that the compiled sweep runs
+    (registered ones and the ablation; host methods, ``jittable`` False, are left out)."""
     names = tuple(n.strip() for n in text.split(",") if n.strip())
     if names == ("all",):
-        return tuple(METHODS)
+        return tuple(n for n in METHODS if METHODS[n]().jittable)
     unknown = [n for n in names if n not in METHODS]
     if unknown or not names:
         raise argparse.ArgumentTypeError(f"methods must be 'all' or a comma list of {', '.join(METHODS)}; got {text!r}")
