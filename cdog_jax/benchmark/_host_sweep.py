@@ -63,14 +63,14 @@ def sweep_host(
     scores it.
 
     Args:
-        rig: the cameras; ``grid.views`` selects a subset, as in :func:`sweep`.
+        rig: the cameras, ``K (M, 3, 3)``, ``R (M, 3, 3)``, ``t (M, 3)``; ``grid.views`` selects a subset, as in :func:`sweep`.
         grid: the scenes (a sub-grid a host method can finish).
         methods: ``{name: method}`` (a :class:`~cdog_jax.Method` or a registered name) or a
             list of registered names; host methods and jittable ones alike.
         buckets, box, image_size: as in :func:`sweep` (the same values give the same scenes).
 
     Returns:
-        A :class:`SweepResult` with the fields of :func:`sweep`'s. ``time_s`` is each
+        A :class:`SweepResult` with ``(S,)`` arrays, the fields of :func:`sweep`'s. ``time_s`` is each
         scene's own association time (warm: every bucket's first scene is run once before
         the timed runs), ``wall_s`` the whole run, ``compile_s`` 0, ``batch_size`` 1.
     """
