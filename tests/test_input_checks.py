@@ -288,7 +288,8 @@ WRONG_TYPES = [
     (cdog_jax.benchmark.summary_table, ("results",), {}, "summary_table: result must be SweepResult; got str"),
     (cdog_jax.calibration.rig_errors, (_RIG, _RIG.K), {}, "rig_errors: reference must be Rig; got ArrayImpl"),
     (cdog_jax.calibration.align_rigs, ("rig.json", _RIG), {}, "align_rigs: rig must be Rig; got str"),
-    (cdog_jax.calibration.calibrate, (_RIG, _XY[None], _MASK[None]), {"thresholds": Config(), "config": _TH}, "calibrate: thresholds must be Thresholds; got Config"),
+    (cdog_jax.calibration.calibrate, (_RIG, _XY[None], _MASK[None]), {"thresholds": Config(), "config": _TH}, r"calibrate: method must be a Method or a registered name \(.*\); got Thresholds"),
+    (cdog_jax.calibration.calibrate, (_RIG, _XY[None], _MASK[None]), {"thresholds": Config(), "method": "paper"}, "calibrate: thresholds must be Thresholds (method.thresholds()); got Config"),
     (cdog_jax.calibration.bpe, (_XY, _RIG, jnp.zeros((2, 3), jnp.int32), jnp.ones(2, bool)), {}, "bpe: rig must be Rig; got ArrayImpl"),
 ]
 

@@ -2,12 +2,12 @@
 histogram, the benchmark's figures (docs/BENCHMARK.md) and the calibration convergence.
 matplotlib is imported when a figure is drawn, not with this package."""
 
-from ._benchmark_figures import PAPER_VIEWS_PG_F1 as PAPER_VIEWS_PG_F1
-from ._benchmark_figures import heatmaps as heatmaps
-from ._benchmark_figures import metrics_vs_sigma as metrics_vs_sigma
-from ._benchmark_figures import surfaces as surfaces
-from ._benchmark_figures import time_vs_count as time_vs_count
-from ._benchmark_figures import views_ablation as views_ablation
+from ._benchmark_common import PAPER_VIEWS_PG_F1 as PAPER_VIEWS_PG_F1
+from ._grid_maps import heatmaps as heatmaps
+from ._benchmark_curves import metrics_vs_sigma as metrics_vs_sigma
+from ._grid_maps import surfaces as surfaces
+from ._benchmark_curves import time_vs_count as time_vs_count
+from ._benchmark_curves import views_ablation as views_ablation
 from ._bpe_plot import plot_bpe_histogram as plot_bpe_histogram
 from ._calibration_plot import convergence_figure as convergence_figure
 from ._epipolar_plot import plot_epipolar as plot_epipolar

@@ -7,15 +7,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from cdog_jax.viz._benchmark_figures import (
-    cell_means,
-    heatmaps,
-    metrics_vs_sigma,
-    scenes_for,
-    surfaces,
-    time_vs_count,
-    views_ablation,
-)
+from cdog_jax.viz import heatmaps, metrics_vs_sigma, surfaces, time_vs_count, views_ablation
+from cdog_jax.viz._benchmark_common import cell_means, scenes_for
 from cdog_jax.metrics import Metrics
 
 PNG = b"\x89PNG\r\n\x1a\n"
