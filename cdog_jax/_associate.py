@@ -19,23 +19,13 @@ from ._cdog import Config
 from ._expect import INT, expect, expect_args
 from ._finish import finish_groups
 from ._memory import check_memory
-from ._method import Method, Observations, method_from
+from ._method import Method, Observations, method_argument
 from ._result import Association
 from ._shapes import chunk_size, pad_scenes, pad_slots, slot_capacity, trim
 from ._types import Array, ArrayLike, Float
 from ._validate import as_array, check_batch_rig, check_observations, check_rig, check_sigma, check_threshold_shapes
 from .geometry._camera import Rig
 from .geometry._distortion import Fisheye, undistorted
-
-
-def method_argument(method, config, where: str) -> Method:
-    """The method of a call: ``method`` (a :class:`Method` or a registered name), or the
-    older keyword ``config`` (the same thing); not both."""
-    if config is not None:
-        if method is not None:
-            raise TypeError(f"{where}: give method= or config= (its older name), not both")
-        method = config
-    return method_from("extended" if method is None else method, where)
 
 
 def check_thresholds_type(thresholds, method: Method, where: str) -> None:

@@ -318,23 +318,6 @@ def associate_traced(
     )
 
 
-# --------------------------------------------------------------------------- presets by name
-
-
-PRESETS = ("paper", "extended", "reference")
-
-
-def config_from(config, function: str) -> Config:
-    """A :class:`Config`, or the preset it names (``"paper"``, ``"extended"``, ``"reference"``)."""
-    if isinstance(config, Config):
-        return config
-    if isinstance(config, str):
-        if config not in PRESETS:
-            raise ValueError(f"{function}: config must be a Config or a preset name {PRESETS}; got {config!r}")
-        return getattr(Config, config)()
-    raise TypeError(f"{function}: config must be a Config or a preset name {PRESETS}; got {type(config).__name__}")
-
-
 register_method("extended", Config.extended)
 register_method("paper", Config.paper)
 register_method("reference", Config.reference)

@@ -20,7 +20,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._associate import method_argument, associate_batch
+from ._associate import associate_batch
+from ._method import method_argument
 from ._expect import INT, expect, expect_args
 from ._result import Association
 from ._validate import as_array, check_observations, check_rig

@@ -151,3 +151,18 @@ def method_from(method, where: str) -> Method:
             raise TypeError(f"{where}: the factory registered as {method!r} made a {type(made).__name__}, not a Method")
         return made
     raise TypeError(f"{where}: method must be a Method or a registered name ({', '.join(_REGISTRY)}); got {type(method).__name__}")
+
+
+def method_argument(method, config, where: str, default: str | None = "extended") -> Method:
+    """The method of a call: ``method`` (a :class:`Method` or a registered name), or the
+    older keyword ``config`` (the same thing), not both; ``default`` when neither is given
+    (``None``: one is required)."""
+    if config is not None:
+        if method is not None:
+            raise TypeError(f"{where}: give method= or config= (its older name), not both")
+        method = config
+    if method is None:
+        if default is None:
+            raise TypeError(f"{where}: method= is required (a Method or a registered name)")
+        method = default
+    return method_from(method, where)

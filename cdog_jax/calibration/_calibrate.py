@@ -9,7 +9,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .._method import Method, Observations, method_from
+from .._method import Method, Observations, method_argument
 from .._expect import ARRAY, expect_args
 from .._result import Association
 from .._types import Array, Bool, Float, Int
@@ -78,13 +78,7 @@ def calibrate(
         ``rounds`` and the static refine options in ``static_argnames``.
     """
     expect_args("calibrate", rig=(rig, Rig), xy=(xy, ARRAY), mask=(mask, ARRAY))
-    if config is not None:
-        if method is not None:
-            raise TypeError("calibrate: give method= or config= (its older name), not both")
-        method = config
-    if method is None:
-        raise TypeError("calibrate: method= is required (a Method or a registered name)")
-    method = method_from(method, "calibrate")
+    method = method_argument(method, config, "calibrate", default=None)
     kind = type(method.thresholds())
     if not isinstance(thresholds, kind):
         raise TypeError(f"calibrate: thresholds must be {kind.__name__} (method.thresholds()); got {type(thresholds).__name__}")

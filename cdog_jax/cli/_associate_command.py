@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from ._common import _FIGURE_EXTENSIONS, _emit, _method_name, _positive_int, check_sigma_fits, int_at_least
+from ._common import _FIGURE_EXTENSIONS, _emit, add_method_argument, _positive_int, check_sigma_fits, int_at_least
 from ._paths import check_distinct, check_input, check_output, input_files
 from ._paths import write_output as _write
 from ..io._errors import InputError
@@ -105,11 +105,7 @@ def add_parsers(subparsers) -> None:
         help="names of the OpenPose keypoint types: " + ", ".join(SKELETONS) + " (default: ids only)",
     )
     p.add_argument("--sigma", type=_sigma, default="auto", help='detection noise σ in px, or "auto" (default) to estimate it')
-    p.add_argument(
-        "--method", "--preset", dest="method", type=_method_name, default="extended", metavar="NAME",
-        help="a registered method (default extended, the most accurate; paper and reference reproduce the paper "
-        "and the original code; --preset is its older name)",
-    )
+    add_method_argument(p)
     p.add_argument("--min-views", type=_min_views, default=2, help="report only groups seen in at least K views (default 2)")
     p.add_argument(
         "--confidence-weights",

@@ -68,3 +68,12 @@ def _method_name(text: str) -> str:
     if text not in method_names():
         raise argparse.ArgumentTypeError(f"unknown method {text!r}; registered: {', '.join(method_names())}")
     return text
+
+
+def add_method_argument(parser: argparse.ArgumentParser) -> None:
+    """``--method NAME`` (older name ``--preset``): a registered method, default extended."""
+    parser.add_argument(
+        "--method", "--preset", dest="method", type=_method_name, default="extended", metavar="NAME",
+        help="a registered method: extended (default, ours beyond the paper, the most accurate), paper (the "
+        "paper's C-DOG), reference (the original code's), or any other registered one; --preset is its older name",
+    )

@@ -9,7 +9,7 @@ import math
 import os
 import time
 
-from ._common import _FIGURE_EXTENSIONS, _emit, _method_name, _nonnegative_float, _positive_int, check_sigma_fits
+from ._common import _FIGURE_EXTENSIONS, _emit, add_method_argument, _nonnegative_float, _positive_int, check_sigma_fits
 
 # Rows of the metrics table: (Metrics field, docs/BENCHMARK.md §2 name, format, unit / meaning).
 _METRIC_ROWS = (
@@ -40,11 +40,7 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument("--points", type=_positive_int, default=60, help="3D points in the scene (default 60)")
     p.add_argument("--sigma", type=_nonnegative_float, default=1.0, help="pixel noise std σ (default 1.0)")
-    p.add_argument(
-        "--method", "--preset", dest="method", type=_method_name, default="extended", metavar="NAME",
-        help="a registered method: extended (default, ours beyond the paper, the most accurate), paper (the "
-        "paper's C-DOG), reference (the original code's), or any other registered one; --preset is its older name",
-    )
+    add_method_argument(p)
     p.add_argument("--seed", type=int, default=0, help="PRNG seed of the scene (default 0)")
     p.add_argument(
         "--sigma-auto",
