@@ -10,3 +10,4 @@ from ._svt import MatchSVT as MatchSVT, MatchSVTOptions as MatchSVTOptions, matc
 from ._spectral_clustering import SpectralClustering as SpectralClustering, SpectralClusteringOptions as SpectralClusteringOptions, spectral_clustering_groups as spectral_clustering_groups
 from ._soft_ba import SoftBA as SoftBA, SoftBAOptions as SoftBAOptions, soft_ba_groups as soft_ba_groups
 from ._exact import Exact as Exact, exact_groups as exact_groups
+from ._st_cut import StCut as StCut, StCutOptions as StCutOptions, st_cut_groups as st_cut_groups
