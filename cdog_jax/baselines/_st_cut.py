@@ -71,46 +71,93 @@ def _two_view_points(proj: np.ndarray, xy: np.ndarray, a: np.ndarray, b: np.ndar
         return h[:, :3] / h[:, 3:]
 
 
-def backprojection_support(rig: Rig, xy: np.ndarray, mask: np.ndarray, edges: np.ndarray, radius: float) -> np.ndarray:
-    """``(E,)`` the support of each edge's two-view DLT point: over the other views where it
-    lies in front of the camera, ``Σ max(0, 1 − e / radius)`` with ``e`` the distance (px)
-    from its projection to the nearest detection there. 0 for a point behind either of its
-    own cameras or not finite."""
-    *_, cKDTree = _scipy()
-    M, P = mask.shape
+def projection_matrices(rig: Rig) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``K, R, t`` of ``rig`` as float64 arrays and the projections ``K [R | t]`` ``(M, 3, 4)``."""
     K, R, t = (np.asarray(a, np.float64) for a in (rig.K, rig.R, rig.t))
-    proj = K @ np.concatenate([R, t[:, :, None]], axis=2)
+    return K, R, t, K @ np.concatenate([R, t[:, :, None]], axis=2)
+
+
+def edge_points(rig: Rig, xy: np.ndarray, edges: np.ndarray, P: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(E, 3)`` two-view DLT points of the edges and ``(E,)`` whether each is usable
+    (finite and in front of both of its own cameras)."""
+    _, R, t, proj = projection_matrices(rig)
     a, b = edges[:, 0], edges[:, 1]
     X = _two_view_points(proj, xy, a, b, P)
-    cam = np.einsum("mij,ej->emi", R, X) + t[None]  # (E, M, 3)
     finite = np.all(np.isfinite(X), axis=1)
-    rows = np.arange(len(edges))
-    own_front = (cam[rows, a // P, 2] > 0) & (cam[rows, b // P, 2] > 0)
+    X = np.where(finite[:, None], X, 0.0)
+    depth = np.einsum("ej,ej->e", R[a // P, 2], X) + t[a // P, 2], np.einsum("ej,ej->e", R[b // P, 2], X) + t[b // P, 2]
+    return X, finite & (depth[0] > 0) & (depth[1] > 0)
+
+
+def _project(rig: Rig, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(E, M, 2)`` pixels of the points ``X (E, 3)`` in every view and ``(E, M)`` in front."""
+    K, R, t, _ = projection_matrices(rig)
+    cam = np.einsum("mij,ej->emi", R, X) + t[None]
+    pix = np.einsum("mij,emj->emi", K, cam)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return pix[..., :2] / pix[..., 2:], cam[..., 2] > 0
+
+
+def backprojection_support(
+    rig: Rig, xy: np.ndarray, mask: np.ndarray, edges: np.ndarray, X: np.ndarray, usable: np.ndarray, radius: float
+) -> np.ndarray:
+    """``(E,)`` the support of each edge's two-view point ``X (E, 3)``: over the other views
+    where it lies in front of the camera, ``Σ max(0, 1 − e / radius)`` with ``e`` the
+    distance (px) from its projection to the nearest detection there; 0 when not ``usable``."""
+    *_, cKDTree = _scipy()
+    M, P = mask.shape
+    pix, front = _project(rig, X)
     support = np.zeros(len(edges))
     for n in range(M):
         detected = xy[n][mask[n]]
-        other = finite & own_front & (a // P != n) & (b // P != n) & (cam[:, n, 2] > 0)
+        other = usable & (edges[:, 0] // P != n) & (edges[:, 1] // P != n) & front[:, n]
         if not detected.shape[0] or not other.any():
             continue
-        pix = np.einsum("ij,ej->ei", K[n], cam[other, n])
-        e, _ = cKDTree(detected).query(pix[:, :2] / pix[:, 2:], k=1)
+        e, _ = cKDTree(detected).query(pix[other, n], k=1)
         support[other] += np.maximum(0.0, 1.0 - e / radius)
     return support
 
 
-def _min_cut_source_side(capacity, source: int, sink: int) -> np.ndarray:
-    """Nodes on the source side of the minimum s-t cut of the symmetric integer
-    ``capacity`` matrix (the smallest such side: those reachable in the residual graph)."""
+def back_projection_seeds(
+    rig: Rig, xy: np.ndarray, nodes: np.ndarray, node: int, X: np.ndarray, P: int, radius: float
+) -> np.ndarray:
+    """The detections among ``nodes`` (global ids) that the 3D point ``X (3,)`` projects onto:
+    ``node`` and, in every other view where ``X`` is in front, the nearest detection within
+    ``radius`` px of its projection. Local indices into ``nodes``."""
+    pix, front = _project(rig, X[None])
+    views = nodes // P
+    e = np.linalg.norm(xy[views, nodes % P] - pix[0, views], axis=1)
+    e = np.where(front[0, views] & (views != node // P) & np.isfinite(e), e, np.inf)
+    seeds = [int(np.flatnonzero(nodes == node)[0])]
+    for n in np.unique(views[np.isfinite(e) & (e < radius)]):
+        here = np.flatnonzero(views == n)
+        seeds.append(int(here[np.lexsort((nodes[here], e[here]))[0]]))
+    return np.asarray(seeds)
+
+
+def min_cut_source_side(capacity, sources: np.ndarray, sinks: np.ndarray) -> np.ndarray:
+    """``(n,)`` bool: the source side of the minimum cut of the symmetric integer
+    ``capacity (n, n)`` matrix between the node sets ``sources`` and ``sinks`` (each tied
+    to its terminal by an edge no cut can take; the smallest such side: the nodes the
+    residual graph reaches from the source terminal)."""
     csr_array, breadth_first_order, _, maximum_flow, _ = _scipy()
-    flow = maximum_flow(capacity, source, sink, method="dinic").flow
-    residual = csr_array(capacity - flow)
-    residual.data = np.where(residual.data > 0, 1, 0).astype(np.int32)
+    n = capacity.shape[0]
+    unbreakable = int(min(int(capacity.sum()) + 1, 2**30))
+    rows = np.concatenate([capacity.tocoo().row, np.full(sources.size, n), sinks])
+    cols = np.concatenate([capacity.tocoo().col, sources, np.full(sinks.size, n + 1)])
+    data = np.concatenate([capacity.tocoo().data, np.full(sources.size + sinks.size, unbreakable)]).astype(np.int32)
+    graph = csr_array((data, (rows, cols)), shape=(n + 2, n + 2))
+    flow = maximum_flow(graph, n, n + 1, method="dinic").flow
+    residual = csr_array(graph - flow)
+    residual.data = (residual.data > 0).astype(np.int32)
     residual.eliminate_zeros()
-    return breadth_first_order(residual, source, directed=True, return_predecessors=False)
+    side = np.zeros(n + 2, bool)
+    side[breadth_first_order(residual, n, directed=True, return_predecessors=False)] = True
+    return side[:n]
 
 
 def _pick_terminals(nodes: np.ndarray, strength: np.ndarray, P: int) -> tuple[int, int] | None:
-    """Two detections of one view in ``nodes`` to separate (local indices), or None when the
+    """Two detections of one view in ``nodes`` to separate (global ids), or None when the
     nodes are view-unique: in the view with the most detections (ties: smaller view), the
     two of largest ``strength`` (ties: smaller node)."""
     views = nodes // P
@@ -119,13 +166,14 @@ def _pick_terminals(nodes: np.ndarray, strength: np.ndarray, P: int) -> tuple[in
         return None
     crowded = np.flatnonzero(views == int(np.argmax(counts)))
     ranked = crowded[np.lexsort((nodes[crowded], -strength[crowded]))]
-    return int(ranked[0]), int(ranked[1])
+    return int(nodes[ranked[0]]), int(nodes[ranked[1]])
 
 
 def st_cut_groups(
     rig: Rig, xy: np.ndarray, mask: np.ndarray, d: np.ndarray, tau: float, reprojection_gate: float, per_view: int
 ) -> tuple[np.ndarray, np.ndarray, int]:
-    """The groups of the back-projection-weighted gated graph split by s-t minimum cuts.
+    """The groups of the back-projection-weighted gated graph split by s-t minimum cuts
+    (:class:`StCutOptions`).
 
     Args:
         rig: the cameras (``M`` views); xy: ``(M, P, 2)`` pixels; mask: ``(M, P)``;
@@ -143,23 +191,37 @@ def st_cut_groups(
     M, P = mask.shape
     G, N = max(M * P // 2, 1), M * P
     xy = np.where(mask[..., None], np.asarray(xy, np.float64), 0.0)
+    radius = reprojection_gate * float(tau)
     cost = gated_cost(d, mask)
     edges = candidate_edges(cost, float(tau), M, P, per_view)
     groups, valid = np.full((G, M), -1, np.int32), np.zeros((G,), bool)
     if not len(edges):
         return groups, valid, 0
-    support = backprojection_support(rig, xy, mask, edges, reprojection_gate * float(tau))
+    X, usable = edge_points(rig, xy, edges, P)
+    support = backprojection_support(rig, xy, mask, edges, X, usable, radius)
     weight = (1.0 - cost[edges[:, 0], edges[:, 1]] / float(tau)) + support
     cap = 1 + np.round(CAPACITY_SCALE * weight).astype(np.int64)
     ends = np.concatenate([edges, edges[:, ::-1]])
     capacity = csr_array((np.concatenate([cap, cap]).astype(np.int32), (ends[:, 0], ends[:, 1])), shape=(N, N))
+    # The point of a node: the usable edge of the node with the most support (ties: first edge).
+    rank = np.where(usable, support, -1.0)
+
+    def point_of(node: int, nodes: np.ndarray) -> np.ndarray | None:
+        mine = np.flatnonzero(((edges[:, 0] == node) & np.isin(edges[:, 1], nodes)) | ((edges[:, 1] == node) & np.isin(edges[:, 0], nodes)))
+        mine = mine[usable[mine]]
+        return None if not mine.size else X[mine[np.argmax(rank[mine])]]
+
+    def seeds(node: int, nodes: np.ndarray) -> np.ndarray:
+        point = point_of(node, nodes)
+        if point is None:
+            return np.flatnonzero(nodes == node)
+        return back_projection_seeds(rig, xy, nodes, node, point, P, radius)
 
     def pieces(nodes: np.ndarray) -> list[np.ndarray]:
-        sub = capacity[nodes][:, nodes]
-        count, labels = connected_components(sub, directed=False)
+        count, labels = connected_components(capacity[nodes][:, nodes], directed=False)
         return [nodes[labels == k] for k in range(count)]
 
-    todo, done, cuts = pieces(np.flatnonzero(np.isin(np.arange(N), edges))), [], 0
+    todo, done, cuts = pieces(np.unique(edges)), [], 0
     while todo:
         nodes = todo.pop()
         sub = capacity[nodes][:, nodes]
@@ -167,8 +229,10 @@ def st_cut_groups(
         if terminals is None:
             done.append(nodes)
             continue
-        side = np.zeros(nodes.size, bool)
-        side[_min_cut_source_side(sub, *terminals)] = True
+        source, sink = seeds(terminals[0], nodes), seeds(terminals[1], nodes)
+        both = np.intersect1d(source, sink)  # claimed by both points: left to the cut
+        source, sink = np.setdiff1d(source, both[nodes[both] != terminals[0]]), np.setdiff1d(sink, both[nodes[both] != terminals[1]])
+        side = min_cut_source_side(sub, source, sink)
         cuts += 1
         todo += [p for part in (nodes[side], nodes[~side]) for p in pieces(part) if p.size >= 2]
     for g, nodes in enumerate(sorted(done, key=lambda n: int(n.min()))):
