@@ -32,7 +32,8 @@ from ..geometry._camera import Rig
 from ._exact import gated_cost
 
 CAPACITY_SCALE = 1000
-"""Integer capacities: ``1 + round(CAPACITY_SCALE · weight)`` (max-flow needs integers)."""
+"""Integer capacities: ``1 + round(CAPACITY_SCALE · weight)`` (max-flow needs integers;
+a smaller scale when the capacities would sum beyond 2²⁹)."""
 
 
 def _scipy():
@@ -142,7 +143,7 @@ def min_cut_source_side(capacity, sources: np.ndarray, sinks: np.ndarray) -> np.
     residual graph reaches from the source terminal)."""
     csr_array, breadth_first_order, _, maximum_flow, _ = _scipy()
     n = capacity.shape[0]
-    unbreakable = int(min(int(capacity.sum()) + 1, 2**30))
+    unbreakable = int(capacity.sum()) + 1
     rows = np.concatenate([capacity.tocoo().row, np.full(sources.size, n), sinks])
     cols = np.concatenate([capacity.tocoo().col, sources, np.full(sinks.size, n + 1)])
     data = np.concatenate([capacity.tocoo().data, np.full(sources.size + sinks.size, unbreakable)]).astype(np.int32)
@@ -200,7 +201,8 @@ def st_cut_groups(
     X, usable = edge_points(rig, xy, edges, P)
     support = backprojection_support(rig, xy, mask, edges, X, usable, radius)
     weight = (1.0 - cost[edges[:, 0], edges[:, 1]] / float(tau)) + support
-    cap = 1 + np.round(CAPACITY_SCALE * weight).astype(np.int64)
+    scale = min(CAPACITY_SCALE, 2**29 / (2.0 * np.sum(1.0 + weight)))  # every sum stays within int32
+    cap = 1 + np.round(scale * weight).astype(np.int64)
     ends = np.concatenate([edges, edges[:, ::-1]])
     capacity = csr_array((np.concatenate([cap, cap]).astype(np.int32), (ends[:, 0], ends[:, 1])), shape=(N, N))
     # The point of a node: the usable edge of the node with the most support (ties: first edge).
@@ -233,6 +235,8 @@ def st_cut_groups(
         both = np.intersect1d(source, sink)  # claimed by both points: left to the cut
         source, sink = np.setdiff1d(source, both[nodes[both] != terminals[0]]), np.setdiff1d(sink, both[nodes[both] != terminals[1]])
         side = min_cut_source_side(sub, source, sink)
+        if side[sink].any() or not side[source].all():  # pragma: no cover - max-flow / min-cut theorem
+            raise RuntimeError("st_cut: a minimum cut failed to separate its terminals")
         cuts += 1
         todo += [p for part in (nodes[side], nodes[~side]) for p in pieces(part) if p.size >= 2]
     for g, nodes in enumerate(sorted(done, key=lambda n: int(n.min()))):

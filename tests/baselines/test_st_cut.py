@@ -108,6 +108,19 @@ def test_unambiguous_noise_free_scenes_are_exact():
     assert checked >= 4, "too few unambiguous scenes"
 
 
+def test_noisy_dense_scenes_keep_most_true_groups():
+    """8 scenes of 16 points in a small box at σ = 2 px, 5 views: at least 85 % of the true
+    groups come back exactly (measured: 0.91; with a single detection as each terminal
+    instead of the detections its 3D point back-projects onto: 0.71)."""
+    rig, total, found = ring_rig(5), 0, 0
+    for seed in range(8):
+        xy, mask, inst, _ = random_scene(rig, 16, 16, sigma=2.0, seed=900 + seed, box=0.3)
+        groups, valid, _ = _groups(rig, xy, mask, 2.0)
+        truth = _truth(inst, mask)
+        total, found = total + len(truth), found + len(truth & _sets(groups, valid))
+    assert found >= 0.85 * total, (found, total)
+
+
 def _noisy_scene():
     rig = ring_rig(4)
     xy, mask, inst, _ = random_scene(rig, 12, 16, sigma=3.0, seed=7, box=0.3)
