@@ -200,18 +200,17 @@ def st_cut_groups(
         return groups, valid, 0
     X, usable = edge_points(rig, xy, edges, P)
     support = backprojection_support(rig, xy, mask, edges, X, usable, radius)
-    weight = (1.0 - cost[edges[:, 0], edges[:, 1]] / float(tau)) + support
+    edge_cost = cost[edges[:, 0], edges[:, 1]]
+    weight = (1.0 - edge_cost / float(tau)) + support
     scale = min(CAPACITY_SCALE, 2**29 / (2.0 * np.sum(1.0 + weight)))  # every sum stays within int32
     cap = 1 + np.round(scale * weight).astype(np.int64)
     ends = np.concatenate([edges, edges[:, ::-1]])
     capacity = csr_array((np.concatenate([cap, cap]).astype(np.int32), (ends[:, 0], ends[:, 1])), shape=(N, N))
-    # The point of a node: the usable edge of the node with the most support (ties: first edge).
-    rank = np.where(usable, support, -1.0)
 
     def point_of(node: int, nodes: np.ndarray) -> np.ndarray | None:
         mine = np.flatnonzero(((edges[:, 0] == node) & np.isin(edges[:, 1], nodes)) | ((edges[:, 1] == node) & np.isin(edges[:, 0], nodes)))
-        mine = mine[usable[mine]]
-        return None if not mine.size else X[mine[np.argmax(rank[mine])]]
+        mine = mine[usable[mine]]  # the point of a node: its edge of most support, then least cost
+        return None if not mine.size else X[mine[np.lexsort((edge_cost[mine], -support[mine]))[0]]]
 
     def seeds(node: int, nodes: np.ndarray) -> np.ndarray:
         point = point_of(node, nodes)
@@ -265,11 +264,14 @@ class StCutOptions:
        the projection supports it by ``1 − e / r``. An edge's weight is ``(1 − c / τ)`` plus
        its summed support (0 for a point behind either of its own cameras); its capacity,
        both directions, is ``1 + round(1000 · weight)``.
-    3. s-t cuts: while a connected piece holds two detections of one view, take, in its view
-       with the most detections, the two of largest weighted degree as source and sink, cut
-       the piece by the minimum s-t cut (``scipy.sparse.csgraph.maximum_flow``, Dinic; the
-       source side is what the residual graph reaches from the source), and go on with the
-       connected pieces of both sides. Each cut separates two nodes, so there are fewer
+    3. s-t cuts: while a connected piece holds two detections of one view, the two of
+       largest weighted degree in its most crowded view are the terminals; each is tied, by
+       an edge no cut can take, to the detections its 3D point (its edge of most support in
+       the piece, then least cost) back-projects onto: the nearest within ``r`` in each other
+       view (one claimed by both terminals is left to the cut). The minimum s-t cut
+       (``scipy.sparse.csgraph.maximum_flow``, Dinic; the source side is what the residual
+       graph reaches from the source) splits the piece, and the connected pieces of both
+       sides go on. Each cut separates two nodes, so there are fewer
        than ``N = M·P`` cuts and the status is always 0. View-unique pieces of ≥ 2
        detections are the groups.
 
