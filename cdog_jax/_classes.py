@@ -263,7 +263,7 @@ def _pooled_sigma(rig, scenes: _Scenes, F: int, dist, dtype, pool: str) -> np.nd
         table[group, rank] = a
         tables.append(jnp.asarray(table.reshape(G, -1)))
     focal = focal_scale(rig.K)
-    sigma, _ = jax.vmap(sigma_from_samples, in_axes=(0, 0, 0, None))(*tables, focal)
+    sigma, _ = jax.vmap(sigma_from_samples, in_axes=(0, 0, 0, 0, None))(*tables, focal)
     sigma = np.asarray(sigma)
     return sigma if pool == "frame" else np.full(F, sigma[0])
 

@@ -18,6 +18,7 @@ import math
 from statistics import NormalDist
 
 import numpy as np
+from scipy import stats as scipy_stats
 
 __all__ = [
     "fundamental_matrices",
@@ -177,11 +178,12 @@ def tau_px(sigma, alpha_tau, tau_min_px):
 
 def sigma_samples(d, mask):
     """§0.1 samples: for valid u = (m, i) and views n ≠ m with a valid point, the finite
-    distance ``min_j d(u; n, j)`` and the number of valid points of view n. Returns two
-    1-D arrays (distances, counts)."""
+    distance ``min_j d(u; n, j)``, the number of valid points of view n and the second
+    smallest distance (the smallest where there is no finite second). Returns three 1-D
+    arrays (distances, counts, second distances)."""
     mask = np.asarray(mask, bool)
     M, P = mask.shape
-    x, count = [], []
+    x, count, second = [], [], []
     for m in range(M):
         for i in range(P):
             if not mask[m, i]:
@@ -189,11 +191,12 @@ def sigma_samples(d, mask):
             for n in range(M):
                 if n == m or not mask[n].any():
                     continue
-                v = d[m, i, n][mask[n]].min()
-                if np.isfinite(v):
-                    x.append(float(v))
+                row = np.sort(d[m, i, n][mask[n]])
+                if np.isfinite(row[0]):
+                    x.append(float(row[0]))
                     count.append(float(mask[n].sum()))
-    return np.asarray(x, np.float64), np.asarray(count, np.float64)
+                    second.append(float(row[1]) if row.size > 1 and np.isfinite(row[1]) else float(row[0]))
+    return np.asarray(x, np.float64), np.asarray(count, np.float64), np.asarray(second, np.float64)
 
 
 def focal_scale(K):
@@ -209,17 +212,45 @@ def _log_q(a):
                      for v in np.atleast_1d(a)])
 
 
-def _sigma_log_parts(x, count, c, inv_kappa, pi, width):
-    """Log joint density (4, S): match, hidden, none, uniform (§0.1)."""
+_NU_GRID = (math.inf, 8.0, 4.0, 2.0)  # the match distance's degrees of freedom (inf: half-normal)
+
+
+def _log_match(x, c, nu):
+    """Half-normal / half-t of scale c: log density at x, log P(T > x)."""
     a = x / c
+    if math.isinf(nu):
+        return 0.5 * math.log(2.0 / math.pi) - math.log(c) - 0.5 * a * a, math.log(2.0) + _log_q(a)
+    log_pdf = math.log(2.0) + scipy_stats.t.logpdf(a, nu) - math.log(c)
+    return log_pdf, math.log(2.0) + scipy_stats.t.logsf(a, nu)
+
+
+def _moments(x, c, nu):
+    """E[u T²] of a match at x and E[u T² | T > x] (u: the t's latent precision; 1 for the
+    half-normal)."""
+    a = x / c
+    if math.isinf(nu):
+        mills = np.exp(-0.5 * a * a - 0.5 * math.log(2.0 * math.pi) - _log_q(a))
+        mills = np.clip(mills, a, a + 1.0 / np.maximum(a, 1e-3))
+        return x * x, c * c * (1.0 + a * mills)
+    # E[u Z² 1{Z > a}] = (ν + 1) S_ν(a) − ν S_{ν+2}(a √((ν + 2) / ν)) for Z ~ t_ν.
+    s_nu = scipy_stats.t.sf(a, nu)
+    s_up = scipy_stats.t.sf(a * math.sqrt((nu + 2.0) / nu), nu + 2.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(s_nu > 0, (nu + 1.0) - nu * s_up / s_nu, nu + 1.0)
+    return (nu + 1.0) / (nu + a * a) * x * x, c * c * np.clip(ratio, 1.0, nu + 1.0)
+
+
+def _sigma_log_parts(x, x2, count, c, inv_kappa, pi, width, nu):
+    """Log joint density (4, S): match, hidden, none, uniform (§0.1)."""
     lam_true = (count - 1.0) / inv_kappa
     lam_none = count / inv_kappa
-    log_hn = 0.5 * math.log(2.0 / math.pi) - math.log(c) - 0.5 * a * a
+    log_t, _ = _log_match(x, c, nu)
+    _, log_beyond = _log_match(x2, c, nu)  # a hidden true match lies at or beyond the second nearest
     other = count > 1.0
     with np.errstate(divide="ignore"):
-        hidden = np.where(other, np.log(np.where(other, lam_true, 1.0)) - lam_true * x + math.log(2.0) + _log_q(a), -np.inf)
+        hidden = np.where(other, np.log(np.where(other, lam_true, 1.0)) - lam_true * x + log_beyond, -np.inf)
         none = np.log(lam_none) - lam_none * x
-    return np.stack([log_hn - lam_true * x + math.log(pi[0]), hidden + math.log(pi[0]),
+    return np.stack([log_t - lam_true * x + math.log(pi[0]), hidden + math.log(pi[0]),
                      none + math.log(pi[1]), np.full(x.shape, -math.log(width) + math.log(pi[2]))])
 
 
@@ -229,12 +260,14 @@ def _softmax0(parts):
     return e / e.sum(axis=0), top + np.log(e.sum(axis=0))
 
 
-def estimate_sigma(d, mask, focal_px, iters=40):
+def estimate_sigma(d, mask, focal_px, iters=40, coverage=0.9544997361036416, with_gate=False):
     """§0.1: EM on the censored mixture (a true match nearest / a true match behind a nearer
     unrelated point / no true match / uniform) of the nearest distances, each with weight ½,
-    from three starts; σ = c / √2, or the 1 px fallback. Returns ``(sigma, fallback)``.
-    The recipe of ALGORITHM.md §0.1."""
-    x, count = sigma_samples(d, mask)
+    the match distance half-normal or half-t (ν = 8, 4, 2), from three starts each; σ = the
+    Gaussian scale of the median of the true-pair distance (under the most likely fit) / √2,
+    or the 1 px fallback. Returns ``(sigma, fallback)``, or with ``with_gate``
+    ``(sigma, gate, fallback)``: gate = the ``coverage``-quantile (NaN on a fallback). The recipe of ALGORITHM.md §0.1."""
+    x, count, x2 = sigma_samples(d, mask)
     w = np.full(x.size, 0.5)
     total = max(w.sum(), 1e-3)
     focal = focal_px if np.isfinite(focal_px) and focal_px > 0 else 1.0
@@ -243,36 +276,61 @@ def estimate_sigma(d, mask, focal_px, iters=40):
     top_count = max(float(count.max()) if x.size else 1.0, 1.0)
     xs = np.sort(x)
     fits = []
-    for q in (0.1, 0.25, 0.5):
-        z = NormalDist().inv_cdf(0.5 * (1.0 + q))  # half-normal quantile / scale
-        at_q = float(xs[int(math.floor(q * (x.size - 1)))]) if x.size else 0.0
-        c = min(max(at_q / z, 1e-3), width)
-        inv_kappa = min(max(float(np.sum(w * count * x)) / total, spread_min), width * top_count)
-        pi = np.array([0.6, 0.3, 0.1])
-        for _ in range(iters):
-            r, _ = _softmax0(_sigma_log_parts(x, count, c, inv_kappa, pi, width))
-            match, hidden, none, uniform = r * w
-            a = x / c
-            mills = np.exp(-0.5 * a * a - 0.5 * math.log(2.0 * math.pi) - _log_q(a))
-            mills = np.clip(mills, a, a + 1.0 / np.maximum(a, 1e-3))
-            n_true = float(np.sum(match + hidden))
-            c_new = math.sqrt(float(np.sum(match * x * x + hidden * c * c * (1.0 + a * mills))) / max(n_true, 1e-3))
-            others = np.where(count > 1.0, count - 1.0, 0.0)
-            censored = np.where(count > 1.0, match, 0.0)
-            seen = float(np.sum(hidden * others * x + none * count * x + censored * (others * x + inv_kappa)))
-            inv_kappa = seen / max(float(np.sum(hidden + none + censored)), 1e-3)
-            c = min(max(c_new, 1e-3), width)
-            inv_kappa = min(max(inv_kappa, spread_min), width * top_count)
-            pi = np.clip(np.array([n_true, np.sum(none), np.sum(uniform)]) / total, 1e-4, 1.0)
-            pi = pi / pi.sum()
-        r, log_total = _softmax0(_sigma_log_parts(x, count, c, inv_kappa, pi, width))
-        fits.append((float(np.sum(w * log_total)), c, float(np.sum(w * (r[0] + r[1])))))
+    for nu in _NU_GRID:
+        for q in (0.1, 0.25, 0.5):
+            z = NormalDist().inv_cdf(0.5 * (1.0 + q))  # half-normal quantile / scale
+            at_q = float(xs[int(math.floor(q * (x.size - 1)))]) if x.size else 0.0
+            c = min(max(at_q / z, 1e-3), width)
+            other = count > 1.0
+            start = (float(np.sum(w[other] * (count[other] - 1.0) * x2[other])) / max(float(np.sum(w[other])), 1e-3)
+                     if other.any() else float(np.sum(w * count * x)) / total)
+            inv_kappa = min(max(start, spread_min), width * top_count)
+            pi = np.array([0.6, 0.3, 0.1])
+            for _ in range(iters):
+                r, _ = _softmax0(_sigma_log_parts(x, x2, count, c, inv_kappa, pi, width, nu))
+                match, hidden, none, uniform = r * w
+                t2_match, _ = _moments(x, c, nu)
+                _, t2_beyond = _moments(x2, c, nu)
+                n_true = float(np.sum(match + hidden))
+                c_new = math.sqrt(float(np.sum(match * t2_match + hidden * t2_beyond)) / max(n_true, 1e-3))
+                others = np.where(count > 1.0, count - 1.0, 0.0)
+                censored = np.where(count > 1.0, match, 0.0)
+                seen = float(np.sum(hidden * others * x + none * count * x + censored * (others * x + inv_kappa)))
+                inv_kappa = seen / max(float(np.sum(hidden + none + censored)), 1e-3)
+                c = min(max(c_new, 1e-3), width)
+                inv_kappa = min(max(inv_kappa, spread_min), width * top_count)
+                pi = np.clip(np.array([n_true, np.sum(none), np.sum(uniform)]) / total, 1e-4, 1.0)
+                pi = pi / pi.sum()
+            r, log_total = _softmax0(_sigma_log_parts(x, x2, count, c, inv_kappa, pi, width, nu))
+            fits.append((float(np.sum(w * log_total)), nu, r * w, c))
     top = max(f[0] for f in fits)
     best = next(k for k, f in enumerate(fits) if f[0] >= top - 1e-5 * (1.0 + abs(top)))  # near-ties: the first
-    _, c, n_match = fits[best]
-    sigma = c / math.sqrt(2.0)
+    _, nu, r, c = fits[best]
+    n_match = float(np.sum(r[0] + r[1]))
+    median = true_distance_quantile(0.5, x, x2, r[0], r[1], c, nu, width)
+    sigma = median / (math.sqrt(2.0) * NormalDist().inv_cdf(0.75))
     fallback = not (n_match >= 2.5 and sigma <= 0.01 * focal)
-    return (1.0 if fallback else sigma), fallback
+    gate = math.nan if fallback else true_distance_quantile(coverage, x, x2, r[0], r[1], c, nu, width)
+    return ((1.0 if fallback else sigma), fallback) if not with_gate else ((1.0 if fallback else sigma), gate, fallback)
+
+
+def true_distance_quantile(q, x, x2, match, hidden, c, nu, width):
+    """§0.1: the q-quantile of the true-pair distance: F(t) = Σ (match 1{x ≤ t} + hidden
+    P(T ≤ t | T > x2)) / Σ (match + hidden) under the fit (c, ν), solved by bisection on
+    [0, width] (120 steps)."""
+    n_true = max(float(np.sum(match + hidden)), 1e-3)
+    _, log_beyond_x2 = _log_match(x2, c, nu)
+
+    def cdf(t):
+        _, log_beyond_t = _log_match(np.full_like(x, t), c, nu)
+        passed = -np.expm1(np.minimum(log_beyond_t - log_beyond_x2, 0.0))
+        return float(np.sum(match * (x <= t) + hidden * passed)) / n_true
+
+    lo, hi = 0.0, width
+    for _ in range(120):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if cdf(mid) < q else (lo, mid)
+    return 0.5 * (lo + hi)
 
 
 # ----------------------------------------------------------------------------- §2 graph
