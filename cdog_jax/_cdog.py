@@ -25,10 +25,14 @@ from ._config import (
     IqrScore,
     PruneScope,
     SigmaMode,
+    TauMode,
+    ThresholdUnit,
     Thresholds,
     check_number,
     check_thresholds,
+    gauss_coverage,
     tau_px,
+    thresholds_in_pixels,
 )
 from ._expect import expect_args
 from ._method import Method, Observations, register_method
@@ -41,7 +45,7 @@ from .geometry._epipolar import epipolar_distances
 from .geometry._triangulate import dlt_blocks
 from .graph._graph_stage import GRAPH
 from .graph._groups import compact_groups
-from .graph._sigma import estimate_sigma, focal_scale
+from .graph._sigma import estimate_noise, focal_scale
 from .refine._attach import leftover_nodes
 from .refine._bpe_filter import BPE_FILTER
 from .refine._fit import FIT
@@ -79,6 +83,11 @@ class Config(Method):
     bpe_filter: bool = True
     refine: bool = False
     sigma_mode: SigmaMode = "given"
+    # --- units and gates (ALGORITHM.md §0): "focal": every length threshold (σ given,
+    # tau_min_px, iqr_*_px; jump_floor_px2 squared) is a fraction of the focal length;
+    # "fitted": with σ estimated, τ is the erf(α_τ/√2)-quantile of the fitted true-pair distance.
+    threshold_unit: ThresholdUnit = "px"
+    tau_mode: TauMode = "gaussian"
     max_split_iters: int = 64
     max_iqr_iters: int = 16
     refine_max_steps: int = 20
@@ -113,6 +122,8 @@ class Config(Method):
             "iqr_score": ("exclude_own", "include_own"),
             "iqr_quartiles": ("zero_pad", "positive"),
             "sigma_mode": ("given", "auto"),
+            "threshold_unit": ("px", "focal"),
+            "tau_mode": ("gaussian", "fitted"),
         }
         for name, allowed in choices.items():
             if getattr(self, name) not in allowed:
@@ -299,14 +310,17 @@ def associate_traced(
     """
     expect_args("associate_traced", rig=(rig, Rig), thresholds=(thresholds, Thresholds), config=(config, Config))
     th = Thresholds(*(jnp.asarray(v) for v in thresholds))  # NumPy scalars when called eagerly
+    focal = focal_scale(rig.K)
+    if config.threshold_unit == "focal":
+        th = thresholds_in_pixels(th, focal)
     M, P = mask.shape
     xy = jnp.where(mask[..., None], xy, 0.0)  # padding is neutral from here on
     d = epipolar_distances(rig, xy, mask)  # (M, P, M, P)
     if config.sigma_mode == "auto":
-        sigma, fallback = estimate_sigma(d, mask, focal_scale(rig.K))
+        sigma, fitted, fallback = estimate_noise(d, mask, focal, gauss_coverage(th.alpha_tau))
     else:
-        sigma, fallback = th.sigma_px, jnp.asarray(False)
-    tau = tau_px(th, sigma)
+        sigma, fitted, fallback = th.sigma_px, None, jnp.asarray(False)
+    tau = tau_px(th, sigma, fitted if config.tau_mode == "fitted" else None)
     scene = Scene(rig, xy, mask, mask.reshape(-1), d, dlt_blocks(rig, xy), sigma, tau, th)
     G = max(M * P // 2, 1)
     empty = GroupTable(jnp.full((G, M), -1, jnp.int32), jnp.zeros((G,), bool))

@@ -28,6 +28,7 @@ from ._validate import as_array, check_observations, check_rig
 from .geometry._camera import Rig
 from .geometry._distortion import undistorted
 from .geometry._epipolar import epipolar_distances
+from ._config import REFERENCE_FOCAL_PX
 from .graph._sigma import focal_scale, nearest_samples, sigma_from_samples
 
 SIGMA_POOLS = ("frame", "all", "scene")
@@ -124,6 +125,8 @@ def associate_classes(
         weights = np.asarray(weights)
         if weights.shape != mask.shape:
             raise ValueError(f"weights must have the shape of mask {mask.shape}; got {weights.shape}")
+    if getattr(method, "tau_mode", "gaussian") == "fitted" and (sigma == "auto" or method.sigma_mode == "auto") and sigma_pool != "scene":
+        raise ValueError(f"tau_mode='fitted' fits the gate per scene: it needs sigma_pool='scene'; got sigma_pool={sigma_pool!r}")
     F, M, P = mask.shape
     scenes = _regroup(xy, mask, classes, C, weights)
     B = len(scenes.frame)
@@ -134,6 +137,8 @@ def associate_classes(
     if auto and sigma_pool != "scene":
         frame_sigma = _pooled_sigma(rig, scenes, F, dist, dtype, pool=sigma_pool)
         sigma_arg = np.asarray(frame_sigma[scenes.frame], dtype)
+        if getattr(method, "threshold_unit", "px") == "focal":  # the pipeline reads a given σ in focal lengths
+            sigma_arg = np.asarray(sigma_arg * (REFERENCE_FOCAL_PX / np.asarray(focal_scale(rig.K), dtype)), dtype)
         method = method.replace(sigma_mode="given")
     else:
         sigma_arg = "auto" if auto else sigma

@@ -15,6 +15,7 @@ from typing import Literal, NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.scipy.special import erf
 
 from ._types import Array, Float
 
@@ -23,6 +24,8 @@ PruneScope = Literal["all", "conflicts", "none"]
 IqrScore = Literal["exclude_own", "include_own"]
 IqrQuartiles = Literal["zero_pad", "positive"]
 SigmaMode = Literal["given", "auto"]
+ThresholdUnit = Literal["px", "focal"]
+TauMode = Literal["gaussian", "fitted"]
 
 
 class Thresholds(NamedTuple):
@@ -131,6 +134,34 @@ def check_thresholds(th: "Thresholds", *, skip: tuple[str, ...] = ("sigma_px",))
             raise ValueError(f"thresholds.{name} must be {allowed.describe()}; got {host[where].item()!r}{at}")
 
 
-def tau_px(th: Thresholds, sigma_px: Float[Array, ""]) -> Float[Array, ""]:
-    """Epipolar gate ``τ = max(alpha_tau · √2 · σ, tau_min)`` in pixels (docs/ALGORITHM.md §1–2)."""
-    return jnp.maximum(th.alpha_tau * jnp.sqrt(2.0) * sigma_px, th.tau_min_px)
+def tau_px(th: Thresholds, sigma_px: Float[Array, ""], fitted_px: Float[Array, ""] | None = None) -> Float[Array, ""]:
+    """Epipolar gate ``τ = max(alpha_tau · √2 · σ, tau_min)`` in pixels (docs/ALGORITHM.md §1–2);
+    with ``fitted_px`` (the fitted quantile of the true-pair distance, NaN when there is
+    none) ``τ = max(fitted_px, tau_min)`` where it is finite."""
+    gaussian = th.alpha_tau * jnp.sqrt(2.0) * sigma_px
+    if fitted_px is not None:
+        gaussian = jnp.where(jnp.isfinite(fitted_px), fitted_px, gaussian)
+    return jnp.maximum(gaussian, th.tau_min_px)
+
+
+# Thresholds in pixels (px² for jump_floor_px2). With Config.threshold_unit="focal" they are
+# pixels of a camera of focal length REFERENCE_FOCAL_PX: scaled by f / REFERENCE_FOCAL_PX (its
+# square) before any stage reads them, so one set of numbers suits any resolution.
+REFERENCE_FOCAL_PX = 1000.0
+PIXEL_FIELDS = ("sigma_px", "tau_min_px", "iqr_floor_px", "iqr_min_px", "iqr_force_px")
+PIXEL2_FIELDS = ("jump_floor_px2",)
+
+
+def thresholds_in_pixels(th: Thresholds, focal_px: Float[Array, ""]) -> Thresholds:
+    """``th`` with its lengths given in pixels of a ``REFERENCE_FOCAL_PX`` camera turned into
+    pixels of this rig (``focal_px``: its focal length, pixels)."""
+    scale = focal_px / REFERENCE_FOCAL_PX
+    scaled = {name: getattr(th, name) * scale for name in PIXEL_FIELDS}
+    scaled.update({name: getattr(th, name) * scale * scale for name in PIXEL2_FIELDS})
+    return th._replace(**scaled)
+
+
+def gauss_coverage(alpha_tau: Float[Array, ""]) -> Float[Array, ""]:
+    """``P(|Z| < alpha_tau) = erf(alpha_tau / √2)``: the share of Gaussian true pairs within
+    ``alpha_tau · √2 σ``; the fitted gate is this quantile of the observed distances."""
+    return erf(alpha_tau / jnp.sqrt(2.0))

@@ -225,6 +225,17 @@ def estimate_sigma(
     return sigma, fallback
 
 
+def estimate_noise(
+    d: Float[Array, "M P M P"],
+    mask: Bool[Array, "M P"],
+    focal_px: Float[Array, ""],
+    coverage: float | Float[Array, ""],
+) -> tuple[Float[Array, ""], Float[Array, ""], Bool[Array, ""]]:
+    """:func:`estimate_sigma` and the ``coverage``-quantile of the true-pair distance:
+    ``(sigma, gate_px, fallback)`` (:func:`fit_noise`)."""
+    return fit_noise(*nearest_samples(d, mask), focal_px, coverage)
+
+
 def sigma_from_samples(
     x: Float[Array, "*S"], w: Float[Array, "*S"], count: Float[Array, "*S"], x2: Float[Array, "*S"], focal_px: Float[Array, ""]
 ) -> tuple[Float[Array, ""], Bool[Array, ""]]:
