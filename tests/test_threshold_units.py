@@ -7,6 +7,7 @@ import pytest
 from helpers import random_scene, ring_rig
 
 from cdog_jax import Config, associate, associate_classes
+from cdog_jax._config import tau_px
 from cdog_jax.geometry import Rig
 
 RIG = ring_rig(5)
@@ -31,7 +32,7 @@ def test_focal_units_give_the_same_groups_at_any_resolution(sigma):
     # τ floor tau_min_px = 1, so the floor decides τ; in pixels it would stay 1 px at 4×
     # the resolution while the distances grow 4×.
     xy, mask, _, _ = random_scene(RIG, 12, 16, sigma=0.4, seed=3, clutter=2)
-    config = Config.extended(threshold_unit="focal")
+    config = Config.paper(threshold_unit="focal")
     labels, tau = _labels(RIG, xy, mask, config, sigma)
     for s in (0.5, 4.0):
         rig_s, xy_s = _scaled(RIG, xy, s)
@@ -41,7 +42,7 @@ def test_focal_units_give_the_same_groups_at_any_resolution(sigma):
 
 
 def test_focal_units_with_classes_and_pooled_sigma():
-    xy, mask, inst, _ = random_scene(RIG, 10, 12, sigma=0.5, seed=4)
+    xy, mask, inst, _ = random_scene(RIG, 4, 4, sigma=0.5, seed=4)
     classes = np.where(inst >= 0, inst % 2, 0)
     config = Config.paper(threshold_unit="focal")
     runs = []
@@ -61,14 +62,21 @@ def test_fitted_gate_needs_per_scene_sigma_with_classes():
 
 def test_fitted_gate_is_a_high_quantile_of_the_true_pairs():
     # Gaussian noise: the fitted gate is close to the formula's α √2 σ̂ (both cover ≈ 95 %);
-    # with σ given there is nothing fitted and the formula holds.
-    xy, mask, _, _ = random_scene(RIG, 30, 32, sigma=1.0, seed=6)
-    gauss = associate(RIG, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), config=Config.paper(), sigma="auto")
-    fitted = associate(RIG, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), config=Config.paper(tau_mode="fitted"), sigma="auto")
+    # with σ given there is nothing fitted and the formula holds (test_gate_formula_without_a_fit).
+    # (The shapes and first config of the test above: one compiled program fewer.)
+    xy, mask, _, _ = random_scene(RIG, 14, 16, sigma=1.0, seed=6)
+    config = Config.paper(threshold_unit="focal")
+    gauss = associate(RIG, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), config=config, sigma="auto")
+    fitted = associate(RIG, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), config=config.replace(tau_mode="fitted"), sigma="auto")
     assert float(fitted.sigma_px) == float(gauss.sigma_px)
     assert 0.7 < float(fitted.tau_px) / float(gauss.tau_px) < 1.4
-    given = associate(RIG, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), config=Config.paper(tau_mode="fitted"), sigma=1.0)
-    assert float(given.tau_px) == pytest.approx(2.0 * np.sqrt(2.0), rel=1e-6)
+
+
+def test_gate_formula_without_a_fit():
+    th = Config.paper().thresholds(1.0)
+    assert float(tau_px(th, jnp.float32(1.0), jnp.float32(np.nan))) == pytest.approx(2.0 * np.sqrt(2.0))
+    assert float(tau_px(th, jnp.float32(1.0), jnp.float32(5.0))) == pytest.approx(5.0)
+    assert float(tau_px(th, jnp.float32(1.0), jnp.float32(0.5))) == pytest.approx(1.0)  # the floor tau_min_px
 
 
 def test_config_rejects_unknown_units_and_modes():
