@@ -19,14 +19,14 @@ import jax.numpy as jnp
 import numpy as np
 import jax
 
-from ._config import Number, OptionGroup, SigmaMode, Switch, tau_px
+from ._config import Number, Numbers, OptionGroup, SigmaMode, Switch, tau_px
 from ._expect import expect_args
 from ._method import Method, Observations, register_method
 from ._options import NUMERIC, check_thresholds, declared_options, describe, ranges, thresholds_type
 from ._result import Association, association_from_groups
 from ._stage import GroupTable, Scene, Stage, State, raise_flag
 from ._status import Status
-from ._types import Array, Bool, Float
+from ._types import Array, Bool, Float, Int
 from .geometry._camera import Rig
 from .geometry._epipolar import epipolar_distances
 from .geometry._triangulate import dlt_blocks
@@ -143,8 +143,10 @@ def associate_traced(
     rig: Rig,
     xy: Float[Array, "M P 2"],
     mask: Bool[Array, "M P"],
-    thresholds: Thresholds,
+    thresholds: Numbers,
     config: Config,
+    *,
+    classes: Int[Array, "M P"] | None = None,
 ) -> Association:
     """C-DOG on one scene as a pure function; no input checks.
 
@@ -155,6 +157,11 @@ def associate_traced(
         thresholds: numeric thresholds and σ (traced; see ``Config.thresholds``), of the
             config's type (:class:`Thresholds` for :class:`Config`).
         config: structural configuration (static under ``jit``).
+        classes: optional ``(M, P)`` int class of each detection (a keypoint type): two
+            detections of different classes get an infinite epipolar distance, so the graph
+            never joins them, nor does any stage that reads the distances (σ estimation,
+            the split, regrouping, the second association). Recovery and the support filter
+            do not read them. ``None``: one class.
     """
     kind = type(config).numbers_type if isinstance(config, Config) else Thresholds
     expect_args("associate_traced", rig=(rig, Rig), thresholds=(thresholds, kind), config=(config, Config))
@@ -162,6 +169,8 @@ def associate_traced(
     M, P = mask.shape
     xy = jnp.where(mask[..., None], xy, 0.0)  # padding is neutral from here on
     d = epipolar_distances(rig, xy, mask)  # (M, P, M, P)
+    if classes is not None:
+        d = jnp.where(classes[:, :, None, None] == classes[None, None, :, :], d, jnp.inf)
     if config.sigma_mode == "auto":
         sigma, fallback = estimate_sigma(d, mask, focal_scale(rig.K))
     else:
