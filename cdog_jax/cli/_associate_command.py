@@ -196,7 +196,7 @@ def _points_format(path: str, given: str) -> str:
     if suffix == ".csv":
         return "table"
     if suffix == ".npz":
-        from ..io._rig_files import open_npz
+        from ..io._read_files import open_npz
 
         with open_npz(path) as npz:
             return "table" if "frame" in npz.files else "detections"

@@ -12,7 +12,7 @@ from ._detections_checks import _finish
 from ._detections_rows import _check_coordinates, _check_views, _from_rows, _numeric, _rows_from_array
 from ._detections_type import Detections
 from ._errors import _Where
-from ._rig_files import open_npz, read_json
+from ._read_files import open_npz, read_json
 
 
 def _read_json(path: str) -> tuple[list, bool, list, Any]:

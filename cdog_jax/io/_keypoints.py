@@ -40,7 +40,7 @@ from ._detections_checks import _finish
 from ._detections_rows import _check_coordinates, _check_options
 from ._detections_type import Detections
 from ._errors import InputError, _Where, read_text
-from ._rig_files import open_npz, read_json
+from ._read_files import open_npz, read_json
 from ._scores import normalise_keypoint_scores
 
 PathLike = str | os.PathLike
