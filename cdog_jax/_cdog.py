@@ -187,9 +187,8 @@ def associate_traced(
     )
 
 
-
-
 # --------------------------------------------------------------------------- the method
+
 
 class ConfigMethods(Method):
     """What every C-DOG :class:`Config` does; the fields come from its stage list
@@ -320,7 +319,7 @@ def make_config(stages: tuple[Stage, ...], *, name: str = "Config", base: type =
         "__doc__": _CONFIG_DOC.format(fields=describe(options, groups)),
         "stages": stages,
         "options": options,
-        "numbers_type": thresholds_type(options),
+        "numbers_type": thresholds_type(options, __name__),
         "ranges": ranges(options),
     }
     return dataclasses.make_dataclass(name, fields, bases=(base,), namespace=namespace, frozen=True)

@@ -108,13 +108,14 @@ def declared_options(groups) -> dict[str, OptionSpec]:
     the order of ``groups``. A stage listed twice (the same declaration, e.g. a repeated
     fit) declares its options once; two different declarations of one name are refused."""
     found: dict[str, OptionSpec] = {}
+    declarer: dict[str, tuple] = {}
     for group in groups:
+        declaration = (getattr(group, "run", None), group.options, group.numbers)
         for spec in _declared(group):
-            seen = found.get(spec.name)
-            if seen is None:
-                found[spec.name] = spec
-            elif seen._replace(owner=spec.owner, check=None) != spec._replace(check=None):
-                raise TypeError(f"option {spec.name!r} is declared twice: by stage {seen.owner!r} and by stage {spec.owner!r}")
+            if spec.name not in found:
+                found[spec.name], declarer[spec.name] = spec, declaration
+            elif declarer[spec.name] != declaration:
+                raise TypeError(f"option {spec.name!r} is declared twice: by stage {found[spec.name].owner!r} and by stage {spec.owner!r}")
     ordered = [s for s in found.values() if s.kind == STRUCTURAL] + [s for s in found.values() if s.kind == NUMERIC]
     return {spec.name: spec for spec in ordered}
 
@@ -123,18 +124,19 @@ SIGMA = OptionSpec("sigma_px", "scene", 0.0, NUMERIC, float, _check_range("sigma
                    "2D noise std (pixels); set per scene, ignored when sigma_mode='auto'", Range())
 
 
-def thresholds_type(specs: dict[str, OptionSpec], name: str = "Thresholds") -> type:
+def thresholds_type(specs: dict[str, OptionSpec], module: str, name: str = "Thresholds") -> type:
     """The traced ``NamedTuple`` of the numbers of ``specs``, ``sigma_px`` first, a subclass
-    of :class:`~cdog_jax._config.Numbers`, documented field by field."""
+    of :class:`~cdog_jax._config.Numbers`, documented field by field; ``module`` is where it
+    is published (for pickling)."""
     numbers = [SIGMA] + [s for s in specs.values() if s.kind == NUMERIC]
-    fields = typing.NamedTuple(name, [(s.name, Float[Array, ""]) for s in numbers])
+    fields = typing.NamedTuple(f"_{name}Fields", [(s.name, Float[Array, ""]) for s in numbers])
     lines = [f"    {s.name} ({s.owner}): {s.doc}" for s in numbers]
     doc = (
         "Numeric thresholds, traced (scalars, or arrays with a leading batch axis under vmap).\n\n"
         "``tau_px = max(alpha_tau * sqrt(2) * sigma_px, tau_min_px)`` (docs/ALGORITHM.md §1–2).\n"
         "Each field, with the stage that reads it:\n\n" + "\n".join(lines)
     )
-    return type(name, (fields, Numbers), {"__slots__": (), "__doc__": doc, "__module__": "cdog_jax._cdog"})
+    return type(name, (fields, Numbers), {"__slots__": (), "__doc__": doc, "__module__": module})
 
 
 def ranges(specs: dict[str, OptionSpec]) -> dict[str, Range]:

@@ -59,6 +59,9 @@ def test_the_new_options_are_checked():
         Gated().replace(error_kind="max")
     with pytest.raises(TypeError, match="Config.error_gate must be True or False; got 1"):
         Gated(error_gate=1)
+    twice = Stage("twice", error_gate_stage, None, Switch("twice", False), numbers=(Number("delta", 0.5),))
+    with pytest.raises(TypeError, match="option 'delta' is declared twice: by stage 'graph' and by stage 'twice'"):
+        make_config((*STAGES, twice))
 
 
 def test_the_new_number_is_traced_and_its_thresholds_range_checked():
