@@ -186,7 +186,8 @@ def views_ablation(
     """A metric against the number of views (paper Table I), our methods vs the paper.
 
     Args:
-        views: ``(S,)`` number of views of every scene (or of every value).
+        views: ``(S,)`` number of views of every scene (or of every value), or
+            ``{method: (S_m,)}`` when the methods ran different scenes.
         values_by_method: ``{method: values}``, where ``values`` is either ``(S,)`` (already
             the chosen field) or ``{field: (S,)}`` per-scene metrics. Values with the same
             view count are averaged (docs/BENCHMARK.md §2 rule for ``err3d``/``bpe_px`` when the metrics
@@ -200,14 +201,15 @@ def views_ablation(
     Returns:
         A :class:`matplotlib.figure.Figure` with one axes.
     """
-    views = _as_1d("views", views)
     if not values_by_method:
         raise ValueError("values_by_method must hold at least one method")
+    views_of = _per_method("views", views, list(values_by_method))
     colors = _method_colors(list(values_by_method))
     fig = _new_figure(6.4, 4.4, layout="constrained")
     ax = fig.add_subplot()
-    all_views = [views]
+    all_views = list(views_of.values())
     for method, v in values_by_method.items():
+        views = views_of[method]
         if isinstance(v, Mapping) or dataclasses.is_dataclass(v):
             v = _as_fields(v)
             if field not in v:

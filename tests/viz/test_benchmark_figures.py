@@ -212,3 +212,8 @@ def test_curves_take_per_method_scenes_and_many_methods():
     np.testing.assert_array_equal(second.get_xdata(), np.unique(count[sub]))
     with pytest.raises(ValueError, match="lacks"):
         metrics_vs_sigma({"paper()": sigma}, metrics, fields=("pg_f1",))
+    views = {"a": np.array([2, 2, 3]), "b": np.array([3, 4])}
+    fig = views_ablation(views, {"a": np.array([0.2, 0.4, 0.5]), "b": np.array([0.6, 0.8])}, paper=None)
+    a_line, b_line = fig.axes[0].get_lines()
+    np.testing.assert_allclose(a_line.get_ydata(), [0.3, 0.5])
+    np.testing.assert_array_equal(b_line.get_xdata(), [3, 4])
