@@ -29,7 +29,8 @@ Method:
    ``~/.cache/cdog_jax/compare/``) in a folder named by the method and a hash of its name,
    its ``repr`` (structure and numbers), the package version, the source of the module
    that defines it and of the scene generator and the metrics, the base grid and the
-   buckets. A rerun computes only new or changed methods (``--refresh`` recomputes).
+   buckets. A rerun computes only new or changed methods (``--refresh`` recomputes all or the
+   named ones).
 5. **Report.** One Markdown table per σ (0, 1, 3, 5): one row per method, G-F1, G-IoU,
    mP-P/R/F1/IoU, PG-P/R/F1, 3DErr, BPE and time per scene, averaged over the scenes of that
    σ as :func:`cdog_jax.metrics.mean_metrics` does, the paper's own numbers beneath the rows
@@ -41,7 +42,7 @@ Method:
 Usage::
 
     python experiments/compare_methods.py [--methods all|a,b,...] [--quick] [--budget-s 300]
-        [--probe-scenes 3] [--cache DIR] [--refresh] [--plan-only]
+        [--probe-scenes 3] [--cache DIR] [--refresh [a,b,...]] [--plan-only]
         [--figures experiments/figures] [--results experiments/RESULTS.md]
 """
 
@@ -345,10 +346,17 @@ def _cells(means: dict[str, float]) -> list[str]:
     return out
 
 
+def _at_table_sigmas(grid: Grid) -> Grid:
+    keep = tuple(s for s in grid.sigmas if any(abs(s - t) < 5e-4 for t in TABLE_SIGMAS)) or grid.sigmas
+    return grid.replace(sigmas=keep)
+
+
 def tables(results: dict, plans: dict[str, Plan], base: Grid, ours, baselines) -> str:
+    # A sub-grid that only leaves out σ levels has, at the tables' σ, the full grid's scenes:
+    # no mark there (the figures still say sub-grid).
     marks = {}
     for name in results:
-        if plans[name].grid != base:
+        if _at_table_sigmas(plans[name].grid) != _at_table_sigmas(base):
             marks[name] = "ᵃᵇᶜᵈᵉᶠᵍʰⁱʲᵏˡᵐⁿᵒᵖ"[len(marks) % 16]
     head = ["method", *(c[0] for c in COLUMNS), "scenes"]
     lines = []
@@ -370,8 +378,14 @@ def tables(results: dict, plans: dict[str, Plan], base: Grid, ours, baselines) -
         lines.append("")
     notes = [f"{mark} {name}: {describe_grid(plans[name].grid, base)}" for name, mark in marks.items()]
     if notes:
-        lines += ["Methods marked run on a sub-grid (the same scenes as the full grid's, fewer of them):", ""]
+        lines += ["Methods marked run on a sub-grid (the same scenes as the full grid's, fewer of them; the "
+                  "tables below compare them with the full-grid methods on exactly their scenes):", ""]
         lines += [f"- {n}" for n in notes] + [""]
+    sigma_only = [n for n in results if plans[n].grid != base and n not in marks]
+    if sigma_only:
+        lines += [f"{', '.join(sigma_only)}: σ ∈ {{0, 1, 3, 5}} only (every count, every scene): at these σ the "
+                  "full grid's scenes, so their rows above are full-grid numbers; their lines in the figure "
+                  "have four points.", ""]
     return "\n".join(lines)
 
 
@@ -384,9 +398,9 @@ def _scene_ids(res) -> np.ndarray:
 def same_scenes_tables(results: dict, plans: dict[str, Plan], base: Grid) -> str:
     """For every sub-grid method: it and every full-grid method on exactly its scenes, PG-F1 /
     G-F1 at each table σ (the like-for-like comparison the main tables cannot give)."""
-    full = [n for n in results if plans[n].grid == base]
+    full = [n for n in results if _at_table_sigmas(plans[n].grid) == _at_table_sigmas(base)]
     lines = []
-    for sub in (n for n in results if plans[n].grid != base):
+    for sub in (n for n in results if n not in full):
         ids = _scene_ids(results[sub])
         sigmas = [t for t in TABLE_SIGMAS if np.isclose(results[sub].sigma, t, atol=5e-4).any()]
         lines += [f"On the scenes of {sub} ({describe_grid(plans[sub].grid, base)}), PG-F1 / G-F1:", "",
@@ -457,7 +471,8 @@ def main(argv=None):
     ap.add_argument("--budget-s", type=float, default=300.0, help="compute budget per method (s), sets sub-grids")
     ap.add_argument("--probe-scenes", type=int, default=3)
     ap.add_argument("--cache", default=os.path.join(os.path.expanduser("~"), ".cache", "cdog_jax", "compare"))
-    ap.add_argument("--refresh", action="store_true", help="recompute even when cached")
+    ap.add_argument("--refresh", nargs="?", const="all", default="",
+                    help="recompute even when cached: every method, or a comma-separated list")
     ap.add_argument("--plan-only", action="store_true", help="probe and print the plan, run nothing")
     ap.add_argument("--figures", default=None, help="figure folder (default experiments/figures; --quick: none)")
     ap.add_argument("--results", default=None, help="Markdown file to write the section into "
@@ -475,7 +490,8 @@ def main(argv=None):
     plans, results, folders = {}, {}, {}
     for name, method in methods.items():
         folders[name] = folder = cache_folder(args.cache, name, method, base)
-        if not args.refresh and os.path.exists(os.path.join(folder, "plan.json")):
+        refresh = args.refresh == "all" or name in args.refresh.split(",")
+        if not refresh and os.path.exists(os.path.join(folder, "plan.json")):
             with open(os.path.join(folder, "plan.json")) as f:
                 saved = json.load(f)
             saved["grid"] = Grid(**{k: tuple(v) if isinstance(v, list) else v for k, v in saved["grid"].items()})

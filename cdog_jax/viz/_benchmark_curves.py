@@ -53,7 +53,8 @@ def time_vs_count(
     if not time_s:
         raise ValueError("time_s must hold at least one method")
     count_of = _per_method("count", count, list(time_s))
-    fig = _new_figure(9.6, 4.8, layout="constrained")
+    # Tall enough for a legend entry (two lines) per method beside the axes.
+    fig = _new_figure(9.6, max(4.8, 2.6 + 0.42 * len(time_s)), layout="constrained")
     ax = fig.add_subplot()
     colors = _method_colors(list(time_s))
     for method, t in time_s.items():
