@@ -47,8 +47,10 @@ from .refine._bpe_filter import BPE_FILTER
 from .refine._fit import FIT
 from .refine._least_squares import REFINE
 from .refine._outliers import IQR
+from .refine._reassign import REASSIGN
 from .refine._recovery import RECOVER
 from .refine._second_association import SECOND_ASSOCIATION
+from .refine._seed import SEED
 from .refine._support import SUPPORT
 from .refine._validity import VALIDITY
 
@@ -76,6 +78,8 @@ class Config(Method):
     recover: bool = False  # attach leftovers to groups by reprojection (beyond the paper)
     regroup: bool = False  # run Alg. 1-3 again on what is left (beyond the paper)
     support_filter: bool = False  # drop groups that views seeing their point do not detect
+    seed: bool = False  # groups from two-view hypotheses on what is still left (beyond the paper)
+    reassign: bool = False  # each detection to its nearest point, refitting (beyond the paper)
     bpe_filter: bool = True
     refine: bool = False
     sigma_mode: SigmaMode = "given"
@@ -83,6 +87,8 @@ class Config(Method):
     max_iqr_iters: int = 16
     refine_max_steps: int = 20
     jump_min_gaps: int = 3  # gaps needed before a jump can be declared
+    seed_min_views: int = 2  # members (pair + voters) a seeded group needs
+    reassign_iters: int = 3  # rounds of re-assignment and refitting
     # --- numeric defaults (become a traced Thresholds) ---
     alpha_tau: float = 2.0
     tau_min_px: float = 1.0
@@ -105,6 +111,8 @@ class Config(Method):
     # leaves room above recovery's attach gate (recover_frac · τ, 2 τ in extended()).
     min_parallax_deg: float = DEFAULT_MIN_PARALLAX_DEG
     max_err_frac: float = 3.0
+    seed_frac: float = 2.0
+    reassign_frac: float = 2.0
 
     def __post_init__(self):
         choices = {
@@ -117,10 +125,12 @@ class Config(Method):
         for name, allowed in choices.items():
             if getattr(self, name) not in allowed:
                 raise ValueError(f"Config.{name} must be one of {allowed}; got {getattr(self, name)!r}")
-        for name in ("max_split_iters", "max_iqr_iters", "refine_max_steps", "jump_min_gaps"):
+        for name in ("max_split_iters", "max_iqr_iters", "refine_max_steps", "jump_min_gaps", "reassign_iters"):
             value = getattr(self, name)
             if not isinstance(value, int) or isinstance(value, bool) or value < 1:
                 raise ValueError(f"Config.{name} must be a positive int; got {value!r}")
+        if not isinstance(self.seed_min_views, int) or isinstance(self.seed_min_views, bool) or self.seed_min_views < 2:
+            raise ValueError(f"Config.seed_min_views must be an int >= 2; got {self.seed_min_views!r}")
         for field in dataclasses.fields(self):
             if field.type == "bool" and not isinstance(getattr(self, field.name), bool):
                 raise TypeError(f"Config.{field.name} must be True or False; got {getattr(self, field.name)!r}")
@@ -241,7 +251,7 @@ def regroup_stage(scene: Scene, state: State, options: RegroupOptions) -> State:
 
 
 REGROUP = Stage("regroup", regroup_stage, RegroupOptions, lambda config: config.regroup)
-_REFIT_WHEN = lambda config: config.recover or config.regroup  # noqa: E731
+_REFIT_WHEN = lambda config: config.recover or config.regroup or config.seed or config.reassign  # noqa: E731
 
 STAGES: tuple[Stage, ...] = (
     *ASSOCIATION,
@@ -251,6 +261,9 @@ STAGES: tuple[Stage, ...] = (
     SUPPORT,
     RECOVER,
     REGROUP,
+    SEED,
+    REASSIGN,
+    SEED._replace(name="seed_again", when=lambda config: config.seed and config.reassign),
     FIT._replace(name="refit", when=_REFIT_WHEN),
     SUPPORT._replace(name="support_again", when=lambda config: config.support_filter and _REFIT_WHEN(config)),
     REFINE,

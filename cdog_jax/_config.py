@@ -50,6 +50,8 @@ class Thresholds(NamedTuple):
     support_ref_views: Float[Array, ""]  # support filter: members of the groups that estimate it
     min_parallax_deg: Float[Array, ""]  # validity gate: largest angle between members' lines of sight
     max_err_frac: Float[Array, ""]  # validity gate: every member's reprojection error <= frac * tau
+    seed_frac: Float[Array, ""]  # seeding: a detection within frac * tau votes for a two-view point
+    reassign_frac: Float[Array, ""]  # re-assignment: a detection joins its nearest point within frac * tau
 
 
 DEFAULT_MIN_PARALLAX_DEG = 1.0
@@ -100,6 +102,8 @@ RANGES: dict[str, Range] = {
     "support_ref_views": Range(),
     "min_parallax_deg": Range(0.0, 90.0, high_open=True),  # validity gate, degrees
     "max_err_frac": Range(0.0, low_open=True),  # validity gate, a multiple of τ
+    "seed_frac": Range(0.0, low_open=True),  # seeding's vote gate, a multiple of τ
+    "reassign_frac": Range(0.0, low_open=True),  # re-assignment's gate, a multiple of τ
 }
 
 
