@@ -63,8 +63,9 @@ class Config(Method):
     The stages that run and the options each one reads are listed once, in order, in
     ``cdog_jax/_cdog.py`` (docs/ARCHITECTURE.md); the fields below are grouped by stage.
 
-    Presets: :meth:`paper` (the paper's method, our defaults) and :meth:`reference` (the
-    original public implementation's behaviour, docs/BENCHMARK.md §5).
+    Presets: :meth:`paper` (the paper's method, our defaults), :meth:`extended` (beyond the
+    paper), :meth:`best` (the most accurate; the default method of ``associate``) and
+    :meth:`reference` (the original public implementation's behaviour, docs/BENCHMARK.md §5).
     """
 
     # --- structure (part of the jit key) ---
@@ -148,6 +149,17 @@ class Config(Method):
         by reprojection (``recover``) and what is still left is associated again
         (``regroup``). Recovers most points the paper's pruning loses (2-view points above all)."""
         base = dict(adjacency="union", recover=True, recover_frac=2.0, regroup=True)
+        base.update(overrides)
+        return cls(**base)
+
+    @classmethod
+    def best(cls, **overrides) -> "Config":
+        """Our most accurate C-DOG, the default: :meth:`extended`, then groups seeded from
+        two-view hypotheses on what is still left (``seed``), rounds of nearest-point
+        re-assignment with merging of split groups (``reassign``), and seeding once more on
+        what those rounds detached. Leaves few detections unassigned at large σ, where
+        pruning and the IQR leave most of a dense scene over (docs/ALGORITHM.md §8e–8f)."""
+        base = dict(adjacency="union", recover=True, recover_frac=2.0, regroup=True, seed=True, reassign=True)
         base.update(overrides)
         return cls(**base)
 
@@ -331,6 +343,7 @@ def associate_traced(
     )
 
 
+register_method("best", Config.best)
 register_method("extended", Config.extended)
 register_method("paper", Config.paper)
 register_method("reference", Config.reference)

@@ -7,7 +7,7 @@ import dataclasses
 from cdog_jax import STAGES, Config
 from cdog_jax._cdog import plan
 
-SWITCHES = {"iqr", "second_association", "bpe_filter", "support_filter", "recover", "regroup", "refine"}
+SWITCHES = {"iqr", "second_association", "bpe_filter", "support_filter", "recover", "regroup", "refine", "seed", "reassign"}
 METHOD_LEVEL = {"sigma_mode"}  # read by associate_traced itself (σ given or estimated)
 
 
@@ -19,6 +19,10 @@ def test_each_preset_runs_its_stages_in_order():
     assert _names(Config.paper()) == ["graph", "iqr", "fit", "bpe_filter", "validity_gate"]
     assert _names(Config.reference()) == ["graph", "iqr", "second_association", "fit", "validity_gate"]
     assert _names(Config.extended()) == ["graph", "iqr", "fit", "bpe_filter", "recover", "regroup", "refit", "validity_gate"]
+    assert _names(Config.best()) == [
+        "graph", "iqr", "fit", "bpe_filter", "recover", "regroup", "seed", "reassign", "seed_again", "refit", "validity_gate",
+    ]
+    assert _names(Config.paper(reassign=True)) == ["graph", "iqr", "fit", "bpe_filter", "reassign", "refit", "validity_gate"]
     everything = Config.extended(support_filter=True, refine=True, second_association=True)
     assert _names(everything) == [
         "graph", "iqr", "second_association", "fit", "bpe_filter", "support", "recover", "regroup", "refit",
