@@ -112,7 +112,7 @@ class Config(Method):
     # leaves room above recovery's attach gate (recover_frac · τ, 2 τ in extended()).
     min_parallax_deg: float = DEFAULT_MIN_PARALLAX_DEG
     max_err_frac: float = 3.0
-    seed_frac: float = 2.0
+    seed_frac: float = 1.5
     reassign_frac: float = 2.0
 
     def __post_init__(self):
@@ -224,6 +224,11 @@ class Config(Method):
             stages.append(f * (num_views / 2.0 + 1.0))  # (G, M, N) distances beside d
         if self.recover or self.regroup:
             stages.append(3.0 * f + 6.0)  # d kept for regrouping, (G, N, 2) differences
+        if self.seed:
+            # (H, M, P) hypothesis tables with H = N·M, M·N² entries each: the distances, the
+            # votes and about half a table of differences that XLA does not fuse, beside d
+            # and the symmetric cost (checked against memory_analysis() at M = 4 and 8).
+            stages.append(num_views * (1.5 * f + 1.0) + 3.0 * f)
         coeff = max(stages)
         if self.support_filter and (self.recover or self.regroup):
             coeff += f  # (G, M, P, 2) differences while the regrouped tables are alive
