@@ -186,14 +186,20 @@ def compare(jx, orc, tight=True):
 
 
 def stage_ladder(cfg):
-    """Configs switching the later stages on one at a time (graph only, +IQR, +second, +BPE)."""
-    rungs = [("graph §1-5", cfg.replace(iqr=False, second_association=False, bpe_filter=False))]
+    """Configs switching the later stages on one at a time (graph only, +IQR, +second, +BPE,
+    +recovery and regrouping, +seeding and re-assignment)."""
+    late = dict(recover=False, regroup=False, seed=False, reassign=False)
+    rungs = [("graph §1-5", cfg.replace(iqr=False, second_association=False, bpe_filter=False, **late))]
     if cfg.iqr:
-        rungs.append(("+IQR §6", cfg.replace(second_association=False, bpe_filter=False)))
+        rungs.append(("+IQR §6", cfg.replace(second_association=False, bpe_filter=False, **late)))
     if cfg.second_association:
-        rungs.append(("+second §7", cfg.replace(bpe_filter=False)))
+        rungs.append(("+second §7", cfg.replace(bpe_filter=False, **late)))
     if cfg.bpe_filter:
-        rungs.append(("+BPE filter §8", cfg))
+        rungs.append(("+BPE filter §8", cfg.replace(**late)))
+    if cfg.recover or cfg.regroup:
+        rungs.append(("+recovery, regrouping §8b-c", cfg.replace(seed=False, reassign=False)))
+    if cfg.seed or cfg.reassign:
+        rungs.append(("+seeding, re-assignment §8f-g", cfg))
     return rungs
 
 
