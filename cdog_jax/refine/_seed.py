@@ -11,7 +11,7 @@ votes for it. Hypotheses are ranked by votes (more first), then mean reprojectio
 over all their members (smaller first), then index; in that order each one whose two
 detections are both still free becomes a group of its pair and its voters that are still
 free (one per view). The loop jumps from one accepted hypothesis to the next, so it runs
-at most once per new group and its bound (``N // 2 + 1`` steps) cannot be reached.
+at most once per new group (at most ``N // 2 + 1`` steps) and has no bound to reach.
 """
 
 from typing import NamedTuple
