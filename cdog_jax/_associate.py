@@ -91,8 +91,8 @@ def associate(
         xy: ``(M, P, 2)`` detections (pixels); ``P`` is a padded capacity.
         mask: ``(M, P)`` bool, True where a slot holds a detection.
         method: a :class:`~cdog_jax.Method` (e.g. a C-DOG :class:`~cdog_jax.Config`) or the
-            name of a registered one (:func:`cdog_jax.method_names`): ``"extended"`` (the
-            default, our best), ``"paper"`` (the paper's C-DOG), ``"reference"`` (the
+            name of a registered one (:func:`cdog_jax.method_names`): ``"best"`` (the
+            default, the most accurate), ``"extended"``, ``"paper"`` (the paper's C-DOG), ``"reference"`` (the
             original code's choices), or any method registered with
             :func:`cdog_jax.register_method`.
         sigma: 2D noise std in pixels, or ``"auto"`` to estimate it (ALGORITHM.md §0.1).

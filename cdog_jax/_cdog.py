@@ -38,8 +38,10 @@ from .refine._bpe_filter import BPE_FILTER
 from .refine._fit import FIT
 from .refine._least_squares import REFINE
 from .refine._outliers import IQR
+from .refine._reassign import REASSIGN
 from .refine._recovery import RECOVER
 from .refine._second_association import SECOND_ASSOCIATION
+from .refine._seed import SEED
 from .refine._support import SUPPORT
 from .refine._validity import VALIDITY
 
@@ -79,7 +81,7 @@ REGROUP = Stage(
     Switch("regroup", False, "run Alg. 1–3 again on what is left (beyond the paper)"),
     options_from=lambda config: RegroupOptions(plan(config, ASSOCIATION)),
 )
-_REFIT_WHEN = lambda config: config.recover or config.regroup  # noqa: E731
+_REFIT_WHEN = lambda config: config.recover or config.regroup or config.seed or config.reassign  # noqa: E731
 
 STAGES: tuple[Stage, ...] = (
     *ASSOCIATION,
@@ -89,6 +91,9 @@ STAGES: tuple[Stage, ...] = (
     SUPPORT,
     RECOVER,
     REGROUP,
+    SEED,
+    REASSIGN,
+    SEED._replace(name="seed_again", when=lambda config: config.seed and config.reassign),
     FIT._replace(name="refit", when=_REFIT_WHEN),
     SUPPORT._replace(name="support_again", when=lambda config: config.support_filter and _REFIT_WHEN(config)),
     REFINE,
@@ -218,6 +223,17 @@ class ConfigMethods(Method):
         return cls(**base)
 
     @classmethod
+    def best(cls, **overrides) -> "Config":
+        """Our most accurate C-DOG, the default: :meth:`extended`, then groups seeded from
+        two-view hypotheses on what is still left (``seed``), rounds of nearest-point
+        re-assignment with merging of split groups (``reassign``), and seeding once more on
+        what those rounds detached. Leaves few detections unassigned at large σ, where
+        pruning and the IQR leave most of a dense scene over (docs/ALGORITHM.md §8f–8g)."""
+        base = dict(adjacency="union", recover=True, recover_frac=2.0, regroup=True, seed=True, reassign=True)
+        base.update(overrides)
+        return cls(**base)
+
+    @classmethod
     def reference(cls, **overrides) -> "Config":
         """The original public code's choices (docs/BENCHMARK.md §5): fixed τ = 10 px, δ-pruning only of
         view-conflicting components, IQR α = 1.5 on positive scores with own errors and the
@@ -277,6 +293,11 @@ class ConfigMethods(Method):
             stages.append(f * (num_views / 2.0 + 1.0))  # (G, M, N) distances beside d
         if self.recover or self.regroup:
             stages.append(3.0 * f + 6.0)  # d kept for regrouping, (G, N, 2) differences
+        if self.seed:
+            # (H, M, P) hypothesis tables with H = N·M, M·N² entries each: the distances, the
+            # votes and about half a table of differences that XLA does not fuse, beside d
+            # and the symmetric cost (checked against memory_analysis() at M = 4 and 8).
+            stages.append(num_views * (1.5 * f + 1.0) + 3.0 * f)
         coeff = max(stages)
         if self.support_filter and (self.recover or self.regroup):
             coeff += f  # (G, M, P, 2) differences while the regrouped tables are alive
@@ -300,8 +321,8 @@ key; traced: a number):
 {fields}
 
 Presets: :meth:`paper` (the paper's method, our defaults), :meth:`extended` (beyond the
-paper) and :meth:`reference` (the original public implementation's behaviour,
-docs/BENCHMARK.md §5).
+paper), :meth:`best` (the most accurate; the default method of ``associate``) and
+:meth:`reference` (the original public implementation's behaviour, docs/BENCHMARK.md §5).
 """
 
 
@@ -330,6 +351,7 @@ Thresholds = Config.numbers_type
 RANGES = Config.ranges
 """Every number's allowed range (``sigma_px`` included), from the stages' declarations."""
 
+register_method("best", Config.best)
 register_method("extended", Config.extended)
 register_method("paper", Config.paper)
 register_method("reference", Config.reference)

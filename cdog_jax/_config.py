@@ -71,6 +71,12 @@ class Switch(NamedTuple):
         return getattr(config, self.name)
 
 
+class AtLeast(NamedTuple):
+    """A structural ``int`` option's lower bound other than 1, as ``Annotated[int, AtLeast(2)]``."""
+
+    low: int
+
+
 class OptionGroup(NamedTuple):
     """Options read before any stage runs (by ``associate_traced`` itself), declared like a
     stage's: ``options`` a ``NamedTuple`` of structural fields with defaults, ``numbers`` a

@@ -19,7 +19,7 @@ from typing import Literal, NamedTuple
 import jax
 import numpy as np
 
-from ._config import Number, Numbers, Range, Switch, check_number
+from ._config import AtLeast, Number, Numbers, Range, Switch, check_number
 from ._types import Array, Float
 
 STRUCTURAL, NUMERIC = "structural", "numeric"
@@ -56,10 +56,11 @@ def _check_bool(name: str):
     return check
 
 
-def _check_positive_int(name: str):
+def _check_positive_int(name: str, low: int = 1):
     def check(value, where: str) -> None:
-        if not isinstance(value, int) or isinstance(value, bool) or value < 1:
-            raise ValueError(f"{where}.{name} must be a positive int; got {value!r}")
+        if not isinstance(value, int) or isinstance(value, bool) or value < low:
+            described = "a positive int" if low == 1 else f"an int >= {low}"
+            raise ValueError(f"{where}.{name} must be {described}; got {value!r}")
 
     return check
 
@@ -76,6 +77,9 @@ def _structural(name: str, owner: str, hint, default) -> OptionSpec:
         check, described = _check_bool(name), "bool"
     elif hint is int:
         check, described = _check_positive_int(name), "positive int"
+    elif typing.get_origin(hint) is typing.Annotated and typing.get_args(hint)[0] is int:
+        low = next(m.low for m in typing.get_args(hint)[1:] if isinstance(m, AtLeast))
+        check, described, hint = _check_positive_int(name, low), f"int >= {low}", int
     else:
         raise TypeError(f"stage {owner!r}: option {name} has type {hint!r}; use a Literal, bool or int (or a Number)")
     check(default, f"stage {owner!r} default")
@@ -94,7 +98,7 @@ def _declared(group) -> list[OptionSpec]:
     if isinstance(when, Switch):
         specs.append(OptionSpec(when.name, group.name, when.default, STRUCTURAL, bool, _check_bool(when.name), f"bool. {when.doc}".strip(" .")))
     if group.options is not None and getattr(group, "options_from", None) is None:
-        hints = typing.get_type_hints(group.options)
+        hints = typing.get_type_hints(group.options, include_extras=True)
         for name in group.options._fields:
             if name not in group.options._field_defaults:
                 raise TypeError(f"stage {group.name!r}: option {name} of {group.options.__name__} needs a default")

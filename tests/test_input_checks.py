@@ -176,7 +176,7 @@ def test_method_by_registered_name(scene):
     by_name = associate(rig, xy, mask, method="paper")
     np.testing.assert_array_equal(by_name.labels, associate(rig, xy, mask, method=Config.paper()).labels)
     np.testing.assert_array_equal(by_name.labels, associate(rig, xy, mask, config="paper").labels)  # the older name
-    with pytest.raises(ValueError, match=r"associate: unknown method 'papr'; registered: extended, paper, reference"):
+    with pytest.raises(ValueError, match=r"associate: unknown method 'papr'; registered: best, extended, paper, reference"):
         associate(rig, xy, mask, method="papr")
     with pytest.raises(TypeError, match="associate_batch: method must be a Method or a registered name .*got int"):
         plain(associate_batch)(rig, xy[None], mask[None], method=3)
