@@ -1,9 +1,9 @@
 """cdog_jax: multi-view, multi-instance point association with connected δ-overlap graphs."""
 
-from ._classes import ClassAssociation as ClassAssociation, associate_classes as associate_classes
+from ._classes import ClassAssociation as ClassAssociation, associate_classes as associate_classes, class_sigmas as class_sigmas
 from ._associate import associate as associate, associate_batch as associate_batch
 from ._cdog import Config as Config, STAGES as STAGES, associate_traced as associate_traced
-from ._config import Thresholds as Thresholds
+from ._cdog import Thresholds as Thresholds
 from ._memory import estimate_peak_bytes as estimate_peak_bytes
 from ._table_method import GroupTableMethod as GroupTableMethod
 from ._method import (

@@ -48,9 +48,10 @@ def _prepare(method: Method, sigma, thresholds, dtype):
     if thresholds is not None:
         method.check_thresholds(thresholds)
     if isinstance(sigma, str):
-        method = method.replace(sigma_mode="auto")
+        if method.sigma_mode == "given":  # a method that estimates σ keeps its estimator
+            method = method.replace(sigma_mode="auto")
         sigma = 0.0
-    elif method.sigma_mode == "auto":
+    elif method.sigma_mode != "given":
         pass  # the method asks for the estimate; a given sigma is ignored
     if thresholds is None:
         thresholds = method.thresholds(sigma, dtype=dtype)
@@ -91,11 +92,12 @@ def associate(
         xy: ``(M, P, 2)`` detections (pixels); ``P`` is a padded capacity.
         mask: ``(M, P)`` bool, True where a slot holds a detection.
         method: a :class:`~cdog_jax.Method` (e.g. a C-DOG :class:`~cdog_jax.Config`) or the
-            name of a registered one (:func:`cdog_jax.method_names`): ``"extended"`` (the
-            default, our best), ``"paper"`` (the paper's C-DOG), ``"reference"`` (the
+            name of a registered one (:func:`cdog_jax.method_names`): ``"best"`` (the
+            default, the most accurate), ``"extended"``, ``"paper"`` (the paper's C-DOG), ``"reference"`` (the
             original code's choices), or any method registered with
             :func:`cdog_jax.register_method`.
-        sigma: 2D noise std in pixels, or ``"auto"`` to estimate it (ALGORITHM.md §0.1).
+        sigma: 2D noise std in pixels, or ``"auto"`` to estimate it (ALGORITHM.md §0.1; by
+            the method's estimator when its ``sigma_mode`` is ``"robust"``).
         thresholds: overrides the method's numbers (``method.thresholds()``'s type; for
             sweeps, arrays welcome).
         dist: optional ``(M, 5)`` OpenCV distortion ``(k1, k2, p1, p2, k3)`` per view (or a

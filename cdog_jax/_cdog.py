@@ -1,224 +1,50 @@
-"""C-DOG, the method (docs/ALGORITHM.md): its options and presets (:class:`Config`), its
-stages in order (:data:`STAGES`), and :func:`associate_traced`, the pure function of one
-scene that runs them.
+"""C-DOG, the method (docs/ALGORITHM.md): its stages in order (:data:`STAGES`), its
+options and presets (:class:`Config`), and :func:`associate_traced`, the pure function of
+one scene that runs them.
 
 Every stage has one signature, ``stage(scene, state, options) -> state``
-(``cdog_jax/_stage.py``), lives in the file of its rule (``graph/``, ``refine/``) with its
-own options, and appears once below; a preset is a :class:`Config`, whose switches decide
-which stages run.
+(``cdog_jax/_stage.py``), lives in the file of its rule (``graph/``, ``refine/``) with the
+declaration of its own options, and appears once below. :class:`Config`'s fields, their
+defaults and checks, the traced :class:`Thresholds` and :data:`RANGES` are derived from
+those declarations (``cdog_jax/_options.py``); a preset is a :class:`Config`, whose switches
+decide which stages run.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import NamedTuple
+from typing import ClassVar, NamedTuple
 
 import jax.numpy as jnp
 import numpy as np
 import jax
 
-from ._config import (
-    _NUMERIC,
-    DEFAULT_MIN_PARALLAX_DEG,
-    Adjacency,
-    IqrQuartiles,
-    IqrScore,
-    PruneScope,
-    SigmaMode,
-    TauMode,
-    ThresholdUnit,
-    Thresholds,
-    check_number,
-    check_thresholds,
-    gauss_coverage,
-    tau_px,
-    thresholds_in_pixels,
-)
+from ._config import Number, Numbers, OptionGroup, SigmaMode, Switch, TauMode, ThresholdUnit, gauss_coverage, tau_px, thresholds_in_pixels
 from ._expect import expect_args
 from ._method import Method, Observations, register_method
+from ._options import NUMERIC, check_thresholds, declared_options, describe, ranges, thresholds_type, units
 from ._result import Association, association_from_groups
 from ._stage import GroupTable, Scene, Stage, State, raise_flag
 from ._status import Status
-from ._types import Array, Bool, Float
+from ._types import Array, Bool, Float, Int
 from .geometry._camera import Rig
 from .geometry._epipolar import epipolar_distances
 from .geometry._triangulate import dlt_blocks
 from .graph._graph_stage import GRAPH
 from .graph._groups import compact_groups
-from .graph._sigma import estimate_noise, focal_scale
+from .graph._sigma import estimate_sigma, focal_scale
+from .graph._sigma_robust import estimate_noise
 from .refine._attach import leftover_nodes
 from .refine._bpe_filter import BPE_FILTER
 from .refine._fit import FIT
 from .refine._least_squares import REFINE
 from .refine._outliers import IQR
+from .refine._reassign import REASSIGN
 from .refine._recovery import RECOVER
 from .refine._second_association import SECOND_ASSOCIATION
+from .refine._seed import SEED
 from .refine._support import SUPPORT
 from .refine._validity import VALIDITY
-
-
-@dataclasses.dataclass(frozen=True)
-class Config(Method):
-    """C-DOG, the method: its options and presets. Structural fields change the compiled
-    program; numeric ones do not (they become :class:`Thresholds`).
-
-    The stages that run and the options each one reads are listed once, in order, in
-    ``cdog_jax/_cdog.py`` (docs/ARCHITECTURE.md); the fields below are grouped by stage.
-
-    Presets: :meth:`paper` (the paper's method, our defaults) and :meth:`reference` (the
-    original public implementation's behaviour, docs/BENCHMARK.md §5).
-    """
-
-    # --- structure (part of the jit key) ---
-    adjacency: Adjacency = "mutual"
-    prune_scope: PruneScope = "all"
-    iqr: bool = True
-    iqr_score: IqrScore = "exclude_own"
-    iqr_quartiles: IqrQuartiles = "zero_pad"
-    iqr_guards: bool = False  # reference's 10 px / 50 px rules
-    second_association: bool = False
-    recover: bool = False  # attach leftovers to groups by reprojection (beyond the paper)
-    regroup: bool = False  # run Alg. 1-3 again on what is left (beyond the paper)
-    support_filter: bool = False  # drop groups that views seeing their point do not detect
-    bpe_filter: bool = True
-    refine: bool = False
-    sigma_mode: SigmaMode = "given"
-    # --- units and gates (ALGORITHM.md §0): "focal": every length threshold (σ given,
-    # tau_min_px, iqr_*_px; jump_floor_px2 squared) is a fraction of the focal length;
-    # "fitted": with σ estimated, τ is the erf(α_τ/√2)-quantile of the fitted true-pair distance.
-    threshold_unit: ThresholdUnit = "px"
-    tau_mode: TauMode = "gaussian"
-    max_split_iters: int = 64
-    max_iqr_iters: int = 16
-    refine_max_steps: int = 20
-    jump_min_gaps: int = 3  # gaps needed before a jump can be declared
-    # --- numeric defaults (become a traced Thresholds) ---
-    alpha_tau: float = 2.0
-    tau_min_px: float = 1.0
-    delta: float = 0.5
-    iqr_alpha: float = 2.0
-    iqr_floor_px: float = 1.0
-    iqr_min_px: float = 10.0
-    iqr_force_px: float = 50.0
-    jump_kappa: float = 10.0
-    jump_floor_px2: float = 4.0
-    jump_floor_sigma: float = 3.0
-    second_frac: float = 0.5
-    recover_frac: float = 1.0
-    support_frac: float = 3.0
-    support_alpha: float = 0.01
-    support_min_rate: float = 0.02
-    support_ref_views: float = 4.0
-    # The validity gate every valid group passes (ALGORITHM.md §12). 1° is far below the
-    # parallax of any benchmark group and well above what float32 can triangulate; 3 τ
-    # leaves room above recovery's attach gate (recover_frac · τ, 2 τ in extended()).
-    min_parallax_deg: float = DEFAULT_MIN_PARALLAX_DEG
-    max_err_frac: float = 3.0
-
-    def __post_init__(self):
-        choices = {
-            "adjacency": ("mutual", "union"),
-            "prune_scope": ("all", "conflicts", "none"),
-            "iqr_score": ("exclude_own", "include_own"),
-            "iqr_quartiles": ("zero_pad", "positive"),
-            "sigma_mode": ("given", "auto"),
-            "threshold_unit": ("px", "focal"),
-            "tau_mode": ("gaussian", "fitted"),
-        }
-        for name, allowed in choices.items():
-            if getattr(self, name) not in allowed:
-                raise ValueError(f"Config.{name} must be one of {allowed}; got {getattr(self, name)!r}")
-        for name in ("max_split_iters", "max_iqr_iters", "refine_max_steps", "jump_min_gaps"):
-            value = getattr(self, name)
-            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
-                raise ValueError(f"Config.{name} must be a positive int; got {value!r}")
-        for field in dataclasses.fields(self):
-            if field.type == "bool" and not isinstance(getattr(self, field.name), bool):
-                raise TypeError(f"Config.{field.name} must be True or False; got {getattr(self, field.name)!r}")
-        for name in _NUMERIC:
-            check_number(getattr(self, name), name, "Config")
-
-    @classmethod
-    def paper(cls, **overrides) -> "Config":
-        """The paper's C-DOG (Alg. 1–3 and §IV-E) with noise-matched τ."""
-        return cls(**overrides)
-
-    @classmethod
-    def extended(cls, **overrides) -> "Config":
-        """Beyond the paper: union adjacency, then leftover detections are attached to groups
-        by reprojection (``recover``) and what is still left is associated again
-        (``regroup``). Recovers most points the paper's pruning loses (2-view points above all)."""
-        base = dict(adjacency="union", recover=True, recover_frac=2.0, regroup=True)
-        base.update(overrides)
-        return cls(**base)
-
-    @classmethod
-    def reference(cls, **overrides) -> "Config":
-        """The original public code's choices (docs/BENCHMARK.md §5): fixed τ = 10 px, δ-pruning only of
-        view-conflicting components, IQR α = 1.5 on positive scores with own errors and the
-        10/50 px guards, no BPE filter, then the second association."""
-        base = dict(
-            adjacency="mutual",
-            prune_scope="conflicts",
-            iqr_alpha=1.5,
-            iqr_floor_px=0.0,
-            iqr_score="include_own",
-            iqr_quartiles="positive",
-            iqr_guards=True,
-            bpe_filter=False,
-            second_association=True,
-            alpha_tau=0.0,
-            tau_min_px=10.0,
-        )
-        base.update(overrides)
-        return cls(**base)
-
-    def replace(self, **changes) -> "Config":
-        """A copy with ``changes`` applied; checked like a new Config."""
-        return dataclasses.replace(self, **changes)
-
-    def thresholds(self, sigma_px=0.0, *, dtype=None) -> Thresholds:
-        """The numeric fields (and σ) as a :class:`Thresholds` of scalar arrays.
-
-        NumPy scalars (cheap to pass to a jitted function), except that a JAX ``sigma_px``
-        (traced, or batched) stays a JAX array.
-        """
-        dtype = np.dtype(jax.dtypes.canonicalize_dtype(dtype or jnp.float32))
-        values = {name: np.asarray(getattr(self, name), dtype) for name in _NUMERIC}
-        sigma = jnp.asarray(sigma_px, dtype) if isinstance(sigma_px, jax.Array) else np.asarray(sigma_px, dtype)
-        return Thresholds(sigma_px=sigma, **values)
-
-    def structure(self) -> "Config":
-        """This config with its numeric fields reset to the defaults: the part a jit key needs."""
-        defaults = Config()
-        return dataclasses.replace(self, **{name: getattr(defaults, name) for name in _NUMERIC})
-
-    def check_thresholds(self, thresholds: Thresholds) -> None:
-        """Raise for a concrete threshold outside its range (:data:`RANGES`)."""
-        check_thresholds(thresholds)
-
-    def associate_scene(self, rig, observations: Observations, thresholds: Thresholds):
-        """C-DOG on one scene (:func:`cdog_jax.associate_traced`); ``observations.weights``
-        are applied by the callers when the final points are triangulated."""
-        return associate_traced(rig, observations.xy, observations.mask, thresholds, self)
-
-    def table_bytes(self, num_views: int, itemsize: int) -> float:
-        """Bytes per ``N²`` at the peak of one scene, by the stages that run (the coefficients
-        were checked against XLA's ``memory_analysis()``, ALGORITHM.md §14)."""
-        f = float(itemsize)
-        # d and its masked copy, the proposal/adjacency bool tables, and (above N ≈ 10⁴, where
-        # XLA stops reusing some of them) about 2 more bytes per pair.
-        stages = [2.0 * f + 5.0]
-        if self.second_association:
-            stages.append(f * (num_views / 2.0 + 1.0))  # (G, M, N) distances beside d
-        if self.recover or self.regroup:
-            stages.append(3.0 * f + 6.0)  # d kept for regrouping, (G, N, 2) differences
-        coeff = max(stages)
-        if self.support_filter and (self.recover or self.regroup):
-            coeff += f  # (G, M, P, 2) differences while the regrouped tables are alive
-        if self.refine:
-            coeff += 0.5 * f
-        return coeff
 
 
 # --------------------------------------------------------------------------- the stages
@@ -251,8 +77,12 @@ def regroup_stage(scene: Scene, state: State, options: RegroupOptions) -> State:
     return State(_merge_groups(state.table, again.table), None, state.status | again.status)
 
 
-REGROUP = Stage("regroup", regroup_stage, RegroupOptions, lambda config: config.regroup)
-_REFIT_WHEN = lambda config: config.recover or config.regroup  # noqa: E731
+REGROUP = Stage(
+    "regroup", regroup_stage, RegroupOptions,
+    Switch("regroup", False, "run Alg. 1–3 again on what is left (beyond the paper)"),
+    options_from=lambda config: RegroupOptions(plan(config, ASSOCIATION)),
+)
+_REFIT_WHEN = lambda config: config.recover or config.regroup or config.seed or config.reassign  # noqa: E731
 
 STAGES: tuple[Stage, ...] = (
     *ASSOCIATION,
@@ -262,6 +92,9 @@ STAGES: tuple[Stage, ...] = (
     SUPPORT,
     RECOVER,
     REGROUP,
+    SEED,
+    REASSIGN,
+    SEED._replace(name="seed_again", when=lambda config: config.seed and config.reassign),
     FIT._replace(name="refit", when=_REFIT_WHEN),
     SUPPORT._replace(name="support_again", when=lambda config: config.support_filter and _REFIT_WHEN(config)),
     REFINE,
@@ -271,17 +104,45 @@ STAGES: tuple[Stage, ...] = (
 fit and the support filter after recovery and regrouping) is the same stage listed again."""
 
 
+class SceneOptions(NamedTuple):
+    """Where σ comes from, the gate τ and the unit of lengths. ``sigma_mode``: σ given by the
+    caller, or estimated from the scene's epipolar distances (``"auto"``: the half-normal
+    fit; ``"robust"``: half-t fits too, σ from the median true-pair distance; ALGORITHM.md
+    §0.1). ``tau_mode``: ``"gaussian"``, τ from σ and the numbers below; ``"fitted"``, τ is
+    the ``erf(alpha_tau/√2)``-quantile of the fitted true-pair distance (with
+    ``sigma_mode="robust"`` only; else the Gaussian τ). ``threshold_unit``: ``"px"``;
+    ``"focal"``, every length (σ given, ``tau_min_px``, the numbers of unit px) is in pixels
+    of a camera of focal length 1000 px (ALGORITHM.md §0)."""
+
+    sigma_mode: SigmaMode = "given"
+    tau_mode: TauMode = "gaussian"
+    threshold_unit: ThresholdUnit = "px"
+
+
+SCENE = OptionGroup(
+    "scene", SceneOptions,
+    numbers=(
+        Number("alpha_tau", 2.0, doc="gate τ = max(alpha_tau · √2 · σ, tau_min_px)"),
+        Number("tau_min_px", 1.0, doc="the gate's lower bound (pixels)", unit="px"),
+    ),
+)
+"""The options :func:`associate_traced` reads itself, before the stages."""
+
+
 def stage_options(stage: Stage, config: "Config"):
-    """The stage's own options, read from ``config`` (``None`` for a stage without any)."""
+    """The stage's own options, read from ``config`` by name (``None`` for a stage without
+    any; made by ``stage.options_from`` when it has one)."""
+    if stage.options_from is not None:
+        return stage.options_from(config)
     if stage.options is None:
         return None
-    if stage.options is RegroupOptions:
-        return RegroupOptions(plan(config, ASSOCIATION))
     return stage.options(**{name: getattr(config, name) for name in stage.options._fields})
 
 
-def plan(config: "Config", stages: tuple[Stage, ...] = STAGES) -> tuple[tuple[Stage, object], ...]:
-    """The stages of ``stages`` that run under ``config``, each with its options (static)."""
+def plan(config: "Config", stages: tuple[Stage, ...] | None = None) -> tuple[tuple[Stage, object], ...]:
+    """The stages of ``stages`` (default: the config's own, :data:`STAGES`) that run under
+    ``config``, each with its options (static)."""
+    stages = type(config).stages if stages is None else stages
     return tuple((stage, stage_options(stage, config)) for stage in stages if stage.when(config))
 
 
@@ -296,8 +157,10 @@ def associate_traced(
     rig: Rig,
     xy: Float[Array, "M P 2"],
     mask: Bool[Array, "M P"],
-    thresholds: Thresholds,
+    thresholds: Numbers,
     config: Config,
+    *,
+    classes: Int[Array, "M P"] | None = None,
 ) -> Association:
     """C-DOG on one scene as a pure function; no input checks.
 
@@ -305,21 +168,32 @@ def associate_traced(
         rig: cameras, ``K, R, t`` of shapes ``(M, 3, 3), (M, 3, 3), (M, 3)``.
         xy: ``(M, P, 2)`` detections in pixels; padded slots may hold anything.
         mask: ``(M, P)`` bool, slot holds a detection.
-        thresholds: numeric thresholds and σ (traced; see ``Config.thresholds``).
+        thresholds: numeric thresholds and σ (traced; see ``Config.thresholds``), of the
+            config's type (:class:`Thresholds` for :class:`Config`).
         config: structural configuration (static under ``jit``).
+        classes: optional ``(M, P)`` int class of each detection (a keypoint type): two
+            detections of different classes get an infinite epipolar distance, so the graph
+            never joins them, nor does any stage that reads the distances (σ estimation,
+            the split, regrouping, the second association). Recovery and the support filter
+            do not read them. ``None``: one class.
     """
-    expect_args("associate_traced", rig=(rig, Rig), thresholds=(thresholds, Thresholds), config=(config, Config))
-    th = Thresholds(*(jnp.asarray(v) for v in thresholds))  # NumPy scalars when called eagerly
-    focal = focal_scale(rig.K)
+    kind = type(config).numbers_type if isinstance(config, Config) else Thresholds
+    expect_args("associate_traced", rig=(rig, Rig), thresholds=(thresholds, kind), config=(config, Config))
+    th = kind(*(jnp.asarray(v) for v in thresholds))  # NumPy scalars when called eagerly
     if config.threshold_unit == "focal":
-        th = thresholds_in_pixels(th, focal)
+        th = thresholds_in_pixels(th, focal_scale(rig.K), type(config).units)
     M, P = mask.shape
     xy = jnp.where(mask[..., None], xy, 0.0)  # padding is neutral from here on
     d = epipolar_distances(rig, xy, mask)  # (M, P, M, P)
+    if classes is not None:
+        d = jnp.where(classes[:, :, None, None] == classes[None, None, :, :], d, jnp.inf)
+    fitted = None
     if config.sigma_mode == "auto":
-        sigma, fitted, fallback = estimate_noise(d, mask, focal, gauss_coverage(th.alpha_tau))
+        sigma, fallback = estimate_sigma(d, mask, focal_scale(rig.K))
+    elif config.sigma_mode == "robust":
+        sigma, fitted, fallback = estimate_noise(d, mask, focal_scale(rig.K), gauss_coverage(th.alpha_tau))
     else:
-        sigma, fitted, fallback = th.sigma_px, None, jnp.asarray(False)
+        sigma, fallback = th.sigma_px, jnp.asarray(False)
     tau = tau_px(th, sigma, fitted if config.tau_mode == "fitted" else None)
     scene = Scene(rig, xy, mask, mask.reshape(-1), d, dlt_blocks(rig, xy), sigma, tau, th)
     G = max(M * P // 2, 1)
@@ -332,6 +206,170 @@ def associate_traced(
     )
 
 
+# --------------------------------------------------------------------------- the method
+
+
+class ConfigMethods(Method):
+    """What every C-DOG :class:`Config` does; the fields come from its stage list
+    (:func:`make_config`)."""
+
+    stages: ClassVar[tuple[Stage, ...]]
+    options: ClassVar[dict]  # name -> OptionSpec, in field order
+    numbers_type: ClassVar[type]
+    ranges: ClassVar[dict]
+    units: ClassVar[dict]  # number -> "px", "px2" or "" (threshold_unit="focal" scales the lengths)
+
+    def __post_init__(self):
+        for name, spec in type(self).options.items():
+            spec.check(getattr(self, name), type(self).__name__)
+        if self.tau_mode == "fitted" and self.sigma_mode == "auto":
+            raise ValueError(f"{type(self).__name__}.tau_mode='fitted' reads the robust fit: it needs sigma_mode='robust' (or 'given'); got sigma_mode='auto'")
+
+    @classmethod
+    def paper(cls, **overrides) -> "Config":
+        """The paper's C-DOG (Alg. 1–3 and §IV-E) with noise-matched τ."""
+        return cls(**overrides)
+
+    @classmethod
+    def extended(cls, **overrides) -> "Config":
+        """Beyond the paper: union adjacency, then leftover detections are attached to groups
+        by reprojection (``recover``) and what is still left is associated again
+        (``regroup``). Recovers most points the paper's pruning loses (2-view points above all)."""
+        base = dict(adjacency="union", recover=True, recover_frac=2.0, regroup=True)
+        base.update(overrides)
+        return cls(**base)
+
+    @classmethod
+    def best(cls, **overrides) -> "Config":
+        """Our most accurate C-DOG, the default: :meth:`extended`, then groups seeded from
+        two-view hypotheses on what is still left (``seed``), rounds of nearest-point
+        re-assignment with merging of split groups (``reassign``), and seeding once more on
+        what those rounds detached. Leaves few detections unassigned at large σ, where
+        pruning and the IQR leave most of a dense scene over (docs/ALGORITHM.md §8f–8g)."""
+        base = dict(adjacency="union", recover=True, recover_frac=2.0, regroup=True, seed=True, reassign=True)
+        base.update(overrides)
+        return cls(**base)
+
+    @classmethod
+    def reference(cls, **overrides) -> "Config":
+        """The original public code's choices (docs/BENCHMARK.md §5): fixed τ = 10 px, δ-pruning only of
+        view-conflicting components, IQR α = 1.5 on positive scores with own errors and the
+        10/50 px guards, no BPE filter, then the second association."""
+        base = dict(
+            adjacency="mutual",
+            prune_scope="conflicts",
+            iqr_alpha=1.5,
+            iqr_floor_px=0.0,
+            iqr_score="include_own",
+            iqr_quartiles="positive",
+            iqr_guards=True,
+            bpe_filter=False,
+            second_association=True,
+            alpha_tau=0.0,
+            tau_min_px=10.0,
+        )
+        base.update(overrides)
+        return cls(**base)
+
+    def replace(self, **changes) -> "Config":
+        """A copy with ``changes`` applied; checked like a new Config."""
+        return dataclasses.replace(self, **changes)
+
+    def thresholds(self, sigma_px=0.0, *, dtype=None) -> "Thresholds":
+        """The numeric fields (and σ) as a :class:`Thresholds` of scalar arrays.
+
+        NumPy scalars (cheap to pass to a jitted function), except that a JAX ``sigma_px``
+        (traced, or batched) stays a JAX array.
+        """
+        dtype = np.dtype(jax.dtypes.canonicalize_dtype(dtype or jnp.float32))
+        values = {name: np.asarray(getattr(self, name), dtype) for name in _numbers(type(self))}
+        sigma = jnp.asarray(sigma_px, dtype) if isinstance(sigma_px, jax.Array) else np.asarray(sigma_px, dtype)
+        return type(self).numbers_type(sigma_px=sigma, **values)
+
+    def structure(self) -> "Config":
+        """This config with its numeric fields reset to the defaults: the part a jit key needs."""
+        return dataclasses.replace(self, **{name: type(self).options[name].default for name in _numbers(type(self))})
+
+    def check_thresholds(self, thresholds: "Thresholds") -> None:
+        """Raise for a concrete threshold outside its range (:data:`RANGES`)."""
+        check_thresholds(thresholds, type(self).numbers_type, type(self).ranges)
+
+    def associate_scene(self, rig, observations: Observations, thresholds: Thresholds):
+        """C-DOG on one scene (:func:`cdog_jax.associate_traced`); ``observations.weights``
+        are applied by the callers when the final points are triangulated."""
+        return associate_traced(rig, observations.xy, observations.mask, thresholds, self)
+
+    def table_bytes(self, num_views: int, itemsize: int) -> float:
+        """Bytes per ``N²`` at the peak of one scene, by the stages that run (the coefficients
+        were checked against XLA's ``memory_analysis()``, ALGORITHM.md §14)."""
+        f = float(itemsize)
+        # d and its masked copy, the proposal/adjacency bool tables, and (above N ≈ 10⁴, where
+        # XLA stops reusing some of them) about 2 more bytes per pair.
+        stages = [2.0 * f + 5.0]
+        if self.second_association:
+            stages.append(f * (num_views / 2.0 + 1.0))  # (G, M, N) distances beside d
+        if self.recover or self.regroup:
+            stages.append(3.0 * f + 6.0)  # d kept for regrouping, (G, N, 2) differences
+        if self.seed:
+            # (H, M, P) hypothesis tables with H = N·M, M·N² entries each: the distances, the
+            # votes and about half a table of differences that XLA does not fuse, beside d
+            # and the symmetric cost (checked against memory_analysis() at M = 4 and 8).
+            stages.append(num_views * (1.5 * f + 1.0) + 3.0 * f)
+        coeff = max(stages)
+        if self.support_filter and (self.recover or self.regroup):
+            coeff += f  # (G, M, P, 2) differences while the regrouped tables are alive
+        if self.refine:
+            coeff += 0.5 * f
+        return coeff
+
+
+def _numbers(config_type: type) -> tuple[str, ...]:
+    return tuple(name for name, spec in config_type.options.items() if spec.kind == NUMERIC)
+
+
+_CONFIG_DOC = """C-DOG, the method: its options and presets. Structural options change the compiled
+program; numbers do not (they become a traced :class:`Thresholds`, :meth:`thresholds`).
+
+Each option is declared once, by the stage that reads it (``graph/``, ``refine/``; the
+stage list is :data:`cdog_jax.STAGES`, docs/ARCHITECTURE.md); this class is derived from
+those declarations. Each field, with its default, under its stage (static: part of the jit
+key; traced: a number):
+
+{fields}
+
+Presets: :meth:`paper` (the paper's method, our defaults), :meth:`extended` (beyond the
+paper), :meth:`best` (the most accurate; the default method of ``associate``) and
+:meth:`reference` (the original public implementation's behaviour, docs/BENCHMARK.md §5).
+"""
+
+
+def make_config(stages: tuple[Stage, ...], *, name: str = "Config", base: type = ConfigMethods) -> type:
+    """The frozen, hashable dataclass of C-DOG run as ``stages``: one field per option the
+    stages (and :data:`SCENE`) declare, with its default and its check, and the
+    ``Thresholds`` type of its numbers. :class:`Config` is ``make_config(STAGES)``; a
+    variant with one more stage is ``make_config(stages, base=Config)``."""
+    groups = (SCENE, *stages)
+    options = declared_options(groups)
+    fields = [(n, spec.type, dataclasses.field(default=spec.default)) for n, spec in options.items()]
+    namespace = {
+        "__module__": __name__,
+        "__qualname__": name,
+        "__doc__": _CONFIG_DOC.format(fields=describe(options, groups)),
+        "stages": stages,
+        "options": options,
+        "numbers_type": thresholds_type(options, __name__),
+        "ranges": ranges(options),
+        "units": units(options),
+    }
+    return dataclasses.make_dataclass(name, fields, bases=(base,), namespace=namespace, frozen=True)
+
+
+Config = make_config(STAGES)
+Thresholds = Config.numbers_type
+RANGES = Config.ranges
+"""Every number's allowed range (``sigma_px`` included), from the stages' declarations."""
+
+register_method("best", Config.best)
 register_method("extended", Config.extended)
 register_method("paper", Config.paper)
 register_method("reference", Config.reference)

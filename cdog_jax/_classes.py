@@ -14,6 +14,7 @@ one class by construction, and the graph of a class costs ``(M · P_c)²`` inste
 
 from __future__ import annotations
 
+from functools import partial
 from typing import NamedTuple
 
 import jax
@@ -29,7 +30,8 @@ from .geometry._camera import Rig
 from .geometry._distortion import undistorted
 from .geometry._epipolar import epipolar_distances
 from ._config import REFERENCE_FOCAL_PX
-from .graph._sigma import focal_scale, nearest_samples, sigma_from_samples
+from .graph._sigma import FALLBACK_SIGMA_PX, focal_scale, nearest_samples, sigma_from_samples
+from .graph._sigma_robust import nearest_two_samples, robust_sigma_from_samples
 
 SIGMA_POOLS = ("frame", "all", "scene")
 
@@ -125,7 +127,7 @@ def associate_classes(
         weights = np.asarray(weights)
         if weights.shape != mask.shape:
             raise ValueError(f"weights must have the shape of mask {mask.shape}; got {weights.shape}")
-    if getattr(method, "tau_mode", "gaussian") == "fitted" and (sigma == "auto" or method.sigma_mode == "auto") and sigma_pool != "scene":
+    if getattr(method, "tau_mode", "gaussian") == "fitted" and method.sigma_mode == "robust" and sigma_pool != "scene":
         raise ValueError(f"tau_mode='fitted' fits the gate per scene: it needs sigma_pool='scene'; got sigma_pool={sigma_pool!r}")
     F, M, P = mask.shape
     scenes = _regroup(xy, mask, classes, C, weights)
@@ -133,9 +135,10 @@ def associate_classes(
     if B == 0:
         return _empty(rig, F, M, P, xy.dtype, C, class_names)
     dtype = jax.dtypes.canonicalize_dtype(xy.dtype if np.issubdtype(xy.dtype, np.floating) else np.float64)
-    auto = sigma == "auto" or method.sigma_mode == "auto"
+    auto = sigma == "auto" or method.sigma_mode != "given"
     if auto and sigma_pool != "scene":
-        frame_sigma = _pooled_sigma(rig, scenes, F, dist, dtype, pool=sigma_pool)
+        estimator = "robust" if method.sigma_mode == "robust" else "auto"
+        frame_sigma = _pooled_sigma(rig, scenes, F, dist, dtype, sigma_pool, estimator)
         sigma_arg = np.asarray(frame_sigma[scenes.frame], dtype)
         if getattr(method, "threshold_unit", "px") == "focal":  # the pipeline reads a given σ in focal lengths
             sigma_arg = np.asarray(sigma_arg * (REFERENCE_FOCAL_PX / np.asarray(focal_scale(rig.K), dtype)), dtype)
@@ -156,6 +159,31 @@ def associate_classes(
         ))  # fmt: skip
     result = jax.tree_util.tree_map(lambda *a: np.concatenate([np.asarray(x) for x in a])[:B], *chunks)
     return _map_back(result, scenes, F, M, P, C, class_names)
+
+
+def class_sigmas(rig: Rig, xy, mask, classes, *, estimator: str = "auto", pool: str = "frame", dist=None) -> np.ndarray:
+    """``(F,)`` σ̂ per frame (pixels), as :func:`associate_classes` estimates it with
+    ``sigma="auto"``: from the epipolar nearest-neighbour distances within each class, the
+    samples of all the frame's classes pooled (``pool="all"``: of all frames, one value
+    repeated). ``estimator``: ``"auto"`` or ``"robust"`` (the ``sigma_mode`` whose fit is
+    used, ALGORITHM.md §0.1). ``xy (F, M, P, 2)``, ``mask``, ``classes (F, M, P)`` and
+    ``dist`` as in :func:`associate_classes`. A frame with no class seen in two views gets
+    the fallback σ (``FALLBACK_SIGMA_PX``, 1 px)."""
+    expect_args("class_sigmas", rig=(rig, Rig))
+    if estimator not in ("auto", "robust"):
+        raise ValueError(f"class_sigmas: estimator must be 'auto' or 'robust'; got {estimator!r}")
+    if pool not in ("frame", "all"):
+        raise ValueError(f"class_sigmas: pool must be 'frame' or 'all'; got {pool!r}")
+    xy, mask = np.asarray(as_array(xy)), np.asarray(as_array(mask))
+    check_rig(rig)
+    check_observations(xy, mask, rig.num_views, batched=True)
+    classes = _check_classes(classes, mask)
+    C = _num_classes(classes, mask, None, None)
+    scenes = _regroup(xy, mask, classes, C, None)
+    if len(scenes.frame) == 0:
+        return np.full(mask.shape[0], FALLBACK_SIGMA_PX)
+    dtype = jax.dtypes.canonicalize_dtype(xy.dtype if np.issubdtype(xy.dtype, np.floating) else np.float64)
+    return _pooled_sigma(rig, scenes, mask.shape[0], dist, dtype, pool, estimator)
 
 
 def _check_classes(classes, mask: np.ndarray) -> np.ndarray:
@@ -238,25 +266,28 @@ def _pad_scenes(scenes: _Scenes, batch: int, sigma) -> _Padded:
     return _Padded(pad(scenes.xy), pad(scenes.mask), None if scenes.weights is None else pad(scenes.weights), sigma)
 
 
-@jax.jit
-def _nearest_samples(rig, xy, mask, dist):
+@partial(jax.jit, static_argnames=("robust",))
+def _nearest_samples(rig, xy, mask, dist, robust: bool):
     """The σ estimator's samples of every scene, each ``(B, M, Pc, M)``: a detection's
     epipolar distance to the nearest detection of its scene in every other view, its weight
-    (0: none) and that view's count, on undistorted pixels when ``dist`` is given."""
+    (0: none) and that view's count (``robust``: and the second-nearest distance), on
+    undistorted pixels when ``dist`` is given."""
 
     def one(x, m):
         if dist is not None:
             x = undistorted(rig, x, m, dist)
-        return nearest_samples(epipolar_distances(rig, x, m), m)
+        return (nearest_two_samples if robust else nearest_samples)(epipolar_distances(rig, x, m), m)
 
     return jax.vmap(one)(xy, mask)
 
 
-def _pooled_sigma(rig, scenes: _Scenes, F: int, dist, dtype, pool: str) -> np.ndarray:
-    """``(F,)`` σ per frame by the estimator of ``sigma="auto"`` on the nearest-distance
-    samples of all the frame's class scenes (``pool="all"``: of all frames, one value)."""
+def _pooled_sigma(rig, scenes: _Scenes, F: int, dist, dtype, pool: str, estimator: str) -> np.ndarray:
+    """``(F,)`` σ per frame by the estimator of ``sigma_mode=estimator`` (``"auto"`` or
+    ``"robust"``) on the nearest-distance samples of all the frame's class scenes
+    (``pool="all"``: of all frames, one value)."""
     d = None if dist is None else jnp.asarray(dist, dtype)
-    samples = _nearest_samples(rig, jnp.asarray(scenes.xy, dtype), jnp.asarray(scenes.mask), d)
+    robust = estimator == "robust"
+    samples = _nearest_samples(rig, jnp.asarray(scenes.xy, dtype), jnp.asarray(scenes.mask), d, robust)
     group = scenes.frame if pool == "frame" else np.zeros_like(scenes.frame)
     G = F if pool == "frame" else 1
     start = np.r_[0, np.flatnonzero(np.diff(group)) + 1]  # scenes are sorted by frame
@@ -268,7 +299,8 @@ def _pooled_sigma(rig, scenes: _Scenes, F: int, dist, dtype, pool: str) -> np.nd
         table[group, rank] = a
         tables.append(jnp.asarray(table.reshape(G, -1)))
     focal = focal_scale(rig.K)
-    sigma, _ = jax.vmap(sigma_from_samples, in_axes=(0, 0, 0, 0, None))(*tables, focal)
+    fit = robust_sigma_from_samples if robust else sigma_from_samples
+    sigma, _ = jax.vmap(fit, in_axes=(0,) * len(tables) + (None,))(*tables, focal)
     sigma = np.asarray(sigma)
     return sigma if pool == "frame" else np.full(F, sigma[0])
 

@@ -1,18 +1,18 @@
-"""C-DOG's numbers (docs/ALGORITHM.md): the traced :class:`Thresholds`, their allowed
-ranges, and the epipolar gate τ.
+"""The words C-DOG's stages declare their options in (docs/ARCHITECTURE.md, "How to add a
+stage"), and the epipolar gate τ.
 
-:class:`cdog_jax.Config` (``_cdog.py``) holds plain Python values, so it is hashable and can
-be a static argument of ``jax.jit``. Its numeric fields (τ, δ, α, the jump rule...) are
-*not* part of the jit key: :meth:`Config.thresholds` turns them into a :class:`Thresholds`
-pytree of arrays that the pipeline receives as a traced input, so a sweep over them (or
-over σ) compiles once.
+A stage's options are declared once, in the file of its rule: its structural options are the
+fields (with defaults) of its options ``NamedTuple`` (static: part of the jit key), its
+numbers are :class:`Number` entries (traced: a sweep over them compiles once), and the
+switch that turns it on is a :class:`Switch`. ``cdog_jax/_cdog.py`` derives from those
+declarations :class:`cdog_jax.Config` (hashable, a static argument of ``jax.jit``), the
+traced :class:`cdog_jax.Thresholds` and the ranges of the numbers.
 """
 
 from __future__ import annotations
 
 from typing import Literal, NamedTuple
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.scipy.special import erf
@@ -23,46 +23,16 @@ Adjacency = Literal["mutual", "union"]
 PruneScope = Literal["all", "conflicts", "none"]
 IqrScore = Literal["exclude_own", "include_own"]
 IqrQuartiles = Literal["zero_pad", "positive"]
-SigmaMode = Literal["given", "auto"]
+SigmaMode = Literal["given", "auto", "robust"]
 ThresholdUnit = Literal["px", "focal"]
 TauMode = Literal["gaussian", "fitted"]
-
-
-class Thresholds(NamedTuple):
-    """Numeric thresholds, traced (scalars, or arrays with a leading batch axis under vmap).
-
-    ``tau_px = max(alpha_tau * sqrt(2) * sigma_px, tau_min_px)`` (docs/ALGORITHM.md §1–2).
-    """
-
-    sigma_px: Float[Array, ""]  # 2D noise std (pixels); ignored when sigma_mode="auto"
-    alpha_tau: Float[Array, ""]
-    tau_min_px: Float[Array, ""]
-    delta: Float[Array, ""]  # δ-overlap threshold (Alg. 2)
-    iqr_alpha: Float[Array, ""]  # IQR fence multiplier (Alg. 3)
-    iqr_floor_px: Float[Array, ""]  # an outlier's score must also exceed this (pixels)
-    iqr_min_px: Float[Array, ""]  # reference guard: no outlier if max score below this
-    iqr_force_px: Float[Array, ""]  # reference guard: drop the max if above this
-    jump_kappa: Float[Array, ""]  # BPE jump: gap > kappa * median(previous gaps)
-    jump_floor_px2: Float[Array, ""]  # BPE jump: gap > floor_px2 + (floor_sigma * sigma)^2
-    jump_floor_sigma: Float[Array, ""]
-    second_frac: Float[Array, ""]  # second association: attach if mean cost < frac * tau
-    recover_frac: Float[Array, ""]  # recovery: attach if reprojection error < frac * tau
-    support_frac: Float[Array, ""]  # support filter: a detection within frac * tau explains a view
-    support_alpha: Float[Array, ""]  # support filter: drop if P(that many misses) < alpha
-    support_min_rate: Float[Array, ""]  # support filter: floor of the estimated miss rate
-    support_ref_views: Float[Array, ""]  # support filter: members of the groups that estimate it
-    min_parallax_deg: Float[Array, ""]  # validity gate: largest angle between members' lines of sight
-    max_err_frac: Float[Array, ""]  # validity gate: every member's reprojection error <= frac * tau
-
 
 DEFAULT_MIN_PARALLAX_DEG = 1.0
 """The validity gate's default parallax bound (degrees; ``Config.min_parallax_deg``)."""
 
-_NUMERIC = tuple(f for f in Thresholds._fields if f != "sigma_px")
-
 
 class Range(NamedTuple):
-    """Allowed values of a numeric field: finite, ``low <= v`` (``<`` if ``low_open``) and
+    """Allowed values of a number: finite, ``low <= v`` (``<`` if ``low_open``) and
     ``v <= high`` (``<`` if ``high_open``)."""
 
     low: float = 0.0
@@ -82,83 +52,87 @@ class Range(NamedTuple):
         return f"finite and in {lo}{self.low:g}, {self.high:g}{hi}"
 
 
-# Every numeric field of Config and Thresholds (σ included): a new field adds its line.
-RANGES: dict[str, Range] = {
-    "sigma_px": Range(),
-    "alpha_tau": Range(),
-    "tau_min_px": Range(),
-    "delta": Range(0.0, 1.0, low_open=True),  # θ ≥ δ keeps an edge; δ = 0 would keep all
-    "iqr_alpha": Range(),
-    "iqr_floor_px": Range(),
-    "iqr_min_px": Range(),
-    "iqr_force_px": Range(),
-    "jump_kappa": Range(),
-    "jump_floor_px2": Range(),
-    "jump_floor_sigma": Range(),
-    "second_frac": Range(),
-    "recover_frac": Range(),
-    "support_frac": Range(),
-    "support_alpha": Range(0.0, 1.0),  # a probability
-    "support_min_rate": Range(0.0, 1.0),  # a miss rate
-    "support_ref_views": Range(),
-    "min_parallax_deg": Range(0.0, 90.0, high_open=True),  # validity gate, degrees
-    "max_err_frac": Range(0.0, low_open=True),  # validity gate, a multiple of τ
-}
+class Number(NamedTuple):
+    """A traced option of a stage: its name (a field of ``Config`` and of ``Thresholds``),
+    default, allowed range, a one-line description (with its unit) and, for a length,
+    ``unit`` ``"px"`` (``"px2"``: squared): scaled with the focal length when
+    ``threshold_unit="focal"``."""
+
+    name: str
+    default: float
+    range: Range = Range()
+    doc: str = ""
+    unit: str = ""
 
 
-def check_number(value, name: str, where: str) -> None:
-    """Raise unless ``value`` (a real number) is in ``RANGES[name]``."""
+class Switch(NamedTuple):
+    """The ``bool`` option (a field of ``Config``) that turns a stage on; as a stage's
+    ``when``, it reads that field."""
+
+    name: str
+    default: bool
+    doc: str = ""
+
+    def __call__(self, config) -> bool:
+        return getattr(config, self.name)
+
+
+class AtLeast(NamedTuple):
+    """A structural ``int`` option's lower bound other than 1, as ``Annotated[int, AtLeast(2)]``."""
+
+    low: int
+
+
+class OptionGroup(NamedTuple):
+    """Options read before any stage runs (by ``associate_traced`` itself), declared like a
+    stage's: ``options`` a ``NamedTuple`` of structural fields with defaults, ``numbers`` a
+    tuple of :class:`Number`."""
+
+    name: str
+    options: type | None
+    numbers: tuple[Number, ...] = ()
+
+
+class Numbers(tuple):
+    """The base of :class:`cdog_jax.Thresholds`: a ``NamedTuple`` of traced scalars that a
+    stage reads by name (``th.delta``). The stages name this base, not the concrete type,
+    which ``_cdog.py`` derives from their declarations."""
+
+    __slots__ = ()
+
+
+def check_number(value, name: str, where: str, allowed: Range) -> None:
+    """Raise unless ``value`` is a real number in ``allowed``; names ``where.name``."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise TypeError(f"{where}.{name} must be a real number; got {type(value).__name__} {value!r}")
-    allowed = RANGES.get(name, Range(-float("inf")))
     if not allowed.ok(value):
         raise ValueError(f"{where}.{name} must be {allowed.describe()}; got {value!r}")
 
 
-def check_thresholds(th: "Thresholds", *, skip: tuple[str, ...] = ("sigma_px",)) -> None:
-    """Raise if a concrete value of ``th`` (scalars or arrays) is outside its range; names
-    the field, the value and, for arrays, the index. Traced values are not checked."""
-    if not isinstance(th, Thresholds):
-        raise TypeError(f"thresholds must be a Thresholds (from Config.thresholds()); got {type(th).__name__}")
-    for name, value in zip(Thresholds._fields, th):
-        if name in skip or isinstance(value, jax.core.Tracer):
-            continue
-        host = np.asarray(value)
-        if host.dtype == np.bool_ or not (np.issubdtype(host.dtype, np.floating) or np.issubdtype(host.dtype, np.integer)):
-            raise TypeError(f"thresholds.{name} must be real numbers; got dtype {host.dtype}")
-        allowed = RANGES.get(name, Range(-float("inf")))
-        ok = allowed.ok(host)
-        if not ok.all():
-            where = tuple(int(i) for i in np.argwhere(~ok)[0])
-            at = f" at index {where}" if where else ""
-            raise ValueError(f"thresholds.{name} must be {allowed.describe()}; got {host[where].item()!r}{at}")
-
-
-def tau_px(th: Thresholds, sigma_px: Float[Array, ""], fitted_px: Float[Array, ""] | None = None) -> Float[Array, ""]:
+def tau_px(th, sigma_px: Float[Array, ""], fitted_px: Float[Array, ""] | None = None) -> Float[Array, ""]:
     """Epipolar gate ``τ = max(alpha_tau · √2 · σ, tau_min)`` in pixels (docs/ALGORITHM.md §1–2);
-    with ``fitted_px`` (the fitted quantile of the true-pair distance, NaN when there is
-    none) ``τ = max(fitted_px, tau_min)`` where it is finite."""
+    ``th`` holds ``alpha_tau`` and ``tau_min_px``. With ``fitted_px`` (the fitted quantile of
+    the true-pair distance, NaN when there is none) ``τ = max(fitted_px, tau_min)`` where it
+    is finite."""
     gaussian = th.alpha_tau * jnp.sqrt(2.0) * sigma_px
     if fitted_px is not None:
         gaussian = jnp.where(jnp.isfinite(fitted_px), fitted_px, gaussian)
     return jnp.maximum(gaussian, th.tau_min_px)
 
 
-# Thresholds in pixels (px² for jump_floor_px2). With Config.threshold_unit="focal" they are
-# pixels of a camera of focal length REFERENCE_FOCAL_PX: scaled by f / REFERENCE_FOCAL_PX (its
-# square) before any stage reads them, so one set of numbers suits any resolution.
+# With threshold_unit="focal" the numbers of unit "px" ("px2") are pixels of a camera of focal
+# length REFERENCE_FOCAL_PX: scaled by f / REFERENCE_FOCAL_PX (its square) before any stage
+# reads them, so one set of numbers suits any resolution.
 REFERENCE_FOCAL_PX = 1000.0
-PIXEL_FIELDS = ("sigma_px", "tau_min_px", "iqr_floor_px", "iqr_min_px", "iqr_force_px")
-PIXEL2_FIELDS = ("jump_floor_px2",)
 
 
-def thresholds_in_pixels(th: Thresholds, focal_px: Float[Array, ""]) -> Thresholds:
-    """``th`` with its lengths given in pixels of a ``REFERENCE_FOCAL_PX`` camera turned into
-    pixels of this rig (``focal_px``: its focal length, pixels)."""
+def thresholds_in_pixels(th, focal_px: Float[Array, ""], units: dict[str, str]):
+    """``th`` (a :class:`Numbers`) with its lengths given in pixels of a
+    ``REFERENCE_FOCAL_PX`` camera turned into pixels of this rig (``focal_px``: its focal
+    length, pixels); ``units`` maps a field to ``"px"``, ``"px2"`` or anything else (kept)."""
     scale = focal_px / REFERENCE_FOCAL_PX
-    scaled = {name: getattr(th, name) * scale for name in PIXEL_FIELDS}
-    scaled.update({name: getattr(th, name) * scale * scale for name in PIXEL2_FIELDS})
-    return th._replace(**scaled)
+    power = {"px": 1, "px2": 2}
+    return th._replace(**{name: getattr(th, name) * scale ** power[unit] for name, unit in units.items() if unit in power})
 
 
 def gauss_coverage(alpha_tau: Float[Array, ""]) -> Float[Array, ""]:

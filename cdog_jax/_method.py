@@ -153,7 +153,7 @@ def method_from(method, where: str) -> Method:
     raise TypeError(f"{where}: method must be a Method or a registered name ({', '.join(_REGISTRY)}); got {type(method).__name__}")
 
 
-def method_argument(method, config, where: str, default: str | None = "extended") -> Method:
+def method_argument(method, config, where: str, default: str | None = "best") -> Method:
     """The method of a call: ``method`` (a :class:`Method` or a registered name), or the
     older keyword ``config`` (the same thing), not both; ``default`` when neither is given
     (``None``: one is required)."""

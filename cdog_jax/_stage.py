@@ -4,8 +4,12 @@
 Every stage has one signature, ``stage(scene, state, options) -> state``: ``scene`` holds the
 per-scene tables computed once (detections, epipolar distances, DLT blocks, σ, τ and the
 traced thresholds), ``state`` the group table and the latest fit, ``options`` the stage's own
-static options (a small ``NamedTuple`` whose fields are named as in :class:`cdog_jax.Config`).
-A stage reads its numbers from ``scene.th`` (traced).
+static options (a small ``NamedTuple``). A stage reads its numbers from ``scene.th`` (traced).
+
+A stage declares its options once, in its :class:`Stage` entry: the fields (with defaults)
+of its options ``NamedTuple``, its :class:`~cdog_jax._config.Number` entries and its
+:class:`~cdog_jax._config.Switch`; :class:`cdog_jax.Config` and :class:`cdog_jax.Thresholds`
+are derived from them (``cdog_jax/_options.py``).
 """
 
 from __future__ import annotations
@@ -15,7 +19,7 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from ._config import Thresholds
+from ._config import Number, Numbers
 from ._status import Status
 from ._types import Array, Bool, Float, Int
 from .geometry._camera import Rig
@@ -38,7 +42,7 @@ class Scene(NamedTuple):
     blocks: tuple
     sigma: Float[Array, ""]
     tau: Float[Array, ""]
-    th: Thresholds
+    th: Numbers
 
 
 class GroupTable(NamedTuple):
@@ -83,14 +87,23 @@ def raise_flag(condition: Bool[Array, ""], flag: Status) -> Int[Array, ""]:
 
 
 class Stage(NamedTuple):
-    """One entry of C-DOG's stage list: its name, the function, the ``NamedTuple`` class of
-    its options (fields named as in :class:`cdog_jax.Config`; ``None``: no options), and when
-    it runs (a predicate of the config)."""
+    """One entry of C-DOG's stage list, and the declaration of the stage's options.
+
+    ``name``; ``run(scene, state, options) -> state``; ``options``: the ``NamedTuple`` class
+    of its structural options, each field with its default (``Literal[...]``, ``bool`` or a
+    positive ``int``; each field becomes a field of :class:`cdog_jax.Config`; ``None``: no
+    options); ``when``: a predicate of the config, or a :class:`~cdog_jax._config.Switch`
+    (a ``bool`` field of the config); ``numbers``: its traced numbers (fields of the config
+    and of :class:`cdog_jax.Thresholds`); ``options_from``: for options made from the config
+    rather than read from it by name (regrouping's resolved stages), ``config -> options``.
+    """
 
     name: str
     run: Callable
     options: type | None
     when: Callable[[object], bool]
+    numbers: tuple[Number, ...] = ()
+    options_from: Callable[[object], object] | None = None
 
 
 def always(config) -> bool:

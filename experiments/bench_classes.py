@@ -4,11 +4,10 @@ A (the library's ``associate_classes``): one scene per (frame, class) of capacit
 fullest view of any class), all F·C scenes in one ``associate_batch`` call.
 B (measured here only): one scene per frame holding every class (P = C·P_c slots), with
 the epipolar distance between detections of different classes set to ``inf`` before the
-graph. B is wired here without touching the pipeline: ``epipolar_distances`` is wrapped,
-for this script's calls only, to mask cross-class pairs with the scene's class ids. With
-the paper preset every stage that could join two detections reads those distances (the
-graph, the split, the IQR loop only removes), so B's groups are single-class too; the
-extended preset's recovery by reprojection would not be, which is one reason for A.
+graph (``cdog_jax.associate_traced(..., classes=)``). With the paper preset every stage
+that could join two detections reads those distances (the graph, the split, the IQR loop
+only removes), so B's groups are single-class too; the extended preset's recovery by
+reprojection would not be, which is one reason for A.
 
 Scenes: ``--people`` skeleton-like clusters (joints within 15 % of the box of a centre) of
 ``--classes`` joint types in ``--frames`` frames seen by ``--views`` cameras of the
@@ -28,8 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import cdog_jax
-import cdog_jax._cdog as pipeline
-from cdog_jax import Config, associate_classes
+from cdog_jax import Config, associate_classes, associate_traced
 from cdog_jax.synthetic import DEFAULT_BOX, default_rig
 
 
@@ -62,34 +60,19 @@ def option_a(rig, xy, mask, classes, sigma, batch_size):
 def _option_b_jit(rig, xy, mask, classes, th, *, config, batch_size):
     def one(scene):
         x, m, c = scene
-        _MASK["classes"] = c  # read by the wrapped epipolar_distances while tracing
-        return pipeline.associate_traced(rig, x, m, th, config)
+        return associate_traced(rig, x, m, th, config, classes=c)
 
     return jax.lax.map(one, (xy, mask, classes), batch_size=batch_size)
 
 
-_MASK: dict = {}
-
-
 def option_b(rig, xy, mask, classes, sigma, batch_size):
-    original = pipeline.epipolar_distances
-
-    def masked(rig_, xy_, mask_):
-        d = original(rig_, xy_, mask_)
-        c = _MASK["classes"]
-        return jnp.where(c[:, :, None, None] == c[None, None, :, :], d, jnp.inf)
-
     config = Config.paper()
     th = config.thresholds(sigma)
-    pipeline.epipolar_distances = masked
-    try:
-        r = _option_b_jit(
-            rig, jnp.asarray(xy), jnp.asarray(mask), jnp.asarray(classes, jnp.int32), th,
-            config=config.structure(), batch_size=min(batch_size, xy.shape[0]),
-        )  # fmt: skip
-        r = jax.block_until_ready(r)
-    finally:
-        pipeline.epipolar_distances = original
+    r = _option_b_jit(
+        rig, jnp.asarray(xy), jnp.asarray(mask), jnp.asarray(classes, jnp.int32), th,
+        config=config.structure(), batch_size=min(batch_size, xy.shape[0]),
+    )  # fmt: skip
+    r = jax.block_until_ready(r)
     groups = np.asarray(r.groups)
     valid = np.asarray(r.valid)
     F, G, M = groups.shape

@@ -23,13 +23,20 @@ singleton prediction (docs/BENCHMARK.md §2), so clutter and points seen once ke
 the truth (its PG-F1 and mP-F1 are 1). A method can score above it by hiding clutter inside
 correct groups (a group stays a G- match while its majority is right).
 
+``--methods`` (default ``all``: the configs above, then every registered method, e.g. the
+baselines of :mod:`cdog_jax.baselines`) picks the methods. Scenes run 8 at a time, scene 0
+of every (level, count) first; with ``--budget-s`` a method stops after that many seconds
+(past its compiling first chunk), so a slow one covers the first scenes of every cell; a
+method skips scenes it refuses (``exact``: more than 15 detections per view). The tables
+then say how many scenes each such method ran per level.
+
 ``--stages`` adds the per-stage view of ``experiments/stage_ablation.py`` (cumulative
 configs) at the largest drop rate and the largest clutter level: how many ground-truth
 groups survive each stage (PG-R) and how precise the groups are (PG-P).
 
 Usage::
 
-    python experiments/robustness.py [--counts 20 60 100] [--scenes 8] [--stages]
+    python experiments/robustness.py [--counts 20 60 100] [--scenes 8] [--stages] [--methods all|a,b] [--budget-s S]
         [--figure experiments/figures/robustness.png] [--json out.json] [--quick]
 
 Writes the two-panel figure (``--figure``), optionally the numbers as JSON (``--json``), and
@@ -47,7 +54,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from cdog_jax import Config, associate_batch
+from cdog_jax import Config, associate_batch, method_from, method_names
 from cdog_jax.benchmark import ablation_stages
 from cdog_jax.metrics import scene_metrics
 from cdog_jax.synthetic import default_rig, generate_scenes
@@ -70,6 +77,17 @@ CONFIGS = {
 STAGES = {**ablation_stages(), "+ support filter": Config.extended(support_filter=True)}
 
 _metrics_batch = jax.jit(jax.vmap(scene_metrics, in_axes=(None, 0, 0)))
+CHUNK = 8  # scenes per associate_batch call (one compiled shape per method)
+
+
+def all_methods() -> dict:
+    """:data:`CONFIGS`, then every registered method not among them (the registry as it is
+    when this runs)."""
+    out = dict(CONFIGS)
+    for name in method_names():
+        if name not in out:
+            out[name] = method_from(name, "robustness --methods")
+    return out
 
 
 def levels():
@@ -110,15 +128,46 @@ def truth_g_f1(batch):
     return np.asarray(out)
 
 
-def evaluate(rig, batch, configs, log=print):
-    """Per-scene metrics ``{name: {field: (S,)}}`` of every config, one compiled call each."""
+def evaluate(rig, batch, configs, log=print, budget_s=None, order=None):
+    """Per-scene metrics ``{name: {field: (S,)}}`` of every config (NaN for a scene not run).
+
+    Scenes run :data:`CHUNK` at a time in ``order`` (default: as given; pass scene index
+    first so that a partial run covers every level and count alike). With ``budget_s`` a
+    method stops starting chunks once it has spent that many seconds after its first
+    (compiling) chunk. Scenes a method refuses (``check_scene``, e.g. ``exact`` beyond 15
+    detections per view) are skipped."""
+    S = int(batch.mask.shape[0])
+    order = np.arange(S) if order is None else np.asarray(order)
+    mask = np.asarray(batch.mask)
     out = {}
     for name, config in configs.items():
+        method = method_from(config, "robustness")
         t0 = time.perf_counter()
-        assoc = associate_batch(rig, batch.xy, batch.mask, config=config, sigma=SIGMA, batch_size=8)
-        m = _metrics_batch(rig, assoc, batch)
-        out[name] = {f: np.asarray(getattr(m, f), np.float64) for f in FIELDS}
-        log(f"  {name}: {time.perf_counter() - t0:.1f} s (compile included)")
+        ok = []
+        for s in order:
+            try:
+                method.check_scene(mask[s], f"robustness (scene {s})")
+                ok.append(s)
+            except ValueError:
+                pass
+        ok = np.asarray(ok, np.int64)
+        fields = {f: np.full(S, np.nan) for f in FIELDS}
+        t_first, done = None, 0
+        for start in range(0, ok.size, CHUNK):
+            if budget_s is not None and t_first is not None and time.perf_counter() - t_first > budget_s:
+                break
+            idx = ok[start:start + CHUNK]
+            pad = np.concatenate([idx, np.repeat(idx[:1], CHUNK - idx.size)])  # one compiled shape
+            sub = jax.tree.map(lambda a: a[pad], batch)
+            assoc = associate_batch(rig, sub.xy, sub.mask, method=method, sigma=SIGMA, batch_size=CHUNK)
+            m = _metrics_batch(rig, assoc, sub)
+            for f in FIELDS:
+                fields[f][idx] = np.asarray(getattr(m, f), np.float64)[: idx.size]
+            done += idx.size
+            if t_first is None:
+                t_first = time.perf_counter()
+        out[name] = fields
+        log(f"  {name}: {done}/{S} scenes ({S - ok.size} refused), {time.perf_counter() - t0:.1f} s (compile included)")
     return out
 
 
@@ -129,13 +178,18 @@ def summarise(per_scene, drop, clutter, g_max):
         at = (drop == d) & (clutter == c)
         row = {"drop_rate": d, "clutter_rate": c, "num_scenes": int(at.sum()), "g_f1_max": float(g_max[at].mean())}
         for name, fields in per_scene.items():
-            row[name] = {f: float(v[at].mean()) for f, v in fields.items()}
+            run = at & np.isfinite(fields["pg_f1"])
+            row[name] = {f: float(v[run].mean()) if run.any() else float("nan") for f, v in fields.items()}
+            row[name]["scenes_run"] = int(run.sum())
+            # The true grouping's G-F1 on the same scenes, for a method run on a subset.
+            row[name]["g_f1_max"] = float(g_max[run].mean()) if run.any() else float("nan")
         rows.append(row)
     return rows
 
 
-def run(*, counts=(20, 60, 100), scenes=8, seed=0, stages=False, configs=tuple(CONFIGS), log=print):
+def run(*, counts=(20, 60, 100), scenes=8, seed=0, stages=False, configs=tuple(CONFIGS), budget_s=None, log=print):
     rig = default_rig()
+    known = all_methods()
     counts = tuple(int(c) for c in counts)
     t_all = time.perf_counter()
     batch, drop, clutter, count = make_scenes(rig, counts, scenes, seed)
@@ -143,7 +197,10 @@ def run(*, counts=(20, 60, 100), scenes=8, seed=0, stages=False, configs=tuple(C
     clipped = int(np.sum(num_clutter >= CLUTTER_CAPACITY))
     log(f"{drop.size} scenes ({len(levels())} levels × {len(counts)} counts × {scenes}); "
         f"views with clipped clutter: {clipped}")
-    per_scene = evaluate(rig, batch, {name: CONFIGS[name] for name in configs}, log=log)
+    scene_index = np.tile(np.arange(scenes), drop.size // scenes)
+    order = np.lexsort((np.arange(drop.size), scene_index))  # scene 0 of every cell first, then 1, …
+    per_scene = evaluate(rig, batch, {name: known[name] for name in configs}, log=log, budget_s=budget_s,
+                         order=order)
     out = {
         "sigma_px": SIGMA,
         "counts": list(counts),
@@ -153,6 +210,7 @@ def run(*, counts=(20, 60, 100), scenes=8, seed=0, stages=False, configs=tuple(C
         "clipped_views": clipped,
         "mean_clutter": {str(c): float(num_clutter[clutter == c].mean()) for c in CLUTTER_RATES},
         "configs": list(configs),
+        "budget_s": budget_s,
         "rows": summarise(per_scene, drop, clutter, truth_g_f1(batch)),
     }
     if stages:
@@ -170,6 +228,10 @@ def run(*, counts=(20, 60, 100), scenes=8, seed=0, stages=False, configs=tuple(C
     return out
 
 
+def _cell(v: float) -> str:
+    return "–" if v != v else f"{v:.3f}"
+
+
 def markdown_tables(out: dict) -> str:
     """One table per score (PG-F1, mP-F1, G-F1; rows: levels, columns: configs), then the
     per-stage table when there is one."""
@@ -181,10 +243,19 @@ def markdown_tables(out: dict) -> str:
             head.append("truth G-F1")
         lines += ["", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         for r in out["rows"]:
-            cells = [f"{100 * r['drop_rate']:g}", f"{r['clutter_rate']:g}"] + [f"{r[n][f]:.3f}" for n in names]
+            cells = [f"{100 * r['drop_rate']:g}", f"{r['clutter_rate']:g}"] + [_cell(r[n][f]) for n in names]
             if f == "g_f1":
                 cells.append(f"{r['g_f1_max']:.3f}")
             lines.append("| " + " | ".join(cells) + " |")
+    partial = [n for n in names if any(r[n]["scenes_run"] < r["num_scenes"] for r in out["rows"])]
+    if partial:
+        lines += ["", "Run on part of the scenes (a time budget of "
+                  f"{out.get('budget_s')} s per method after its first chunk, or scenes it refuses), scenes run per "
+                  "level of " + str(out["rows"][0]["num_scenes"]) + ", and the true grouping's G-F1 on those scenes:", ""]
+        for n in partial:
+            runs = ", ".join(f"{r[n]['scenes_run']}" for r in out["rows"])
+            truth = ", ".join(_cell(r[n]["g_f1_max"]) for r in out["rows"])
+            lines.append(f"- {n}: {runs} (truth G-F1 {truth})")
     if "stages" in out:
         lines += ["", "| drop (%) | clutter / view | stages | PG-R | PG-P | PG-F1 | G-F1 | unassigned / scene |",
                   "|---|---|---|---|---|---|---|---|"]
@@ -202,7 +273,10 @@ def figure(out: dict, path: str):
     fig = Figure(figsize=(11, 4.6), layout="constrained")
     axes = fig.subplots(1, 2, sharey=True)
     styles = {"pg_f1": ("-", "PG-F1"), "mp_f1": ("--", "mP-F1"), "g_f1": (":", "G-F1")}
-    colors = dict(zip(out["configs"], ("C0", "C1", "C2", "C3", "C4", "C5")))
+    from matplotlib import colormaps
+
+    cmap = colormaps["tab10" if len(out["configs"]) <= 10 else "tab20"]
+    colors = {n: cmap(i % cmap.N) for i, n in enumerate(out["configs"])}
     rows = out["rows"]
     sweeps = (
         ([r for r in rows if r["clutter_rate"] == 0], "drop_rate", 100.0, "missed detections: drop rate (%)"),
@@ -236,14 +310,23 @@ def main(argv=None):
     parser.add_argument("--scenes", type=int, default=8, help="scenes per (level, count)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--stages", action="store_true", help="per-stage table at the worst levels")
-    parser.add_argument("--configs", nargs="+", choices=list(CONFIGS), default=list(CONFIGS))
+    parser.add_argument("--methods", "--configs", dest="configs", default="all",
+                        help="'all' (the presets and variants above, then every registered method) or a comma-separated list")
+    parser.add_argument("--budget-s", type=float, default=None,
+                        help="seconds per method after its first chunk (slow methods then run on part of the scenes)")
     parser.add_argument("--quick", action="store_true", help="tiny run: paper() only, counts 8, 1 scene each")
     parser.add_argument("--figure", default=os.path.join("experiments", "figures", "robustness.png"))
     parser.add_argument("--json", default=None, help="also write the numbers here")
     args = parser.parse_args(argv)
     if args.quick:
-        args.counts, args.scenes, args.configs = [8], 1, ["paper"]
-    out = run(counts=args.counts, scenes=args.scenes, seed=args.seed, stages=args.stages, configs=args.configs)
+        args.counts, args.scenes, args.configs = [8], 1, "paper"
+    known = all_methods()
+    names = list(known) if args.configs == "all" else [n.strip() for n in args.configs.split(",") if n.strip()]
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        parser.error(f"--methods: unknown {unknown}; known: {', '.join(known)}")
+    out = run(counts=args.counts, scenes=args.scenes, seed=args.seed, stages=args.stages, configs=names,
+              budget_s=args.budget_s)
     os.makedirs(os.path.dirname(os.path.abspath(args.figure)), exist_ok=True)
     figure(out, args.figure)
     if args.json:

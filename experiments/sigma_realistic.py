@@ -1,4 +1,5 @@
-"""How close is ``sigma="auto"`` to the true noise scale on realistic detections?
+"""How close are the σ estimators (``sigma_mode`` ``"auto"`` and ``"robust"``) to the true noise
+scale on realistic detections?
 
 Question: σ̂/σ (median over scenes or frames) of the estimator on the levels of
 ``experiments/robustness_realistic.py`` (box and skeleton families, one factor at a time:
@@ -8,12 +9,13 @@ detections). σ is the scale the noise was drawn with: the Gaussian σ of the sa
 absolute deviation per coordinate (``cdog_jax.synthetic.Realism``).
 
 Method: the scenes of ``robustness_realistic.py`` (same seeds); box: σ̂ of each scene
-(``estimate_sigma``); skeleton: one σ̂ per frame, pooled over the frame's joint classes as
-``associate_classes`` does. Only the estimator runs (no association).
+(``estimate_sigma`` / ``estimate_sigma_robust``); skeleton: one σ̂ per frame, pooled over the
+frame's joint classes as ``associate_classes`` does (``class_sigmas``). Only the estimator
+runs (no association).
 
 Usage::
 
-    python experiments/sigma_realistic.py [--scenes 10] [--sequences 3] [--frames 5] [--json out.json]
+    python experiments/sigma_realistic.py [--scenes 10] [--sequences 3] [--frames 5] [--estimator auto robust] [--json out.json]
 """
 
 from __future__ import annotations
@@ -23,43 +25,43 @@ import json
 import os
 import sys
 import time
+from functools import partial
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import robustness_realistic as rr  # noqa: E402
 
-from cdog_jax._classes import _pooled_sigma, _regroup  # noqa: E402
+from cdog_jax import class_sigmas  # noqa: E402
 from cdog_jax.geometry import epipolar_distances  # noqa: E402
-from cdog_jax.graph import estimate_sigma, focal_scale  # noqa: E402
-from cdog_jax.synthetic import SKELETON_JOINTS  # noqa: E402
+from cdog_jax.graph import estimate_sigma, estimate_sigma_robust, focal_scale  # noqa: E402
+
+ESTIMATORS = {"auto": estimate_sigma, "robust": estimate_sigma_robust}
 
 
-@jax.jit
-def _box_sigmas(rig, xy, mask):
-    return jax.lax.map(lambda a: estimate_sigma(epipolar_distances(rig, *a), a[1], focal_scale(rig.K))[0], (xy, mask), batch_size=8)
+@partial(jax.jit, static_argnames=("estimator",))
+def _box_sigmas(rig, xy, mask, estimator):
+    fit = ESTIMATORS[estimator]
+    return jax.lax.map(lambda a: fit(epipolar_distances(rig, *a), a[1], focal_scale(rig.K))[0], (xy, mask), batch_size=8)
 
 
-def _frame_sigmas(rig, frames):
-    xy, mask, cls = (np.asarray(a) for a in (frames.xy, frames.mask, frames.class_id))
-    scenes = _regroup(xy, mask, cls, len(SKELETON_JOINTS), None)
-    return _pooled_sigma(rig, scenes, xy.shape[0], None, jnp.float32, pool="frame")
+def _frame_sigmas(rig, frames, estimator):
+    return class_sigmas(rig, np.asarray(frames.xy), np.asarray(frames.mask), np.asarray(frames.class_id), estimator=estimator)
 
 
-def run(scenes=10, sequences=3, frames=5, seed=rr.SEED, log=print):
+def run(scenes=10, sequences=3, frames=5, seed=rr.SEED, estimator="robust", log=print):
     t0 = time.perf_counter()
-    out = {}
+    out = {"estimator": estimator}
     for name, family in rr.FAMILIES.items():
         lv = rr.levels(family)
         if name == "box":
             rig, batch = rr.box_batch(lv, scenes, family, seed, False)
-            ratio = np.asarray(_box_sigmas(rig, batch.xy, batch.mask)) / family["sigma"]
+            ratio = np.asarray(_box_sigmas(rig, batch.xy, batch.mask, estimator)) / family["sigma"]
             per = scenes
         else:
             rig, batch = rr.skeleton_batch(lv, sequences, frames, family, seed)
-            ratio = _frame_sigmas(rig, batch) / family["sigma"]
+            ratio = _frame_sigmas(rig, batch, estimator) / family["sigma"]
             per = sequences * frames
         out[name] = [{"factor": f, "value": v, "ratio": float(np.median(ratio[i * per:(i + 1) * per])),
                       "p10": float(np.quantile(ratio[i * per:(i + 1) * per], 0.1)),
@@ -67,7 +69,7 @@ def run(scenes=10, sequences=3, frames=5, seed=rr.SEED, log=print):
         log(f"{name}: {time.perf_counter() - t0:.0f} s")
     fam = dict(rr.FAMILIES["skeleton"], sigma=5.21)
     rig, batch = rr.skeleton_batch([("tails", 2.5)], 4 * sequences, frames, fam, seed + 11, people=(3, 4, 5))
-    ratio = _frame_sigmas(rig, batch) / fam["sigma"]
+    ratio = _frame_sigmas(rig, batch, estimator) / fam["sigma"]
     out["targets"] = {"ratio": float(np.median(ratio)), "p10": float(np.quantile(ratio, 0.1)), "p90": float(np.quantile(ratio, 0.9)),
                       "frames": int(ratio.size)}
     out["seconds"] = time.perf_counter() - t0
@@ -75,7 +77,7 @@ def run(scenes=10, sequences=3, frames=5, seed=rr.SEED, log=print):
 
 
 def markdown(out):
-    lines = ["| level | box σ̂/σ: median [10 %, 90 %] | skeleton σ̂/σ |", "|---|---|---|"]
+    lines = [f"σ estimator: sigma_mode={out['estimator']!r}", "", "| level | box σ̂/σ: median [10 %, 90 %] | skeleton σ̂/σ |", "|---|---|---|"]
     fmt = lambda r: f"{r['ratio']:.2f} [{r['p10']:.2f}, {r['p90']:.2f}]"
     for b, s in zip(out["box"], out["skeleton"]):
         label = rr._fmt_level(b["factor"], b["value"]) if b["factor"] != "clutter" else f"clutter {b['value']:g} / {s['value']:g}"
@@ -90,14 +92,18 @@ def main(argv=None):
     p.add_argument("--scenes", type=int, default=10)
     p.add_argument("--sequences", type=int, default=3)
     p.add_argument("--frames", type=int, default=5)
+    p.add_argument("--estimator", nargs="+", choices=tuple(ESTIMATORS), default=["auto", "robust"])
     p.add_argument("--json", default=None)
     args = p.parse_args(argv)
-    out = run(args.scenes, args.sequences, args.frames)
-    print(markdown(out))
-    print(f"\n{out['seconds']:.0f} s")
+    outs = []
+    for estimator in args.estimator:
+        out = run(args.scenes, args.sequences, args.frames, estimator=estimator)
+        print(markdown(out))
+        print(f"\n{out['seconds']:.0f} s\n")
+        outs.append(out)
     if args.json:
         with open(args.json, "w") as f:
-            json.dump(out, f, indent=1)
+            json.dump(outs, f, indent=1)
 
 
 if __name__ == "__main__":

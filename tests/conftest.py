@@ -4,8 +4,14 @@ import tempfile
 
 # Compiled programs persist for this run only: a fresh folder, removed at the end. Programs
 # dropped by _release_compiled_programs, built by new jit wrappers of the same function, or
-# compiled in child processes (command-line tests) are then loaded instead of compiled.
-_COMPILE_CACHE = tempfile.mkdtemp(prefix="cdog_jax_test_cache_")
+# compiled in child processes (command-line tests) or in another worker of the run (the
+# workers inherit the folder from the process that starts them) are then loaded instead of
+# compiled.
+_RUN_CACHE_VARIABLE = "CDOG_JAX_TEST_RUN_CACHE"
+_OWNS_CACHE = _RUN_CACHE_VARIABLE not in os.environ
+if _OWNS_CACHE:
+    os.environ[_RUN_CACHE_VARIABLE] = tempfile.mkdtemp(prefix="cdog_jax_test_cache_")
+_COMPILE_CACHE = os.environ[_RUN_CACHE_VARIABLE]
 os.environ["CDOG_JAX_CACHE_DIR"] = _COMPILE_CACHE
 os.environ.pop("CDOG_JAX_CACHE", None)
 
@@ -62,5 +68,17 @@ def _release_compiled_programs():
         gc.collect()
 
 
+def pytest_xdist_auto_num_workers(config):
+    """``-n auto``: one worker per core this process may use, at most 4. Compilation runs
+    on one core, so two workers on two cores halve the suite; each worker holds its own
+    compiled programs (1–3 GB), which caps the count."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:
+        cores = os.cpu_count() or 1
+    return max(1, min(cores, 4))
+
+
 def pytest_sessionfinish(session, exitstatus):
-    shutil.rmtree(_COMPILE_CACHE, ignore_errors=True)
+    if _OWNS_CACHE:  # the process that made the folder removes it, after its workers
+        shutil.rmtree(_COMPILE_CACHE, ignore_errors=True)

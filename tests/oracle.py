@@ -25,6 +25,7 @@ __all__ = [
     "epipolar_distance_table",
     "tau_px",
     "estimate_sigma",
+    "estimate_sigma_robust",
     "directed_edges",
     "adjacency",
     "overlap_theta",
@@ -254,16 +255,76 @@ def _sigma_log_parts(x, x2, count, c, inv_kappa, pi, width, nu):
                      none + math.log(pi[1]), np.full(x.shape, -math.log(width) + math.log(pi[2]))])
 
 
+def _sigma_log_parts_normal(x, count, c, inv_kappa, pi, width):
+    """Log joint density (4, S): match, hidden, none, uniform (§0.1)."""
+    a = x / c
+    lam_true = (count - 1.0) / inv_kappa
+    lam_none = count / inv_kappa
+    log_hn = 0.5 * math.log(2.0 / math.pi) - math.log(c) - 0.5 * a * a
+    other = count > 1.0
+    with np.errstate(divide="ignore"):
+        hidden = np.where(other, np.log(np.where(other, lam_true, 1.0)) - lam_true * x + math.log(2.0) + _log_q(a), -np.inf)
+        none = np.log(lam_none) - lam_none * x
+    return np.stack([log_hn - lam_true * x + math.log(pi[0]), hidden + math.log(pi[0]),
+                     none + math.log(pi[1]), np.full(x.shape, -math.log(width) + math.log(pi[2]))])
+
+
 def _softmax0(parts):
     top = parts.max(axis=0)
     e = np.exp(parts - top)
     return e / e.sum(axis=0), top + np.log(e.sum(axis=0))
 
 
-def estimate_sigma(d, mask, focal_px, iters=40, coverage=0.9544997361036416, with_gate=False):
+def estimate_sigma(d, mask, focal_px, iters=40):
     """§0.1: EM on the censored mixture (a true match nearest / a true match behind a nearer
     unrelated point / no true match / uniform) of the nearest distances, each with weight ½,
-    the match distance half-normal or half-t (ν = 8, 4, 2), from three starts each; σ = the
+    from three starts; σ = c / √2, or the 1 px fallback. Returns ``(sigma, fallback)``.
+    The recipe of ALGORITHM.md §0.1."""
+    x, count, _ = sigma_samples(d, mask)
+    w = np.full(x.size, 0.5)
+    total = max(w.sum(), 1e-3)
+    focal = focal_px if np.isfinite(focal_px) and focal_px > 0 else 1.0
+    width = max(float(x.max()) if x.size else 0.0, 0.1 * focal)
+    spread_min = 0.05 * focal
+    top_count = max(float(count.max()) if x.size else 1.0, 1.0)
+    xs = np.sort(x)
+    fits = []
+    for q in (0.1, 0.25, 0.5):
+        z = NormalDist().inv_cdf(0.5 * (1.0 + q))  # half-normal quantile / scale
+        at_q = float(xs[int(math.floor(q * (x.size - 1)))]) if x.size else 0.0
+        c = min(max(at_q / z, 1e-3), width)
+        inv_kappa = min(max(float(np.sum(w * count * x)) / total, spread_min), width * top_count)
+        pi = np.array([0.6, 0.3, 0.1])
+        for _ in range(iters):
+            r, _ = _softmax0(_sigma_log_parts_normal(x, count, c, inv_kappa, pi, width))
+            match, hidden, none, uniform = r * w
+            a = x / c
+            mills = np.exp(-0.5 * a * a - 0.5 * math.log(2.0 * math.pi) - _log_q(a))
+            mills = np.clip(mills, a, a + 1.0 / np.maximum(a, 1e-3))
+            n_true = float(np.sum(match + hidden))
+            c_new = math.sqrt(float(np.sum(match * x * x + hidden * c * c * (1.0 + a * mills))) / max(n_true, 1e-3))
+            others = np.where(count > 1.0, count - 1.0, 0.0)
+            censored = np.where(count > 1.0, match, 0.0)
+            seen = float(np.sum(hidden * others * x + none * count * x + censored * (others * x + inv_kappa)))
+            inv_kappa = seen / max(float(np.sum(hidden + none + censored)), 1e-3)
+            c = min(max(c_new, 1e-3), width)
+            inv_kappa = min(max(inv_kappa, spread_min), width * top_count)
+            pi = np.clip(np.array([n_true, np.sum(none), np.sum(uniform)]) / total, 1e-4, 1.0)
+            pi = pi / pi.sum()
+        r, log_total = _softmax0(_sigma_log_parts_normal(x, count, c, inv_kappa, pi, width))
+        fits.append((float(np.sum(w * log_total)), c, float(np.sum(w * (r[0] + r[1])))))
+    top = max(f[0] for f in fits)
+    best = next(k for k, f in enumerate(fits) if f[0] >= top - 1e-5 * (1.0 + abs(top)))  # near-ties: the first
+    _, c, n_match = fits[best]
+    sigma = c / math.sqrt(2.0)
+    fallback = not (n_match >= 2.5 and sigma <= 0.01 * focal)
+    return (1.0 if fallback else sigma), fallback
+
+
+def estimate_sigma_robust(d, mask, focal_px, iters=40, coverage=0.9544997361036416, with_gate=False):
+    """§0.1, sigma_mode="robust": EM on the censored mixture (a true match nearest / a true
+    match beyond the second-nearest point / no true match / uniform) of the nearest
+    distances, each with weight ½, the match distance half-normal or half-t (ν = 8, 4, 2), from three starts each; σ = the
     Gaussian scale of the median of the true-pair distance (under the most likely fit) / √2,
     or the 1 px fallback. Returns ``(sigma, fallback)``, or with ``with_gate``
     ``(sigma, gate, fallback)``: gate = the ``coverage``-quantile (NaN on a fallback). The recipe of ALGORITHM.md §0.1."""
@@ -749,6 +810,194 @@ def recover_leftovers(K, R, t, xy, mask, groups, gvalid, pts, tau, frac):
     return groups
 
 
+def _dlt_checked(K, R, t, obs, members):
+    """Multi-view DLT point of ``obs (M, 2)`` over ``members (M,)`` and whether its normal
+    matrix is well conditioned (``det N > 1e-9 · trace(N)³``, the float64 bound of §9)."""
+    xn = _normalised(K, obs)
+    N = np.zeros((3, 3))
+    for m in np.flatnonzero(members):
+        rows = np.stack([xn[m, 0] * R[m][2] - R[m][0], xn[m, 1] * R[m][2] - R[m][1]])
+        N += rows.T @ rows
+    if members.sum() < 2 or np.linalg.det(N) <= 1e-9 * np.trace(N) ** 3:
+        return np.zeros(3), False
+    return triangulate_dlt(K, R, t, obs, members), True
+
+
+def _depth(R, t, m, X):
+    return (R[m] @ X + t[m])[2]
+
+
+def seed_groups(K, R, t, xy, free, d, tau, gate, min_views):
+    """§8f: groups seeded from two-view hypotheses on the ``free`` (M, P) detections, as a
+    list of (M,) rows in the order they are accepted."""
+    M, P = free.shape
+    hyps = []  # (count, err, index, a, b, distances (M, P) of the other views)
+    for m in range(M):
+        for i in range(P):
+            for n in range(M):
+                index = (m * P + i) * M + n
+                if n == m or not free[m, i]:
+                    continue
+                best, best_cost = None, np.inf
+                for j in range(P):
+                    if free[n, j] and not np.isnan(d[m, i, n, j]) and not np.isnan(d[n, j, m, i]):
+                        c = 0.5 * (d[m, i, n, j] + d[n, j, m, i])
+                        if c < best_cost:
+                            best, best_cost = j, c
+                if best is None or not best_cost < tau:
+                    continue
+                obs = np.zeros((M, 2))
+                obs[m], obs[n] = xy[m, i], xy[n, best]
+                pair = np.zeros(M, bool)
+                pair[[m, n]] = True
+                X, ok = _dlt_checked(K, R, t, obs, pair)
+                if not ok or _depth(R, t, m, X) <= 0 or _depth(R, t, n, X) <= 0:
+                    continue
+                pix = project(K, R, t, X)
+                dist = np.full((M, P), np.inf)
+                total, count = np.linalg.norm(pix[m] - xy[m, i]) + np.linalg.norm(pix[n] - xy[n, best]), 2
+                for v in range(M):
+                    if v in (m, n) or _depth(R, t, v, X) <= 0:
+                        continue
+                    for j in range(P):
+                        if free[v, j]:
+                            dist[v, j] = np.linalg.norm(pix[v] - xy[v, j])
+                    if dist[v].min() < gate:
+                        total, count = total + dist[v].min(), count + 1
+                if count >= min_views:
+                    hyps.append((-count, total / count, index, (m, i), (n, best), dist))
+    hyps.sort(key=lambda h: h[:3])
+    used = ~free
+    rows = []
+    for _, _, _, (m, i), (n, j), dist in hyps:
+        if used[m, i] or used[n, j]:
+            continue
+        row = np.full(M, -1)
+        for v in range(M):
+            open_ = np.where(used[v], np.inf, dist[v])
+            if open_.min() < gate:
+                row[v] = int(np.argmin(open_))
+        row[m], row[n] = i, j
+        if (row >= 0).sum() < min_views:
+            continue
+        rows.append(row)
+        for v in np.flatnonzero(row >= 0):
+            used[v, row[v]] = True
+    return rows
+
+
+def _node_errors(K, R, t, xy, mask, groups, gvalid):
+    """(G, M, P) distance of every detection to every usable group's point in its view."""
+    G, M = groups.shape
+    P = mask.shape[1]
+    err = np.full((G, M, P), np.inf)
+    for g in np.flatnonzero(gvalid):
+        members = groups[g] >= 0
+        obs = np.zeros((M, 2))
+        for m in np.flatnonzero(members):
+            obs[m] = xy[m, groups[g, m]]
+        X, ok = _dlt_checked(K, R, t, obs, members)
+        if not ok:
+            continue
+        pix = project(K, R, t, X)
+        for m in range(M):
+            if _depth(R, t, m, X) > 0:
+                for i in np.flatnonzero(mask[m]):
+                    err[g, m, i] = np.linalg.norm(pix[m] - xy[m, i])
+    return err
+
+
+def reassign_nearest(err, gvalid, gate, rounds):
+    """§8g step 1: each detection to its nearest group point within ``gate``, one per
+    (group, view), losers retrying the open slots ``rounds`` times."""
+    G, M, P = err.shape
+    groups = np.full((G, M), -1, dtype=np.int64)
+    for _ in range(rounds):
+        placed = np.zeros((M, P), bool)
+        for g in range(G):
+            for m in np.flatnonzero(groups[g] >= 0):
+                placed[m, groups[g, m]] = True
+        claims = {}
+        for m in range(M):
+            for i in range(P):
+                if placed[m, i]:
+                    continue
+                best, best_err = None, np.inf
+                for g in range(G):
+                    if groups[g, m] < 0 and err[g, m, i] < best_err:
+                        best, best_err = g, err[g, m, i]
+                if best is not None and best_err < gate:
+                    claims.setdefault((best, m), []).append((best_err, m * P + i))
+        for (g, m), claimants in claims.items():
+            groups[g, m] = min(claimants)[1] % P
+    gvalid = (groups >= 0).sum(axis=1) >= 2
+    groups[~gvalid] = -1
+    return groups, gvalid
+
+
+def merge_split_groups(err, groups, gvalid, gate):
+    """§8g step 2: a group moves into the larger group with disjoint views whose point is
+    within ``gate`` of all its members (nearest; one per target; a moving group takes none)."""
+    G, M = groups.shape
+    size = np.where(gvalid, (groups >= 0).sum(axis=1), 0)
+    target = np.full(G, -1)
+    cost = np.full(G, np.inf)
+    for h in range(G):
+        if size[h] < 2:
+            continue
+        for k in range(G):
+            if size[k] < 2 or k == h or not (size[k] > size[h] or (size[k] == size[h] and k < h)):
+                continue
+            if ((groups[k] >= 0) & (groups[h] >= 0)).any():
+                continue
+            worst = max(err[k, m, groups[h, m]] for m in np.flatnonzero(groups[h] >= 0))
+            if worst < gate and worst < cost[h]:
+                target[h], cost[h] = k, worst
+    moving = target >= 0
+    groups, gvalid = groups.copy(), gvalid.copy()
+    for k in range(G):
+        movers = [(cost[h], h) for h in range(G) if target[h] == k]
+        if not movers or moving[k]:
+            continue
+        h = min(movers)[1]
+        groups[k] = np.where(groups[h] >= 0, groups[h], groups[k])
+        groups[h] = -1
+        gvalid[h] = False
+    return groups, gvalid
+
+
+def reassign_groups(K, R, t, xy, mask, groups, gvalid, tau, cfg, rounds=3):
+    """§8g: ``cfg.reassign_iters`` rounds of nearest-point re-assignment and merging."""
+    gate = cfg.reassign_frac * tau
+    for _ in range(cfg.reassign_iters):
+        groups, gvalid = reassign_nearest(_node_errors(K, R, t, xy, mask, groups, gvalid), gvalid, gate, rounds)
+        groups, gvalid = merge_split_groups(_node_errors(K, R, t, xy, mask, groups, gvalid), groups, gvalid, gate)
+    return groups, gvalid
+
+
+def _free(mask, groups, gvalid):
+    free = mask.copy()
+    for g in np.flatnonzero(gvalid):
+        for m in np.flatnonzero(groups[g] >= 0):
+            free[m, groups[g, m]] = False
+    return free
+
+
+def _compact(rows, G, M):
+    groups = np.full((G, M), -1, dtype=np.int64)
+    gvalid = np.zeros(G, bool)
+    for g, row in enumerate(rows[:G]):
+        groups[g], gvalid[g] = row, True
+    return groups, gvalid
+
+
+def _seed_stage(K, R, t, xy, mask, d, groups, gvalid, tau, cfg):
+    G, M = groups.shape
+    free = _free(mask, groups, gvalid)
+    new = seed_groups(K, R, t, xy, free, d, tau, cfg.seed_frac * tau, cfg.seed_min_views)
+    return _compact([groups[g] for g in np.flatnonzero(gvalid)] + new, G, M)
+
+
 def support_keep(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg):
     """Visibility support (§8d, beyond the paper; ``Config.support_filter``).
 
@@ -862,8 +1111,12 @@ def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
 
     # §1 epipolar distances, §0 noise level and gate
     d = epipolar_distance_table(K, R, t, xy, mask)
-    auto = cfg.sigma_mode == "auto" or (isinstance(sigma, str) and sigma == "auto")
-    sigma_px, sigma_fallback = estimate_sigma(d, mask, focal_scale(K)) if auto else (float(sigma), False)
+    if cfg.sigma_mode == "robust":
+        sigma_px, sigma_fallback = estimate_sigma_robust(d, mask, focal_scale(K))
+    elif cfg.sigma_mode == "auto" or (isinstance(sigma, str) and sigma == "auto"):
+        sigma_px, sigma_fallback = estimate_sigma(d, mask, focal_scale(K))
+    else:
+        sigma_px, sigma_fallback = float(sigma), False
     tau = tau_px(sigma_px, cfg.alpha_tau, cfg.tau_min_px)
 
     # §2 adjacency, §3 pruning, §4 view-uniqueness split, §5 group table
@@ -916,7 +1169,15 @@ def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
         for g, row in enumerate(old + new):
             groups[g] = row
             gvalid[g] = True
-    if cfg.recover or cfg.regroup:
+    # §8f seeding from two-view hypotheses, §8g re-assignment and merging, §8f again
+    if cfg.seed:
+        groups, gvalid = _seed_stage(K, R, t, xy, mask, d, groups, gvalid, tau, cfg)
+    if cfg.reassign:
+        groups, gvalid = reassign_groups(K, R, t, xy, mask, groups, gvalid, tau, cfg)
+        groups, gvalid = _compact([groups[g] for g in np.flatnonzero(gvalid)], G, M)
+    if cfg.seed and cfg.reassign:
+        groups, gvalid = _seed_stage(K, R, t, xy, mask, d, groups, gvalid, tau, cfg)
+    if cfg.recover or cfg.regroup or cfg.seed or cfg.reassign:
         pts, bpe, err = group_bpe(K, R, t, xy, groups, gvalid)
         if getattr(cfg, "support_filter", False):  # §8d on the grown and regrouped groups
             keep = support_keep(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg)

@@ -1,6 +1,6 @@
 """Noise-free scenes of 1…130 points on the built-in rig are associated almost perfectly.
 
-Bound asserted, per scene: every group is pure (PG-P = 1 for ``paper()``, ≥ 0.99 for
+Bound asserted, per scene: every group is pure (PG-P = 1 for ``paper()`` and ``best()``, ≥ 0.99 for
 ``reference()`` and ``extended()``, whose recovery stages may attach one wrong detection) and at least 95 % of the ground-truth groups are found (PG-R ≥ 0.95). Why
 not exactly 1: at σ = 0 true matches sit ~1e-3 px from their epipolar lines and are always
 mutual nearest neighbours, but a detection whose point is invisible in another view can
@@ -22,7 +22,7 @@ from cdog_jax.synthetic import default_rig, generate_scenes
 COUNTS = np.array([1, 2, 5, 13, 30, 60, 100, 130])
 
 
-@pytest.mark.parametrize("preset, min_pg_p", [("paper", 1.0), ("reference", 0.99), ("extended", 0.99)])
+@pytest.mark.parametrize("preset, min_pg_p", [("paper", 1.0), ("reference", 0.99), ("extended", 0.99), ("best", 1.0)])
 def test_noise_free_scenes_almost_perfect(preset, min_pg_p):
     rig = default_rig()
     scenes = generate_scenes(

@@ -7,6 +7,7 @@ import csv
 import json
 import os
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -166,3 +167,26 @@ def test_cli_keypoint_options_checked_before_work(scene, tmp_path, capsys):
     code = main(["associate", "--rig", str(tmp_path / "rig.json"), "--points", str(tmp_path / "pose")])
     assert code == 2
     assert "expected one folder per camera" in capsys.readouterr().err
+
+
+def test_associate_traced_with_classes_never_joins_two_classes():
+    """``associate_traced(..., classes=)`` (one graph of every class): classes that agree
+    with the true points change nothing; classes drawn at random split every group into
+    single-class ones."""
+    from helpers import random_scene, ring_rig
+
+    rig = ring_rig(3)
+    xy, mask, instance, _ = random_scene(rig, 4, 6, sigma=0.2, seed=1)
+    config = cdog_jax.Config.paper()
+    th = config.thresholds(0.2)
+    run = jax.jit(cdog_jax.associate_traced, static_argnums=4)
+    plain = run(rig, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), th, config)
+    agreeing = run(rig, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), th, config, classes=jnp.asarray(instance % 2, jnp.int32))
+    np.testing.assert_array_equal(np.asarray(plain.labels), np.asarray(agreeing.labels))
+    random_classes = np.random.default_rng(2).integers(0, 2, instance.shape).astype(np.int32)
+    split = run(rig, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), th, config, classes=jnp.asarray(random_classes))
+    groups, valid = np.asarray(split.groups), np.asarray(split.valid)
+    assert valid.sum() > 0
+    for g in np.flatnonzero(valid):
+        views = np.flatnonzero(groups[g] >= 0)
+        assert len(set(random_classes[views, groups[g, views]].tolist())) == 1

@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1] / PACKAGE
 # exist (yet) are tolerated. Keep in step with docs/ARCHITECTURE.md.
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("base", ("_types", "_expect", "_status", "_progress", "_compile_cache", "_version",
-              "_config", "_method")),
+              "_config", "_options", "_method")),
     ("geometry", ("geometry.",)),
     ("stage", ("_stage",)),
     ("stages", ("graph.", "refine.")),

@@ -70,7 +70,7 @@ VARIANT_SCENES = _scenes(77, 12, 4, (0.5, 2.0, 4.0), empty_views=(0,), drop=(0.2
 # float32 presets: 3-view rigs.
 F32_SCENES = _scenes(5, 24, 3, (0.0, 0.5, 2.0, 4.0), empty_views=(0,))
 
-PRESETS = {"paper": Config.paper(), "reference": Config.reference(), "extended": Config.extended()}
+PRESETS = {"paper": Config.paper(), "reference": Config.reference(), "extended": Config.extended(), "best": Config.best()}
 # Every structural branch the presets leave out, in as few compilations as possible.
 # (bpe_filter off is the reference preset; prune_scope "conflicts" too.)
 VARIANTS = {
@@ -78,6 +78,8 @@ VARIANTS = {
     "reference_union_bpe_filter": Config.reference(adjacency="union", bpe_filter=True),
     "paper_recover_only": Config.paper(recover=True),
     "paper_regroup_no_iqr": Config.paper(regroup=True, iqr=False),
+    # seeding needs many leftovers (paper() leaves them), 3-member seeds, fewer rounds
+    "paper_seed3_reassign2": Config.paper(seed=True, seed_min_views=3, reassign=True, reassign_iters=2),
 }
 
 
@@ -85,6 +87,7 @@ VARIANTS = {
 NUMERIC_VARIANTS = {
     "paper_no_iqr_floor_delta055_alpha3": Config.paper(iqr_floor_px=0.0, delta=0.55, alpha_tau=3.0, jump_kappa=5.0),
     "reference_tau4_guards2_frac08": Config.reference(tau_min_px=4.0, iqr_alpha=2.0, iqr_min_px=2.0, second_frac=0.8),
+    "best_seed15_reassign15": Config.best(seed_frac=1.5, reassign_frac=1.5),
 }
 
 
@@ -183,14 +186,20 @@ def compare(jx, orc, tight=True):
 
 
 def stage_ladder(cfg):
-    """Configs switching the later stages on one at a time (graph only, +IQR, +second, +BPE)."""
-    rungs = [("graph §1-5", cfg.replace(iqr=False, second_association=False, bpe_filter=False))]
+    """Configs switching the later stages on one at a time (graph only, +IQR, +second, +BPE,
+    +recovery and regrouping, +seeding and re-assignment)."""
+    late = dict(recover=False, regroup=False, seed=False, reassign=False)
+    rungs = [("graph §1-5", cfg.replace(iqr=False, second_association=False, bpe_filter=False, **late))]
     if cfg.iqr:
-        rungs.append(("+IQR §6", cfg.replace(second_association=False, bpe_filter=False)))
+        rungs.append(("+IQR §6", cfg.replace(second_association=False, bpe_filter=False, **late)))
     if cfg.second_association:
-        rungs.append(("+second §7", cfg.replace(bpe_filter=False)))
+        rungs.append(("+second §7", cfg.replace(bpe_filter=False, **late)))
     if cfg.bpe_filter:
-        rungs.append(("+BPE filter §8", cfg))
+        rungs.append(("+BPE filter §8", cfg.replace(**late)))
+    if cfg.recover or cfg.regroup:
+        rungs.append(("+recovery, regrouping §8b-c", cfg.replace(seed=False, reassign=False)))
+    if cfg.seed or cfg.reassign:
+        rungs.append(("+seeding, re-assignment §8f-g", cfg))
     return rungs
 
 

@@ -23,16 +23,17 @@ def test_views_ablation_tiny(tmp_path, capsys):
     assert script.draw_subsets(10, 10, 3, np.random.default_rng(0)) == [tuple(range(10))]
 
     script.main(["--views-range", "2", "3", "--counts", "10", "--scenes", "1", "--subsets", "1",
-                 "--out", str(tmp_path)])
+                 "--methods", "paper,extended", "--out", str(tmp_path)])
     assert (tmp_path / "views_ablation.png").stat().st_size > 0
     out = json.loads((tmp_path / "views_ablation.json").read_text())
     assert [r["views"] for r in out["rows"]] == [2, 3]
     for r in out["rows"]:
         assert len(r["subsets"]) == 1 and len(r["subsets"][0]) == r["views"]
-        assert r["num_scenes"] == 1
+        assert r["num_scenes"] == {"paper": 1, "extended": 1}
+        assert r["subsets_run"] == {"paper": 1, "extended": 1}
         assert r["paper_table_i_pg_f1"] == {2: 0.766, 3: 0.726}[r["views"]]
         for m in ("paper", "extended"):
             for f in ("pg_f1", "mp_f1", "g_f1"):
                 assert 0.0 <= r[m][f] <= 1.0
     table = capsys.readouterr().out
-    assert "| views |" in table and "paper Table I PG-F1" in table
+    assert "| views | paper | extended | paper Table I |" in table and "**G-F1**" in table

@@ -224,16 +224,22 @@ def _sweep_body(rig, box, thresholds, buckets, gather, *, plan):
             outs.append((num_points, per_group))
         return tuple(outs)
 
-    rep, shard = PartitionSpec(), PartitionSpec(AXIS)
-    outs = jax.shard_map(
-        per_device,
-        mesh=plan.mesh,
-        in_specs=(rep, rep, rep, shard),
-        out_specs=shard,
-        # The pipeline's loops start from constant carries (replicated) that become
-        # per-scene (varying) values; there are no collectives, so skip the VMA check.
-        check_vma=False,
-    )(rig, box, thresholds, buckets)
+    if plan.mesh.devices.size == 1:
+        # One device: nothing to split. Without shard_map's manual axes, refinement's
+        # linear solves (lineax) trace too: under shard_map they fail ("pytree does not
+        # match out_structure"), which _sweep refuses up front for a mesh of several devices.
+        outs = per_device(rig, box, thresholds, buckets)
+    else:
+        rep, shard = PartitionSpec(), PartitionSpec(AXIS)
+        outs = jax.shard_map(
+            per_device,
+            mesh=plan.mesh,
+            in_specs=(rep, rep, rep, shard),
+            out_specs=shard,
+            # The pipeline's loops start from constant carries (replicated) that become
+            # per-scene (varying) values; there are no collectives, so skip the VMA check.
+            check_vma=False,
+        )(rig, box, thresholds, buckets)
     # Buckets side by side (padding included), then back to grid order.
     stacked = jax.tree.map(lambda *a: jnp.concatenate(a, axis=0), *outs)
     return jax.tree.map(lambda a: a[gather], stacked)
@@ -518,6 +524,12 @@ def _sweep(rig, grid, configs, buckets, batch_size, box, image_size, mesh, timin
     if box.shape != (2, 3):
         raise ValueError(f"box must be two (3,) corners; got shape {box.shape}")
 
+    refining = [name for name, method in configs.items() if getattr(method, "refine", False)]
+    if refining and mesh.devices.size > 1:
+        raise ValueError(
+            f"{refining[0]!r} refines points (refine=True), whose least-squares solver cannot run split over "
+            f"{mesh.devices.size} devices; sweep it on one device (mesh=Mesh(jax.devices()[:1], ('scenes',))) or without refine"
+        )
     layout = _layout(grid, buckets, batch_size, mesh.devices.size, dtype)
     # Configs that share a structure share one traced pipeline (mapped over their thresholds).
     groups: dict[Method, list[int]] = {}

@@ -196,7 +196,7 @@ def _points_format(path: str, given: str) -> str:
     if suffix == ".csv":
         return "table"
     if suffix == ".npz":
-        from ..io._rig_files import open_npz
+        from ..io._read_files import open_npz
 
         with open_npz(path) as npz:
             return "table" if "frame" in npz.files else "detections"
@@ -246,7 +246,7 @@ def run_associate(args: argparse.Namespace) -> int:
     from ..graph._sigma import FALLBACK_SIGMA_PX
     from ..geometry._distortion import Fisheye
     from ..io import save_association_csv, save_association_json, save_association_npz
-    from ..io._detections import check_float_range
+    from ..io._detections_checks import check_float_range
 
     _check_paths(args, {"--out": (args.out, _OUT_FORMATS), "--plot": (args.plot, _FIGURE_EXTENSIONS)})
     rig_file, det = _load(args)

@@ -9,7 +9,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .._config import Adjacency, PruneScope, Thresholds
+from .._config import Adjacency, Number, Numbers, PruneScope, Range
 from .._stage import GroupTable, Scene, Stage, State, always, raise_flag
 from .._status import Status
 from .._types import Array, Bool, Float, Int
@@ -21,20 +21,19 @@ from ._split import split_conflicts
 
 
 class GraphOptions(NamedTuple):
-    """The graph stage's options (fields of :class:`cdog_jax.Config`): mutual or union
-    adjacency, which components δ-pruning may touch, and the bound of the splitting loop.
-    Its numbers: ``th.delta`` (and the gate τ of the scene)."""
+    """Mutual or union adjacency, which components δ-pruning may touch, and the bound of the
+    splitting loop. Its number: ``th.delta`` (and the gate τ of the scene)."""
 
-    adjacency: Adjacency
-    prune_scope: PruneScope
-    max_split_iters: int
+    adjacency: Adjacency = "mutual"
+    prune_scope: PruneScope = "all"
+    max_split_iters: int = 64
 
 
 # The graph stage runs twice in extended() (regroup): as a nested jit it is traced and
 # lowered once and the second call reuses it.
 @partial(jax.jit, static_argnames=("options",))
 def graph_groups(
-    d: Float[Array, "M P M P"], valid: Bool[Array, " N"], tau: Float[Array, ""], th: Thresholds, options: GraphOptions
+    d: Float[Array, "M P M P"], valid: Bool[Array, " N"], tau: Float[Array, ""], th: Numbers, options: GraphOptions
 ) -> tuple[Int[Array, "G M"], Bool[Array, " G"], Int[Array, ""]]:
     """Alg. 1–2 on the valid nodes: epipolar graph, δ-pruning, view-unique components;
     returns the group table ``(G, M)``, its validity ``(G,)`` and an int32 status ``()``."""
@@ -68,4 +67,8 @@ def graph_stage(scene: Scene, state: State, options: GraphOptions) -> State:
     return State(GroupTable(groups, valid), None, state.status | status)
 
 
-GRAPH = Stage("graph", graph_stage, GraphOptions, always)
+GRAPH = Stage(
+    "graph", graph_stage, GraphOptions, always,
+    # θ ≥ δ keeps an edge; δ = 0 would keep all.
+    numbers=(Number("delta", 0.5, Range(0.0, 1.0, low_open=True), "δ-overlap threshold (Alg. 2)"),),
+)

@@ -12,21 +12,14 @@ scattered over the image). Three kinds of sample, modelled jointly (a censored m
 - ``none``: no true match in view ``n`` (clutter, a point that ``n`` does not see):
   ``x`` is the nearest unrelated distance;
 
-plus a uniform on ``[0, W]`` for anything else (far-off detections). ``T`` is half-normal
-or, for detectors with heavy tails, a half Student-t of ``ν`` degrees of freedom (a
-Gaussian whose variance varies from detection to detection: latent precision ``u ~
-Gamma(ν/2, ν/2)``). EM with closed-form steps (the censored half-normal / half-t and
-exponential moments) runs a fixed number of iterations for every ``ν`` of :data:`NU_GRID`
-from several low-quantile starts; the most likely fit wins. ``σ`` is the scale of the
-Gaussian with the fitted distance distribution's median (median absolute deviation): the
-noise of the bulk, not inflated by the tail.
+plus a uniform on ``[0, W]`` for anything else (far-off detections). EM with closed-form
+steps (the censored half-normal and exponential moments) runs a fixed number of iterations
+from several low-quantile starts; the most likely fit wins.
 
 The estimate is not trusted (``fallback``) when the expected number of pairs with a true
 match is below :data:`MIN_MATCHES`, or when ``σ̂`` exceeds :data:`MAX_SIGMA_PER_FOCAL`
 of the focal length; then ``σ = FALLBACK_SIGMA_PX``.
 """
-
-import math
 
 import jax
 import jax.numpy as jnp
@@ -35,136 +28,62 @@ from jax.scipy.special import erfinv, log_ndtr
 from .._types import Array, Bool, Float
 
 EM_ITERS = 40
-# Degrees of freedom of the match distance's fits (inf: half-normal); the most likely wins.
-NU_GRID = (float("inf"), 8.0, 4.0, 2.0)
-MEDIAN_Z = 0.6744897501960817  # Φ⁻¹(3/4): the median of |N(0, 1)|
-QUANTILE_ITERS = 64  # bisection steps of the true-pair distance's quantiles (to 2⁻⁶⁴ of the range)
-# Terms of the tail series of the half-t's survival (ALGORITHM.md §0.1): y ≤ ½, so the
-# truncation error is below 2⁻⁴⁰ relative.
-TAIL_TERMS = 40
 START_QUANTILES = (0.1, 0.25, 0.5)  # the half-normal scale starts from these sample quantiles
 MIN_MATCHES = 2.5  # expected true-match pairs needed to use σ̂ (three pairs that fit well)
 MAX_SIGMA_PER_FOCAL = 0.01  # a plausible σ is at most 1 % of the focal length
 UNIFORM_PER_FOCAL = 0.1  # the uniform spans at least 10 % of the focal length
 SPREAD_PER_FOCAL = 0.05  # 1/κ (a point's mean nearest distance to a line when alone) is at least this
 FALLBACK_SIGMA_PX = 1.0
-GAUSS_COVERAGE = 0.9544997361036416  # P(|Z| < 2): what α_τ = 2 covers of Gaussian true pairs
 TIE_RELATIVE = 1e-5  # log-likelihoods this close (relative) count as equal
 MIN_SCALE_PX = 1e-3  # the half-normal scale's floor (noise-free data: every distance ≈ 0)
 
 
 def nearest_samples(
     d: Float[Array, "M P M P"], mask: Bool[Array, "M P"]
-) -> tuple[Float[Array, "M P M"], Float[Array, "M P M"], Float[Array, "M P M"], Float[Array, "M P M"]]:
+) -> tuple[Float[Array, "M P M"], Float[Array, "M P M"], Float[Array, "M P M"]]:
     """``x[m, i, n] = min_j d[m, i, n, j]`` (pixels, 0 where unused), its weight (½ where
-    finite, else 0: a pair of nodes gives two samples that count once), the number of
-    valid points of view ``n`` and the second-nearest distance ``x2 >= x`` (pixels; ``x``
-    where view ``n`` has one point or the second is not finite)."""
+    finite, else 0: a pair of nodes gives two samples that count once) and the number of
+    valid points of view ``n``."""
     x = jnp.min(d, axis=-1)
     ok = jnp.isfinite(x) & mask[:, :, None]
     count = jnp.broadcast_to(jnp.sum(mask, axis=1).astype(d.dtype)[None, None, :], x.shape)
-    # The second smallest: the smallest once one copy of the minimum is removed.
-    first = jnp.argmin(d, axis=-1)
-    rest = jnp.where(jnp.arange(d.shape[-1])[None, None, None, :] == first[..., None], jnp.inf, d)
-    x2 = jnp.min(rest, axis=-1)
-    x = jnp.where(ok, x, 0.0)
-    return x, jnp.where(ok, 0.5, 0.0).astype(d.dtype), count, jnp.where(ok & jnp.isfinite(x2), x2, x)
+    return jnp.where(ok, x, 0.0), jnp.where(ok, 0.5, 0.0).astype(d.dtype), count
 
 
-def _poly(coef, y):
-    """``Σ_j coef[j] y^j`` (Horner)."""
-    out = jnp.zeros_like(y) + coef[-1]
-    for value in coef[-2::-1]:
-        out = out * y + value
-    return out
-
-
-def _log_t_tail(a, nu):
-    """``(log P(T > x), E[u T² | T > x] / c²)`` for ``T = |t_ν|`` of scale ``c``, ``a = x / c``,
-    ``ν`` an even integer.
-
-    With ``y = ν / (ν + a²)`` and ``k = ν / 2``: ``P(T > x) = I_y(k, ½)`` (regularised
-    incomplete beta), and ``E[u T² | T > x] / c² = (ν + 1) − ν I_y(k + 1, ½) / I_y(k, ½)``
-    (the latent precision's weight ``(ν + 1) / (ν + a²)`` turns ``t_ν`` into ``t_{ν+2}`` of the
-    same ``y``): from 1 (``a = 0``) to ``ν + 1`` (``a → ∞``). For integer ``k``,
-    ``I_y(k, ½) = 1 − √(1−y) Σ_{j<k} b_j y^j = √(1−y) Σ_{j≥k} b_j y^j``, ``b_j = C(2j, j) / 4^j``
-    (the binomial series of ``(1−y)^{-½}``): the finite sum where ``y > ½``, the series (in
-    logs: no underflow far in the tail) where ``y ≤ ½``.
-    """
-    k = int(nu) // 2
-    coef = [math.comb(2 * j, j) / 4.0**j for j in range(k + 1 + TAIL_TERMS)]
-    y = nu / (nu + a * a)
-    root = a / jnp.sqrt(nu + a * a)  # √(1 − y), without cancellation
-    # y > ½: the finite sums.
-    head = _poly(coef[:k], y)
-    body = 1.0 - root * head
-    body_up = body - root * coef[k] * y**k
-    log_body = jnp.log(jnp.maximum(body, jnp.finfo(a.dtype).tiny))
-    ratio_body = body_up / jnp.where(body > 0, body, 1.0)
-    # y ≤ ½: the series from j = k, scaled by y^k.
-    ys = jnp.minimum(y, 0.5)
-    tail = _poly(coef[k:], ys)
-    tail_up = _poly(coef[k + 1 :], ys)
-    log_tail = jnp.log(jnp.maximum(root, jnp.finfo(a.dtype).tiny)) + k * jnp.log(ys) + jnp.log(tail)
-    ratio_tail = ys * tail_up / tail
-    near = y > 0.5
-    moment = (nu + 1.0) - nu * jnp.where(near, ratio_body, ratio_tail)
-    return jnp.where(near, log_body, log_tail), jnp.clip(moment, 1.0, nu + 1.0)
-
-
-def _log_match(a, c, nu):
-    """``(log density of T at x, log P(T > x))`` for the half-normal (``ν = inf``) or half-t."""
-    if math.isinf(nu):
-        return 0.5 * jnp.log(2.0 / jnp.pi) - jnp.log(c) - 0.5 * a * a, jnp.log(2.0) + log_ndtr(-a)
-    log_norm = math.log(2.0) + math.lgamma(0.5 * (nu + 1.0)) - math.lgamma(0.5 * nu) - 0.5 * math.log(nu * math.pi)
-    return log_norm - jnp.log(c) - 0.5 * (nu + 1.0) * jnp.log1p(a * a / nu), _log_t_tail(a, nu)[0]
-
-
-def _log_parts(x, x2, count, c, inv_kappa, pi, width, nu):
-    """Log joint density ``(4, S)`` of every sample under match / hidden / none / uniform.
-    A hidden true match is another detection of the view: at or beyond ``x2``."""
+def _log_parts(x, count, c, inv_kappa, pi, width):
+    """Log joint density ``(4, S)`` of every sample under match / hidden / none / uniform."""
     a = x / c
     lam_true = (count - 1.0) / inv_kappa  # rate of the nearest unrelated point beside a true match
     lam_none = count / inv_kappa
-    log_t = _log_match(a, c, nu)[0]  # density of T at x
-    log_t_beyond = _log_match(x2 / c, c, nu)[1]  # log P(T > x2)
+    log_hn = 0.5 * jnp.log(2.0 / jnp.pi) - jnp.log(c) - 0.5 * a * a
+    log_t_beyond = jnp.log(2.0) + log_ndtr(-a)  # log P(T > x)
     has_other = count > 1.0
     log_lam_true = jnp.log(jnp.where(has_other, lam_true, 1.0))
-    match = log_t - lam_true * x
+    match = log_hn - lam_true * x
     hidden = jnp.where(has_other, log_lam_true - lam_true * x + log_t_beyond, -jnp.inf)
     none = jnp.log(lam_none) - lam_none * x
     uniform = jnp.broadcast_to(-jnp.log(width), x.shape)
     return jnp.stack([match + jnp.log(pi[0]), hidden + jnp.log(pi[0]), none + jnp.log(pi[1]), uniform + jnp.log(pi[2])])
 
 
-def _second_moments(x, c, nu):
-    """Per sample, the M-step's ``(E[u T²] of a match at x, E[u T² | T > x])`` (``u = 1`` for
-    the half-normal): the scale update is ``c² = Σ`` of these, weighted, over the true pairs."""
-    a = x / c
-    if math.isinf(nu):
-        # E[T² | T > x] = c² (1 + a φ(a) / Q(a)) for T half-normal with scale c.
-        # a < φ(a) / Q(a) < a + 1/a bounds the round-off of the ratio far in the tail.
-        mills = jnp.exp(-0.5 * a * a - 0.5 * jnp.log(2.0 * jnp.pi) - log_ndtr(-a))
-        mills = jnp.clip(mills, a, a + 1.0 / jnp.maximum(a, MIN_SCALE_PX))
-        return x * x, c * c * (1.0 + a * mills)
-    weight = (nu + 1.0) / (nu + a * a)  # E[u | x], the latent precision
-    return weight * x * x, c * c * _log_t_tail(a, nu)[1]
-
-
-def _em(x, x2, w, count, c0, inv_kappa0, width, spread_min, nu):
-    """EM from half-normal scale ``c0`` with the match distance's ``nu``; returns the scale,
-    the unrelated points' spread ``1/κ``, the shares ``π`` and the log-likelihood."""
+def _em(x, w, count, c0, inv_kappa0, width, spread_min):
+    """EM from half-normal scale ``c0``; returns the scale, the expected number of pairs
+    with a true match (``match`` or ``hidden``) and the log-likelihood."""
     total = jnp.maximum(jnp.sum(w), MIN_SCALE_PX)
     max_count = jnp.maximum(jnp.max(jnp.where(w > 0, count, 1.0)), 1.0)
 
     def step(_, state):
         c, inv_kappa, pi = state
-        resp = jax.nn.softmax(_log_parts(x, x2, count, c, inv_kappa, pi, width, nu), axis=0) * w[None]
+        resp = jax.nn.softmax(_log_parts(x, count, c, inv_kappa, pi, width), axis=0) * w[None]
         match, hidden, none, uniform = resp
-        t2_match = _second_moments(x, c, nu)[0]
-        t2_beyond = _second_moments(x2, c, nu)[1]
+        a = x / c
+        # E[T² | T > x] = c² (1 + a φ(a) / Q(a)) for T half-normal with scale c.
+        # a < φ(a) / Q(a) < a + 1/a bounds the round-off of the ratio far in the tail.
+        mills = jnp.exp(-0.5 * a * a - 0.5 * jnp.log(2.0 * jnp.pi) - log_ndtr(-a))
+        mills = jnp.clip(mills, a, a + 1.0 / jnp.maximum(a, MIN_SCALE_PX))
+        t2_beyond = c * c * (1.0 + a * mills)
         n_true = jnp.sum(match + hidden)
-        c_new = jnp.sqrt(jnp.sum(match * t2_match + hidden * t2_beyond) / jnp.maximum(n_true, MIN_SCALE_PX))
+        c_new = jnp.sqrt(jnp.sum(match * x * x + hidden * t2_beyond) / jnp.maximum(n_true, MIN_SCALE_PX))
         # (count − 1)·U is exponential with mean 1/κ; beside a match it is only known to exceed x.
         others = jnp.where(count > 1.0, count - 1.0, 0.0)
         censored = jnp.where(count > 1.0, match, 0.0)
@@ -177,38 +96,11 @@ def _em(x, x2, w, count, c0, inv_kappa0, width, spread_min, nu):
 
     pi0 = jnp.asarray([0.6, 0.3, 0.1], x.dtype)
     c, inv_kappa, pi = jax.lax.fori_loop(0, EM_ITERS, step, (c0, inv_kappa0, pi0))
-    parts = _log_parts(x, x2, count, c, inv_kappa, pi, width, nu)
+    parts = _log_parts(x, count, c, inv_kappa, pi, width)
     log_lik = jnp.sum(w * jax.nn.logsumexp(parts, axis=0))
-    return c, inv_kappa, pi, log_lik
-
-
-def _true_quantiles(q, x, x2, w, count, c, inv_kappa, pi, width, nu):
-    """The ``q``-quantiles (pixels, any shape) of the true-pair distance ``T``, estimated from
-    the samples under one fit, and the expected number of true pairs.
-
-    ``F(t) = Σ w (r_match 1{x ≤ t} + r_hidden P(T ≤ t | T > x2)) / Σ w (r_match + r_hidden)``
-    (a hidden sample's ``T`` is only known to exceed ``x2``; its law beyond is the fit's): the distribution of the samples the fit calls true, not the fitted shape, so a
-    tail the fit's shape misses moves the quantiles little. Solved by bisection on
-    ``[0, width]``.
-    """
-    resp = jax.nn.softmax(_log_parts(x, x2, count, c, inv_kappa, pi, width, nu), axis=0) * w[None]
-    match, hidden = resp[0], resp[1]
-    n_true = jnp.sum(match + hidden)
-    log_beyond_x = _log_match(x2 / c, c, nu)[1]
-
-    def cdf(t):
-        log_beyond_t = _log_match(t / c, c, nu)[1]
-        passed = -jnp.expm1(jnp.minimum(log_beyond_t - log_beyond_x, 0.0))  # P(T ≤ t | T > x2)
-        return jnp.sum(jnp.where(x <= t, match, 0.0) + hidden * passed) / jnp.maximum(n_true, MIN_SCALE_PX)
-
-    def step(_, bounds):
-        lo, hi = bounds
-        mid = 0.5 * (lo + hi)
-        below = jax.vmap(cdf)(mid.reshape(-1)).reshape(mid.shape) < q
-        return jnp.where(below, mid, lo), jnp.where(below, hi, mid)
-
-    lo, hi = jax.lax.fori_loop(0, QUANTILE_ITERS, step, (jnp.zeros_like(q), jnp.full_like(q, width)))
-    return 0.5 * (lo + hi), n_true
+    resp = jax.nn.softmax(parts, axis=0)
+    n_match = jnp.sum(w * (resp[0] + resp[1]))
+    return c, n_match, log_lik
 
 
 def estimate_sigma(
@@ -221,42 +113,15 @@ def estimate_sigma(
     than ``MIN_MATCHES`` expected true pairs, or ``σ̂ > MAX_SIGMA_PER_FOCAL · focal_px``), and
     then ``sigma = FALLBACK_SIGMA_PX``. Always finite.
     """
-    sigma, _, fallback = fit_noise(*nearest_samples(d, mask), focal_px, GAUSS_COVERAGE)
-    return sigma, fallback
-
-
-def estimate_noise(
-    d: Float[Array, "M P M P"],
-    mask: Bool[Array, "M P"],
-    focal_px: Float[Array, ""],
-    coverage: float | Float[Array, ""],
-) -> tuple[Float[Array, ""], Float[Array, ""], Bool[Array, ""]]:
-    """:func:`estimate_sigma` and the ``coverage``-quantile of the true-pair distance:
-    ``(sigma, gate_px, fallback)`` (:func:`fit_noise`)."""
-    return fit_noise(*nearest_samples(d, mask), focal_px, coverage)
+    return sigma_from_samples(*nearest_samples(d, mask), focal_px)
 
 
 def sigma_from_samples(
-    x: Float[Array, "*S"], w: Float[Array, "*S"], count: Float[Array, "*S"], x2: Float[Array, "*S"], focal_px: Float[Array, ""]
+    x: Float[Array, "*S"], w: Float[Array, "*S"], count: Float[Array, "*S"], focal_px: Float[Array, ""]
 ) -> tuple[Float[Array, ""], Bool[Array, ""]]:
     """:func:`estimate_sigma` from the samples of :func:`nearest_samples` (any shape, e.g.
     those of several scenes pooled; weight 0 marks an unused entry)."""
-    sigma, _, fallback = fit_noise(x, w, count, x2, focal_px, GAUSS_COVERAGE)
-    return sigma, fallback
-
-
-def fit_noise(
-    x: Float[Array, "*S"],
-    w: Float[Array, "*S"],
-    count: Float[Array, "*S"],
-    x2: Float[Array, "*S"],
-    focal_px: Float[Array, ""],
-    coverage: float | Float[Array, ""],
-) -> tuple[Float[Array, ""], Float[Array, ""], Bool[Array, ""]]:
-    """``(sigma, gate_px, fallback)`` from the samples of :func:`nearest_samples`:
-    :func:`estimate_sigma`'s σ and fallback, and ``gate_px``, the ``coverage``-quantile
-    (in ``(0, 1)``) of the true-pair distance (pixels; NaN on a fallback)."""
-    x, w, count, x2 = (a.reshape(-1) for a in (x, w, count, x2))
+    x, w, count = (a.reshape(-1) for a in (x, w, count))
     dtype = x.dtype
     n = jnp.sum(w > 0)
     focal_px = jnp.where(jnp.isfinite(focal_px) & (focal_px > 0), focal_px, 1.0)
@@ -269,38 +134,19 @@ def fit_noise(
     z = jnp.sqrt(2.0) * erfinv(q)
     at_q = ordered[jnp.floor(q * last).astype(jnp.int32)]
     c0 = jnp.clip(jnp.where(jnp.isfinite(at_q), at_q, 0.0) / z, MIN_SCALE_PX, width)
-    # The spread starts from the second-nearest distances (mostly unrelated points: the
-    # nearest of count − 1 of them has mean 1/κ / (count − 1)); without any, the nearest.
-    w_other = jnp.where(count > 1.0, w, 0.0)
-    second_mean = jnp.sum(w_other * (count - 1.0) * x2) / jnp.maximum(jnp.sum(w_other), MIN_SCALE_PX)
     scaled_mean = jnp.sum(w * count * x) / jnp.maximum(jnp.sum(w), MIN_SCALE_PX)
     spread_min = SPREAD_PER_FOCAL * focal_px
-    spread0 = jnp.where(jnp.sum(w_other) > 0, second_mean, scaled_mean)
-    inv_kappa0 = jnp.clip(spread0, spread_min, width * jnp.maximum(jnp.max(count), 1.0))
+    inv_kappa0 = jnp.clip(scaled_mean, spread_min, width * jnp.maximum(jnp.max(count), 1.0))
 
-    # Every ν from every start; the most likely fit wins. (ν, start) pairs in NU_GRID order.
-    fits = [
-        jax.vmap(_em, in_axes=(None, None, None, None, 0, None, None, None, None))(
-            x, x2, w, count, c0, inv_kappa0, width, spread_min, nu
-        )
-        for nu in NU_GRID
-    ]
-    c, inv_kappa, pi, log_lik = (jnp.concatenate(parts) for parts in zip(*fits))
+    em = jax.vmap(_em, in_axes=(None, None, None, 0, None, None, None))
+    c, n_match, log_lik = em(x, w, count, c0, inv_kappa0, width, spread_min)
     log_lik = jnp.where(jnp.isfinite(log_lik), log_lik, -jnp.inf)
     top = jnp.max(log_lik)
-    # Fits that reach one optimum differ only by round-off: near-ties go to the first
-    # (the half-normal before the heavier tails).
+    # Starts that reach one optimum differ only by round-off: near-ties go to the first.
     best = jnp.argmax(log_lik >= top - TIE_RELATIVE * (1.0 + jnp.abs(top)))
-    levels = jnp.stack([jnp.asarray(0.5, dtype), jnp.asarray(coverage, dtype)])
-    branches = [
-        lambda c, k, p, nu=nu: _true_quantiles(levels, x, x2, w, count, c, k, p, width, nu) for nu in NU_GRID
-    ]  # fmt: skip
-    (median, gate), n_match = jax.lax.switch(best // len(START_QUANTILES), branches, c[best], inv_kappa[best], pi[best])
-    # The Gaussian σ of the same median: a true pair's distance is |N(0, 2σ²)|.
-    sigma = median / (jnp.sqrt(2.0) * MEDIAN_Z)
-    fallback = ~((n_match >= MIN_MATCHES) & (sigma <= MAX_SIGMA_PER_FOCAL * focal_px) & jnp.isfinite(sigma))
-    gate = jnp.where(fallback, jnp.nan, gate)
-    return jnp.where(fallback, FALLBACK_SIGMA_PX, sigma).astype(dtype), gate.astype(dtype), fallback
+    sigma = c[best] / jnp.sqrt(2.0)
+    fallback = ~((n_match[best] >= MIN_MATCHES) & (sigma <= MAX_SIGMA_PER_FOCAL * focal_px) & jnp.isfinite(sigma))
+    return jnp.where(fallback, FALLBACK_SIGMA_PX, sigma).astype(dtype), fallback
 
 
 def focal_scale(K: Float[Array, "M 3 3"]) -> Float[Array, ""]:

@@ -47,6 +47,6 @@ from ._errors import InputError as InputError
 from ._rig_files import FORMATS as FORMATS
 from ._rig_files import RigFile as RigFile
 from ._load_rig import load_rig as load_rig
-from ._rig_files import save_rig_easyvis as save_rig_easyvis
-from ._rig_files import save_rig_json as save_rig_json
-from ._rig_files import save_rig_npz as save_rig_npz
+from ._rig_easyvis import save_rig_easyvis as save_rig_easyvis
+from ._rig_json import save_rig_json as save_rig_json
+from ._rig_npz import save_rig_npz as save_rig_npz

@@ -38,8 +38,8 @@ from ..geometry._camera import Rig
 from ._atomic import atomic_write
 from ._errors import InputError, read_text
 from ..geometry._distortion import Fisheye
-from ._rig_files import (
-    PathLike,
+from ._rig_files import PathLike, _Views
+from ._rig_values import (
     _check_dist,
     _check_image_size,
     _check_names,
@@ -48,7 +48,6 @@ from ._rig_files import (
     _K_over_K22,
     _opencv_dist,
     _to_array,
-    _Views,
     stack_dists,
 )
 from ._rotations import rodrigues_from_rotation, rotation_from_rodrigues

@@ -35,7 +35,7 @@ import numpy as np
 
 from .._expect import ARRAY, PATH, Kind, expect_args
 from ._atomic import atomic_write
-from ._rig_files import read_json
+from ._read_files import read_json
 
 PathLike = str | os.PathLike  # a file name
 

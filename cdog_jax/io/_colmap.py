@@ -31,14 +31,13 @@ from ..geometry._camera import Rig
 from ._atomic import atomic_write
 from ._errors import read_text
 from ..geometry._distortion import Fisheye
-from ._rig_files import (
-    PathLike,
+from ._rig_files import PathLike, _Views
+from ._rig_values import (
     _check_dist,
     _check_names,
     _check_view_sizes,
     _host_rig,
     _K_over_K22,
-    _Views,
     stack_dists,
 )
 from ._rotations import quaternion_from_rotation, rotation_from_quaternion

@@ -1,9 +1,11 @@
-"""What is wrong with a file, a path or a value the user gave: :class:`InputError`, and
-reading text files so that a bad byte is reported with its file and offset."""
+"""What is wrong with a file, a path or a value the user gave: :class:`InputError`, where in
+a file of detections it is (:class:`_Where`), and reading text files so that a bad byte is
+reported with its file and offset."""
 
 from __future__ import annotations
 
 import os
+from typing import NamedTuple
 
 
 class InputError(ValueError):
@@ -11,6 +13,27 @@ class InputError(ValueError):
     not with the library. The message starts with where: ``"<file>: <what>"``, with the
     frame, view, detection, key or line after the file when they are known. The command
     line prints it as one line, ``cdog-jax: error: <message>``."""
+
+
+class _Where(NamedTuple):
+    """Formats "file: frame f, view m, detection i: text" (frame only for lists of frames)."""
+
+    source: str | None
+    frames: bool
+
+    def loc(self, f: int | None = None, m: int | None = None, i: int | None = None) -> str:
+        parts = []
+        if self.frames and f is not None:
+            parts.append(f"frame {f}")
+        if m is not None:
+            parts.append(f"view {m}")
+        if i is not None:
+            parts.append(f"detection {i}")
+        return ", ".join(parts)
+
+    def error(self, text: str, f: int | None = None, m: int | None = None, i: int | None = None) -> ValueError:
+        head = [s for s in (self.source, self.loc(f, m, i)) if s]
+        return InputError(": ".join([*head, text]))
 
 
 def read_text(path: str | os.PathLike) -> str:

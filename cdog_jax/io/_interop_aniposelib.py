@@ -16,7 +16,8 @@ import numpy as np
 
 from ..geometry._camera import Rig
 from ._opencv_arrays import opencv_from_rig, rig_from_opencv
-from ._rig_files import RigFile, _check_names
+from ._rig_files import RigFile
+from ._rig_values import _check_names
 
 
 def rig_from_aniposelib(camera_group: Any, *, dtype: Any = None) -> RigFile:

@@ -20,7 +20,8 @@ import numpy as np
 
 from ..geometry._camera import Rig
 from ._colmap import camera_from_params, save_rig_colmap
-from ._rig_files import RigFile, _Views, check_rig_dtype, rig_file_from_views, stack_dists
+from ._rig_files import RigFile, _Views, check_rig_dtype, rig_file_from_views
+from ._rig_values import stack_dists
 
 
 def rig_from_pycolmap(reconstruction: Any, *, dtype: Any = None) -> RigFile:

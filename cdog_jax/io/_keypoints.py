@@ -36,9 +36,11 @@ import numpy as np
 
 from .._expect import PATH, expect_args
 from ._class_labels import check_names
-from ._detections import Detections, _check_coordinates, _check_options, _finish, _Where
-from ._errors import InputError, read_text
-from ._rig_files import open_npz, read_json
+from ._detections_checks import _finish
+from ._detections_rows import _check_coordinates, _check_options
+from ._detections_type import Detections
+from ._errors import InputError, _Where, read_text
+from ._read_files import open_npz, read_json
 from ._scores import normalise_keypoint_scores
 
 PathLike = str | os.PathLike

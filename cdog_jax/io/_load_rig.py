@@ -16,7 +16,10 @@ from ._easymocap import read_easymocap
 from ._errors import InputError
 from ._nerfstudio import read_nerfstudio
 from ._qualisys import read_qualisys
-from ._rig_files import FORMATS, PathLike, RigFile, check_rig_dtype, easyvis_files, read_easyvis, read_json_rig, read_npz, rig_file_from_views
+from ._rig_easyvis import easyvis_files, read_easyvis
+from ._rig_files import FORMATS, PathLike, RigFile, check_rig_dtype, rig_file_from_views
+from ._rig_json import read_json_rig
+from ._rig_npz import read_npz
 
 
 def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigFile:

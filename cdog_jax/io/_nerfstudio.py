@@ -32,8 +32,9 @@ from .._expect import PATH, expect_args
 from ..geometry._camera import Rig
 from ..geometry._distortion import Fisheye
 from ._atomic import atomic_write
-from ._rig_files import (
-    PathLike,
+from ._read_files import read_json
+from ._rig_files import PathLike, _Views
+from ._rig_values import (
     _check_dist,
     _check_image_size,
     _check_names,
@@ -41,8 +42,6 @@ from ._rig_files import (
     _host_rig,
     _K_over_K22,
     _to_array,
-    _Views,
-    read_json,
     stack_dists,
 )
 

@@ -17,17 +17,8 @@ import numpy as np
 
 from ..geometry._camera import Rig
 from ..geometry._distortion import Fisheye
-from ._rig_files import (
-    RigFile,
-    _check_dist,
-    _check_names,
-    _check_view_sizes,
-    _host_rig,
-    _opencv_dist,
-    _Views,
-    check_rig_dtype,
-    rig_file_from_views,
-)
+from ._rig_files import RigFile, _Views, check_rig_dtype, rig_file_from_views
+from ._rig_values import _check_dist, _check_names, _check_view_sizes, _host_rig, _opencv_dist
 from ._rotations import rodrigues_from_rotation, rotation_from_rodrigues
 
 

@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 
 from .._expect import ARRAY, INT, expect_args
-from .._config import Thresholds
+from .._config import Number, Numbers, Switch
 from .._stage import Scene, Stage, State
 from .._types import Array, Bool, Float, Int
 
@@ -52,11 +52,11 @@ def _prefix_medians(x: Float[Array, " K"], n: Int[Array, ""]) -> Float[Array, " 
 
 
 def bpe_jump_keep(
-    bpe: Float[Array, " G"], valid: Bool[Array, " G"], sigma_px: Float[Array, ""], th: Thresholds, min_gaps: int
+    bpe: Float[Array, " G"], valid: Bool[Array, " G"], sigma_px: Float[Array, ""], th: Numbers, min_gaps: int
 ) -> Bool[Array, " G"]:
     """``(G,)``: which valid groups survive the jump rule, from ``bpe (G,)`` (px²) and
     ``valid (G,)``."""
-    expect_args("bpe_jump_keep", bpe=(bpe, ARRAY), valid=(valid, ARRAY), sigma_px=(sigma_px, ARRAY), th=(th, Thresholds), min_gaps=(min_gaps, INT))
+    expect_args("bpe_jump_keep", bpe=(bpe, ARRAY), valid=(valid, ARRAY), sigma_px=(sigma_px, ARRAY), th=(th, Numbers), min_gaps=(min_gaps, INT))
     G = bpe.shape[0]
     if G < 2:
         return valid
@@ -75,11 +75,10 @@ def bpe_jump_keep(
 
 
 class BpeFilterOptions(NamedTuple):
-    """The BPE jump filter's option (a field of :class:`cdog_jax.Config`): gaps needed
-    before a jump can be declared. Its numbers: ``th.jump_kappa``, ``jump_floor_px2``,
-    ``jump_floor_sigma``."""
+    """Gaps needed before a jump can be declared. Its numbers: ``th.jump_kappa``,
+    ``jump_floor_px2``, ``jump_floor_sigma``."""
 
-    jump_min_gaps: int
+    jump_min_gaps: int = 3
 
 
 def bpe_filter_stage(scene: Scene, state: State, options: BpeFilterOptions) -> State:
@@ -88,4 +87,11 @@ def bpe_filter_stage(scene: Scene, state: State, options: BpeFilterOptions) -> S
     return state._replace(table=state.table.keep(keep), fit=state.fit._replace(member=state.fit.member & keep[:, None]))
 
 
-BPE_FILTER = Stage("bpe_filter", bpe_filter_stage, BpeFilterOptions, lambda config: config.bpe_filter)
+BPE_FILTER = Stage(
+    "bpe_filter", bpe_filter_stage, BpeFilterOptions, Switch("bpe_filter", True, "drop the groups after the first BPE jump"),
+    numbers=(
+        Number("jump_kappa", 10.0, doc="BPE jump: gap > jump_kappa · median(previous gaps)"),
+        Number("jump_floor_px2", 4.0, doc="BPE jump: gap > jump_floor_px2 + (jump_floor_sigma · σ)² (px²)", unit="px2"),
+        Number("jump_floor_sigma", 3.0, doc="BPE jump: see jump_floor_px2"),
+    ),
+)

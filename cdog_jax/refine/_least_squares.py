@@ -12,6 +12,7 @@ import jax
 import jax.numpy as jnp
 
 from .._expect import ARRAY, INT, expect_args
+from .._config import Switch
 from .._stage import Scene, Stage, State
 from .._status import Status
 from .._types import Array, Bool, Float
@@ -57,10 +58,9 @@ def refine_points(
 
 
 class RefineOptions(NamedTuple):
-    """The refinement stage's option (a field of :class:`cdog_jax.Config`): the solver's
-    step bound."""
+    """The solver's step bound."""
 
-    refine_max_steps: int
+    refine_max_steps: int = 20
 
 
 def refine_stage(scene: Scene, state: State, options: RefineOptions) -> State:
@@ -70,4 +70,4 @@ def refine_stage(scene: Scene, state: State, options: RefineOptions) -> State:
     return state._replace(fit=fit._replace(X=X)).flag(capped, Status.REFINE_CAPPED)
 
 
-REFINE = Stage("refine", refine_stage, RefineOptions, lambda config: config.refine)
+REFINE = Stage("refine", refine_stage, RefineOptions, Switch("refine", False, "refine each point by Levenberg–Marquardt"))

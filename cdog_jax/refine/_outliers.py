@@ -17,7 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._expect import ARRAY, expect_args
-from .._config import IqrQuartiles, IqrScore, Thresholds
+from .._config import IqrQuartiles, IqrScore, Number, Numbers, Switch
 from .._stage import GroupTable, Scene, Stage, State
 from .._status import Status
 from .._types import Array, Bool, Float
@@ -28,14 +28,14 @@ from ..geometry._triangulate import solve_normal_3x3
 
 
 class IqrOptions(NamedTuple):
-    """The IQR stage's options (fields of :class:`cdog_jax.Config`): which score and
-    quartiles, the reference's guards, and the bound of the removal loop. Its numbers:
-    ``th.iqr_alpha``, ``iqr_floor_px``, ``iqr_min_px``, ``iqr_force_px``."""
+    """Which score and quartiles, the reference's 10 px / 50 px guards, and the bound of the
+    removal loop. Its numbers: ``th.iqr_alpha``, ``iqr_floor_px``, ``iqr_min_px``,
+    ``iqr_force_px``."""
 
-    iqr_score: IqrScore
-    iqr_quartiles: IqrQuartiles
-    iqr_guards: bool
-    max_iqr_iters: int
+    iqr_score: IqrScore = "exclude_own"
+    iqr_quartiles: IqrQuartiles = "zero_pad"
+    iqr_guards: bool = False
+    max_iqr_iters: int = 16
 
 
 def percentile_linear(values: Float[Array, " K"], count, q: float) -> Float[Array, ""]:
@@ -79,10 +79,10 @@ def node_scores(
 
 
 def iqr_outliers(
-    score: Float[Array, " M"], member: Bool[Array, " M"], th: Thresholds, options: IqrOptions
+    score: Float[Array, " M"], member: Bool[Array, " M"], th: Numbers, options: IqrOptions
 ) -> Bool[Array, " M"]:
     """Members whose score lies outside ``[max(0, Q1 − α IQR), Q3 + α IQR]``."""
-    expect_args("iqr_outliers", score=(score, ARRAY), member=(member, ARRAY), th=(th, Thresholds), options=(options, IqrOptions))
+    expect_args("iqr_outliers", score=(score, ARRAY), member=(member, ARRAY), th=(th, Numbers), options=(options, IqrOptions))
     if options.iqr_quartiles == "zero_pad":
         vals = jnp.concatenate([jnp.where(member, score, jnp.inf), jnp.zeros((1,), score.dtype)])
         count = jnp.sum(member, dtype=jnp.int32) + 1
@@ -117,7 +117,7 @@ def remove_outliers(
     origin: Float[Array, "3"],
     xy_g: Float[Array, "G M 2"],
     member: Bool[Array, "G M"],
-    th: Thresholds,
+    th: Numbers,
     options: IqrOptions,
 ) -> tuple[Bool[Array, "G M"], Bool[Array, ""]]:
     """Iterated IQR removal over all groups; returns the members ``(G, M)`` and ``()`` True
@@ -132,7 +132,7 @@ def remove_outliers(
     groups changes (at most ``options.max_iqr_iters`` rounds). The static capacity ``G`` is
     far larger than the number of real groups, so this costs what the real groups cost.
     """
-    expect_args("remove_outliers", rig=(rig, Rig), th=(th, Thresholds), options=(options, IqrOptions))
+    expect_args("remove_outliers", rig=(rig, Rig), th=(th, Numbers), options=(options, IqrOptions))
     own = options.iqr_score == "include_own"
     G, M = member.shape
     C = min(IQR_CHUNK, G)
@@ -186,7 +186,7 @@ def remove_outliers(
 # and the second call reuses it.
 @partial(jax.jit, static_argnames=("options",))
 def iqr_table(
-    rig: Rig, xy: Float[Array, "M P 2"], table: GroupTable, blocks: tuple, th: Thresholds, options: IqrOptions
+    rig: Rig, xy: Float[Array, "M P 2"], table: GroupTable, blocks: tuple, th: Numbers, options: IqrOptions
 ) -> tuple[GroupTable, Bool[Array, ""]]:
     """Alg. 3 on the group table (per-node DLT ``blocks`` as in :func:`dlt_blocks`); returns
     the cleaned table (groups left with < 2 members are no longer valid) and ``()`` True
@@ -212,4 +212,12 @@ def iqr_stage(scene: Scene, state: State, options: IqrOptions) -> State:
     return state._replace(table=table, fit=None).flag(capped, Status.IQR_CAPPED)
 
 
-IQR = Stage("iqr", iqr_stage, IqrOptions, lambda config: config.iqr)
+IQR = Stage(
+    "iqr", iqr_stage, IqrOptions, Switch("iqr", True, "remove IQR outliers from groups (Alg. 3)"),
+    numbers=(
+        Number("iqr_alpha", 2.0, doc="IQR fence multiplier (Alg. 3)"),
+        Number("iqr_floor_px", 1.0, doc="an outlier's score must also exceed this (pixels)", unit="px"),
+        Number("iqr_min_px", 10.0, doc="reference guard: no outlier if the max score is below this (pixels)", unit="px"),
+        Number("iqr_force_px", 50.0, doc="reference guard: drop the max if above this (pixels)", unit="px"),
+    ),
+)

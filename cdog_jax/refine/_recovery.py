@@ -9,7 +9,7 @@ one view compete for a group, the closest wins (ties: smallest node index).
 
 import jax.numpy as jnp
 
-from .._config import Thresholds
+from .._config import Number, Numbers, Switch
 from .._stage import Scene, Stage, State
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
@@ -25,7 +25,7 @@ def recover_leftovers(
     valid: Bool[Array, " G"],
     X: Float[Array, "G 3"],
     tau_px: Float[Array, ""],
-    th: Thresholds,
+    th: Numbers,
 ) -> Int[Array, "G M"]:
     """The group table ``(G, M)`` with leftover detections attached (``xy (M, P, 2)`` pixels,
     ``X (G, 3)`` the groups' points)."""
@@ -52,4 +52,8 @@ def recover_stage(scene: Scene, state: State, options: None) -> State:
     return state._replace(table=state.table._replace(groups=groups), fit=None)
 
 
-RECOVER = Stage("recover", recover_stage, None, lambda config: config.recover)
+RECOVER = Stage(
+    "recover", recover_stage, None,
+    Switch("recover", False, "attach leftovers to groups by reprojection (beyond the paper)"),
+    numbers=(Number("recover_frac", 1.0, doc="recovery: attach if the reprojection error < recover_frac · τ"),),
+)

@@ -8,7 +8,7 @@ pass closest to it on average, distances ≥ τ counted three times, if that mea
 import jax.numpy as jnp
 
 from .._expect import ARRAY, expect_args
-from .._config import Thresholds
+from .._config import Number, Numbers, Switch
 from .._stage import Scene, Stage, State
 from .._types import Array, Bool, Float, Int
 from ._attach import attach_cheapest, leftover_nodes
@@ -20,11 +20,11 @@ def second_association(
     valid: Bool[Array, " G"],
     node_valid: Bool[Array, " N"],
     tau_px: Float[Array, ""],
-    th: Thresholds,
+    th: Numbers,
 ) -> Int[Array, "G M"]:
     """The group table ``(G, M)`` with leftover nodes attached. ``d (N, N)``: ``d[v, u]`` is
     the distance in u's image from u to the epipolar line of v (pixels)."""
-    expect_args("second_association", d=(d, ARRAY), groups=(groups, ARRAY), valid=(valid, ARRAY), node_valid=(node_valid, ARRAY), th=(th, Thresholds))
+    expect_args("second_association", d=(d, ARRAY), groups=(groups, ARRAY), valid=(valid, ARRAY), node_valid=(node_valid, ARRAY), th=(th, Numbers))
     G, M = groups.shape
     N = d.shape[0]
     P = N // M
@@ -52,4 +52,8 @@ def second_association_stage(scene: Scene, state: State, options: None) -> State
     return state._replace(table=state.table._replace(groups=groups), fit=None)
 
 
-SECOND_ASSOCIATION = Stage("second_association", second_association_stage, None, lambda config: config.second_association)
+SECOND_ASSOCIATION = Stage(
+    "second_association", second_association_stage, None,
+    Switch("second_association", False, "attach leftover nodes by their epipolar cost (the reference's)"),
+    numbers=(Number("second_frac", 0.5, doc="second association: attach if the mean cost < second_frac · τ"),),
+)

@@ -22,7 +22,7 @@ where points are seen). Views without a detection never count as missing.
 import jax
 import jax.numpy as jnp
 
-from .._config import Thresholds
+from .._config import Number, Numbers, Range, Switch
 from .._stage import Scene, Stage, State
 from .._types import Array, Bool, Float
 from ..geometry._camera import Rig
@@ -56,7 +56,7 @@ def support_keep(
     member: Bool[Array, "G M"],
     valid: Bool[Array, " G"],
     tau_px: Float[Array, ""],
-    th: Thresholds,
+    th: Numbers,
 ) -> Bool[Array, " G"]:
     """``(G,)``: the valid groups that pass the visibility-support test (module docstring).
 
@@ -99,4 +99,13 @@ def support_stage(scene: Scene, state: State, options: None) -> State:
     return state._replace(table=state.table.keep(keep), fit=fit._replace(member=fit.member & keep[:, None]))
 
 
-SUPPORT = Stage("support", support_stage, None, lambda config: config.support_filter)
+SUPPORT = Stage(
+    "support", support_stage, None,
+    Switch("support_filter", False, "drop groups that views seeing their point do not detect"),
+    numbers=(
+        Number("support_frac", 3.0, doc="a detection within support_frac · τ explains a view"),
+        Number("support_alpha", 0.01, Range(0.0, 1.0), "drop if P(that many misses) < support_alpha (a probability)"),
+        Number("support_min_rate", 0.02, Range(0.0, 1.0), "floor of the estimated miss rate"),
+        Number("support_ref_views", 4.0, doc="members of the groups that estimate the miss rate"),
+    ),
+)

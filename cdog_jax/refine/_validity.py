@@ -21,6 +21,7 @@ groups, vmappable like the rest of the pipeline.
 import jax
 import jax.numpy as jnp
 
+from .._config import DEFAULT_MIN_PARALLAX_DEG, Number, Range
 from .._stage import GroupTable, Scene, Stage, State, always
 
 from .._types import Array, Bool, Float
@@ -152,4 +153,14 @@ def validity_stage(scene: Scene, state: State, options: None) -> State:
     return state._replace(table=GroupTable(state.table.groups, valid), fit=fit._replace(member=member, X=X, bpe=bpe, err_px=err_px))
 
 
-VALIDITY = Stage("validity_gate", validity_stage, None, always)
+# The gate every valid group passes (ALGORITHM.md §12). 1° is far below the parallax of
+# any benchmark group and well above what float32 can triangulate; 3 τ leaves room above
+# recovery's attach gate (recover_frac · τ, 2 τ in extended()).
+VALIDITY = Stage(
+    "validity_gate", validity_stage, None, always,
+    numbers=(
+        Number("min_parallax_deg", DEFAULT_MIN_PARALLAX_DEG, Range(0.0, 90.0, high_open=True),
+               "validity gate: the largest angle between members' lines of sight (degrees)"),
+        Number("max_err_frac", 3.0, Range(0.0, low_open=True), "validity gate: every member's reprojection error <= max_err_frac · τ"),
+    ),
+)

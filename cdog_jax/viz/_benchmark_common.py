@@ -180,10 +180,23 @@ def _is_score(field: str) -> bool:
 
 
 def _method_colors(methods: Sequence[str]) -> dict[str, Any]:
+    """One colour per method: tab10 up to 10 methods, tab20 beyond (cycled past 20)."""
     from matplotlib import colormaps
 
-    tab10 = colormaps["tab10"]
-    return {m: tab10(i % 10) for i, m in enumerate(methods)}
+    cmap, n = (colormaps["tab10"], 10) if len(methods) <= 10 else (colormaps["tab20"], 20)
+    return {m: cmap(i % n) for i, m in enumerate(methods)}
+
+
+def _per_method(name: str, x, methods: Sequence[str]) -> dict[str, np.ndarray]:
+    """``{method: (S_m,)}``: ``x`` itself for every method when it is one ``(S,)`` array (all
+    methods ran the same scenes), else ``x[method]`` (each method its own scenes)."""
+    if isinstance(x, Mapping):
+        missing = [m for m in methods if m not in x]
+        if missing:
+            raise ValueError(f"{name} is a mapping per method but lacks {missing}")
+        return {m: _as_1d(f"{name}[{m!r}]", x[m]) for m in methods}
+    x = _as_1d(name, x)
+    return {m: x for m in methods}
 
 
 def _as_fields(per_method) -> dict[str, Any]:

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from ._benchmark_common import PAPER_VIEWS_PG_F1, _ORIGINAL_CODE, _ORIGINAL_TIME_COUNTS, _ORIGINAL_TIME_S, _ORIG_COLOR, _PAPER_OURS, _PAPER_SIGMA_PX, _REF_COLOR, _as_1d, _as_fields, _checked, _finish, _fmt, _group_means, _is_score, _label, _method_colors, _new_figure, scenes_for
+from ._benchmark_common import PAPER_VIEWS_PG_F1, _ORIGINAL_CODE, _ORIGINAL_TIME_COUNTS, _ORIGINAL_TIME_S, _ORIG_COLOR, _PAPER_OURS, _PAPER_SIGMA_PX, _REF_COLOR, _as_1d, _as_fields, _checked, _finish, _fmt, _group_means, _is_score, _label, _method_colors, _new_figure, _per_method, scenes_for
 
 
 _TIME_NOTE = ("median over the scenes\nband: interquartile range\n\nevery scene is padded to its\nbucket's capacity P and timed\n"
@@ -38,9 +38,11 @@ def time_vs_count(
     reference.
 
     Args:
-        count: ``(S,)`` number of 3D points of every scene.
-        time_s: ``{method: (S,)}`` per-scene association time in seconds (NaN: not timed).
-        capacity: optional ``(S,)`` slot capacity (padded bucket) each scene ran at.
+        count: ``(S,)`` number of 3D points of every scene, or ``{method: (S_m,)}`` when the
+            methods ran different scenes (e.g. a slow one on a sub-grid).
+        time_s: ``{method: (S,)}`` (or ``(S_m,)``) per-scene association time in seconds (NaN: not timed).
+        capacity: optional ``(S,)`` slot capacity (padded bucket) each scene ran at, or
+            ``{method: (S_m,)}`` like ``count``.
         reference: draw the original code's timings.
         log: logarithmic time axis.
         path: if given, the figure is also saved there (PNG from the suffix).
@@ -48,13 +50,15 @@ def time_vs_count(
     Returns:
         A :class:`matplotlib.figure.Figure` with one axes.
     """
-    count = _as_1d("count", count)
     if not time_s:
         raise ValueError("time_s must hold at least one method")
-    fig = _new_figure(9.6, 4.8, layout="constrained")
+    count_of = _per_method("count", count, list(time_s))
+    # Tall enough for a legend entry (two lines) per method beside the axes.
+    fig = _new_figure(9.6, max(4.8, 2.6 + 0.42 * len(time_s)), layout="constrained")
     ax = fig.add_subplot()
     colors = _method_colors(list(time_s))
     for method, t in time_s.items():
+        count = count_of[method]
         t_ms = _as_1d(f"time_s[{method!r}]", t, count.size).astype(np.float64) * 1e3
         ok = np.isfinite(t_ms)
         counts = np.unique(count[ok])
@@ -72,8 +76,10 @@ def time_vs_count(
             ax.annotate(f"{sec:g} s", (c, sec * 1e3), textcoords="offset points", xytext=(dx, dy), ha=ha,
                         va=va, fontsize=8, color=_REF_COLOR)
     if capacity is not None:
-        capacity = _as_1d("capacity", capacity, count.size)
-        for k, cap in enumerate(np.unique(capacity)):
+        capacity_of = _per_method("capacity", capacity, list(time_s))
+        for method, caps in capacity_of.items():
+            _as_1d(f"capacity[{method!r}]", caps, count_of[method].size)
+        for k, cap in enumerate(np.unique(np.concatenate(list(capacity_of.values())))):
             ax.axvline(cap, color="0.6", ls=":", lw=1.0, label="end of a padded bucket" if k == 0 else None)
             ax.annotate(f"P = {_fmt(cap)}", (cap, 0.0), xycoords=("data", "axes fraction"), xytext=(-3, 4),
                         textcoords="offset points", ha="right", va="bottom", fontsize=8, color="0.4")
@@ -111,8 +117,9 @@ def metrics_vs_sigma(
     quick or narrowed grid) the title says that the comparison is only a rough guide.
 
     Args:
-        sigma: ``(S,)`` noise level of every scene (px).
-        metrics: ``{method: {field: (S,)}}`` per-scene metrics.
+        sigma: ``(S,)`` noise level of every scene (px), or ``{method: (S_m,)}`` when the
+            methods ran different scenes (e.g. a slow one on a sub-grid).
+        metrics: ``{method: {field: (S,)}}`` (or ``(S_m,)``) per-scene metrics.
         fields: the fields, one panel each.
         paper_reference: draw the paper's numbers.
         original_reference: draw the original code's numbers.
@@ -122,8 +129,8 @@ def metrics_vs_sigma(
     Returns:
         A :class:`matplotlib.figure.Figure`: one axes per field (the legend is the figure's).
     """
-    sigma = _as_1d("sigma", sigma)
     metrics = _checked(metrics, fields)
+    sigma_of = _per_method("sigma", sigma, list(metrics))
     colors = _method_colors(list(metrics))
     n = len(fields)
     ncols = n if n <= 5 else math.ceil(n / 2)
@@ -134,6 +141,7 @@ def metrics_vs_sigma(
     for k, f in enumerate(fields):
         ax = fig.add_subplot(nrows, ncols, k + 1)
         for method, m in metrics.items():
+            sigma = sigma_of[method]
             values = _as_1d(f"metrics[{method!r}][{f!r}]", m[f], sigma.size).astype(np.float64)
             sigmas, means = _group_means(sigma, values, scenes_for(m, f))
             (h,) = ax.plot(sigmas, means, color=colors[method], lw=1.8, marker="o", ms=3, label=method)
@@ -179,7 +187,8 @@ def views_ablation(
     """A metric against the number of views (paper Table I), our methods vs the paper.
 
     Args:
-        views: ``(S,)`` number of views of every scene (or of every value).
+        views: ``(S,)`` number of views of every scene (or of every value), or
+            ``{method: (S_m,)}`` when the methods ran different scenes.
         values_by_method: ``{method: values}``, where ``values`` is either ``(S,)`` (already
             the chosen field) or ``{field: (S,)}`` per-scene metrics. Values with the same
             view count are averaged (docs/BENCHMARK.md §2 rule for ``err3d``/``bpe_px`` when the metrics
@@ -193,14 +202,15 @@ def views_ablation(
     Returns:
         A :class:`matplotlib.figure.Figure` with one axes.
     """
-    views = _as_1d("views", views)
     if not values_by_method:
         raise ValueError("values_by_method must hold at least one method")
+    views_of = _per_method("views", views, list(values_by_method))
     colors = _method_colors(list(values_by_method))
     fig = _new_figure(6.4, 4.4, layout="constrained")
     ax = fig.add_subplot()
-    all_views = [views]
+    all_views = list(views_of.values())
     for method, v in values_by_method.items():
+        views = views_of[method]
         if isinstance(v, Mapping) or dataclasses.is_dataclass(v):
             v = _as_fields(v)
             if field not in v:

@@ -45,6 +45,10 @@ result = sweep(
     progress=print_progress,
 )
 save_results(result, sys.argv[1])
+try:  # refinement's solver cannot be split over devices: refused before compiling
+    sweep(default_rig(), {grid!r}, configs={{"refine": Config.paper(refine=True)}}, buckets=(16,), timing=False)
+except ValueError as error:
+    print("refused:", error, file=sys.stderr)
 """
 
 
@@ -166,6 +170,23 @@ def test_sharded_equals_unsharded(padded, sharded_run):
     assert sharded.num_devices == 4 and "4 × cpu" in sharded.device
     np.testing.assert_array_equal(sharded.num_points, padded.num_points)
     _assert_same_metrics(sharded, padded, exact=True)
+    assert "refused: 'refine' refines points (refine=True)" in log and "4 devices" in log, log[-3000:]
+
+
+def test_refinement_sweeps_on_one_device(rig):
+    """``refine=True`` (a least-squares solve per group) runs in the sweep and agrees with
+    per-scene calls."""
+    grid = dataclasses.replace(GRID, sigmas=(0.5,), counts=(7,))
+    config = Config.paper(refine=True)
+    result = sweep(rig, grid, configs={"refine": config}, buckets=(16,), timing=False)
+    sub, keys = rig.select(GRID.views), grid.keys()
+    for i in range(grid.num_scenes):
+        scene = compact_scene(generate_scene(keys[i], sub, 7, 0.5, capacity=GRID.capacity), capacity=16)
+        res = associate(sub, scene.xy, scene.mask, config=config, sigma=0.5)
+        m = scene_metrics(sub, res, scene)
+        assert result.metrics["refine"]["num_groups"][i] == int(res.num_groups)
+        np.testing.assert_array_equal(result.metrics["refine"]["pg_f1"][i], np.asarray(m.pg_f1))
+        np.testing.assert_allclose(result.metrics["refine"]["err3d"][i], np.asarray(m.err3d), rtol=1e-3, atol=1e-4)
 
 
 def test_saved_results_load_back_identically(padded, tmp_path):

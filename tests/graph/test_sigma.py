@@ -1,15 +1,25 @@
-"""``sigma="auto"`` (graph/_sigma.py): finite on noise-free data, a flagged fallback when the
-evidence is too thin, unmoved by clutter, and the same numbers as the NumPy oracle."""
+"""The σ estimators, ``sigma_mode="auto"`` (graph/_sigma.py) and ``"robust"``
+(graph/_sigma_robust.py): finite on noise-free data, a flagged fallback when the evidence is
+too thin, unmoved by clutter, and the same numbers as the NumPy oracle."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 from helpers import random_scene, ring_rig
-from oracle import epipolar_distance_table, estimate_sigma as oracle_estimate_sigma, focal_scale as oracle_focal
+from oracle import epipolar_distance_table, estimate_sigma as oracle_auto, estimate_sigma_robust as oracle_robust
+from oracle import focal_scale as oracle_focal
 
 from cdog_jax.geometry import epipolar_distances
 from cdog_jax.graph._sigma import FALLBACK_SIGMA_PX, estimate_sigma, focal_scale
+from cdog_jax.graph._sigma_robust import GAUSS_COVERAGE, estimate_noise, estimate_sigma_robust
+
+ESTIMATORS = {"auto": (estimate_sigma, oracle_auto), "robust": (estimate_sigma_robust, oracle_robust)}
+# The robust fit with its gate (the 95.4 % quantile of the true-pair distance) beside σ.
+_JITTED = {
+    "auto": jax.jit(estimate_sigma),
+    "robust": jax.jit(lambda d, mask, focal: estimate_noise(d, mask, focal, GAUSS_COVERAGE)),
+}
 
 RIG = ring_rig(5)
 FOCAL = 1000.0
@@ -23,40 +33,46 @@ def _table(value, M, P=1):
     return jnp.asarray(d), jnp.ones((M, P), bool)
 
 
-_estimate_jit = jax.jit(estimate_sigma)
+@pytest.fixture(params=tuple(ESTIMATORS))
+def estimator(request):
+    return request.param
 
 
-def _estimate(d, mask, focal=FOCAL):
-    sigma, fallback = _estimate_jit(d, mask, jnp.asarray(focal, d.dtype))
+def _estimate(d, mask, focal=FOCAL, estimator="auto", with_gate=False):
+    out = _JITTED[estimator](d, mask, jnp.asarray(focal, d.dtype))
+    sigma, gate, fallback = out if estimator == "robust" else (out[0], np.nan, out[1])
+    if with_gate:
+        return float(sigma), float(gate), bool(fallback)
     return float(sigma), bool(fallback)
 
 
-def test_noise_free_one_point_is_finite_and_small():
+def test_noise_free_one_point_is_finite_and_small(estimator):
     # One point seen by three views without noise: every distance is exactly 0 (the
     # previous estimator returned NaN here).
-    sigma, fallback = _estimate(*_table(0.0, 3))
+    sigma, fallback = _estimate(*_table(0.0, 3), estimator=estimator)
     assert np.isfinite(sigma) and sigma < 0.01 and not fallback
 
 
 @pytest.mark.parametrize("distance", [0.0, 30.0])
-def test_one_pair_is_too_little_evidence(distance):
+def test_one_pair_is_too_little_evidence(distance, estimator):
     # Two views, one detection each (of different points 30 px apart, or a noise-free
     # point): one pair cannot tell the noise from an unrelated match (previously σ̂ = 21 px).
-    assert _estimate(*_table(distance, 2)) == (FALLBACK_SIGMA_PX, True)
+    assert _estimate(*_table(distance, 2), estimator=estimator) == (FALLBACK_SIGMA_PX, True)
 
 
-def test_nothing_to_fit_falls_back():
+def test_nothing_to_fit_falls_back(estimator):
     d, mask = _table(np.inf, 3)
-    assert _estimate(d, mask & False) == (FALLBACK_SIGMA_PX, True)
+    assert _estimate(d, mask & False, estimator=estimator) == (FALLBACK_SIGMA_PX, True)
 
 
-def test_implausibly_large_sigma_falls_back():
-    # Many consistent pairs, but σ̂ ≈ 31 px (every distance 30 px: the median) is above 1 %
-    # of a 1000 px focal length.
+@pytest.mark.parametrize("estimator, low, high", [("auto", 15.0, 25.0), ("robust", 28.0, 35.0)])
+def test_implausibly_large_sigma_falls_back(estimator, low, high):
+    # Many consistent pairs, every distance 30 px: σ̂ ≈ 21 px (auto: the half-normal's RMS
+    # scale / √2) or 31 px (robust: the median / (√2 · 0.674)), above 1 % of a 1000 px focal length.
     d, mask = _table(30.0, 4, 3)
-    assert _estimate(d, mask) == (FALLBACK_SIGMA_PX, True)
-    sigma, fallback = _estimate(d, mask, focal=1e4)
-    assert not fallback and 10.0 < sigma < 35.0
+    assert _estimate(d, mask, estimator=estimator) == (FALLBACK_SIGMA_PX, True)
+    sigma, fallback = _estimate(d, mask, focal=1e4, estimator=estimator)
+    assert not fallback and low < sigma < high
 
 
 def _with_clutter(xy, mask, per_view, rng):
@@ -69,10 +85,11 @@ def _with_clutter(xy, mask, per_view, rng):
     return xy, mask
 
 
-def test_clutter_does_not_move_the_estimate():
+def test_clutter_does_not_move_the_estimate(estimator):
     # 1–2 points at σ = 1 px, then 3 clutter detections per view (the previous estimator:
     # 12 and 15 px on two of these scenes).
-    estimates = jax.jit(jax.vmap(lambda xy, mask: estimate_sigma(epipolar_distances(RIG, xy, mask), mask, focal_scale(RIG.K))))
+    fit = ESTIMATORS[estimator][0]
+    estimates = jax.jit(jax.vmap(lambda xy, mask: fit(epipolar_distances(RIG, xy, mask), mask, focal_scale(RIG.K))))
     clean, cluttered = [], []
     for seed in range(8):
         xy, mask, _, _ = random_scene(RIG, 1 + seed % 2, 12, sigma=1.0, seed=seed)
@@ -102,11 +119,17 @@ def _oracle_cases():
     return cases, oracle_focal(K)
 
 
-def test_matches_oracle():
+def test_matches_oracle(estimator):
     cases, focal = _oracle_cases()
     with jax.enable_x64(True):
         for d, mask in cases:
-            got = _estimate(jnp.asarray(d, jnp.float64), jnp.asarray(mask), focal)
-            want = oracle_estimate_sigma(d, mask, focal)
+            if estimator == "robust":  # σ, the gate and the fallback
+                got = _estimate(jnp.asarray(d, jnp.float64), jnp.asarray(mask), focal, estimator, with_gate=True)
+                want = oracle_robust(d, mask, focal, with_gate=True)
+                assert got[1] == pytest.approx(want[1], rel=1e-6, nan_ok=True)
+                got, want = (got[0], got[2]), (want[0], want[2])
+            else:
+                got = _estimate(jnp.asarray(d, jnp.float64), jnp.asarray(mask), focal, estimator)
+                want = oracle_auto(d, mask, focal)
             assert got[1] == want[1]
             assert got[0] == pytest.approx(want[0], rel=1e-6)

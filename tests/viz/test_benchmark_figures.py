@@ -188,3 +188,32 @@ def test_metrics_vs_sigma_notes_a_smaller_grid():
     small = metrics_vs_sigma(sigma, metrics, fields=("pg_f1",), full_grid=False)
     assert "rough guide" not in full.get_suptitle()
     assert "rough guide" in small.get_suptitle() and "smaller grid" in small.get_suptitle()
+
+
+def test_curves_take_per_method_scenes_and_many_methods():
+    """Methods run on different scenes (a slow one on a sub-grid): σ, count and capacity as
+    ``{method: (S_m,)}``; more than ten methods get distinct colours."""
+    sigma, count, metrics, time_s = _grid()
+    sub = (sigma == 0.0) | (sigma == 3.0)
+    many = {f"m{i}": metrics["paper()"] for i in range(12)}
+    many["sub"] = {f: v[sub] for f, v in metrics["reference()"].items()}
+    sigmas = {**{k: sigma for k in many if k != "sub"}, "sub": sigma[sub]}
+    fig = metrics_vs_sigma(sigmas, many, fields=("pg_f1",))
+    lines = {ln.get_label(): ln for ln in fig.axes[0].get_lines()}
+    np.testing.assert_allclose(lines["sub"].get_xdata(), [0.0, 3.0])
+    want = [metrics["reference()"]["pg_f1"][sigma == s].mean() for s in (0.0, 3.0)]
+    np.testing.assert_allclose(lines["sub"].get_ydata(), want)
+    colors = {tuple(lines[k].get_color()) for k in many}
+    assert len(colors) == len(many)
+    counts = {"paper()": count, "reference()": count[sub]}
+    times = {"paper()": time_s["paper()"], "reference()": time_s["reference()"][sub]}
+    fig = time_vs_count(counts, times, capacity={k: v for k, v in counts.items()})
+    second = fig.axes[0].get_lines()[1]
+    np.testing.assert_array_equal(second.get_xdata(), np.unique(count[sub]))
+    with pytest.raises(ValueError, match="lacks"):
+        metrics_vs_sigma({"paper()": sigma}, metrics, fields=("pg_f1",))
+    views = {"a": np.array([2, 2, 3]), "b": np.array([3, 4])}
+    fig = views_ablation(views, {"a": np.array([0.2, 0.4, 0.5]), "b": np.array([0.6, 0.8])}, paper=None)
+    a_line, b_line = fig.axes[0].get_lines()
+    np.testing.assert_allclose(a_line.get_ydata(), [0.3, 0.5])
+    np.testing.assert_array_equal(b_line.get_xdata(), [3, 4])

@@ -1,0 +1,140 @@
+"""Re-assignment of every detection to the nearest group point (beyond the paper;
+``Config.reassign``).
+
+The groups the graph stages, recovery and seeding build are fitted one by one; at large σ
+some hold a detection of a neighbouring point, and some points are split over two groups
+whose views do not overlap. Each of ``reassign_iters`` rounds, with the gate
+``g = reassign_frac · τ`` (px):
+
+1. **Re-assignment** (maximum likelihood under Gaussian pixel noise): every detection is
+   offered to every usable group (≥ 2 members, a well-conditioned point in front of the
+   detection's camera), at the distance between the detection and the group's point
+   projected into its view. Every detection goes to its nearest group within ``g``; where
+   detections of one view compete for a group the nearest wins (ties: smallest node
+   index), and the losers try again among the (group, view) slots still open, up to
+   ``REASSIGN_ROUNDS`` times. Detections that win nothing are detached; groups left with
+   fewer than 2 members dissolve.
+2. **Merging**: the groups are refitted; a group ``h`` whose views are disjoint from those
+   of a group ``k`` at least as large (ties: ``k`` the smaller index), with every member of
+   ``h`` within ``g`` of ``k``'s point, moves into the ``k`` whose largest such distance is
+   smallest. Each ``k`` takes at most one group per round (the nearest), and a group that
+   moves takes none.
+
+The rounds are a ``fori_loop`` of fixed length: there is no bound to reach.
+"""
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from .._config import Number, Range, Switch
+from .._stage import GroupTable, Scene, Stage, State
+from .._types import Array, Bool, Float, Int
+from ..geometry._projection import project_views_last
+from ..graph._groups import compact_groups
+from ._attach import attach_cheapest
+from ._fit import fit_groups
+
+REASSIGN_ROUNDS = 3
+"""Times the detections that lost a (group, view) slot try the slots still open."""
+
+
+class ReassignOptions(NamedTuple):
+    """``reassign_iters``: rounds of re-assignment, refitting and merging."""
+
+    reassign_iters: int = 3
+
+
+def _node_errors(scene: Scene, X: Float[Array, "G 3"], usable: Bool[Array, " G"]) -> Float[Array, "G N"]:
+    """Pixel distance between every detection and every usable group's point projected into
+    the detection's view; ``+inf`` where the group is not usable, the point is behind that
+    camera or the slot is padding."""
+    M, P = scene.mask.shape
+    N = M * P
+    pix, in_front = project_views_last(scene.rig, X)  # (G, M, 2), (G, M)
+    node_view = jnp.arange(N, dtype=jnp.int32) // P
+    diff = pix[:, node_view, :] - scene.xy.reshape(N, 2)[None, :, :]  # (G, N, 2)
+    err = jnp.sqrt(jnp.sum(diff * diff, axis=-1))
+    allowed = usable[:, None] & in_front[:, node_view] & scene.mask.reshape(N)[None, :]
+    return jnp.where(allowed, err, jnp.inf)
+
+
+def _usable(table: GroupTable, X: Float[Array, "G 3"]) -> Bool[Array, " G"]:
+    # fit_groups writes X = 0 exactly where the normal equations are near singular.
+    enough = jnp.sum(table.valid[:, None] & (table.groups >= 0), axis=1) >= 2
+    return table.valid & enough & jnp.any(X != 0.0, axis=1)
+
+
+def reassign_nearest(
+    table: GroupTable, err: Float[Array, "G N"], gate: Float[Array, ""], num_slots: int
+) -> GroupTable:
+    """Every detection attached to its nearest group within ``gate`` (``err (G, N)`` px),
+    one per (group, view), losers retrying the open slots; groups of < 2 members dissolve."""
+    G, M = table.groups.shape
+    N = err.shape[1]
+    node_view = jnp.arange(N, dtype=jnp.int32) // num_slots
+    groups = jnp.full((G, M), -1, jnp.int32)
+    for _ in range(REASSIGN_ROUNDS):
+        taken = groups >= 0  # (G, M)
+        views = jnp.arange(M, dtype=jnp.int32)[None, :]
+        placed = jnp.zeros((M, num_slots + 1), bool).at[views, jnp.where(taken, groups, num_slots)].set(True)
+        placed = placed[:, :num_slots].reshape(N)
+        open_cost = jnp.where(~taken[:, node_view] & ~placed[None, :], err, jnp.inf)
+        groups = attach_cheapest(groups, open_cost, gate)
+    valid = jnp.sum(groups >= 0, axis=1) >= 2
+    return GroupTable(groups, valid).keep(valid)
+
+
+def merge_split_groups(
+    table: GroupTable, err: Float[Array, "G N"], gate: Float[Array, ""], num_slots: int
+) -> GroupTable:
+    """Groups moved into a larger group with disjoint views whose point lies within
+    ``gate`` of all their members (``err (G, N)`` px, rows the points, columns the nodes)."""
+    G, M = table.groups.shape
+    member = table.valid[:, None] & (table.groups >= 0)  # (G, M)
+    size = jnp.sum(member, axis=1, dtype=jnp.int32)
+    node = jnp.where(member, jnp.arange(M, dtype=jnp.int32)[None, :] * num_slots + table.groups, 0)  # (G, M)
+    to_point = err[:, node]  # (K, H, M): member m of group h to the point of group k
+    worst = jnp.max(jnp.where(member[None, :, :], to_point, -jnp.inf), axis=-1)  # (K, H)
+    index = jnp.arange(G, dtype=jnp.int32)
+    disjoint = ~jnp.any(member[:, None, :] & member[None, :, :], axis=-1)
+    larger = (size[:, None] > size[None, :]) | ((size[:, None] == size[None, :]) & (index[:, None] < index[None, :]))
+    allowed = disjoint & larger & (size[None, :] >= 2) & (size[:, None] >= 2) & (worst < gate)
+    cost = jnp.where(allowed, worst, jnp.inf)  # (K, H)
+    target = jnp.argmin(cost, axis=0).astype(jnp.int32)  # (H,)
+    moves = jnp.isfinite(jnp.min(cost, axis=0))
+    # One group per target, the nearest (ties: the smallest h); a moving group takes none.
+    best = jnp.full((G,), jnp.inf, cost.dtype).at[jnp.where(moves, target, G)].min(jnp.min(cost, axis=0), mode="drop")
+    win = moves & (jnp.min(cost, axis=0) == best[target])
+    first = jnp.full((G,), G, jnp.int32).at[jnp.where(win, target, G)].min(index, mode="drop")
+    win = win & (first[target] == index) & ~moves[target]
+    incoming = jnp.full((G,), G, jnp.int32).at[jnp.where(win, target, G)].set(index, mode="drop")  # (K,)
+    has_incoming = incoming < G
+    added = table.groups[jnp.minimum(incoming, G - 1)]  # (K, M)
+    groups = jnp.where(has_incoming[:, None] & (added >= 0), added, table.groups)
+    valid = table.valid & ~win
+    return GroupTable(groups, valid).keep(valid)
+
+
+def reassign_stage(scene: Scene, state: State, options: ReassignOptions) -> State:
+    """Rounds of nearest-point re-assignment and merging of split groups, refitting between."""
+    P = scene.mask.shape[1]
+    gate = scene.th.reassign_frac * scene.tau
+
+    def one_round(_, table):
+        fit = fit_groups(scene, table)
+        table = reassign_nearest(table, _node_errors(scene, fit.X, _usable(table, fit.X)), gate, P)
+        fit = fit_groups(scene, table)
+        return merge_split_groups(table, _node_errors(scene, fit.X, _usable(table, fit.X)), gate, P)
+
+    table = jax.lax.fori_loop(0, options.reassign_iters, one_round, state.table)
+    groups, valid, _ = compact_groups(table.groups, table.valid)
+    return state._replace(table=GroupTable(groups, valid), fit=None)
+
+
+REASSIGN = Stage(
+    "reassign", reassign_stage, ReassignOptions,
+    Switch("reassign", False, "each detection to its nearest group point, refitting (beyond the paper)"),
+    numbers=(Number("reassign_frac", 2.0, Range(0.0, low_open=True), doc="re-assignment: a detection joins its nearest point within reassign_frac · τ"),),
+)

@@ -1,0 +1,142 @@
+"""Seeding groups from two-view hypotheses on the leftovers (beyond the paper; ``Config.seed``).
+
+What association, recovery and regrouping leave over is mostly points whose epipolar
+edges were pruned as ambiguous: with many points and large σ, every epipolar band holds
+several detections. A triangulated pair is checked by the other views instead: every
+leftover detection is paired with its cheapest leftover detection in each other view
+(symmetric epipolar cost ``½ (d[m, i, n, j] + d[n, j, m, i])`` below τ), the pair is
+triangulated (two-view DLT, well conditioned, in front of both cameras) and reprojected
+into the other views, where the nearest leftover detection within ``seed_frac · τ`` pixels
+votes for it. Hypotheses are ranked by votes (more first), then mean reprojection error
+over all their members (smaller first), then index; in that order each one whose two
+detections are both still free becomes a group of its pair and its voters that are still
+free (one per view). The loop jumps from one accepted hypothesis to the next, so it runs
+at most once per new group (at most ``N // 2 + 1`` steps) and has no bound to reach.
+"""
+
+from typing import Annotated, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from .._config import AtLeast, Number, Range, Switch
+from .._stage import GroupTable, Scene, Stage, State
+from .._types import Array, Bool, Float, Int
+from ..geometry._camera import Rig
+from ..geometry._projection import project_views_last
+from ..geometry._triangulate import solve_normal_3x3
+from ..graph._groups import compact_groups
+from ._attach import leftover_nodes
+
+
+class SeedOptions(NamedTuple):
+    """``seed_min_views``: the fewest members (pair + voters) a seeded group needs."""
+
+    seed_min_views: Annotated[int, AtLeast(2)] = 2
+
+
+def seed_groups(
+    rig: Rig,
+    xy: Float[Array, "M P 2"],
+    free: Bool[Array, "M P"],
+    d: Float[Array, "M P M P"],
+    blocks: tuple,
+    tau_px: Float[Array, ""],
+    gate_px: Float[Array, ""],
+    min_views: int,
+) -> Int[Array, "G M"]:
+    """New groups ``(G, M)`` (slot per view or -1; unused rows all -1, ``G = M·P // 2``)
+    made of the ``free (M, P)`` detections only; ``xy (M, P, 2)`` pixels, ``d`` the epipolar
+    distances (px), ``blocks`` the per-node DLT blocks, ``tau_px`` the pair gate and
+    ``gate_px`` the vote gate (px)."""
+    M, P = free.shape
+    N, G = M * P, max(M * P // 2, 1)
+    views = jnp.arange(M, dtype=jnp.int32)
+    slots = jnp.arange(P, dtype=jnp.int32)
+    ok_pair = free[:, :, None, None] & free[None, None, :, :] & (views[:, None, None, None] != views[None, None, :, None])
+    d = jnp.where(ok_pair & ~jnp.isnan(d), d, jnp.inf)
+    cost = 0.5 * (d + jnp.transpose(d, (2, 3, 0, 1)))  # (M, P, M, P) px, symmetric
+    best = jnp.argmin(cost, axis=-1).astype(jnp.int32)  # (M, P, M): first of equals
+    best_cost = jnp.min(cost, axis=-1)
+    src = jnp.broadcast_to((views[:, None, None] * P + slots[None, :, None]), (M, P, M)).reshape(-1)  # (H,)
+    dst = (views[None, None, :] * P + best).reshape(-1)
+    ok = (best_cost < tau_px).reshape(-1)
+    view_a, view_b = src // P, dst // P
+
+    N_node, r_node, origin = blocks
+    N_node, r_node = N_node.reshape(N, 3, 3), r_node.reshape(N, 3)
+    X, ok_dlt = solve_normal_3x3(N_node[src] + N_node[dst], r_node[src] + r_node[dst])
+    xy_hat, front = project_views_last(rig, X + origin[None, :])  # (H, M, 2), (H, M)
+    hyp = jnp.arange(src.shape[0], dtype=jnp.int32)
+    ok = ok & ok_dlt & front[hyp, view_a] & front[hyp, view_b]
+
+    base = (views[None, :] == view_a[:, None]) | (views[None, :] == view_b[:, None])  # (H, M)
+    votes = free[None] & (front & ~base)[:, :, None]  # (H, M, P)
+    dx = jnp.where(votes, xy_hat[:, :, None, 0] - xy[None, :, :, 0], 0.0)
+    dy = jnp.where(votes, xy_hat[:, :, None, 1] - xy[None, :, :, 1], 0.0)
+    reproj = jnp.where(votes, jnp.sqrt(dx * dx + dy * dy), jnp.inf)  # (H, M, P) px
+
+    flat_xy = xy.reshape(N, 2)
+
+    def pair_error(node, view):
+        e = jnp.where(ok[:, None], xy_hat[hyp, view] - flat_xy[node], 0.0)
+        return jnp.sqrt(jnp.sum(e * e, axis=-1))
+
+    nearest = jnp.min(reproj, axis=-1)  # (H, M)
+    voter = nearest < gate_px
+    count = 2 + jnp.sum(voter, axis=-1, dtype=jnp.int32)
+    ok = ok & (count >= min_views)
+    total = pair_error(src, view_a) + pair_error(dst, view_b) + jnp.sum(jnp.where(voter, nearest, 0.0), axis=-1)
+    err = jnp.where(ok, total / count.astype(total.dtype), jnp.inf)
+    order = jnp.lexsort((hyp, err, jnp.where(ok, -count, 0)))
+    src, dst, reproj = src[order], dst[order], reproj[order]
+    num_ranked = jnp.sum(ok, dtype=jnp.int32)
+    rank = jnp.arange(src.shape[0], dtype=jnp.int32)
+
+    def cond(carry):
+        _, _, num_groups, k = carry
+        return (k < num_ranked) & (num_groups < G)
+
+    def body(carry):
+        used, groups, num_groups, k = carry
+        flat = used.reshape(N)
+        alive = (rank >= k) & (rank < num_ranked) & ~flat[src] & ~flat[dst]
+        k = jnp.min(jnp.where(alive, rank, num_ranked))
+        found = k < num_ranked
+        h = jnp.minimum(k, src.shape[0] - 1)
+        a, b = src[h], dst[h]
+        dist = jnp.where(used, jnp.inf, reproj[h])  # (M, P)
+        slot = jnp.argmin(dist, axis=-1).astype(jnp.int32)
+        row = jnp.where(jnp.min(dist, axis=-1) < gate_px, slot, -1)
+        row = row.at[a // P].set(a % P).at[b // P].set(b % P)
+        # Voters taken by earlier groups may leave fewer than min_views members: skip it.
+        found = found & (jnp.sum(row >= 0, dtype=jnp.int32) >= min_views)
+        groups = groups.at[num_groups].set(jnp.where(found, row, groups[num_groups]), mode="drop")
+        used = used | (found & (slots[None, :] == row[:, None]))
+        return used, groups, num_groups + found.astype(jnp.int32), k + 1
+
+    init = (~free, jnp.full((G, M), -1, jnp.int32), jnp.int32(0), jnp.int32(0))
+    _, groups, _, _ = jax.lax.while_loop(cond, body, init)
+    return groups
+
+
+def seed_stage(scene: Scene, state: State, options: SeedOptions) -> State:
+    """New groups seeded from two-view hypotheses on the leftover detections join the table."""
+    table = state.table
+    M, P = scene.mask.shape
+    free = leftover_nodes(*table, scene.mask).reshape(M, P)
+    new = seed_groups(
+        scene.rig, scene.xy, free, scene.d, scene.blocks, scene.tau, scene.th.seed_frac * scene.tau, options.seed_min_views
+    )
+    G = table.groups.shape[0]
+    groups = jnp.concatenate([table.groups, new])
+    valid = jnp.concatenate([table.valid, jnp.any(new >= 0, axis=1)])
+    groups, valid, _ = compact_groups(jnp.where(valid[:, None], groups, -1), valid)
+    return state._replace(table=GroupTable(groups[:G], valid[:G]), fit=None)
+
+
+SEED = Stage(
+    "seed", seed_stage, SeedOptions,
+    Switch("seed", False, "groups from two-view hypotheses on what is still left (beyond the paper)"),
+    numbers=(Number("seed_frac", 1.5, Range(0.0, low_open=True), doc="seeding: a detection within seed_frac · τ votes for a two-view point"),),
+)

@@ -1,0 +1,121 @@
+"""Seeding from two-view hypotheses (refine/_seed.py) and nearest-point re-assignment with
+merging (refine/_reassign.py) on small noise-free scenes whose answer is known."""
+
+import jax.numpy as jnp
+import numpy as np
+from helpers import random_scene, ring_rig
+
+from cdog_jax import Config
+from cdog_jax._stage import GroupTable, Scene, State
+from cdog_jax.geometry._epipolar import epipolar_distances
+from cdog_jax.geometry._triangulate import dlt_blocks
+from cdog_jax.refine._fit import fit_groups
+from cdog_jax.refine._reassign import ReassignOptions, _node_errors, _usable, merge_split_groups, reassign_stage
+from cdog_jax.refine._seed import SeedOptions, seed_stage
+
+RIG = ring_rig(4)
+P = 12
+
+
+def _scene(sigma=0.0, seed=3, two_view=()):
+    """A 10-point scene on 4 views (every point in all 4); the points ``two_view`` keep only
+    their detections in views 0 and 1."""
+    xy, mask, inst, _ = random_scene(RIG, 10, P, sigma=sigma, seed=seed)
+    mask[2:] &= ~np.isin(inst[2:], two_view)
+    inst = np.where(mask, inst, -1)
+    xy, mask = jnp.asarray(xy, jnp.float32), jnp.asarray(mask)
+    th = Config.best().thresholds(1.0)
+    th = th._replace(**{k: jnp.asarray(v) for k, v in th._asdict().items()})
+    tau = jnp.asarray(2.0 * np.sqrt(2.0), jnp.float32)  # τ at σ = 1 px
+    scene = Scene(RIG, xy, mask, mask.reshape(-1), epipolar_distances(RIG, xy, mask), dlt_blocks(RIG, xy),
+                  jnp.asarray(1.0, jnp.float32), tau, th)
+    return scene, inst
+
+
+def _truth(inst, mask):
+    """The true group table ``(G, M)``: row k holds instance k's slot in every view."""
+    M = mask.shape[0]
+    G = M * P // 2
+    groups = np.full((G, M), -1, np.int32)
+    for m in range(M):
+        for i in np.flatnonzero(np.asarray(mask[m])):
+            groups[inst[m, i], m] = i
+    valid = (groups >= 0).sum(axis=1) >= 2
+    groups[~valid] = -1
+    return groups, valid
+
+
+def _partition(table, M):
+    """The groups as a set of frozensets of (view, slot)."""
+    groups, valid = np.asarray(table.groups), np.asarray(table.valid)
+    return {frozenset((m, int(g[m])) for m in range(M) if g[m] >= 0) for g, v in zip(groups, valid) if v}
+
+
+def _empty(M):
+    G = M * P // 2
+    return GroupTable(jnp.full((G, M), -1, jnp.int32), jnp.zeros((G,), bool))
+
+
+def test_seeding_finds_every_point_of_a_noise_free_scene():
+    scene, inst = _scene()
+    state = seed_stage(scene, State(_empty(4), None, jnp.int32(0)), SeedOptions(2))
+    truth = _truth(inst, scene.mask)
+    assert _partition(state.table, 4) == _partition(GroupTable(*truth), 4)
+
+
+def test_seeding_leaves_the_groups_it_is_given_and_uses_only_free_detections():
+    scene, inst = _scene(two_view=(8, 9))
+    groups, valid = _truth(inst, scene.mask)
+    kept = np.arange(len(valid)) < 4  # the first 4 points stay; the rest are left over
+    given = GroupTable(jnp.asarray(np.where((valid & kept)[:, None], groups, -1)), jnp.asarray(valid & kept))
+    state = seed_stage(scene, State(given, None, jnp.int32(0)), SeedOptions(2))
+    assert _partition(given, 4) <= _partition(state.table, 4)
+    assert _partition(state.table, 4) == _partition(GroupTable(jnp.asarray(groups), jnp.asarray(valid)), 4)
+    # 3-member seeds only: the 2-view points 8 and 9 stay unassigned, the others are found.
+    three = seed_stage(scene, State(given, None, jnp.int32(0)), SeedOptions(3))
+    new = _partition(three.table, 4) - _partition(given, 4)
+    assert len(new) == 4 and all(len(g) == 4 for g in new)
+
+
+def _split_and_swap(groups, valid, swap):
+    """The true table with one 4-view point split over views {0, 1} and {2, 3} (into a free
+    row), and, with ``swap``, the view-0 members of two other 4-view points exchanged."""
+    big = [g for g in np.flatnonzero(valid) if (groups[g] >= 0).sum() == 4]
+    assert len(big) >= 3
+    a, b, c = big[:3]
+    wrong = groups.copy()
+    if swap:
+        wrong[a, 0], wrong[b, 0] = groups[b, 0], groups[a, 0]
+    free = int(np.flatnonzero(~valid)[0])
+    wrong[free, 2:], wrong[c, 2:] = groups[c, 2:], -1
+    table = GroupTable(jnp.asarray(wrong), jnp.asarray(valid | (np.arange(len(valid)) == free)))
+    assert _partition(table, 4) != _partition(GroupTable(jnp.asarray(groups), jnp.asarray(valid)), 4)
+    return table, c, free
+
+
+def test_merging_joins_a_point_split_over_disjoint_views():
+    scene, inst = _scene()
+    groups, valid = _truth(inst, scene.mask)
+    table, c, free = _split_and_swap(groups, valid, swap=False)
+    fit = fit_groups(scene, table)
+    errors = _node_errors(scene, fit.X, _usable(table, fit.X))
+    merged = merge_split_groups(table, errors, 2.0 * scene.tau, P)
+    np.testing.assert_array_equal(np.asarray(merged.groups)[c], groups[c])  # the equal-sized later row moves
+    assert not bool(merged.valid[free]) and (np.asarray(merged.groups)[free] == -1).all()
+    truth = _partition(GroupTable(jnp.asarray(groups), jnp.asarray(valid)), 4)
+    assert _partition(merged, 4) == truth
+    # A narrower gate than the points' distances to the members: nothing moves.
+    assert _partition(merge_split_groups(table, errors, jnp.float32(0.0), P), 4) == _partition(table, 4)
+
+
+def test_reassignment_detaches_wrong_members_and_seeding_again_restores_them():
+    scene, inst = _scene()
+    groups, valid = _truth(inst, scene.mask)
+    table, _, _ = _split_and_swap(groups, valid, swap=True)
+    state = reassign_stage(scene, State(table, None, jnp.int32(0)), ReassignOptions(2))
+    truth = _partition(GroupTable(jnp.asarray(groups), jnp.asarray(valid)), 4)
+    after = _partition(state.table, 4)
+    assert after < truth  # every group left is a true one; the swapped points are detached
+    assert state.fit is None
+    again = seed_stage(scene, state, SeedOptions(2))
+    assert _partition(again.table, 4) == truth
