@@ -299,10 +299,17 @@ def _pooled_sigma(rig, scenes: _Scenes, F: int, dist, dtype, pool: str, estimato
         table[group, rank] = a
         tables.append(jnp.asarray(table.reshape(G, -1)))
     focal = focal_scale(rig.K)
-    fit = robust_sigma_from_samples if robust else sigma_from_samples
-    sigma, _ = jax.vmap(fit, in_axes=(0,) * len(tables) + (None,))(*tables, focal)
+    if robust:
+        sigma, _ = _pooled_robust_fit(*tables, focal)
+    else:
+        sigma, _ = jax.vmap(sigma_from_samples, in_axes=(0, 0, 0, None))(*tables, focal)
     sigma = np.asarray(sigma)
     return sigma if pool == "frame" else np.full(F, sigma[0])
+
+
+# Compiled once per table shape (the twelve fits of the robust estimator run eagerly take
+# seconds more than compiling them).
+_pooled_robust_fit = jax.jit(jax.vmap(robust_sigma_from_samples, in_axes=(0, 0, 0, 0, None)))
 
 
 def _map_back(r, scenes: _Scenes, F, M, P, C, names) -> ClassAssociation:

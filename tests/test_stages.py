@@ -5,10 +5,10 @@ from __future__ import annotations
 import dataclasses
 
 from cdog_jax import STAGES, Config
-from cdog_jax._cdog import plan
+from cdog_jax._cdog import SCENE, plan
 
 SWITCHES = {"iqr", "second_association", "bpe_filter", "support_filter", "recover", "regroup", "refine", "seed", "reassign"}
-METHOD_LEVEL = {"sigma_mode"}  # read by associate_traced itself (σ given or estimated)
+METHOD_LEVEL = {"sigma_mode", "tau_mode", "threshold_unit"}  # read by associate_traced itself (σ, τ, units)
 
 
 def _names(config):
@@ -41,6 +41,7 @@ def test_every_structural_option_belongs_to_one_stage():
     numbers = set(Config().thresholds()._fields)
     structural = {f.name for f in dataclasses.fields(Config)} - numbers
     assert set(owners) <= structural, set(owners) - structural
+    assert set(SCENE.options._fields) == METHOD_LEVEL
     unowned = structural - set(owners) - SWITCHES - METHOD_LEVEL
     assert not unowned, f"Config fields no stage reads: {unowned}"
     # A stage listed again (refit, seed_again) is the same stage: count the rules, not the names.
