@@ -26,7 +26,6 @@ writer zero-pads the numbers (``cam_00`` … ``cam_10``) so that both orders agr
 from __future__ import annotations
 
 import itertools
-import os
 import re
 import sys
 from typing import Any

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
 
 from ..geometry._camera import Rig
 from ._opencv_arrays import opencv_from_rig, rig_from_opencv
