@@ -18,9 +18,9 @@ from .._method import register_method
 from .._table_method import GroupTableMethod
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
-from ..geometry._projection import project_views_last
-from ..geometry._triangulate import dlt_blocks, solve_normal_3x3
+from ..geometry._triangulate import dlt_blocks
 from ..graph._groups import groups_from_labels
+from ..refine._hypotheses import score_hypotheses
 from ._candidates import nearest_candidates, symmetric_cost
 
 
@@ -81,30 +81,9 @@ def voting_groups(
     gate = numbers["reprojection_gate"] * tau
 
     src, dst, cost, ok = nearest_candidates(symmetric_cost(d, mask), tau, 1)  # (H,)
-    view_a, view_b = src // P, dst // P
-    N_blocks, r_blocks, origin = dlt_blocks(rig, xy)
-    N_blocks, r_blocks = N_blocks.reshape(N, 3, 3), r_blocks.reshape(N, 3)
-    X, ok_dlt = solve_normal_3x3(N_blocks[src] + N_blocks[dst], r_blocks[src] + r_blocks[dst])
-    xy_hat, front = project_views_last(rig, X + origin[None, :])  # (H, M, 2), (H, M)
+    scored = score_hypotheses(rig, xy, mask, dlt_blocks(rig, xy), src, dst, ok, gate)
+    ok, reproj, count, err = scored
     hyp = jnp.arange(src.shape[0], dtype=jnp.int32)
-    ok = ok & ok_dlt & front[hyp, view_a] & front[hyp, view_b]
-
-    base = (views[None, :] == view_a[:, None]) | (views[None, :] == view_b[:, None])  # (H, M)
-    votes = mask[None] & (front & ~base)[:, :, None]  # (H, M, P)
-    # x and y apart: a trailing axis of length 2 would keep XLA from vectorising the table.
-    dx = jnp.where(votes, xy_hat[:, :, None, 0] - xy[None, :, :, 0], 0.0)
-    dy = jnp.where(votes, xy_hat[:, :, None, 1] - xy[None, :, :, 1], 0.0)
-    reproj = jnp.where(votes, jnp.sqrt(dx * dx + dy * dy), jnp.inf)  # (H, M, P) px
-
-    def base_error(node, view):
-        e = jnp.where(ok[:, None], xy_hat[hyp, view] - xy.reshape(N, 2)[node], 0.0)
-        return jnp.sqrt(jnp.sum(e * e, axis=-1))
-
-    nearest = jnp.min(reproj, axis=-1)  # (H, M)
-    inlier = nearest < gate
-    count = jnp.where(ok, 2 + jnp.sum(inlier, axis=-1, dtype=jnp.int32), 0)
-    total = base_error(src, view_a) + base_error(dst, view_b) + jnp.sum(jnp.where(inlier, nearest, 0.0), axis=-1)
-    err = jnp.where(ok, total / jnp.maximum(count, 1).astype(total.dtype), jnp.inf)
     order = jnp.lexsort((hyp, err, -count))
 
     src, dst = src[order], dst[order]  # ranked; the unusable ones last

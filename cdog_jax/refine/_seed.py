@@ -23,9 +23,8 @@ from .._config import AtLeast, Number, Range, Switch
 from .._stage import GroupTable, Scene, Stage, State
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
-from ..geometry._projection import project_views_last
-from ..geometry._triangulate import solve_normal_3x3
 from ..graph._groups import compact_groups
+from ._hypotheses import score_hypotheses
 from ._attach import leftover_nodes
 
 
@@ -61,33 +60,11 @@ def seed_groups(
     src = jnp.broadcast_to((views[:, None, None] * P + slots[None, :, None]), (M, P, M)).reshape(-1)  # (H,)
     dst = (views[None, None, :] * P + best).reshape(-1)
     ok = (best_cost < tau_px).reshape(-1)
-    view_a, view_b = src // P, dst // P
-
-    N_node, r_node, origin = blocks
-    N_node, r_node = N_node.reshape(N, 3, 3), r_node.reshape(N, 3)
-    X, ok_dlt = solve_normal_3x3(N_node[src] + N_node[dst], r_node[src] + r_node[dst])
-    xy_hat, front = project_views_last(rig, X + origin[None, :])  # (H, M, 2), (H, M)
+    scored = score_hypotheses(rig, xy, free, blocks, src, dst, ok, gate_px)
+    ok = scored.ok & (scored.count >= min_views)
+    err = jnp.where(ok, scored.err, jnp.inf)
+    reproj, count = scored.reproj, scored.count
     hyp = jnp.arange(src.shape[0], dtype=jnp.int32)
-    ok = ok & ok_dlt & front[hyp, view_a] & front[hyp, view_b]
-
-    base = (views[None, :] == view_a[:, None]) | (views[None, :] == view_b[:, None])  # (H, M)
-    votes = free[None] & (front & ~base)[:, :, None]  # (H, M, P)
-    dx = jnp.where(votes, xy_hat[:, :, None, 0] - xy[None, :, :, 0], 0.0)
-    dy = jnp.where(votes, xy_hat[:, :, None, 1] - xy[None, :, :, 1], 0.0)
-    reproj = jnp.where(votes, jnp.sqrt(dx * dx + dy * dy), jnp.inf)  # (H, M, P) px
-
-    flat_xy = xy.reshape(N, 2)
-
-    def pair_error(node, view):
-        e = jnp.where(ok[:, None], xy_hat[hyp, view] - flat_xy[node], 0.0)
-        return jnp.sqrt(jnp.sum(e * e, axis=-1))
-
-    nearest = jnp.min(reproj, axis=-1)  # (H, M)
-    voter = nearest < gate_px
-    count = 2 + jnp.sum(voter, axis=-1, dtype=jnp.int32)
-    ok = ok & (count >= min_views)
-    total = pair_error(src, view_a) + pair_error(dst, view_b) + jnp.sum(jnp.where(voter, nearest, 0.0), axis=-1)
-    err = jnp.where(ok, total / count.astype(total.dtype), jnp.inf)
     order = jnp.lexsort((hyp, err, jnp.where(ok, -count, 0)))
     src, dst, reproj = src[order], dst[order], reproj[order]
     num_ranked = jnp.sum(ok, dtype=jnp.int32)

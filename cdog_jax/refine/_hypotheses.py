@@ -1,0 +1,70 @@
+"""Two-view hypotheses checked by the other views: each gated pair of detections is
+triangulated and reprojected, and the nearest eligible detection of every other view within
+a gate votes for it (used by seeding, ALGORITHM.md §8f, and the ``voting`` baseline)."""
+
+from typing import NamedTuple
+
+import jax.numpy as jnp
+
+from .._types import Array, Bool, Float, Int
+from ..geometry._camera import Rig
+from ..geometry._projection import project_views_last
+from ..geometry._triangulate import solve_normal_3x3
+
+
+class ScoredHypotheses(NamedTuple):
+    """``ok (H,)``: usable (gated pair, well-conditioned point in front of both cameras);
+    ``reproj (H, M, P)``: pixel distance of every eligible detection of a third view to the
+    hypothesis' point (``inf`` elsewhere); ``count (H,)``: its members, the pair and the
+    voters (0 when not ``ok``); ``err (H,)``: their mean reprojection error (px, ``inf`` when
+    not ``ok``)."""
+
+    ok: Bool[Array, " H"]
+    reproj: Float[Array, "H M P"]
+    count: Int[Array, " H"]
+    err: Float[Array, " H"]
+
+
+def score_hypotheses(
+    rig: Rig,
+    xy: Float[Array, "M P 2"],
+    eligible: Bool[Array, "M P"],
+    blocks: tuple,
+    src: Int[Array, " H"],
+    dst: Int[Array, " H"],
+    ok: Bool[Array, " H"],
+    gate_px: Float[Array, ""],
+) -> ScoredHypotheses:
+    """Score the hypotheses ``(src, dst)`` (flat node indices ``view · P + slot``; ``ok`` the
+    pairs that passed the epipolar gate) on ``xy (M, P, 2)`` (pixels, padding already
+    neutral), voters among ``eligible``, with the per-node DLT ``blocks``."""
+    M, P = eligible.shape
+    N = M * P
+    views = jnp.arange(M, dtype=jnp.int32)
+    view_a, view_b = src // P, dst // P
+    N_node, r_node, origin = blocks
+    N_node, r_node = N_node.reshape(N, 3, 3), r_node.reshape(N, 3)
+    X, ok_dlt = solve_normal_3x3(N_node[src] + N_node[dst], r_node[src] + r_node[dst])
+    xy_hat, front = project_views_last(rig, X + origin[None, :])  # (H, M, 2), (H, M)
+    hyp = jnp.arange(src.shape[0], dtype=jnp.int32)
+    ok = ok & ok_dlt & front[hyp, view_a] & front[hyp, view_b]
+
+    base = (views[None, :] == view_a[:, None]) | (views[None, :] == view_b[:, None])  # (H, M)
+    votes = eligible[None] & (front & ~base)[:, :, None]  # (H, M, P)
+    # x and y apart: a trailing axis of length 2 would keep XLA from vectorising the table.
+    dx = jnp.where(votes, xy_hat[:, :, None, 0] - xy[None, :, :, 0], 0.0)
+    dy = jnp.where(votes, xy_hat[:, :, None, 1] - xy[None, :, :, 1], 0.0)
+    reproj = jnp.where(votes, jnp.sqrt(dx * dx + dy * dy), jnp.inf)  # (H, M, P) px
+
+    flat_xy = xy.reshape(N, 2)
+
+    def pair_error(node, view):
+        e = jnp.where(ok[:, None], xy_hat[hyp, view] - flat_xy[node], 0.0)
+        return jnp.sqrt(jnp.sum(e * e, axis=-1))
+
+    nearest = jnp.min(reproj, axis=-1)  # (H, M)
+    voter = nearest < gate_px
+    count = jnp.where(ok, 2 + jnp.sum(voter, axis=-1, dtype=jnp.int32), 0)
+    total = pair_error(src, view_a) + pair_error(dst, view_b) + jnp.sum(jnp.where(voter, nearest, 0.0), axis=-1)
+    err = jnp.where(ok, total / jnp.maximum(count, 1).astype(total.dtype), jnp.inf)
+    return ScoredHypotheses(ok, reproj, count, err)
