@@ -31,7 +31,11 @@ from .geometry._projection import group_errors
 from .geometry._triangulate import triangulate_views_last
 from .graph._groups import gather_groups
 from .graph._sigma import estimate_sigma, focal_scale
+from .graph._sigma_robust import estimate_sigma_robust
 from .refine._validity import validity_gate
+
+SIGMA_MODES = ("given", "auto", "robust")
+"""Where a group-table method's σ comes from: the caller, or C-DOG's two estimators."""
 
 _NUMBER_TYPES: dict[type, type] = {}
 
@@ -53,7 +57,8 @@ def numbers_type(cls: type) -> type:
 class GroupTableMethod(Method):
     """A method that makes the group table from the scene's epipolar distances.
 
-    Shared fields: ``sigma_mode`` (``"given"`` or ``"auto"``), the gate ``alpha_tau`` and
+    Shared fields: ``sigma_mode`` (``"given"``, ``"auto"`` or ``"robust"``: σ from the
+    scene's epipolar distances by C-DOG's estimators, ALGORITHM.md §0.1–0.2), the gate ``alpha_tau`` and
     ``tau_min_px`` (px), and the validity gate's ``min_parallax_deg`` and ``max_err_frac``
     (as in :class:`cdog_jax.Config`).
     """
@@ -65,8 +70,8 @@ class GroupTableMethod(Method):
     max_err_frac: float = 3.0
 
     def __post_init__(self):
-        if self.sigma_mode not in ("given", "auto"):
-            raise ValueError(f"{type(self).__name__}.sigma_mode must be 'given' or 'auto'; got {self.sigma_mode!r}")
+        if self.sigma_mode not in SIGMA_MODES:
+            raise ValueError(f"{type(self).__name__}.sigma_mode must be one of {SIGMA_MODES}; got {self.sigma_mode!r}")
         for name in _numeric_fields(type(self)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
@@ -122,12 +127,14 @@ def scene_gate(
 ) -> tuple[Float[Array, "M P 2"], Float[Array, "M P M P"], Float[Array, ""], Float[Array, ""], Bool[Array, ""]]:
     """What every group-table method starts from: ``xy (M, P, 2)`` with padding zeroed, the
     epipolar distances ``d (M, P, M, P)`` (px), σ (given, or estimated when ``sigma_mode``
-    is ``"auto"``), the σ-matched gate τ (px) and whether the estimate fell back."""
+    is ``"auto"`` or ``"robust"``), the σ-matched gate τ (px) and whether the estimate fell back."""
     mask = observations.mask
     xy = jnp.where(mask[..., None], observations.xy, 0.0)
     d = epipolar_distances(rig, xy, mask)
     if sigma_mode == "auto":
         sigma, fallback = estimate_sigma(d, mask, focal_scale(rig.K))
+    elif sigma_mode == "robust":
+        sigma, fallback = estimate_sigma_robust(d, mask, focal_scale(rig.K))
     else:
         sigma, fallback = th.sigma_px, jnp.asarray(False)
     tau = jnp.maximum(th.alpha_tau * jnp.sqrt(2.0) * sigma, th.tau_min_px)

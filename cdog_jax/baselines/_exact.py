@@ -11,18 +11,12 @@ NumPy and ``scipy.optimize.milp`` on the CPU, never jitted (``pip install "cdog-
 from __future__ import annotations
 
 import dataclasses
-from functools import partial
 from typing import ClassVar
 
-import jax
 import numpy as np
 
-from .._method import Observations, register_method
-from .._result import Association
-from .._stage import raise_flag
-from .._status import Status
-from .._table_method import GroupTableMethod, finish_table, scene_gate
-from ..geometry._camera import Rig
+from .._host_method import HostGroupTableMethod
+from .._method import register_method
 
 MAX_POINTS = 15
 """The largest scene (detections in any one view) the exact method accepts."""
@@ -113,16 +107,8 @@ def exact_groups(d: np.ndarray, mask: np.ndarray, tau: float) -> tuple[np.ndarra
     return groups, valid, float(np.sum(weights[solution.x > 0.5]))
 
 
-@partial(jax.jit, static_argnames=("sigma_mode",))
-def _gate(rig, observations, th, sigma_mode):
-    return scene_gate(rig, observations, th, sigma_mode)
-
-
-_finish = jax.jit(finish_table)
-
-
 @dataclasses.dataclass(frozen=True)
-class Exact(GroupTableMethod):
+class Exact(HostGroupTableMethod):
     """The exact reference (``"exact"``): the disjoint cliques of the gated epipolar graph of
     least total cost, by integer programming (:func:`exact_groups`).
 
@@ -135,7 +121,8 @@ class Exact(GroupTableMethod):
     per view. Its optimum shows how far each method's groups are from the best of that cost.
     """
 
-    jittable: ClassVar[bool] = False
+    HOST_NAME: ClassVar[str] = "exact"
+    HOST_TOOLS: ClassVar[str] = "NumPy, scipy.optimize.milp"
 
     def check_scene(self, mask, where: str) -> None:
         counts = np.sum(np.asarray(mask, bool), axis=-1)
@@ -146,19 +133,9 @@ class Exact(GroupTableMethod):
                 f"(detections per view); view {view} has {int(counts[view])}"
             )
 
-    def group_table(self, rig, xy, mask, d, sigma, tau, thresholds):
-        raise TypeError("exact: a host method; it has no traced group table (call associate_scene on host arrays)")
-
-    def associate_scene(self, rig: Rig, observations: Observations, thresholds: tuple) -> Association:
-        if any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree.leaves((rig, observations, thresholds))):
-            raise TypeError("exact: a host method (NumPy, scipy.optimize.milp); it cannot run under jit or vmap")
-        mask = np.asarray(observations.mask, bool)
-        self.check_scene(mask, "exact")
-        observations = Observations(observations.xy, observations.mask)
-        xy, d, sigma, tau, fallback = _gate(rig, observations, thresholds, self.sigma_mode)
-        groups, valid, _ = exact_groups(np.asarray(d), mask, float(tau))
-        status = raise_flag(fallback, Status.SIGMA_FALLBACK)
-        return _finish(rig, xy, groups, valid, status, sigma, tau, thresholds)
+    def host_groups(self, rig, xy, mask, d, tau, thresholds):
+        groups, valid, _ = exact_groups(d, mask, tau)
+        return groups, valid
 
 
 register_method("exact", Exact)

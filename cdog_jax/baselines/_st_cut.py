@@ -17,17 +17,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from functools import partial
 from typing import ClassVar
 
-import jax
 import numpy as np
 
-from .._method import Observations, register_method
-from .._result import Association
-from .._stage import raise_flag
-from .._status import Status
-from .._table_method import GroupTableMethod, finish_table, scene_gate
+from .._host_method import HostGroupTableMethod
+from .._method import register_method
 from ..geometry._camera import Rig
 from ._exact import gated_cost
 
@@ -244,14 +239,6 @@ def st_cut_groups(
     return groups, valid, cuts
 
 
-@partial(jax.jit, static_argnames=("sigma_mode",))
-def _gate(rig, observations, th, sigma_mode):
-    return scene_gate(rig, observations, th, sigma_mode)
-
-
-_finish = jax.jit(finish_table)
-
-
 @dataclasses.dataclass(frozen=True)
 class StCutOptions:
     """ST-cut with 3D back-projection (after Vogiatzis, Torr & Cipolla, 2005; our design).
@@ -295,29 +282,21 @@ class StCutOptions:
 
 
 @dataclasses.dataclass(frozen=True)
-class StCut(GroupTableMethod, StCutOptions):
+class StCut(HostGroupTableMethod, StCutOptions):
     """ST-cut with 3D back-projection (``"st_cut"``): the groups of :class:`StCutOptions`
     (:func:`st_cut_groups`), then the shared DLT point and validity gate of every
     group-table method. A host method (``jittable = False``): NumPy and
     ``scipy.sparse.csgraph.maximum_flow`` per scene on the CPU (``pip install "cdog-jax[exact]"``).
     """
 
-    jittable: ClassVar[bool] = False
+    HOST_NAME: ClassVar[str] = "st_cut"
+    HOST_TOOLS: ClassVar[str] = "NumPy, scipy max-flow"
 
-    def group_table(self, rig, xy, mask, d, sigma, tau, thresholds):
-        raise TypeError("st_cut: a host method; it has no traced group table (call associate_scene on host arrays)")
-
-    def associate_scene(self, rig: Rig, observations: Observations, thresholds: tuple) -> Association:
-        if any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree.leaves((rig, observations, thresholds))):
-            raise TypeError("st_cut: a host method (NumPy, scipy max-flow); it cannot run under jit or vmap")
-        mask = np.asarray(observations.mask, bool)
-        observations = Observations(observations.xy, observations.mask)
-        xy, d, sigma, tau, fallback = _gate(rig, observations, thresholds, self.sigma_mode)
+    def host_groups(self, rig, xy, mask, d, tau, thresholds):
         groups, valid, _ = st_cut_groups(
-            rig, np.asarray(xy), mask, np.asarray(d), float(tau), float(thresholds.reprojection_gate), self.candidates_per_view
+            rig, xy, mask, d, tau, float(thresholds.reprojection_gate), self.candidates_per_view
         )
-        status = raise_flag(fallback, Status.SIGMA_FALLBACK)
-        return _finish(rig, xy, groups, valid, status, sigma, tau, thresholds)
+        return groups, valid
 
 
 register_method("st_cut", StCut)

@@ -145,3 +145,22 @@ def test_exact_with_weights_and_min_views_is_finished_like_every_method():
     keep = np.asarray(plain.n_views)[np.asarray(plain.valid)] >= 3
     assert 0 < keep.sum() < np.asarray(plain.valid).sum()
     assert int(three.num_groups) == int(keep.sum()) and np.all(np.asarray(three.n_views)[np.asarray(three.valid)] >= 3)
+
+
+def test_robust_sigma_of_a_group_table_method_is_c_dogs_robust_estimate():
+    """``sigma_mode="robust"`` gives a baseline, jitted or on the host, the σ of C-DOG's
+    robust estimator on the same scene; an unknown mode is refused with the choices."""
+    from cdog_jax import Config
+    from cdog_jax.baselines import Greedy
+
+    rig = ring_rig(4)
+    xy, mask, _, _ = random_scene(rig, 12, 12, sigma=2.0, seed=5)
+    xy = xy.astype(np.float32)
+    ours = associate(rig, xy, mask, method=Config.extended(sigma_mode="robust"), sigma="auto")
+    for method in (Greedy(sigma_mode="robust"), Exact(sigma_mode="robust")):
+        result = associate(rig, xy, mask, method=method, sigma="auto")
+        np.testing.assert_allclose(float(result.sigma_px), float(ours.sigma_px), rtol=1e-6)
+    auto = associate(rig, xy, mask, method=Exact(sigma_mode="auto"), sigma="auto")
+    assert float(auto.sigma_px) != float(ours.sigma_px)
+    with pytest.raises(ValueError, match="sigma_mode must be one of.*robust"):
+        Exact(sigma_mode="median")
