@@ -42,14 +42,14 @@ _NOTES_SHOWN = 12  # notes printed in the summary; a long video can have thousan
 
 
 def _sigma(text: str) -> float | str:
-    if text == "auto":
-        return "auto"
+    if text in ("auto", "robust"):
+        return text
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f'must be a number of pixels >= 0 or "auto"; got {text!r}') from None
+        raise argparse.ArgumentTypeError(f'must be a number of pixels >= 0, "auto" or "robust"; got {text!r}') from None
     if not (value >= 0.0 and math.isfinite(value)):
-        raise argparse.ArgumentTypeError(f'must be a finite number of pixels >= 0 or "auto"; got {text!r}')
+        raise argparse.ArgumentTypeError(f'must be a finite number of pixels >= 0, "auto" or "robust"; got {text!r}')
     return value
 
 
@@ -104,7 +104,13 @@ def add_parsers(subparsers) -> None:
         default=None,
         help="names of the OpenPose keypoint types: " + ", ".join(SKELETONS) + " (default: ids only)",
     )
-    p.add_argument("--sigma", type=_sigma, default="auto", help='detection noise σ in px, or "auto" (default) to estimate it')
+    p.add_argument(
+        "--sigma",
+        type=_sigma,
+        default="auto",
+        help='detection noise σ in px; "auto" (default) estimates it assuming Gaussian noise; "robust" '
+        "estimates it allowing heavy tails (keypoint detectors, where far-off detections are common)",
+    )
     add_method_argument(p)
     p.add_argument("--min-views", type=_min_views, default=2, help="report only groups seen in at least K views (default 2)")
     p.add_argument(
@@ -255,10 +261,17 @@ def run_associate(args: argparse.Namespace) -> int:
     rig = rig_file.rig
     dtype = rig.K.dtype
     check_float_range(det, dtype, args.points)
-    if args.sigma != "auto":
+    if not isinstance(args.sigma, str):
         diagonal, source = _image_diagonal(rig_file)
         check_sigma_fits(args.sigma, diagonal, f"{args.rig} ({source})")
     method = method_from(args.method, "cdog-jax associate")
+    estimator = args.sigma
+    if args.sigma == "robust":
+        try:
+            method = method.replace(sigma_mode="robust")
+        except (TypeError, ValueError) as error:
+            raise InputError(f"--sigma robust: the method {args.method!r} has no robust σ estimator ({error})") from None
+        args.sigma = "auto"
     F, M, P = det.mask.shape
     lines = [
         f"Rig: {args.rig} ({M} views" + (f", {rig_file.image_size[0]}×{rig_file.image_size[1]} px" if rig_file.image_size else "")
@@ -295,7 +308,7 @@ def run_associate(args: argparse.Namespace) -> int:
     err = np.asarray(result.err_px)[np.asarray(result.valid)]
     assigned = int((np.asarray(result.labels) >= 0).sum())
     lines += [
-        f"Associated with {args.method} (σ {'estimated' if args.sigma == 'auto' else f'= {args.sigma:g} px'}, "
+        f"Associated with {args.method} (σ {'estimated' + (' (robust)' if estimator == 'robust' else '') if args.sigma == 'auto' else f'= {args.sigma:g} px'}, "
         f"min views {args.min_views}) in {elapsed:.2f} s including compilation",
         f"  3D points: {int(num_groups.sum())} ({num_groups.min()}–{num_groups.max()} per frame)" if F > 1 else f"  3D points: {int(num_groups.sum())}",
         f"  detections assigned: {assigned} of {int(det.mask.sum())}",

@@ -167,3 +167,26 @@ def test_associate_refuses_bad_input_before_any_work(data, tmp_path, capsys):
     assert "extension must be one of" in capsys.readouterr().err
     with pytest.raises(ValueError, match=r"detections\.json.*10 views; the rig has 3"):
         main(["associate", "--debug", "--rig", rig_path, "--points", points])
+
+
+def test_associate_with_the_robust_sigma_estimator(data, capsys):
+    """``--sigma robust`` runs the chosen method with its heavy-tail σ estimator: the file's
+    σ and groups are those of ``associate`` with ``sigma_mode="robust"``."""
+    folder, rig, points, views, expected = data
+    rig_path = folder / "rig_robust.json"
+    save_rig_json(rig_path, rig, image_size=IMAGE_SIZE)
+    out = folder / "robust.json"
+    assert main(["associate", "--rig", rig_path, "--points", points, "--sigma", "robust", "--out", out]) == 0
+    assert "σ estimated (robust)" in capsys.readouterr().out
+    P = max(len(v) for v in views)
+    xy = np.zeros((len(views), P, 2), np.float32)
+    mask = np.zeros((len(views), P), bool)
+    for m, v in enumerate(views):
+        xy[m, : len(v)] = np.asarray(v)[:, :2] if v else 0.0
+        mask[m, : len(v)] = True
+    robust = cdog_jax.associate(rig, xy, mask, method=cdog_jax.Config.best(sigma_mode="robust"), sigma="auto")
+    auto = cdog_jax.associate(rig, xy, mask, method=cdog_jax.Config.best(), sigma="auto")
+    assert float(robust.sigma_px) != float(auto.sigma_px)
+    records = load_association_json(out)
+    np.testing.assert_allclose(records["sigma_px"], float(robust.sigma_px), rtol=1e-5)
+    np.testing.assert_allclose(np.array([g["point3d"] for g in records["groups"]]), _points(robust), atol=1e-3)

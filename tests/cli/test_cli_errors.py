@@ -330,3 +330,8 @@ def test_associate_end_to_end_with_empty_frames(files, capsys):
     result = json.loads(out.read_text())
     assert [len(f["groups"]) for f in result["frames"]] == [4, 0, 0]
     assert sorted(os.listdir(folder)) == ["bare.json", "out.json", "points.json", "rig.json"]
+
+
+def test_sigma_robust_for_a_method_without_that_estimator(files, capsys):
+    folder, rig, _, points = files
+    refused(["associate", "--rig", rig, "--points", points, "--sigma", "median"], capsys, "--sigma", "robust")
