@@ -116,13 +116,15 @@ def estimate_sigma(
     return sigma_from_samples(*nearest_samples(d, mask), focal_px)
 
 
-def sigma_from_samples(
-    x: Float[Array, "*S"], w: Float[Array, "*S"], count: Float[Array, "*S"], focal_px: Float[Array, ""]
-) -> tuple[Float[Array, ""], Bool[Array, ""]]:
-    """:func:`estimate_sigma` from the samples of :func:`nearest_samples` (any shape, e.g.
-    those of several scenes pooled; weight 0 marks an unused entry)."""
-    x, w, count = (a.reshape(-1) for a in (x, w, count))
-    dtype = x.dtype
+def em_start(
+    x: Float[Array, " S"], w: Float[Array, " S"], count: Float[Array, " S"], focal_px: Float[Array, ""]
+) -> tuple[Float[Array, ""], Float[Array, ""], Float[Array, " Q"], Float[Array, ""], Float[Array, ""]]:
+    """What every EM over nearest distances starts from (flat samples ``x, w, count``, px):
+    ``(focal_px, width, c0, scaled_mean, spread_min)``: the focal length made usable (1 px
+    when not finite or positive), the width of the uniform part, the half-normal scales
+    ``c0 (len(START_QUANTILES),)`` that put each start quantile of the distances at its
+    half-normal quantile, the mean of ``count · x`` (an unrelated point's spread) and the
+    smallest spread allowed."""
     n = jnp.sum(w > 0)
     focal_px = jnp.where(jnp.isfinite(focal_px) & (focal_px > 0), focal_px, 1.0)
     width = jnp.maximum(jnp.max(x), UNIFORM_PER_FOCAL * focal_px)
@@ -135,7 +137,17 @@ def sigma_from_samples(
     at_q = ordered[jnp.floor(q * last).astype(jnp.int32)]
     c0 = jnp.clip(jnp.where(jnp.isfinite(at_q), at_q, 0.0) / z, MIN_SCALE_PX, width)
     scaled_mean = jnp.sum(w * count * x) / jnp.maximum(jnp.sum(w), MIN_SCALE_PX)
-    spread_min = SPREAD_PER_FOCAL * focal_px
+    return focal_px, width, c0, scaled_mean, SPREAD_PER_FOCAL * focal_px
+
+
+def sigma_from_samples(
+    x: Float[Array, "*S"], w: Float[Array, "*S"], count: Float[Array, "*S"], focal_px: Float[Array, ""]
+) -> tuple[Float[Array, ""], Bool[Array, ""]]:
+    """:func:`estimate_sigma` from the samples of :func:`nearest_samples` (any shape, e.g.
+    those of several scenes pooled; weight 0 marks an unused entry)."""
+    x, w, count = (a.reshape(-1) for a in (x, w, count))
+    dtype = x.dtype
+    focal_px, width, c0, scaled_mean, spread_min = em_start(x, w, count, focal_px)
     inv_kappa0 = jnp.clip(scaled_mean, spread_min, width * jnp.maximum(jnp.max(count), 1.0))
 
     em = jax.vmap(_em, in_axes=(None, None, None, 0, None, None, None))

@@ -21,7 +21,7 @@ import math
 
 import jax
 import jax.numpy as jnp
-from jax.scipy.special import erfinv, log_ndtr
+from jax.scipy.special import log_ndtr
 
 from .._types import Array, Bool, Float
 from ._sigma import (
@@ -30,10 +30,9 @@ from ._sigma import (
     MAX_SIGMA_PER_FOCAL,
     MIN_MATCHES,
     MIN_SCALE_PX,
-    SPREAD_PER_FOCAL,
     START_QUANTILES,
     TIE_RELATIVE,
-    UNIFORM_PER_FOCAL,
+    em_start,
     nearest_samples,
 )
 
@@ -245,23 +244,11 @@ def fit_noise(
     (in ``(0, 1)``) of the true-pair distance (pixels; NaN on a fallback)."""
     x, w, count, x2 = (a.reshape(-1) for a in (x, w, count, x2))
     dtype = x.dtype
-    n = jnp.sum(w > 0)
-    focal_px = jnp.where(jnp.isfinite(focal_px) & (focal_px > 0), focal_px, 1.0)
-    width = jnp.maximum(jnp.max(x), UNIFORM_PER_FOCAL * focal_px)
-
-    ordered = jnp.sort(jnp.where(w > 0, x, jnp.inf))
-    last = jnp.maximum(n - 1, 0).astype(x.dtype)
-    # A half-normal's q-quantile is c · Φ⁻¹((1 + q) / 2) = c · √2 erfinv(q).
-    q = jnp.asarray(START_QUANTILES, x.dtype)
-    z = jnp.sqrt(2.0) * erfinv(q)
-    at_q = ordered[jnp.floor(q * last).astype(jnp.int32)]
-    c0 = jnp.clip(jnp.where(jnp.isfinite(at_q), at_q, 0.0) / z, MIN_SCALE_PX, width)
+    focal_px, width, c0, scaled_mean, spread_min = em_start(x, w, count, focal_px)
     # The spread starts from the second-nearest distances (mostly unrelated points: the
     # nearest of count − 1 of them has mean 1/κ / (count − 1)); without any, the nearest.
     w_other = jnp.where(count > 1.0, w, 0.0)
     second_mean = jnp.sum(w_other * (count - 1.0) * x2) / jnp.maximum(jnp.sum(w_other), MIN_SCALE_PX)
-    scaled_mean = jnp.sum(w * count * x) / jnp.maximum(jnp.sum(w), MIN_SCALE_PX)
-    spread_min = SPREAD_PER_FOCAL * focal_px
     spread0 = jnp.where(jnp.sum(w_other) > 0, second_mean, scaled_mean)
     inv_kappa0 = jnp.clip(spread0, spread_min, width * jnp.maximum(jnp.max(count), 1.0))
 
