@@ -8,6 +8,9 @@ of 3–5 people in 5 views with tails fitted to real OpenPose detections (median
 epipolar distance 5.7 px, 27 % beyond 10 px), what recall within 10 cm, share of groups
 joining two true instances and σ̂ error each preset reaches.
 
+Presets: ``paper``, ``extended``, ``reference``, ``best`` and ``best_robust`` (``best()`` with
+``sigma_mode="robust"``, the σ estimator for heavy tails).
+
 Method (``cdog_jax.synthetic``):
 
 - box: the built-in 10-view rig, 30 points uniform in the box, σ = 1 px;
@@ -55,7 +58,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from cdog_jax import associate_batch, associate_classes
+from cdog_jax import Config, associate_batch, associate_classes
 from cdog_jax.geometry import epipolar_distances
 from cdog_jax.metrics import scene_metrics
 from cdog_jax.synthetic import (
@@ -67,7 +70,14 @@ from cdog_jax.synthetic import (
     ring_rig,
 )
 
-PRESETS = ("paper", "extended", "reference")
+PRESETS = ("paper", "extended", "reference", "best", "best_robust")
+# Presets that are not registered names: best() with the heavy-tail σ estimator.
+METHODS = {"best_robust": Config.best(sigma_mode="robust")}
+ROBUST = {"best_robust"}  # presets whose σ̂ comes from the robust estimator
+
+
+def _method(preset):
+    return METHODS.get(preset, preset)
 FAMILIES = {
     # sigma (px), radius (scene units), camera distance for the translation error, capacities
     "box": dict(sigma=1.0, radius=0.01, distance=2.6, points=30, doubles=12, clutter=24, clutter_levels=(2.0, 5.0, 10.0)),
@@ -195,13 +205,15 @@ def skeleton_batch(lv, sequences, frames, family, seed, people=None, realism_of=
 
 
 def run_box(lv, scenes, family, preset, batch, rig, sigma="auto"):
-    assoc = associate_batch(rig, batch.xy, batch.mask, config=preset, sigma=sigma, batch_size=8)
+    assoc = associate_batch(rig, batch.xy, batch.mask, method=_method(preset), sigma=sigma, batch_size=8)
     zeros = np.zeros((batch.xy.shape[0], assoc.valid.shape[1]), np.int64)
     return score(rig, assoc, batch, np.zeros(batch.points3d.shape[1], np.int64), zeros, family["radius"], family["sigma"])
 
 
 def run_skeleton(family, preset, batch, rig, sigma="auto"):
-    out = associate_classes(rig, batch.xy, batch.mask, batch.class_id, class_names=SKELETON_JOINTS, config=preset, sigma=sigma)
+    out = associate_classes(
+        rig, batch.xy, batch.mask, batch.class_id, class_names=SKELETON_JOINTS, method=_method(preset), sigma=sigma
+    )
     J = len(SKELETON_JOINTS)
     point_class = np.arange(batch.points3d.shape[1]) % J
     return score(rig, out.association, batch, point_class, out.group_class, family["radius"], family["sigma"])
@@ -336,7 +348,7 @@ def figure(out, path):
     n = len(families)  # one row of scores per family, then σ̂/σ
     fig = Figure(figsize=(3.0 * len(factors), 2.8 * (n + 1)), layout="constrained")
     axes = fig.subplots(n + 1, len(factors), sharey="row", squeeze=False)
-    colors = dict(zip(out["presets"], ("C0", "C1", "C2")))
+    colors = dict(zip(out["presets"], ("C0", "C1", "C2", "C3", "C4")))
     styles = {"pg_f1": "-", "g_f1": "--", "recall": ":"}
     for j, factor in enumerate(factors):
         for i, (name, fam) in enumerate(out["families"].items()):
@@ -346,9 +358,13 @@ def figure(out, path):
             for p in out["presets"]:
                 for k, ls in styles.items():
                     axes[i, j].plot(x, [r[p][k] for r in rows], ls, marker="o", ms=3, color=colors[p])
-            # σ̂ does not depend on the preset (the estimator runs before the graph).
-            p = out["presets"][0]
-            axes[n, j].plot(x, [r[p]["sigma_ratio"] for r in rows], "-" if name == "box" else "--", marker="o", ms=3, color="k")
+            # σ̂ depends only on the estimator (it runs before the graph): one line per estimator.
+            estimators = {"auto": next((p for p in out["presets"] if p not in ROBUST), None),
+                          "robust": next((p for p in out["presets"] if p in ROBUST), None)}  # fmt: skip
+            for estimator, p in estimators.items():
+                if p is not None:
+                    axes[n, j].plot(x, [r[p]["sigma_ratio"] for r in rows], "-" if name == "box" else "--", marker="o", ms=3,
+                                    color="k" if estimator == "auto" else colors[p])  # fmt: skip
             if factor == "tails":
                 for ax in axes[:, j]:
                     ax.set_xticks(range(len(rows)), [_fmt_nu(r["value"]) for r in rows])
@@ -362,7 +378,7 @@ def figure(out, path):
     axes[n, 0].set_ylabel("σ̂ / σ (median)")
     handles = [Line2D([], [], color=c, lw=2, label=p) for p, c in colors.items()]
     handles += [Line2D([], [], color="k", ls=ls, label=lab) for ls, lab in (("-", "PG-F1"), ("--", "G-F1"), (":", "3D recall within r"))]
-    handles += [Line2D([], [], color="k", ls="--", label="σ̂/σ (any preset): dashed = skeletons")]
+    handles += [Line2D([], [], color="k", ls="--", label="σ̂/σ (black: \"auto\", else robust): dashed = skeletons")]
     axes[0, 0].legend(handles=handles, fontsize=7, loc="lower left")
     fig.savefig(path, dpi=110)
     return fig
