@@ -26,7 +26,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("geometry", ("geometry.",)),
     ("stage", ("_stage",)),
     ("stages", ("graph.", "refine.")),
-    ("core", ("_result", "_shapes", "_memory", "_validate", "_finish", "_cdog", "_table_method", "_associate", "_classes")),
+    ("core", ("_result", "_shapes", "_memory", "_validate", "_finish", "_cdog", "_table_method", "_associate", "_persons", "_classes")),
     ("methods", ("baselines.",)),
     ("data", ("io.", "synthetic.", "metrics.")),
     ("harness", ("benchmark.", "calibration.")),

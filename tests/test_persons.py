@@ -1,0 +1,196 @@
+"""The person-level vote (associate_classes(..., instances=, person_vote=)): a joint group
+that geometry alone swaps between two people is put right by the skeletons' per-view
+instance index, the clustering of (view, instance) nodes matches a brute-force optimum on
+tiny cases, and bad instance arguments are refused before any work."""
+
+import itertools
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import cdog_jax
+from cdog_jax import PersonVote, associate_classes
+from cdog_jax._persons import cluster_people, consistent_groups, vote_matrix
+from cdog_jax.synthetic import default_rig
+
+M, J = 3, 3  # views, joint classes
+# The per-view instance index of person A and B (a 2D detector's order, not an identity).
+INSTANCE = np.array([[0, 1], [1, 0], [0, 1]])
+
+
+@pytest.fixture(scope="module")
+def swapped():
+    """Two people, three joints each. Joint 2 of B sits 0.4 units behind A's on view 2's
+    ray (and 3 px aside): in views 0 and 1 the two are far apart, in view 2 within the
+    noise. View 2's joint-2 detections carry the skeletons' instances crosswise to the
+    pixels: the one labelled A is where B projects and vice versa (the 2D detector put
+    them in the skeleton it saw; the geometry of view 2 cannot tell). Slots: ``person · J + joint``."""
+    rig = default_rig(num_views=M)
+    R, t = np.asarray(rig.R, np.float64), np.asarray(rig.t, np.float64)
+    centre2 = -R[2].T @ t[2]
+    joints_a = np.array([[-0.6, -0.3, 0.3], [-0.6, 0.3, 0.2], [0.0, 0.0, 0.0]])
+    ray = -centre2 / np.linalg.norm(centre2)
+    aside = np.cross(ray, [0.0, 0.0, 1.0])
+    joint2_b = joints_a[2] + 0.4 * ray + 0.006 * aside / np.linalg.norm(aside)
+    joints_b = np.array([[0.6, 0.3, 0.3], [0.6, -0.3, 0.2], joint2_b])
+    X = np.concatenate([joints_a, joints_b])  # (2·J, 3), point id person · J + joint
+    xy, _ = cdog_jax.project(rig, jnp.asarray(X, jnp.float32))
+    xy = np.array(xy)  # (M, 2·J, 2)
+    xy[2, [2, J + 2]] = xy[2, [J + 2, 2]]  # view 2: A's joint-2 slot holds B's pixel and vice versa
+    mask = np.ones((1, M, 2 * J), bool)
+    classes = np.broadcast_to(np.arange(2 * J) % J, (1, M, 2 * J))
+    person = np.arange(2 * J) // J
+    instances = INSTANCE[:, person][None]  # (1, M, 2·J)
+    return rig, xy[None].astype(np.float32), mask, classes, instances, person
+
+
+def _people_in_groups(assoc, person):
+    """The set of people (by slot) of every valid group of frame 0."""
+    groups = np.asarray(assoc.groups[0])[np.asarray(assoc.valid[0])]
+    return [{int(person[s]) for s in g if s >= 0} for g in groups]
+
+
+def test_vote_puts_a_swapped_joint_group_right(swapped):
+    rig, xy, mask, classes, instances, person = swapped
+    plain = associate_classes(rig, xy, mask, classes, sigma=2.0)
+    mixed = [p for p in _people_in_groups(plain.association, person) if len(p) > 1]
+    assert len(mixed) == 2  # geometry alone: both joint-2 groups join A and B
+    voted = associate_classes(rig, xy, mask, classes, sigma=2.0, instances=instances, person_vote=True)
+    a = voted.association
+    people = _people_in_groups(a, person)
+    assert all(len(p) == 1 for p in people) and len(people) == 2 * J
+    assert np.all(np.asarray(a.n_views[0])[np.asarray(a.valid[0])] == M)
+    assert sorted(voted.group_class[0][voted.group_class[0] >= 0].tolist()) == sorted(list(range(J)) * 2)
+    # Every detection labelled, labels and groups agree, points re-triangulated from the new members.
+    labels, groups = np.asarray(a.labels[0]), np.asarray(a.groups[0])
+    assert np.all(labels >= 0)
+    for m in range(M):
+        for s in range(2 * J):
+            assert groups[labels[m, s], m] == s
+    assert np.all(np.asarray(a.err_px[0])[np.asarray(a.valid[0])] < 4.0)
+    # Off (or instances only): the result is the plain one.
+    same = associate_classes(rig, xy, mask, classes, sigma=2.0, instances=instances)
+    np.testing.assert_array_equal(np.asarray(same.association.labels), np.asarray(plain.association.labels))
+
+
+def test_consistent_groups_reattaches_within_the_gate_only():
+    """A hand-made group table (no pipeline): view m sees a point of height z at
+    ``(100 + scale[m] · z, 0)`` px; A is at z = 0, B at z = 1, 4 px apart in
+    view 2 only. There, A's joint-2 detection sits at B's pixel and is in B's group, and B's
+    in A's. Within the gate (5 px) they change groups; within 1 px they are only detached."""
+    scale = np.array([400.0, 400.0, 4.0])
+    height = np.arange(2 * J) // J  # the person of every slot is its height
+    xy = np.stack(np.broadcast_arrays(100.0 + scale[:, None] * height[None, :], 0.0), axis=-1)  # (M, 2·J, 2)
+    xy[2, [2, J + 2]] = xy[2, [J + 2, 2]]
+    classes = np.broadcast_to(np.arange(2 * J) % J, (M, 2 * J))
+    instances = INSTANCE[:, height]
+    groups = np.array([[s] * M for s in range(2 * J)])
+    groups[2, 2], groups[J + 2, 2] = J + 2, 2  # the geometric (crossed) groups
+    points = np.array([[0.0, 0.0, float(z)] for z in height])
+
+    class Flat:
+        def __call__(self, X):
+            return np.stack(np.broadcast_arrays(100.0 + scale[None, :] * X[:, 2:3], 0.0), axis=-1)
+
+        def triangulate(self, xy_, rows):  # from view 0's pixel
+            return np.array([[0.0, 0.0, (xy_[0, r[0], 0] - 100.0) / scale[0]] for r in rows])
+
+    valid = np.ones(2 * J, bool)
+    gclass = np.arange(2 * J) % J
+    fixed = consistent_groups(groups, valid, gclass, classes, instances, xy, points, Flat(), 5.0, PersonVote(), 2)
+    assert fixed.groups[2, 2] == 2 and fixed.groups[J + 2, 2] == J + 2
+    assert fixed.changed.tolist() == [s % J == 2 for s in range(2 * J)] and fixed.valid.all()
+    tight = consistent_groups(groups, valid, gclass, classes, instances, xy, points, Flat(), 1.0, PersonVote(), 2)
+    assert tight.groups[2, 2] == -1 and tight.groups[J + 2, 2] == -1  # detached, beyond the gate
+    assert tight.valid.all() and len(tight.valid) == 2 * J
+    np.testing.assert_array_equal(np.delete(tight.groups, [2, J + 2], axis=0), np.delete(groups, [2, J + 2], axis=0))
+
+
+def _brute_force_people(votes, present, num_views, min_votes):
+    """The view-unique partition of the present nodes maximising Σ over node pairs in one
+    cluster of ``votes − (min_votes − ½)`` (every pair, linked or not)."""
+    nodes = [int(n) for n in np.flatnonzero(present)]
+    I = votes.shape[0] // num_views
+    best, best_score = None, -np.inf
+
+    def partitions(items):
+        if not items:
+            yield []
+            return
+        first, rest = items[0], items[1:]
+        for part in partitions(rest):
+            for k in range(len(part)):
+                yield part[:k] + [[first] + part[k]] + part[k + 1 :]
+            yield [[first]] + part
+
+    for part in partitions(nodes):
+        if any(len({n // I for n in c}) < len(c) for c in part):
+            continue
+        score = sum(votes[a, b] - (min_votes - 0.5) for c in part for a, b in itertools.combinations(c, 2))
+        if score > best_score:
+            best, best_score = part, score
+    label = np.full(votes.shape[0], -1)
+    for c in best:
+        label[c] = min(c)
+    return label
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.data())
+def test_clustering_matches_brute_force(data):
+    """Planted people (each seen in a random set of views) linked by 2–8 votes per node
+    pair, with 0–1 stray votes elsewhere: the greedy clustering finds the brute-force optimum."""
+    num_views, I = 3, 2
+    N = num_views * I
+    people = data.draw(st.lists(st.integers(0, 2), min_size=N, max_size=N))  # person of node m·I + i
+    present = np.array(data.draw(st.lists(st.booleans(), min_size=N, max_size=N)))
+    # view-uniqueness of the plant: a person keeps only its first node of a view
+    seen = set()
+    for n in range(N):
+        key = (people[n], n // I)
+        if present[n] and key in seen:
+            present[n] = False
+        seen.add(key) if present[n] else None
+    votes = np.zeros((N, N), np.int64)
+    for a, b in itertools.combinations(range(N), 2):
+        same = people[a] == people[b] and a // I != b // I
+        votes[a, b] = votes[b, a] = data.draw(st.integers(2, 8) if same else st.integers(0, 1))
+    got = cluster_people(votes, present, num_views, 2)
+    want = _brute_force_people(votes, present, num_views, 2)
+    np.testing.assert_array_equal(got, want)
+
+
+def test_vote_matrix_counts_groups_linking_two_nodes():
+    groups = np.array([[0, 1, -1], [1, 0, 0], [0, 0, 0]])
+    instances = np.array([[0, 1], [1, 0], [0, -1]])
+    votes = vote_matrix(groups, np.array([True, True, False]), instances)
+    I = 2
+    assert votes[0 * I + 0, 1 * I + 0] == 1 and votes[1 * I + 0, 0 * I + 0] == 1  # group 0: (v0, i0)–(v1, i0)
+    assert votes[0 * I + 1, 1 * I + 1] == 1 and votes[0 * I + 1, 2 * I + 0] == 1  # group 1
+    assert votes.sum() == 2 * 4  # 1 + 3 pairs, both directions; group 2 is not valid
+
+
+@pytest.mark.parametrize(
+    "instances, person_vote, message",
+    [
+        (None, True, "person_vote needs instances="),
+        (np.zeros((1, M, 2)), True, "instances must have the shape of mask"),
+        (np.zeros((1, M, 2 * J), np.float32), True, "dtype float32"),
+        (np.full((1, M, 2 * J), -2), True, "got -2 at frame 0, view 0, slot 0"),
+        (np.zeros((1, M, 2 * J), int), "yes", "person_vote must be a bool or a PersonVote"),
+    ],
+)
+def test_bad_instances_refused(swapped, instances, person_vote, message):
+    rig, xy, mask, classes, _, _ = swapped
+    with pytest.raises(ValueError, match=message):
+        associate_classes(rig, xy, mask, classes, sigma=2.0, instances=instances, person_vote=person_vote)
+
+
+def test_person_vote_numbers_checked():
+    with pytest.raises(ValueError, match="min_votes"):
+        PersonVote(min_votes=0)
+    with pytest.raises(ValueError, match="gate"):
+        PersonVote(gate=-1.0)
