@@ -87,7 +87,7 @@ def associate_classes(
     memory_budget_gb: float | None = None,
     config=None,
     instances=None,
-    person_vote=False,
+    person_vote=None,
 ) -> ClassAssociation:
     """Associate detections that carry a class, every class of every frame in one call.
 
@@ -110,11 +110,12 @@ def associate_classes(
             are padded with empty ones to a multiple of it, so one compiled program serves
             any number of frames and classes.
         instances: optional ``(F, M, P)`` int per-view instance index of every detection
-            (the 2D skeleton it belongs to in its view, ``-1``: unknown); read only when
-            ``person_vote`` is on.
-        person_vote: ``True`` or a :class:`cdog_jax.PersonVote`: make the groups of each
-            frame consistent with ``instances`` (a person-level vote, then re-association
-            of the joints that disagree; ALGORITHM.md §15.1). Off by default.
+            (the 2D skeleton it belongs to in its view, ``-1``: unknown).
+        person_vote: make the groups of each frame consistent with ``instances`` (a
+            person-level vote, then re-association of the joints that disagree;
+            ALGORITHM.md §15.1): ``None`` (default): on when ``instances`` is given;
+            ``True`` or a :class:`cdog_jax.PersonVote` (its numbers): on, ``instances``
+            required; ``False``: off.
 
     Returns:
         A :class:`ClassAssociation`. Raises ``ValueError`` before any work for a wrong shape,

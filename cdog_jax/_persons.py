@@ -50,9 +50,12 @@ class PersonVote:
 
 
 def person_vote_argument(person_vote, instances) -> PersonVote | None:
-    """``person_vote`` (``False``/``None``: off, ``True``: the defaults, or a
-    :class:`PersonVote`) as a :class:`PersonVote` or ``None``; it needs ``instances``."""
-    if person_vote is None or person_vote is False:
+    """``person_vote`` (``None``: on when ``instances`` is given, ``False``: off, ``True``:
+    the defaults, or a :class:`PersonVote`) as a :class:`PersonVote` or ``None`` (off);
+    on, it needs ``instances``."""
+    if person_vote is None:
+        person_vote = instances is not None
+    if person_vote is False:
         return None
     vote = PersonVote() if person_vote is True else person_vote
     if not isinstance(vote, PersonVote):

@@ -55,10 +55,10 @@ def _people_in_groups(assoc, person):
 
 def test_vote_puts_a_swapped_joint_group_right(swapped):
     rig, xy, mask, classes, instances, person = swapped
-    plain = associate_classes(rig, xy, mask, classes, sigma=2.0)
+    plain = associate_classes(rig, xy, mask, classes, sigma=2.0, config="paper")
     mixed = [p for p in _people_in_groups(plain.association, person) if len(p) > 1]
     assert len(mixed) == 2  # geometry alone: both joint-2 groups join A and B
-    voted = associate_classes(rig, xy, mask, classes, sigma=2.0, instances=instances, person_vote=True)
+    voted = associate_classes(rig, xy, mask, classes, sigma=2.0, config="paper", instances=instances, person_vote=True)
     a = voted.association
     people = _people_in_groups(a, person)
     assert all(len(p) == 1 for p in people) and len(people) == 2 * J
@@ -71,9 +71,11 @@ def test_vote_puts_a_swapped_joint_group_right(swapped):
         for s in range(2 * J):
             assert groups[labels[m, s], m] == s
     assert np.all(np.asarray(a.err_px[0])[np.asarray(a.valid[0])] < 4.0)
-    # Off (or instances only): the result is the plain one.
-    same = associate_classes(rig, xy, mask, classes, sigma=2.0, instances=instances)
-    np.testing.assert_array_equal(np.asarray(same.association.labels), np.asarray(plain.association.labels))
+    # On by default with instances; person_vote=False: the plain result.
+    default = associate_classes(rig, xy, mask, classes, sigma=2.0, config="paper", instances=instances)
+    np.testing.assert_array_equal(np.asarray(default.association.labels), np.asarray(a.labels))
+    off = associate_classes(rig, xy, mask, classes, sigma=2.0, config="paper", instances=instances, person_vote=False)
+    np.testing.assert_array_equal(np.asarray(off.association.labels), np.asarray(plain.association.labels))
 
 
 def test_consistent_groups_reattaches_within_the_gate_only():
@@ -186,7 +188,7 @@ def test_vote_matrix_counts_groups_linking_two_nodes():
 def test_bad_instances_refused(swapped, instances, person_vote, message):
     rig, xy, mask, classes, _, _ = swapped
     with pytest.raises(ValueError, match=message):
-        associate_classes(rig, xy, mask, classes, sigma=2.0, instances=instances, person_vote=person_vote)
+        associate_classes(rig, xy, mask, classes, sigma=2.0, config="paper", instances=instances, person_vote=person_vote)
 
 
 def test_person_vote_numbers_checked():
@@ -194,3 +196,25 @@ def test_person_vote_numbers_checked():
         PersonVote(min_votes=0)
     with pytest.raises(ValueError, match="gate"):
         PersonVote(gate=-1.0)
+
+
+def test_cli_person_vote_reads_the_instance_column(swapped, tmp_path, capsys):
+    from cdog_jax.cli import main
+    from cdog_jax.io import save_rig_json
+
+    rig, xy, mask, classes, instances, person = swapped
+    save_rig_json(tmp_path / "rig.json", rig)
+    table = tmp_path / "points.csv"
+    rows = [f"0,{m},{classes[0, m, s]},{float(xy[0, m, s, 0])!r},{float(xy[0, m, s, 1])!r},1,{instances[0, m, s]}" for m in range(M) for s in range(2 * J)]
+    table.write_text("frame,view,class,x,y,score,instance\n" + "\n".join(rows) + "\n")
+    out = tmp_path / "out.npz"
+    args = ["associate", "--rig", str(tmp_path / "rig.json"), "--points", str(table), "--sigma", "2", "--method", "paper", "--out", str(out)]
+    assert main(args + ["--person-vote"]) == 0
+    with np.load(out) as z:
+        groups, valid = z["groups"][0], z["valid"][0]
+    assert all(len({int(person[s]) for s in g if s >= 0}) == 1 for g in groups[valid]) and valid.sum() == 2 * J
+    plain = tmp_path / "plain.csv"
+    plain.write_text("frame,view,class,x,y\n" + "\n".join(r.rsplit(",", 2)[0] for r in rows) + "\n")
+    capsys.readouterr()
+    assert main(["associate", "--rig", str(tmp_path / "rig.json"), "--points", str(plain), "--person-vote"]) == 2
+    assert "--person-vote: the detections carry no per-view person index" in capsys.readouterr().err
