@@ -32,19 +32,19 @@ class PersonVote:
     """The numbers of the person-level vote (``associate_classes(..., person_vote=)``).
 
     Attributes:
-        min_votes: joint groups that must link two clusters of (view, instance) nodes for
-            them to merge into one person (sum over the clusters' node pairs).
+        min_votes: joint groups that must link two clusters of (view, instance) nodes, on
+            average over their node pairs, for them to merge into one person.
         gate: a detached joint is re-attached to its person's group of its class when its
             distance to that group's 3D point projected into its view is at most
             ``gate · τ`` (τ: the frame's epipolar gate ``tau_px``, pixels).
     """
 
-    min_votes: int = 2
-    gate: float = 2.0
+    min_votes: int | float = 2.0
+    gate: int | float = 2.0
 
     def __post_init__(self):
-        if isinstance(self.min_votes, bool) or not isinstance(self.min_votes, int) or self.min_votes < 1:
-            raise ValueError(f"PersonVote.min_votes must be an int >= 1; got {self.min_votes!r}")
+        if isinstance(self.min_votes, bool) or not isinstance(self.min_votes, (int, float)) or not self.min_votes > 0:
+            raise ValueError(f"PersonVote.min_votes must be a number > 0; got {self.min_votes!r}")
         if isinstance(self.gate, bool) or not isinstance(self.gate, (int, float)) or not self.gate > 0:
             raise ValueError(f"PersonVote.gate must be a number > 0; got {self.gate!r}")
 
@@ -83,15 +83,25 @@ def check_instances(instances, mask: np.ndarray) -> np.ndarray:
 # ------------------------------------------------------------------ the vote (one frame)
 
 
-def vote_matrix(groups: np.ndarray, valid: np.ndarray, instances: np.ndarray) -> np.ndarray:
-    """``(N, N)`` int votes between the nodes ``m · I + i`` (view ``m``, instance ``i``,
-    ``I`` = largest instance + 1): how many valid groups ``groups (G, M)`` (slots, -1) hold
-    a detection of both nodes. ``instances (M, P)``, -1 unknown."""
+def person_nodes(instances: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The (view, instance) nodes of one frame: ``node (M, P)`` id of every slot's node
+    (-1 where the instance is unknown) and ``node_view (N,)``; ids in (view, instance) order."""
+    M = instances.shape[0]
+    known = instances >= 0
+    view = np.broadcast_to(np.arange(M)[:, None], instances.shape)
+    pairs, inverse = np.unique(np.stack([view[known], instances[known]], axis=1), axis=0, return_inverse=True)
+    node = np.full(instances.shape, -1, np.int64)
+    node[known] = inverse.reshape(-1)
+    return node, pairs[:, 0] if len(pairs) else np.zeros(0, np.int64)
+
+
+def vote_matrix(groups: np.ndarray, valid: np.ndarray, node: np.ndarray) -> np.ndarray:
+    """``(N, N)`` int votes between nodes (``node (M, P)``, :func:`person_nodes`): how many
+    valid groups ``groups (G, M)`` (slots, -1) hold a detection of both."""
     M = groups.shape[1]
-    I = max(int(instances.max()) + 1, 1)
-    node = np.where(instances >= 0, np.arange(M)[:, None] * I + instances, -1)
+    N = int(node.max()) + 1 if node.size else 0
     member = _member_values(node, groups, valid)  # (G, M)
-    votes = np.zeros((M * I, M * I), np.int64)
+    votes = np.zeros((N, N), np.int64)
     for a in range(M):
         for b in range(M):
             both = (member[:, a] >= 0) & (member[:, b] >= 0)
@@ -100,33 +110,37 @@ def vote_matrix(groups: np.ndarray, valid: np.ndarray, instances: np.ndarray) ->
     return votes
 
 
-def cluster_people(votes: np.ndarray, present: np.ndarray, num_views: int, min_votes: int) -> np.ndarray:
-    """``(N,)`` person of every node (the id of its cluster's first node; -1 where not
-    ``present``): greedy agglomeration, each step merging the two clusters with the most
-    votes between them (summed over their node pairs) among those that share no view, while
-    that sum is at least ``min_votes``. Node ``n`` is view ``n // I``, ``I = N // num_views``."""
+def cluster_people(votes: np.ndarray, node_view: np.ndarray, min_votes: int | float) -> np.ndarray:
+    """``(N,)`` person of every node (the id of its cluster's first node): greedy average
+    linkage, each step merging the two clusters with the most votes per node pair between
+    them among those that share no view (``node_view (N,)``), while that mean is at least
+    ``min_votes``. (A sum over the pairs would let a few stray votes from each node of a
+    large cluster add up to a merge.)"""
     N = votes.shape[0]
-    I = N // num_views
-    W = votes.astype(np.int64).copy()
+    num_views = int(node_view.max()) + 1 if N else 0
+    W = votes.astype(np.float64).copy()
     views = np.zeros((N, num_views), bool)
-    views[np.arange(N), np.arange(N) // I] = present
-    alive = present.copy()
+    views[np.arange(N), node_view] = True
+    size = np.ones(N)
+    alive = np.ones(N, bool)
     label = np.arange(N)
     upper = np.triu(np.ones((N, N), bool), 1)
     while True:
         disjoint = ~(views.astype(np.int64) @ views.T.astype(np.int64)).astype(bool)
-        allowed = upper & alive[:, None] & alive[None, :] & disjoint & (W >= min_votes)
+        mean = W / (size[:, None] * size[None, :])
+        allowed = upper & alive[:, None] & alive[None, :] & disjoint & (mean >= min_votes)
         if not allowed.any():
             break
-        a, b = np.unravel_index(np.argmax(np.where(allowed, W, -1)), W.shape)
+        a, b = np.unravel_index(np.argmax(np.where(allowed, mean, -1.0)), W.shape)
         W[a] += W[b]
         W[:, a] += W[:, b]
-        W[a, a] = 0
-        W[b], W[:, b] = 0, 0
+        W[a, a] = 0.0
+        W[b], W[:, b] = 0.0, 0.0
         views[a] |= views[b]
+        size[a] += size[b]
         alive[b] = False
         label[label == b] = a
-    return np.where(present, label, -1)
+    return label
 
 
 def _member_values(values: np.ndarray, groups: np.ndarray, valid: np.ndarray) -> np.ndarray:
@@ -169,7 +183,8 @@ def consistent_groups(
         gate_px: the re-attachment gate (pixels).
         vote: the numbers; min_views: a group keeps at least this many views.
 
-    Steps: (1) nodes clustered into people (:func:`vote_matrix`, :func:`cluster_people`);
+    Steps: (1) (view, instance) nodes clustered into people (:func:`person_nodes`,
+    :func:`vote_matrix`, :func:`cluster_people`);
     (2) each group's person is the most frequent person of its members; members of another
     person are detached, and a group left with fewer than ``min_views`` members is
     dissolved (its members detached); (3) each detached joint (in group, then view order)
@@ -182,12 +197,8 @@ def consistent_groups(
     """
     M = groups.shape[1]
     groups = np.where(valid[:, None], groups, -1)
-    votes = vote_matrix(groups, valid, instances)
-    I = votes.shape[0] // M
-    node = np.where(instances >= 0, np.arange(M)[:, None] * I + instances, -1)
-    present = np.zeros(M * I, bool)
-    present[node[node >= 0]] = True
-    person = cluster_people(votes, present, M, vote.min_votes)
+    node, node_view = person_nodes(instances)
+    person = cluster_people(vote_matrix(groups, valid, node), node_view, vote.min_votes)
     det_person = np.where(node >= 0, person[np.maximum(node, 0)], -1)  # (M, P)
 
     # (2) detach the members of another person than the group's.

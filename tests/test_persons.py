@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 import cdog_jax
 from cdog_jax import PersonVote, associate_classes
-from cdog_jax._persons import cluster_people, consistent_groups, vote_matrix
+from cdog_jax._persons import cluster_people, consistent_groups, person_nodes, vote_matrix
 from cdog_jax.synthetic import default_rig
 
 M, J = 3, 3  # views, joint classes
@@ -111,11 +111,9 @@ def test_consistent_groups_reattaches_within_the_gate_only():
     np.testing.assert_array_equal(np.delete(tight.groups, [2, J + 2], axis=0), np.delete(groups, [2, J + 2], axis=0))
 
 
-def _brute_force_people(votes, present, num_views, min_votes):
-    """The view-unique partition of the present nodes maximising Σ over node pairs in one
-    cluster of ``votes − (min_votes − ½)`` (every pair, linked or not)."""
-    nodes = [int(n) for n in np.flatnonzero(present)]
-    I = votes.shape[0] // num_views
+def _brute_force_people(votes, node_view, min_votes):
+    """The view-unique partition of the nodes maximising Σ over node pairs in one cluster
+    of ``votes − (min_votes − ½)`` (every pair, linked or not)."""
     best, best_score = None, -np.inf
 
     def partitions(items):
@@ -128,13 +126,13 @@ def _brute_force_people(votes, present, num_views, min_votes):
                 yield part[:k] + [[first] + part[k]] + part[k + 1 :]
             yield [[first]] + part
 
-    for part in partitions(nodes):
-        if any(len({n // I for n in c}) < len(c) for c in part):
+    for part in partitions(list(range(len(node_view)))):
+        if any(len({int(node_view[n]) for n in c}) < len(c) for c in part):
             continue
         score = sum(votes[a, b] - (min_votes - 0.5) for c in part for a, b in itertools.combinations(c, 2))
         if score > best_score:
             best, best_score = part, score
-    label = np.full(votes.shape[0], -1)
+    label = np.full(len(node_view), -1)
     for c in best:
         label[c] = min(c)
     return label
@@ -143,35 +141,30 @@ def _brute_force_people(votes, present, num_views, min_votes):
 @settings(max_examples=25, deadline=None)
 @given(st.data())
 def test_clustering_matches_brute_force(data):
-    """Planted people (each seen in a random set of views) linked by 2–8 votes per node
+    """Planted people (each with at most one node per view) linked by 2–8 votes per node
     pair, with 0–1 stray votes elsewhere: the greedy clustering finds the brute-force optimum."""
-    num_views, I = 3, 2
-    N = num_views * I
-    people = data.draw(st.lists(st.integers(0, 2), min_size=N, max_size=N))  # person of node m·I + i
-    present = np.array(data.draw(st.lists(st.booleans(), min_size=N, max_size=N)))
-    # view-uniqueness of the plant: a person keeps only its first node of a view
-    seen = set()
-    for n in range(N):
-        key = (people[n], n // I)
-        if present[n] and key in seen:
-            present[n] = False
-        seen.add(key) if present[n] else None
+    N = data.draw(st.integers(1, 7))
+    node_view = np.array(data.draw(st.lists(st.integers(0, 2), min_size=N, max_size=N)))
+    people = data.draw(st.lists(st.integers(0, 2), min_size=N, max_size=N))
+    for n in range(N):  # view-uniqueness of the plant: a repeated (person, view) gets a person of its own
+        if any(people[k] == people[n] and node_view[k] == node_view[n] for k in range(n)):
+            people[n] = 3 + n
     votes = np.zeros((N, N), np.int64)
     for a, b in itertools.combinations(range(N), 2):
-        same = people[a] == people[b] and a // I != b // I
+        same = people[a] == people[b]
         votes[a, b] = votes[b, a] = data.draw(st.integers(2, 8) if same else st.integers(0, 1))
-    got = cluster_people(votes, present, num_views, 2)
-    want = _brute_force_people(votes, present, num_views, 2)
-    np.testing.assert_array_equal(got, want)
+    got = cluster_people(votes, node_view, 2)
+    np.testing.assert_array_equal(got, _brute_force_people(votes, node_view, 2))
 
 
-def test_vote_matrix_counts_groups_linking_two_nodes():
+def test_nodes_and_votes():
+    instances = np.array([[0, 7], [7, 0], [0, -1]])  # any ints as indices; -1 unknown
+    node, node_view = person_nodes(instances)
+    assert node.tolist() == [[0, 1], [3, 2], [4, -1]] and node_view.tolist() == [0, 0, 1, 1, 2]
     groups = np.array([[0, 1, -1], [1, 0, 0], [0, 0, 0]])
-    instances = np.array([[0, 1], [1, 0], [0, -1]])
-    votes = vote_matrix(groups, np.array([True, True, False]), instances)
-    I = 2
-    assert votes[0 * I + 0, 1 * I + 0] == 1 and votes[1 * I + 0, 0 * I + 0] == 1  # group 0: (v0, i0)–(v1, i0)
-    assert votes[0 * I + 1, 1 * I + 1] == 1 and votes[0 * I + 1, 2 * I + 0] == 1  # group 1
+    votes = vote_matrix(groups, np.array([True, True, False]), node)
+    assert votes[0, 2] == votes[2, 0] == 1  # group 0: (v0, 0)–(v1, 0)
+    assert votes[1, 3] == votes[1, 4] == votes[3, 4] == 1  # group 1: (v0, 7), (v1, 7), (v2, 0)
     assert votes.sum() == 2 * 4  # 1 + 3 pairs, both directions; group 2 is not valid
 
 
