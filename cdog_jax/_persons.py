@@ -198,6 +198,8 @@ def consistent_groups(
     M = groups.shape[1]
     groups = np.where(valid[:, None], groups, -1)
     node, node_view = person_nodes(instances)
+    if len(node_view) == 0:  # no instance known: nothing to vote on
+        return FrameGroups(groups, valid, group_class, np.zeros(len(valid), bool), np.arange(len(valid)))
     person = cluster_people(vote_matrix(groups, valid, node), node_view, vote.min_votes)
     det_person = np.where(node >= 0, person[np.maximum(node, 0)], -1)  # (M, P)
 

@@ -109,6 +109,9 @@ def test_consistent_groups_reattaches_within_the_gate_only():
     assert tight.groups[2, 2] == -1 and tight.groups[J + 2, 2] == -1  # detached, beyond the gate
     assert tight.valid.all() and len(tight.valid) == 2 * J
     np.testing.assert_array_equal(np.delete(tight.groups, [2, J + 2], axis=0), np.delete(groups, [2, J + 2], axis=0))
+    unknown = consistent_groups(groups, valid, gclass, classes, np.full_like(instances, -1), xy, points, Flat(), 5.0, PersonVote(), 2)
+    np.testing.assert_array_equal(unknown.groups, groups)  # no instance known: nothing moves
+    assert not unknown.changed.any()
 
 
 def _brute_force_people(votes, node_view, min_votes):
