@@ -119,7 +119,8 @@ def associate_classes(
 
     Returns:
         A :class:`ClassAssociation`. Raises ``ValueError`` before any work for a wrong shape,
-        a negative class or one ``>= num_classes``, or names of the wrong length.
+        a negative class or one ``>= num_classes``, names of the wrong length, or
+        ``instances`` not integers ``>= -1`` of ``mask``'s shape.
     """
     expect_args("associate_classes", rig=(rig, Rig))
     expect(batch_size, INT, "batch_size", "associate_classes")
@@ -172,7 +173,8 @@ def associate_classes(
     result = jax.tree_util.tree_map(lambda *a: np.concatenate([np.asarray(x) for x in a])[:B], *chunks)
     out = _map_back(result, scenes, F, M, P, C, class_names)
     if vote is not None:
-        fixed = person_consistent(rig, out.association, out.group_class, xy, mask, classes, instances, vote, dist=dist, min_views=min_views)
+        fixed = person_consistent(rig, out.association, out.group_class, xy, mask, classes, instances, vote,
+                                  dist=dist, weights=weights, min_views=min_views)  # fmt: skip
         a = out.association
         assoc = _batched(**{k: jnp.asarray(v) for k, v in fixed._asdict().items() if k != "group_class"},
                          sigma_px=a.sigma_px, tau_px=a.tau_px, status=a.status)  # fmt: skip

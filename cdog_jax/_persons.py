@@ -268,33 +268,36 @@ class _Camera:
 
     def __init__(self, rig: Rig):
         self.rig = rig
-        self.P = np.einsum("mij,mjk->mik", np.asarray(rig.K, np.float64),
-                           np.concatenate([np.asarray(rig.R, np.float64), np.asarray(rig.t, np.float64)[:, :, None]], axis=-1))  # fmt: skip
+        Rt = np.concatenate([np.asarray(rig.R, np.float64), np.asarray(rig.t, np.float64)[:, :, None]], axis=-1)
+        self.P = np.einsum("mij,mjk->mik", np.asarray(rig.K, np.float64), Rt)  # (M, 3, 4)
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         h = np.einsum("mij,kj->kmi", self.P[:, :, :3], np.asarray(X, np.float64)) + self.P[None, :, :, 3]
         return h[..., :2] / np.where(np.abs(h[..., 2:]) > 0, h[..., 2:], np.inf)
 
-    def triangulate(self, xy: np.ndarray, rows: np.ndarray) -> np.ndarray:
-        X, _, _, _ = self.solve(xy, rows)
+    def triangulate(self, xy: np.ndarray, rows: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+        X, _, _, _ = self.solve(xy, rows, weights)
         return X
 
-    def solve(self, xy, rows):
-        """Points, ok, BPE (px²), mean error (px) of groups ``rows (K, M)`` on ``xy (M, P, 2)``."""
+    def solve(self, xy, rows, weights=None):
+        """Points, ok, BPE (px²), mean error (px) of groups ``rows (K, M)`` on ``xy (M, P, 2)``
+        (DLT weighted by ``weights (M, P)`` when given, as the pipeline's final points)."""
         K, M = rows.shape
         pad = max(8, 1 << (K - 1).bit_length())
         table = np.full((pad, M), -1, np.int64)
         table[:K] = rows
         member = table >= 0
-        xy_g = np.where(member[..., None], xy[np.arange(M)[None, :], np.maximum(table, 0)], 0.0)
+        at = (np.arange(M)[None, :], np.maximum(table, 0))
+        xy_g = np.where(member[..., None], xy[at], 0.0)
+        w = np.where(member, 1.0 if weights is None else weights[at], 0.0)
         dtype = self.rig.K.dtype
-        out = _retriangulate(self.rig, jnp.asarray(xy_g, dtype), jnp.asarray(member))
+        out = _retriangulate(self.rig, jnp.asarray(xy_g, dtype), jnp.asarray(member), jnp.asarray(w, dtype))
         return tuple(np.asarray(a)[:K] for a in out)
 
 
 @jax.jit
-def _retriangulate(rig, xy_g, member):
-    X, ok = triangulate_views_last(rig, xy_g, member)
+def _retriangulate(rig, xy_g, member, weights):
+    X, ok = triangulate_views_last(rig, xy_g, member, weights=weights)
     bpe, err = group_errors(rig, X, xy_g, member)
     return X, ok, bpe, err
 
@@ -315,18 +318,20 @@ class PersonGroups(NamedTuple):
 
 
 def person_consistent(rig: Rig, assoc, group_class, xy, mask, classes, instances, vote: PersonVote, *, dist=None,
-                      min_views: int = 2) -> PersonGroups:  # fmt: skip
+                      weights=None, min_views: int = 2) -> PersonGroups:  # fmt: skip
     """The groups of a batched association ``assoc`` (``(F, …)``, as
     :func:`cdog_jax.associate_classes` builds it, with ``group_class (F, G)``) made
     consistent with ``instances (F, M, P)`` frame by frame (:func:`consistent_groups`, gate
     ``vote.gate · tau_px`` of the frame). ``xy (F, M, P, 2)`` as detected (undistorted with
-    ``dist`` first), ``mask``, ``classes (F, M, P)``. Valid groups come first, by class,
-    kept groups in their order, new ones after them."""
+    ``dist`` first), ``mask``, ``classes (F, M, P)``; ``weights (F, M, P)`` weight the DLT
+    of the changed groups. Valid groups come first, by class, kept groups in their order,
+    new ones after them."""
     F, M, P = mask.shape
     dtype = np.asarray(assoc.points3d).dtype
     pinhole = np.asarray(xy, np.float64)
     if dist is not None:
-        pinhole = np.asarray(jax.vmap(undistorted, in_axes=(None, 0, 0, None))(rig, jnp.asarray(xy, rig.K.dtype), jnp.asarray(mask), as_lens(dist, rig.K.dtype)))
+        lens, xy_j = as_lens(dist, rig.K.dtype), jnp.asarray(xy, rig.K.dtype)
+        pinhole = np.asarray(jax.vmap(undistorted, in_axes=(None, 0, 0, None))(rig, xy_j, jnp.asarray(mask), lens), np.float64)
     camera = _Camera(rig)
     fields = {k: np.asarray(getattr(assoc, k)) for k in ("groups", "valid", "points3d", "bpe", "err_px")}
     tau = np.asarray(assoc.tau_px)
@@ -342,7 +347,7 @@ def person_consistent(rig: Rig, assoc, group_class, xy, mask, classes, instances
         redo = fg.changed & fg.valid
         valid = fg.valid.copy()
         if redo.any():
-            X, ok, b, e = camera.solve(pinhole[f], fg.groups[redo])
+            X, ok, b, e = camera.solve(pinhole[f], fg.groups[redo], None if weights is None else weights[f])
             points[redo], bpe[redo], err[redo] = X, b, e
             valid[np.flatnonzero(redo)[~ok]] = False
         order = np.flatnonzero(valid)
