@@ -186,7 +186,7 @@ def consistent_groups(
     Steps: (1) (view, instance) nodes clustered into people (:func:`person_nodes`,
     :func:`vote_matrix`, :func:`cluster_people`);
     (2) each group's person is the most frequent person of its members; members of another
-    person are detached, and a group left with fewer than ``min_views`` members is
+    person that shares a view with it are detached, and a group left with fewer than ``min_views`` members is
     dissolved (its members detached); (3) each detached joint (in group, then view order)
     joins the largest group of its class and person with no member in its view, when it
     lies within ``gate_px`` of that group's point projected into its view (the point
@@ -203,10 +203,15 @@ def consistent_groups(
     person = cluster_people(vote_matrix(groups, valid, node), node_view, vote.min_votes)
     det_person = np.where(node >= 0, person[np.maximum(node, 0)], -1)  # (M, P)
 
-    # (2) detach the members of another person than the group's.
+    # (2) detach the members of another person than the group's, where the two people
+    # share a view (two clusters that do not share one may be one person with too few
+    # votes to merge: no evidence against the group).
     member_person = _member_values(det_person, groups, valid)
     group_person = np.array([_mode(row) for row in member_person], np.int64)
-    detach = (member_person >= 0) & (member_person != group_person[:, None])
+    person_views = np.zeros((len(node_view), M), bool)
+    person_views[person, node_view] = True
+    clash = (person_views[np.maximum(member_person, 0)] & person_views[np.maximum(group_person, 0)][:, None, :]).any(axis=-1)
+    detach = (member_person >= 0) & (member_person != group_person[:, None]) & clash
     kept = np.where(detach, -1, groups)
     small = valid & ((kept >= 0).sum(axis=1) < min_views) & detach.any(axis=1)
     detach |= small[:, None] & (kept >= 0) & (det_person[np.arange(M)[None, :], np.maximum(kept, 0)] >= 0)

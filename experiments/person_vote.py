@@ -13,9 +13,16 @@ views); a double detection belongs to a separate partial skeleton of its person 
 ``K + `` its person's number), clutter has none (-1). σ is estimated (``sigma="auto"``).
 Rows "+ doubles, clutter" add a double rate of 0.1 and 5 clutter detections per view.
 
+Real data (``--pose2sim``, the Pose2Sim demo of ``experiments/real_pose2sim.py``, already
+downloaded there): the two moving trials, OpenPose's person index of every view as the
+instances, without and with the vote; no ground truth, so the table gives what moves (3D
+points, assigned share, reprojection error, ``= visible`` as in ``real_pose2sim.py``) and
+how many detections change group.
+
 Usage::
 
     python experiments/person_vote.py [--sequences 6] [--frames 4] [--json out.json] [--quick]
+        [--pose2sim ~/.cache/cdog_jax/pose2sim-0.7.2/S00_Demo_Session]
 """
 
 from __future__ import annotations
@@ -38,9 +45,9 @@ MAX_PEOPLE = 5
 SEED = 0
 
 
-def _robustness():
-    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "robustness_realistic.py")
-    spec = importlib.util.spec_from_file_location("robustness_realistic", path)
+def _load_script(name: str):
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), name)
+    spec = importlib.util.spec_from_file_location(os.path.splitext(name)[0], path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -61,7 +68,7 @@ def per_view_instances(frames, seed: int) -> np.ndarray:
 
 
 def run(*, sequences=6, frames=4, presets=PRESETS, seed=SEED, extras=True, log=print):
-    rr = _robustness()
+    rr = _load_script("robustness_realistic.py")
     family = dict(rr.FAMILIES["skeleton"], sigma=SIGMA)
     cases = {"targets": Realism(nu=NU)}
     if extras:
@@ -95,6 +102,61 @@ def run(*, sequences=6, frames=4, presets=PRESETS, seed=SEED, extras=True, log=p
     return out
 
 
+def _members(assoc, f):
+    """``{(view, slot): frozenset of its group's (view, slot)}`` of frame ``f``."""
+    groups, valid = np.asarray(assoc.groups[f]), np.asarray(assoc.valid[f])
+    out = {}
+    for g in groups[valid]:
+        members = frozenset((m, int(x)) for m, x in enumerate(g) if x >= 0)
+        out.update({k: members for k in members})
+    return out
+
+
+def run_pose2sim(demo: str, presets=("paper", "extended", "best"), log=print):
+    """The moving trials of the Pose2Sim demo, without and with the vote (σ estimated)."""
+    import jax
+
+    from cdog_jax.io import load_openpose, load_rig
+
+    rp = _load_script("real_pose2sim.py")
+    calib, trials = rp.find_inputs(demo)
+    rig_file = load_rig(calib)
+    dist = rig_file.dist if rig_file.dist is not None and np.any(rig_file.dist) else None
+    rows = []
+    for name, pose, participants in trials:
+        if "Static" in name:
+            continue
+        det = load_openpose(pose, keypoints="BODY_25B", num_views=rig_file.rig.num_views, image_size=rig_file.image_size)
+        for preset in presets:
+            res = {}
+            for vote in (False, True):
+                t = time.perf_counter()
+                res[vote] = associate_classes(rig_file.rig, det.xy.astype(np.float32), det.mask, det.classes,
+                                              class_names=det.class_names, config=preset, dist=dist,
+                                              instances=det.instances if vote else None, person_vote=vote)  # fmt: skip
+                jax.block_until_ready(res[vote].association.points3d)
+                stats = rp.trial_stats(det, res[vote], participants)
+                stats.update(trial=name, people=participants, preset=preset, vote=vote, seconds=time.perf_counter() - t)
+                rows.append(stats)
+            F = det.mask.shape[0]
+            moved = sum(sum(a.get(k) != b.get(k) for k in set(a) | set(b))
+                        for a, b in (( _members(res[False].association, f), _members(res[True].association, f)) for f in range(F)))  # fmt: skip
+            rows[-1]["moved"] = int(moved)
+            log(f"pose2sim {name} {preset}: {rows[-2]['points']} → {rows[-1]['points']} points, {moved} detections change group")
+    return rows
+
+
+def markdown_pose2sim(rows) -> str:
+    lines = ["| trial | people | preset | 3D points (off → vote) | assigned | err median (px) | err p90 (px) | = visible "
+             "| detections that change group |", "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for a, b in zip(rows[0::2], rows[1::2]):
+        lines.append(f"| {a['trial']} | {a['people']} | {a['preset']} | {a['points']} → {b['points']} | "
+                     f"{a['assigned'] / a['detections']:.3f} → {b['assigned'] / b['detections']:.3f} | "
+                     f"{a['err_median']:.1f} → {b['err_median']:.1f} | {a['err_p90']:.1f} → {b['err_p90']:.1f} | "
+                     f"{a['visible_exact']:.3f} → {b['visible_exact']:.3f} | {b['moved']} of {a['detections']} |")  # fmt: skip
+    return "\n".join(lines)
+
+
 def markdown(out) -> str:
     lines = [f"Skeleton scenes of 3–5 people, 5 views, ν = {out['nu']:g}, σ = {out['sigma']:.2f} px, σ estimated "
              f"({out['frames_total']} frames: {out['sequences']} sequences × {out['frames']}):", "",
@@ -118,16 +180,23 @@ def main(argv=None):
     parser.add_argument("--seed", type=int, default=SEED)
     parser.add_argument("--json", default=None, help="also write the numbers here")
     parser.add_argument("--quick", action="store_true", help="tiny run: 1 sequence of 2 frames, paper() only, targets only")
+    parser.add_argument("--pose2sim", default=None, help="also the Pose2Sim demo folder (S00_Demo_Session, unpacked)")
     args = parser.parse_args(argv)
     extras = not args.quick
     if args.quick:
         args.sequences, args.frames, args.presets = 1, 2, ["paper"]
     out = run(sequences=args.sequences, frames=args.frames, presets=tuple(args.presets), seed=args.seed, extras=extras)
+    if args.pose2sim:
+        t = time.perf_counter()
+        out["pose2sim"] = run_pose2sim(args.pose2sim, presets=tuple(p for p in args.presets if p != "reference"))
+        out["seconds_pose2sim"] = time.perf_counter() - t
     if args.json:
         with open(args.json, "w") as f:
             json.dump(out, f, indent=1)
     print(markdown(out))
-    print(f"\ntotal {out['seconds']:.1f} s")
+    if args.pose2sim:
+        print("\nPose2Sim demo, σ estimated:\n\n" + markdown_pose2sim(out["pose2sim"]))
+    print(f"\ntotal {out['seconds'] + out.get('seconds_pose2sim', 0.0):.1f} s")
     return out
 
 

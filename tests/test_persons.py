@@ -114,6 +114,29 @@ def test_consistent_groups_reattaches_within_the_gate_only():
     assert not unknown.changed.any()
 
 
+def test_a_group_of_two_weakly_linked_nodes_is_kept():
+    """A person seen in views 0 and 1 with a single joint group: its two nodes get one
+    vote, too few to merge, but they share no view, so nothing says they are two people:
+    the group stays (it would be dissolved, both joints lost, if any two persons clashed)."""
+    instances = np.array([[0, 1], [0, 1], [0, -1]])  # person A: instance 0 everywhere; C: instance 1 in views 0, 1
+    classes = np.array([[0, 1], [0, 1], [0, 0]])
+    groups = np.array([[0, 0, 0], [1, 1, -1]])  # A's joint 0 in three views, C's joint 1 in two
+    xy = np.zeros((M, 2, 2))
+    points = np.zeros((2, 3))
+
+    class Still:
+        def __call__(self, X):
+            return np.zeros((len(X), M, 2))
+
+        def triangulate(self, xy_, rows):
+            return np.zeros((len(rows), 3))
+
+    out = consistent_groups(groups, np.ones(2, bool), np.array([0, 1]), classes, instances, xy, points, Still(), 5.0,
+                            PersonVote(), 2)  # fmt: skip
+    np.testing.assert_array_equal(out.groups, groups)
+    assert out.valid.all() and not out.changed.any()
+
+
 def _brute_force_people(votes, node_view, min_votes):
     """The view-unique partition of the nodes maximising Σ over node pairs in one cluster
     of ``votes − (min_votes − ½)`` (every pair, linked or not)."""
