@@ -4,8 +4,8 @@ When every detection carries a per-view instance index (the 2D skeleton it belon
 its view, as a pose estimator outputs it: OpenPose's person index), the joint groups of a
 frame vote on which (view, instance) pairs are one 3D person; the (view, instance) nodes
 are clustered into people under view-uniqueness, and every joint detection whose group
-disagrees with its instance's person is detached and re-attached to its person's group of
-that class when it reprojects within the gate.
+belongs to another person (one that shares a view with its own) is detached and
+re-attached to its person's group of that class when it reprojects within the gate.
 
 This is a host step in plain NumPy (not jitted; a frame holds a few dozen nodes), run by
 :func:`cdog_jax.associate_classes` after the compiled association; only the
