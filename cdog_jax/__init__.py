@@ -1,6 +1,7 @@
 """cdog_jax: multi-view, multi-instance point association with connected δ-overlap graphs."""
 
 from ._classes import ClassAssociation as ClassAssociation, associate_classes as associate_classes, class_sigmas as class_sigmas
+from ._persons import PersonVote as PersonVote
 from ._associate import associate as associate, associate_batch as associate_batch
 from ._cdog import Config as Config, STAGES as STAGES, associate_traced as associate_traced
 from ._cdog import Thresholds as Thresholds

@@ -22,6 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._associate import associate_batch
+from ._persons import check_instances, person_consistent, person_vote_argument
 from ._method import method_argument
 from ._expect import INT, expect, expect_args
 from ._result import Association
@@ -85,6 +86,8 @@ def associate_classes(
     batch_size: int = 64,
     memory_budget_gb: float | None = None,
     config=None,
+    instances=None,
+    person_vote=None,
 ) -> ClassAssociation:
     """Associate detections that carry a class, every class of every frame in one call.
 
@@ -106,10 +109,18 @@ def associate_classes(
         batch_size: scenes per compiled call (memory bound; scenes are small). The scenes
             are padded with empty ones to a multiple of it, so one compiled program serves
             any number of frames and classes.
+        instances: optional ``(F, M, P)`` int per-view instance index of every detection
+            (the 2D skeleton it belongs to in its view, ``-1``: unknown).
+        person_vote: make the groups of each frame consistent with ``instances`` (a
+            person-level vote, then re-association of the joints that disagree;
+            ALGORITHM.md §15.1): ``None`` (default): on when ``instances`` is given;
+            ``True`` or a :class:`cdog_jax.PersonVote` (its numbers): on, ``instances``
+            required; ``False``: off.
 
     Returns:
         A :class:`ClassAssociation`. Raises ``ValueError`` before any work for a wrong shape,
-        a negative class or one ``>= num_classes``, or names of the wrong length.
+        a negative class or one ``>= num_classes``, names of the wrong length, or
+        ``instances`` not integers ``>= -1`` of ``mask``'s shape.
     """
     expect_args("associate_classes", rig=(rig, Rig))
     expect(batch_size, INT, "batch_size", "associate_classes")
@@ -119,6 +130,8 @@ def associate_classes(
     check_observations(xy, mask, rig.num_views, batched=True)
     classes = _check_classes(classes, mask)
     C = _num_classes(classes, mask, class_names, num_classes)
+    vote = person_vote_argument(person_vote, instances)
+    instances = None if instances is None else check_instances(instances, mask)
     if sigma_pool not in SIGMA_POOLS:
         raise ValueError(f"sigma_pool must be one of {SIGMA_POOLS}; got {sigma_pool!r}")
     if batch_size < 1:
@@ -158,7 +171,15 @@ def associate_classes(
             min_views=min_views, batch_size=batch_size, memory_budget_gb=memory_budget_gb,
         ))  # fmt: skip
     result = jax.tree_util.tree_map(lambda *a: np.concatenate([np.asarray(x) for x in a])[:B], *chunks)
-    return _map_back(result, scenes, F, M, P, C, class_names)
+    out = _map_back(result, scenes, F, M, P, C, class_names)
+    if vote is not None:
+        fixed = person_consistent(rig, out.association, out.group_class, xy, mask, classes, instances, vote,
+                                  dist=dist, weights=weights, min_views=min_views)  # fmt: skip
+        a = out.association
+        assoc = _batched(**{k: jnp.asarray(v) for k, v in fixed._asdict().items() if k != "group_class"},
+                         sigma_px=a.sigma_px, tau_px=a.tau_px, status=a.status)  # fmt: skip
+        out = out._replace(association=assoc, group_class=fixed.group_class)
+    return out
 
 
 def class_sigmas(rig: Rig, xy, mask, classes, *, estimator: str = "auto", pool: str = "frame", dist=None) -> np.ndarray:

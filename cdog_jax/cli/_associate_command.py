@@ -118,6 +118,12 @@ def add_parsers(subparsers) -> None:
         action="store_true",
         help="triangulate with the detections' confidences as DLT weights (needs [x, y, c] entries)",
     )
+    p.add_argument(
+        "--person-vote",
+        action="store_true",
+        help="keypoints with a per-view person index (OpenPose, or a table's instance column): make each frame's "
+        "joint groups consistent with the people (a person-level vote, then re-association of the joints that disagree)",
+    )
     p.add_argument("--capacity", type=_positive_int, default=None, help="slots per view (default: the largest view); refuse if exceeded")
     p.add_argument("--out", default=None, help="write the groups: .json (members, point, BPE), .npz (arrays) or .csv (one row per 3D point)")
     p.add_argument("--plot", default=None, help="figure of the first frame's groups (.png, .pdf, .svg, .jpg)")
@@ -258,6 +264,9 @@ def run_associate(args: argparse.Namespace) -> int:
     rig_file, det = _load(args)
     if args.confidence_weights and det.confidence is None:
         raise InputError(f"{args.points}: --confidence-weights: the file has no confidences (entries [x, y, c])")
+    if args.person_vote and (det.classes is None or det.instances is None):
+        raise InputError(f"{args.points}: --person-vote: the detections carry no per-view person index "
+                         "(an OpenPose folder, or a table with an instance column)")  # fmt: skip
     rig = rig_file.rig
     dtype = rig.K.dtype
     check_float_range(det, dtype, args.points)
@@ -292,6 +301,7 @@ def run_associate(args: argparse.Namespace) -> int:
         classed = associate_classes(
             rig, np.asarray(det.xy, dtype), det.mask, det.classes, class_names=det.class_names, method=method,
             sigma=args.sigma, dist=dist, weights=weights, min_views=args.min_views, batch_size=max(args.batch_size, 64),
+            instances=det.instances if args.person_vote else None, person_vote=args.person_vote,
         )  # fmt: skip
         result = classed.association
     else:

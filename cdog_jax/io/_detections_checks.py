@@ -13,23 +13,26 @@ from ._errors import _Where
 from ._scores import clip_scores
 
 
-def _finish(xy, mask, conf, frames, where, notes, capacity, image_size, classes=None, names=None, frame_ids=None) -> Detections:
+def _finish(xy, mask, conf, frames, where, notes, capacity, image_size, classes=None, names=None, frame_ids=None,
+            instances=None) -> Detections:  # fmt: skip
     xy = np.where(mask[..., None], xy, 0.0)
     if conf is not None:
         conf, note = clip_scores(conf, mask, where.error)
         notes += [note] if note else []
     if classes is not None:
         classes = np.where(mask, classes, -1)
+    if instances is not None:
+        instances = np.where(mask, instances, -1)
     counts = mask.sum(axis=-1).astype(np.int64)
     if capacity is not None:
-        xy, mask, conf, classes = _fit_capacity(xy, mask, conf, counts, capacity, where, notes, classes)
+        xy, mask, conf, classes, instances = _fit_capacity(xy, mask, conf, counts, capacity, where, notes, classes, instances)
     _check_duplicates(xy, mask, where, classes)
     if image_size is not None:
         _check_in_image(xy, mask, image_size, where)
     _check_groups_possible(counts, frames, where, notes)
     for f, m in np.argwhere(counts == 0):
         notes.append(f"{where.loc(int(f), int(m))}: empty view")
-    return Detections(xy, mask, conf, bool(frames), counts, notes, classes, names, frame_ids)
+    return Detections(xy, mask, conf, bool(frames), counts, notes, classes, names, frame_ids, instances)
 
 
 def _check_groups_possible(counts: np.ndarray, frames: bool, where: _Where, notes: list[str]) -> None:
@@ -68,7 +71,7 @@ def check_float_range(det: Detections, dtype: Any, source: str | None = None) ->
         )  # fmt: skip
 
 
-def _fit_capacity(xy, mask, conf, counts, capacity, where, notes, classes=None):
+def _fit_capacity(xy, mask, conf, counts, capacity, where, notes, classes=None, instances=None):
     """Pad to ``capacity`` slots, or shrink to it when every view fits, packing views whose
     detections sit beyond it (slots change; said in ``notes``)."""
     over = counts > capacity
@@ -84,7 +87,8 @@ def _fit_capacity(xy, mask, conf, counts, capacity, where, notes, classes=None):
         pad = ((0, 0), (0, 0), (0, capacity - P))
         conf = None if conf is None else np.pad(conf, pad)
         classes = None if classes is None else np.pad(classes, pad, constant_values=-1)
-        return np.pad(xy, (*pad, (0, 0))), np.pad(mask, pad), conf, classes
+        instances = None if instances is None else np.pad(instances, pad, constant_values=-1)
+        return np.pad(xy, (*pad, (0, 0))), np.pad(mask, pad), conf, classes, instances
     for f, m in np.argwhere(mask[..., capacity:].any(axis=-1)):
         order = np.argsort(~mask[f, m], kind="stable")  # detections first, in slot order
         xy[f, m], mask[f, m] = xy[f, m, order], mask[f, m, order]
@@ -92,10 +96,13 @@ def _fit_capacity(xy, mask, conf, counts, capacity, where, notes, classes=None):
             conf[f, m] = conf[f, m, order]
         if classes is not None:
             classes[f, m] = classes[f, m, order]
+        if instances is not None:
+            instances[f, m] = instances[f, m, order]
         notes.append(f"{where.loc(int(f), int(m))}: detections moved to slots 0…{counts[f, m] - 1} to fit capacity {capacity}")
     conf = None if conf is None else conf[..., :capacity]
     classes = None if classes is None else classes[..., :capacity]
-    return xy[..., :capacity, :], mask[..., :capacity], conf, classes
+    instances = None if instances is None else instances[..., :capacity]
+    return xy[..., :capacity, :], mask[..., :capacity], conf, classes, instances
 
 
 def _check_duplicates(xy, mask, where, classes=None) -> None:

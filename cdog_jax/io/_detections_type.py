@@ -26,6 +26,9 @@ class Detections(NamedTuple):
         class_names: the class names by id, or ``None`` when only ids are known.
         frame_ids: ``(F,)`` int64 frame numbers as the files name them (keypoint readers),
             or ``None`` when frames are numbered ``0 … F-1``.
+        instances: ``(F, M, P)`` int64 per-view instance index of every detection (the 2D
+            skeleton it belongs to in its view; ``-1`` unknown or padding), or ``None``;
+            for ``associate_classes(..., instances=, person_vote=True)``.
     """
 
     xy: np.ndarray
@@ -37,6 +40,7 @@ class Detections(NamedTuple):
     classes: np.ndarray | None = None
     class_names: tuple[str, ...] | None = None
     frame_ids: np.ndarray | None = None
+    instances: np.ndarray | None = None
 
     def scene(self, f: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """``(xy (M, P, 2), mask (M, P), confidence (M, P) or None)`` of frame ``f``, ready

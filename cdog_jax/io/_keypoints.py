@@ -10,10 +10,12 @@ keypoints per person (BODY_25, BODY_25B, COCO-17 or any ``J``). The frame number
 file is the last run of digits in its name (``cam01.0012.json``, ``video_000000000012_keypoints.json``);
 frames missing in a camera are empty views there. Each person's keypoint ``j`` in a view
 is a candidate of class ``j`` in slot ``person · J + j`` (the person's index in one view
-is not an identity across views; association decides). Score 0 means not detected.
+is not an identity across views; association decides); ``instances`` holds that index
+(``associate_classes(..., instances=, person_vote=True)``). Score 0 means not detected.
 
 **Tables** (:func:`load_keypoint_table`): one detection per row, ``frame, view, class,
-x, y`` and an optional ``score``: a CSV with that header (``#`` lines are comments), or
+x, y`` and optional ``score`` and ``instance`` (an int ``>= -1``: the 2D skeleton of the
+detection in its view, -1 unknown): a CSV with that header (``#`` lines are comments), or
 an NPZ with 1-D arrays of those names (``xy (N, 2)`` may replace ``x`` and ``y``).
 ``view`` is the rig's view index (from 0); ``class`` an int id or a name; ``frame`` any
 integer (frames are the distinct numbers, in increasing order). A row with score 0 is
@@ -63,7 +65,7 @@ SKELETONS: dict[str, tuple[str, ...]] = {
         "right_ankle",
     ),
 }  # fmt: skip
-TABLE_COLUMNS = ("frame", "view", "class", "x", "y", "score")
+TABLE_COLUMNS = ("frame", "view", "class", "x", "y", "score", "instance")
 _DIGITS = re.compile(r"\d+")
 
 
@@ -92,7 +94,7 @@ def load_openpose(
 
     Returns:
         :class:`Detections` ``(F, M, P = people · J)`` with ``classes`` (``j`` per slot),
-        ``class_names`` and ``frame_ids`` (the files' frame numbers). Raises
+        ``instances`` (the person's index in the view), ``class_names`` and ``frame_ids`` (the files' frame numbers). Raises
         :class:`InputError` naming the file (and person, keypoint) for a file without
         ``people``, a ``pose_keypoints_2d`` whose length is not ``3 J``, a non-numeric
         value, a negative or non-finite score, a camera folder without JSON files, two
@@ -134,9 +136,10 @@ def load_openpose(
         if kept:
             rows[f, m, : len(kept) * J] = np.concatenate(kept).reshape(-1, 3)
     classes = np.broadcast_to(np.arange(most * J) % J, (F, M, most * J)).copy()
+    instances = np.broadcast_to(np.arange(most * J) // J, (F, M, most * J)).copy()
     notes = [f"{len(cameras)} cameras {', '.join(os.path.basename(os.path.normpath(c)) for c in cameras)}; {J} keypoint types"]
     where = _Where(source, True)
-    return _keypoint_detections(rows, classes, names, frame_ids, where, notes, capacity, image_size)
+    return _keypoint_detections(rows, classes, names, frame_ids, where, notes, capacity, image_size, instances)
 
 
 def load_keypoint_table(
@@ -242,7 +245,7 @@ def _keypoint_names(keypoints: Any, J: int, source: str) -> tuple[str, ...] | No
     return tuple(names)
 
 
-def _keypoint_detections(rows, classes, names, frame_ids, where, notes, capacity, image_size) -> Detections:
+def _keypoint_detections(rows, classes, names, frame_ids, where, notes, capacity, image_size, instances=None) -> Detections:
     """Rows ``(F, M, P, 3)`` ``[x, y, score]`` (score 0: none) as :class:`Detections`."""
     score = rows[..., 2]
     mask = score != 0.0
@@ -251,7 +254,7 @@ def _keypoint_detections(rows, classes, names, frame_ids, where, notes, capacity
     _check_coordinates(rows[..., :2], mask, where, "where the score is not 0")
     if not np.array_equal(frame_ids, np.arange(len(frame_ids))):
         notes.append(f"frames numbered {_ranges(frame_ids)} in the files are frames 0…{len(frame_ids) - 1} here (frame_ids)")
-    return _finish(rows[..., :2], mask, conf, True, where, notes, capacity, image_size, classes, names, frame_ids)
+    return _finish(rows[..., :2], mask, conf, True, where, notes, capacity, image_size, classes, names, frame_ids, instances)
 
 
 def _ranges(ids: np.ndarray) -> str:
@@ -270,7 +273,7 @@ def _read_csv_table(path: str) -> tuple[dict[str, list], list[str]]:
     missing = [c for c in TABLE_COLUMNS[:5] if c not in header]
     if missing:
         raise InputError(f"{path}: line {lines[0][0]}: header {rows[0]} lacks column(s) {', '.join(missing)} "
-                         f"(expected {', '.join(TABLE_COLUMNS)}, score optional)")  # fmt: skip
+                         f"(expected {', '.join(TABLE_COLUMNS)}, score and instance optional)")  # fmt: skip
     index = {c: header.index(c) for c in TABLE_COLUMNS if c in header}
     columns: dict[str, list] = {c: [] for c in index}
     for (line, _), row in zip(lines[1:], rows[1:]):
@@ -291,7 +294,7 @@ def _read_npz_table(path: str) -> tuple[dict[str, list], list[str]]:
         arrays["x"], arrays["y"] = xy[:, 0], xy[:, 1]
     missing = [c for c in TABLE_COLUMNS[:5] if c not in arrays]
     if missing:
-        raise InputError(f"{path}: no array(s) {', '.join(missing)} (expected 1-D arrays {', '.join(TABLE_COLUMNS)}, score optional)")
+        raise InputError(f"{path}: no array(s) {', '.join(missing)} (expected 1-D arrays {', '.join(TABLE_COLUMNS)}, score and instance optional)")
     N = len(arrays["frame"])
     for c in TABLE_COLUMNS:
         if c in arrays and (arrays[c].ndim != 1 or len(arrays[c]) != N):
@@ -319,6 +322,10 @@ def _from_table(path, columns, row_names, num_views, capacity, image_size) -> De
     frame, view = numbers("frame", True), numbers("view", True)
     x, y = numbers("x", False), numbers("y", False)
     score = numbers("score", False) if "score" in columns else np.ones(N)
+    instance = numbers("instance", True) if "instance" in columns else None
+    if instance is not None and (instance < -1).any():
+        k = int(np.flatnonzero(instance < -1)[0])
+        raise InputError(f"{path}: {row_names[k]}: instance {instance[k]} must be >= -1 (-1: unknown)")
     bad = view < 0 if num_views is None else (view < 0) | (view >= num_views)
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
@@ -338,6 +345,10 @@ def _from_table(path, columns, row_names, num_views, capacity, image_size) -> De
     classes = np.full((F, M, P), -1, np.int64)
     rows[f_of, view, slot] = np.stack([x, y, score], axis=-1)
     classes[f_of, view, slot] = cls
+    instances = None
+    if instance is not None:
+        instances = np.full((F, M, P), -1, np.int64)
+        instances[f_of, view, slot] = instance
     bad = ~np.isfinite(x) | ~np.isfinite(y)
     bad &= score != 0.0
     if bad.any():
@@ -345,7 +356,7 @@ def _from_table(path, columns, row_names, num_views, capacity, image_size) -> De
         raise InputError(f"{path}: {row_names[k]}: ({x[k]}, {y[k]}) is not finite (a row that is no detection has score 0)")
     rows[..., :2] = np.where(np.isfinite(rows[..., :2]), rows[..., :2], 0.0)
     where = _Where(path, True)
-    return _keypoint_detections(rows, classes, names, frame_ids.astype(np.int64), where, [], capacity, image_size)
+    return _keypoint_detections(rows, classes, names, frame_ids.astype(np.int64), where, [], capacity, image_size, instances)
 
 
 def _table_classes(values: list, row_names: list[str], path: str) -> tuple[np.ndarray, tuple[str, ...] | None]:

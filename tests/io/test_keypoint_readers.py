@@ -126,6 +126,37 @@ def test_table_errors_name_the_row(tmp_path):
         load_keypoint_table(p)
 
 
+def test_readers_carry_the_per_view_instance(tmp_path):
+    """OpenPose: the person's index in its view (people without keypoints skipped), also
+    after packing to a capacity; tables: the optional instance column (-1 unknown)."""
+    empty = {"person_id": [-1], "pose_keypoints_2d": []}
+    folder = tmp_path / "op"
+    _write_openpose(folder, {"a": {"f1.json": [A, B]}, "b": {"f1.json": [B]}})
+    with open(folder / "b" / "f1.json", "w") as f:
+        json.dump({"people": [empty, _person(B), _person(A)]}, f)
+    det = load_openpose(str(folder))
+    assert det.instances[0, 0].tolist() == [0, -1, 0, 1, 1, 1]  # A's keypoint 1 not detected
+    assert det.instances[0, 1].tolist() == [0, 0, 0, 1, -1, 1]
+    packed = load_openpose(str(folder), capacity=6)
+    np.testing.assert_array_equal(packed.instances, det.instances)
+    assert load_keypoint_table(_csv(tmp_path, "frame,view,class,x,y\n0,0,a,1,2\n0,1,a,3,4\n")).instances is None
+    p = _csv(tmp_path, "frame,view,class,x,y,score,instance\n0,0,a,1,2,1,3\n0,1,a,3,4,1,-1\n0,1,a,5,6,0,2\n0,0,b,1,2,1,0\n")
+    det = load_keypoint_table(p)
+    assert det.instances[0].tolist() == [[3, 0], [-1, -1]]  # the score-0 row is no detection
+    p.write_text("frame,view,class,x,y,instance\n0,0,a,1,2,-2\n")
+    with pytest.raises(InputError, match="line 2: instance -2 must be >= -1"):
+        load_keypoint_table(p)
+    p.write_text("frame,view,class,x,y,instance\n0,0,a,1,2,x\n")
+    with pytest.raises(InputError, match="line 2: instance 'x' is not an integer"):
+        load_keypoint_table(p)
+
+
+def _csv(tmp_path, text):
+    p = tmp_path / "t.csv"
+    p.write_text(text)
+    return p
+
+
 def test_detections_json_classes_per_detection_and_by_class(tmp_path):
     p = tmp_path / "d.json"
     p.write_text(json.dumps({"class_names": ["a", "b"], "views": [[[1, 2], [1, 2]], [[3, 4]]], "classes": [["a", "b"], ["b"]]}))

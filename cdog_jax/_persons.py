@@ -1,0 +1,375 @@
+"""Person-level consistency of classed groups (ALGORITHM.md §15.1; beyond the paper).
+
+When every detection carries a per-view instance index (the 2D skeleton it belongs to in
+its view, as a pose estimator outputs it: OpenPose's person index), the joint groups of a
+frame vote on which (view, instance) pairs are one 3D person; the (view, instance) nodes
+are clustered into people under view-uniqueness, and every joint detection whose group
+belongs to another person (one that shares a view with its own) is detached and
+re-attached to its person's group of that class when it reprojects within the gate.
+
+This is a host step in plain NumPy (not jitted; a frame holds a few dozen nodes), run by
+:func:`cdog_jax.associate_classes` after the compiled association; only the
+re-triangulation of the groups it changes is compiled (:func:`_retriangulate`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .geometry._camera import Rig
+from .geometry._distortion import as_lens, undistorted
+from .geometry._projection import group_errors
+from .geometry._triangulate import triangulate_views_last
+
+
+@dataclasses.dataclass(frozen=True)
+class PersonVote:
+    """The numbers of the person-level vote (``associate_classes(..., person_vote=)``).
+
+    Attributes:
+        min_votes: joint groups that must link two clusters of (view, instance) nodes, on
+            average over their node pairs, for them to merge into one person.
+        gate: a detached joint is re-attached to its person's group of its class when its
+            distance to that group's 3D point projected into its view is at most
+            ``gate · τ`` (τ: the frame's epipolar gate ``tau_px``, pixels).
+    """
+
+    min_votes: int | float = 2.0
+    gate: int | float = 2.0
+
+    def __post_init__(self):
+        if isinstance(self.min_votes, bool) or not isinstance(self.min_votes, (int, float)) or not self.min_votes > 0:
+            raise ValueError(f"PersonVote.min_votes must be a number > 0; got {self.min_votes!r}")
+        if isinstance(self.gate, bool) or not isinstance(self.gate, (int, float)) or not self.gate > 0:
+            raise ValueError(f"PersonVote.gate must be a number > 0; got {self.gate!r}")
+
+
+def person_vote_argument(person_vote, instances) -> PersonVote | None:
+    """``person_vote`` (``None``: on when ``instances`` is given, ``False``: off, ``True``:
+    the defaults, or a :class:`PersonVote`) as a :class:`PersonVote` or ``None`` (off);
+    on, it needs ``instances``."""
+    if person_vote is None:
+        person_vote = instances is not None
+    if person_vote is False:
+        return None
+    vote = PersonVote() if person_vote is True else person_vote
+    if not isinstance(vote, PersonVote):
+        raise ValueError(f"person_vote must be a bool or a PersonVote; got {person_vote!r}")
+    if instances is None:
+        raise ValueError("person_vote needs instances= (the per-view instance index of every detection)")
+    return vote
+
+
+def check_instances(instances, mask: np.ndarray) -> np.ndarray:
+    """``instances (F, M, P)`` as int64 with -1 where ``mask`` is False. Raises ``ValueError``
+    naming the frame, view and slot for a wrong shape, a non-integer dtype or an index below -1."""
+    a = np.asarray(instances)
+    if a.shape != mask.shape:
+        raise ValueError(f"instances must have the shape of mask {mask.shape}; got {a.shape}")
+    if a.dtype == bool or not np.issubdtype(a.dtype, np.integer):
+        raise ValueError(f"instances must be integer instance indices (-1: unknown); got dtype {a.dtype}")
+    bad = mask & (a < -1)
+    if bad.any():
+        f, m, i = (int(v) for v in np.argwhere(bad)[0])
+        raise ValueError(f"instances must be >= -1 (-1: unknown); got {int(a[f, m, i])} at frame {f}, view {m}, slot {i}")
+    return np.where(mask, a, -1).astype(np.int64)
+
+
+# ------------------------------------------------------------------ the vote (one frame)
+
+
+def person_nodes(instances: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The (view, instance) nodes of one frame: ``node (M, P)`` id of every slot's node
+    (-1 where the instance is unknown) and ``node_view (N,)``; ids in (view, instance) order."""
+    M = instances.shape[0]
+    known = instances >= 0
+    view = np.broadcast_to(np.arange(M)[:, None], instances.shape)
+    pairs, inverse = np.unique(np.stack([view[known], instances[known]], axis=1), axis=0, return_inverse=True)
+    node = np.full(instances.shape, -1, np.int64)
+    node[known] = inverse.reshape(-1)
+    return node, pairs[:, 0] if len(pairs) else np.zeros(0, np.int64)
+
+
+def vote_matrix(groups: np.ndarray, valid: np.ndarray, node: np.ndarray) -> np.ndarray:
+    """``(N, N)`` int votes between nodes (``node (M, P)``, :func:`person_nodes`): how many
+    valid groups ``groups (G, M)`` (slots, -1) hold a detection of both."""
+    M = groups.shape[1]
+    N = int(node.max()) + 1 if node.size else 0
+    member = _member_values(node, groups, valid)  # (G, M)
+    votes = np.zeros((N, N), np.int64)
+    for a in range(M):
+        for b in range(M):
+            both = (member[:, a] >= 0) & (member[:, b] >= 0)
+            if a != b and both.any():
+                np.add.at(votes, (member[both, a], member[both, b]), 1)
+    return votes
+
+
+def cluster_people(votes: np.ndarray, node_view: np.ndarray, min_votes: int | float) -> np.ndarray:
+    """``(N,)`` person of every node (the id of its cluster's first node): greedy average
+    linkage, each step merging the two clusters with the most votes per node pair between
+    them among those that share no view (``node_view (N,)``), while that mean is at least
+    ``min_votes``. (A sum over the pairs would let a few stray votes from each node of a
+    large cluster add up to a merge.)"""
+    N = votes.shape[0]
+    num_views = int(node_view.max()) + 1 if N else 0
+    W = votes.astype(np.float64).copy()
+    views = np.zeros((N, num_views), bool)
+    views[np.arange(N), node_view] = True
+    size = np.ones(N)
+    alive = np.ones(N, bool)
+    label = np.arange(N)
+    upper = np.triu(np.ones((N, N), bool), 1)
+    while True:
+        disjoint = ~(views.astype(np.int64) @ views.T.astype(np.int64)).astype(bool)
+        mean = W / (size[:, None] * size[None, :])
+        allowed = upper & alive[:, None] & alive[None, :] & disjoint & (mean >= min_votes)
+        if not allowed.any():
+            break
+        a, b = np.unravel_index(np.argmax(np.where(allowed, mean, -1.0)), W.shape)
+        W[a] += W[b]
+        W[:, a] += W[:, b]
+        W[a, a] = 0.0
+        W[b], W[:, b] = 0.0, 0.0
+        views[a] |= views[b]
+        size[a] += size[b]
+        alive[b] = False
+        label[label == b] = a
+    return label
+
+
+def _member_values(values: np.ndarray, groups: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """``(G, M)``: ``values (M, P)`` at every member of the valid groups, -1 elsewhere."""
+    M = groups.shape[1]
+    out = values[np.arange(M)[None, :], np.maximum(groups, 0)]
+    return np.where((groups >= 0) & valid[:, None], out, -1)
+
+
+def _mode(values: np.ndarray) -> int:
+    """The most frequent value ``>= 0`` (ties: the smallest), -1 when there is none."""
+    values = values[values >= 0]
+    return int(np.argmax(np.bincount(values))) if values.size else -1
+
+
+class FrameGroups(NamedTuple):
+    """A frame's groups after the vote: ``groups (G', M)``, ``valid (G',)``, ``group_class
+    (G',)``, ``changed (G',)`` (members changed or new: to re-triangulate) and ``source
+    (G',)`` (the input group a kept group was, -1 for a new one)."""
+
+    groups: np.ndarray
+    valid: np.ndarray
+    group_class: np.ndarray
+    changed: np.ndarray
+    source: np.ndarray
+
+
+def consistent_groups(
+    groups, valid, group_class, classes, instances, xy, points3d, project, gate_px: float, vote: PersonVote, min_views: int
+) -> FrameGroups:
+    """One frame's groups made consistent with the per-view instances.
+
+    Args:
+        groups: ``(G, M)`` slot of each valid group's member per view, -1.
+        valid: ``(G,)``; group_class: ``(G,)`` class of each group.
+        classes, instances: ``(M, P)`` class and per-view instance (-1 unknown) of every slot.
+        xy: ``(M, P, 2)`` pinhole pixels; points3d: ``(G, 3)`` the groups' points.
+        project: ``X (K, 3) -> (K, M, 2)`` pinhole pixels in every view, with
+            ``project.triangulate(xy, rows (K, M)) -> (K, 3)`` the DLT of groups.
+        gate_px: the re-attachment gate (pixels).
+        vote: the numbers; min_views: a group keeps at least this many views.
+
+    Steps: (1) (view, instance) nodes clustered into people (:func:`person_nodes`,
+    :func:`vote_matrix`, :func:`cluster_people`);
+    (2) each group's person is the most frequent person of its members; members of another
+    person that shares a view with it are detached, and a group left with fewer than ``min_views`` members is
+    dissolved (its members detached); (3) each detached joint (in group, then view order)
+    joins the largest group of its class and person with no member in its view, when it
+    lies within ``gate_px`` of that group's point projected into its view (the point
+    re-triangulated without the detached members first); (4) the joints still detached,
+    one per view (the first) for each (class, person), form a new group when they span at
+    least ``min_views`` views and all reproject within ``gate_px`` of their own DLT point.
+    Detections of unknown instance are never moved.
+    """
+    M = groups.shape[1]
+    groups = np.where(valid[:, None], groups, -1)
+    node, node_view = person_nodes(instances)
+    if len(node_view) == 0:  # no instance known: nothing to vote on
+        return FrameGroups(groups, valid, group_class, np.zeros(len(valid), bool), np.arange(len(valid)))
+    person = cluster_people(vote_matrix(groups, valid, node), node_view, vote.min_votes)
+    det_person = np.where(node >= 0, person[np.maximum(node, 0)], -1)  # (M, P)
+
+    # (2) detach the members of another person than the group's, where the two people
+    # share a view (two clusters that do not share one may be one person with too few
+    # votes to merge: no evidence against the group).
+    member_person = _member_values(det_person, groups, valid)
+    group_person = np.array([_mode(row) for row in member_person], np.int64)
+    person_views = np.zeros((len(node_view), M), bool)
+    person_views[person, node_view] = True
+    clash = (person_views[np.maximum(member_person, 0)] & person_views[np.maximum(group_person, 0)][:, None, :]).any(axis=-1)
+    detach = (member_person >= 0) & (member_person != group_person[:, None]) & clash
+    kept = np.where(detach, -1, groups)
+    small = valid & ((kept >= 0).sum(axis=1) < min_views) & detach.any(axis=1)
+    detach |= small[:, None] & (kept >= 0) & (det_person[np.arange(M)[None, :], np.maximum(kept, 0)] >= 0)
+    kept = np.where(detach, -1, kept)
+    small = valid & ((kept >= 0).sum(axis=1) < min_views)
+    valid = valid & ~small
+    kept = np.where(valid[:, None], kept, -1)
+    changed = detach.any(axis=1) & valid
+    if not detach.any():
+        return FrameGroups(groups, valid, group_class, changed, np.arange(len(valid)))
+    points = points3d.copy()
+    if changed.any():
+        points[changed] = project.triangulate(xy, kept[changed])
+
+    # (3) re-attach to the person's group of the class.
+    g_idx, m_idx = np.nonzero(detach)
+    slots = groups[g_idx, m_idx]
+    left = []
+    for m, s in zip(m_idx, slots):
+        c, p = classes[m, s], det_person[m, s]
+        options = np.flatnonzero(valid & (group_class == c) & (group_person == p) & (kept[:, m] < 0))
+        if options.size:
+            g = options[np.argmax((kept[options] >= 0).sum(axis=1))]
+            if np.linalg.norm(project(points[g][None])[0, m] - xy[m, s]) <= gate_px:
+                kept[g, m] = s
+                changed[g] = True
+                continue
+        left.append((int(c), int(p), int(m), int(s)))
+
+    # (4) what is left forms groups of its own.
+    new = []
+    for c, p in dict.fromkeys((c, p) for c, p, _, _ in left):
+        row = np.full(M, -1, np.int64)
+        for c2, p2, m, s in left:
+            if (c2, p2) == (c, p) and row[m] < 0:
+                row[m] = s
+        if (row >= 0).sum() < max(min_views, 2):
+            continue
+        X = project.triangulate(xy, row[None])
+        views = np.flatnonzero(row >= 0)
+        err = np.linalg.norm(project(X)[0, views] - xy[views, row[views]], axis=-1)
+        if np.all(err <= gate_px):
+            new.append((row, c))
+    if new:
+        kept = np.concatenate([kept, np.stack([r for r, _ in new])])
+        valid = np.r_[valid, np.ones(len(new), bool)]
+        group_class = np.r_[group_class, np.array([c for _, c in new], group_class.dtype)]
+        changed = np.r_[changed, np.ones(len(new), bool)]
+    source = np.r_[np.arange(len(groups)), np.full(len(new), -1)]
+    return FrameGroups(kept.astype(np.int32), valid, group_class, changed, source)
+
+
+# ------------------------------------------------------------------ all frames
+
+
+class _Camera:
+    """Projection and DLT on pinhole pixels of one rig (host side; DLT compiled once per
+    padded group count)."""
+
+    def __init__(self, rig: Rig):
+        self.rig = rig
+        Rt = np.concatenate([np.asarray(rig.R, np.float64), np.asarray(rig.t, np.float64)[:, :, None]], axis=-1)
+        self.P = np.einsum("mij,mjk->mik", np.asarray(rig.K, np.float64), Rt)  # (M, 3, 4)
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        h = np.einsum("mij,kj->kmi", self.P[:, :, :3], np.asarray(X, np.float64)) + self.P[None, :, :, 3]
+        return h[..., :2] / np.where(np.abs(h[..., 2:]) > 0, h[..., 2:], np.inf)
+
+    def triangulate(self, xy: np.ndarray, rows: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+        X, _, _, _ = self.solve(xy, rows, weights)
+        return X
+
+    def solve(self, xy, rows, weights=None):
+        """Points, ok, BPE (px²), mean error (px) of groups ``rows (K, M)`` on ``xy (M, P, 2)``
+        (DLT weighted by ``weights (M, P)`` when given, as the pipeline's final points)."""
+        K, M = rows.shape
+        pad = max(8, 1 << (K - 1).bit_length())
+        table = np.full((pad, M), -1, np.int64)
+        table[:K] = rows
+        member = table >= 0
+        at = (np.arange(M)[None, :], np.maximum(table, 0))
+        xy_g = np.where(member[..., None], xy[at], 0.0)
+        w = np.where(member, 1.0 if weights is None else weights[at], 0.0)
+        dtype = self.rig.K.dtype
+        out = _retriangulate(self.rig, jnp.asarray(xy_g, dtype), jnp.asarray(member), jnp.asarray(w, dtype))
+        return tuple(np.asarray(a)[:K] for a in out)
+
+
+@jax.jit
+def _retriangulate(rig, xy_g, member, weights):
+    X, ok = triangulate_views_last(rig, xy_g, member, weights=weights)
+    bpe, err = group_errors(rig, X, xy_g, member)
+    return X, ok, bpe, err
+
+
+class PersonGroups(NamedTuple):
+    """Every frame's groups after the vote, padded to ``G'``: the fields of a batched
+    :class:`cdog_jax.Association` that change, and ``group_class (F, G')``."""
+
+    labels: np.ndarray
+    groups: np.ndarray
+    valid: np.ndarray
+    points3d: np.ndarray
+    bpe: np.ndarray
+    err_px: np.ndarray
+    n_views: np.ndarray
+    num_groups: np.ndarray
+    group_class: np.ndarray
+
+
+def person_consistent(rig: Rig, assoc, group_class, xy, mask, classes, instances, vote: PersonVote, *, dist=None,
+                      weights=None, min_views: int = 2) -> PersonGroups:  # fmt: skip
+    """The groups of a batched association ``assoc`` (``(F, …)``, as
+    :func:`cdog_jax.associate_classes` builds it, with ``group_class (F, G)``) made
+    consistent with ``instances (F, M, P)`` frame by frame (:func:`consistent_groups`, gate
+    ``vote.gate · tau_px`` of the frame). ``xy (F, M, P, 2)`` as detected (undistorted with
+    ``dist`` first), ``mask``, ``classes (F, M, P)``; ``weights (F, M, P)`` weight the DLT
+    of the changed groups. Valid groups come first, by class, kept groups in their order,
+    new ones after them."""
+    F, M, P = mask.shape
+    dtype = np.asarray(assoc.points3d).dtype
+    pinhole = np.asarray(xy, np.float64)
+    if dist is not None:
+        lens, xy_j = as_lens(dist, rig.K.dtype), jnp.asarray(xy, rig.K.dtype)
+        pinhole = np.asarray(jax.vmap(undistorted, in_axes=(None, 0, 0, None))(rig, xy_j, jnp.asarray(mask), lens), np.float64)
+    camera = _Camera(rig)
+    fields = {k: np.asarray(getattr(assoc, k)) for k in ("groups", "valid", "points3d", "bpe", "err_px")}
+    tau = np.asarray(assoc.tau_px)
+    frames = []
+    for f in range(F):
+        fg = consistent_groups(fields["groups"][f], fields["valid"][f], np.asarray(group_class[f]), classes[f], instances[f],
+                               pinhole[f], fields["points3d"][f], camera, vote.gate * float(tau[f]), vote, min_views)  # fmt: skip
+        points = np.zeros((len(fg.valid), 3))
+        bpe, err = np.zeros(len(fg.valid)), np.zeros(len(fg.valid))
+        old = fg.source >= 0
+        for name, a in (("points3d", points), ("bpe", bpe), ("err_px", err)):
+            a[old] = fields[name][f][fg.source[old]]
+        redo = fg.changed & fg.valid
+        valid = fg.valid.copy()
+        if redo.any():
+            X, ok, b, e = camera.solve(pinhole[f], fg.groups[redo], None if weights is None else weights[f])
+            points[redo], bpe[redo], err[redo] = X, b, e
+            valid[np.flatnonzero(redo)[~ok]] = False
+        order = np.flatnonzero(valid)
+        order = order[np.argsort(fg.group_class[order], kind="stable")]
+        frames.append((fg.groups[order], fg.group_class[order], points[order], bpe[order], err[order]))
+    G = max(1, max(len(fr[0]) for fr in frames))
+    out = PersonGroups(
+        labels=np.full((F, M, P), -1, np.int32), groups=np.full((F, G, M), -1, np.int32), valid=np.zeros((F, G), bool),
+        points3d=np.zeros((F, G, 3), dtype), bpe=np.zeros((F, G), dtype), err_px=np.zeros((F, G), dtype),
+        n_views=np.zeros((F, G), np.int32), num_groups=np.zeros(F, np.int32), group_class=np.full((F, G), -1, np.int32),
+    )  # fmt: skip
+    for f, (g, c, X, b, e) in enumerate(frames):
+        n = len(g)
+        out.groups[f, :n], out.valid[f, :n], out.group_class[f, :n] = g, True, c
+        out.points3d[f, :n], out.bpe[f, :n], out.err_px[f, :n] = X, b, e
+        out.n_views[f, :n] = (g >= 0).sum(axis=1)
+        out.num_groups[f] = n
+        k, m = np.nonzero(g >= 0)
+        out.labels[f, m, g[k, m]] = k
+    return out
