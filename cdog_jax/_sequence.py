@@ -1,4 +1,4 @@
-"""Association of a sequence of frames with track ids (docs/ALGORITHM.md §16): every frame
+"""Association of a sequence of frames with track ids (docs/ALGORITHM.md §19): every frame
 associated in one batched call, then the groups linked over time (and, optionally, points
 missed in a frame recovered from the previous frame's)."""
 
@@ -26,6 +26,7 @@ def associate_sequence(
     max_step: float | None = None,
     max_step_px: float = DEFAULT_MAX_STEP_PX,
     max_err_px: float | None = None,
+    max_gap: int = 0,
     min_views: int = 2,
     dist: Any = None,
     **options: Any,
@@ -38,7 +39,7 @@ def associate_sequence(
         classes: optional ``(F, M, P)`` int class ids: the frames are then associated by
             :func:`cdog_jax.associate_classes` and tracks never change class; without them,
             by :func:`cdog_jax.associate_batch`.
-        temporal_prior, max_step, max_step_px, max_err_px: as in :func:`cdog_jax.track_groups`.
+        temporal_prior, max_step, max_step_px, max_err_px, max_gap: as in :func:`cdog_jax.track_groups`.
         min_views, dist: shared by the association and the prior.
         options: passed to the association (``method``, ``sigma``, ``batch_size``, …;
             ``associate_batch``'s σ defaults to ``"auto"`` here).
@@ -58,5 +59,6 @@ def associate_sequence(
         result = associate_batch(rig, xy, mask, min_views=min_views, dist=dist, **options)
     return track_groups(
         rig, result, xy=xy, mask=mask, classes=classes, temporal_prior=temporal_prior, max_step=max_step,
-        max_step_px=max_step_px, max_err_px=max_err_px, min_views=min_views, dist=dist,
+        max_step_px=max_step_px, max_err_px=max_err_px, max_gap=max_gap, min_views=min_views,
+        dist=dist,
     )  # fmt: skip

@@ -1,5 +1,5 @@
 """Track ids across frames: each frame's groups linked to the previous frame's by the 3D
-distance of their points (docs/ALGORITHM.md §16, beyond the paper).
+distance of their points (docs/ALGORITHM.md §19, beyond the paper).
 
 A frame's groups are matched one to one with the groups alive in the frame before (same
 class only), greedily, cheapest pair first, under a gate on the distance a point may move
@@ -125,21 +125,25 @@ class _Out(NamedTuple):
     unplaced: Int[Array, ""]
 
 
-@partial(jax.jit, static_argnames=("prior", "min_views"))
+@partial(jax.jit, static_argnames=("prior", "min_views", "max_gap"))
 def track_sequence(rig: Rig, frames: _Frame, max_step: Float[Array, ""], max_step_px: Float[Array, ""], *, prior: bool,
-                   min_views: int) -> _Out:  # fmt: skip
+                   min_views: int, max_gap: int) -> _Out:  # fmt: skip
     """Link (and with ``prior``, recover) every frame of one sequence: a ``lax.scan`` over
     the ``F`` frames of ``frames`` (fields with a leading ``F``; ``H`` rows per frame, the
     last rows free for recovered groups). ``max_step``: the gate in scene units, or ``nan``:
-    ``max_step_px`` pixels at each point's depth. Returns the frames' final tables, ``(F, …)``."""
+    ``max_step_px`` pixels at each point's depth; a track unseen for ``a <= max_gap`` frames
+    is still linked from its last point, with ``a + 1`` times the gate. Returns the frames'
+    final tables, ``(F, …)``."""
     H = frames.valid.shape[1]
+    T = H if max_gap == 0 else 2 * H  # tracks carried: this frame's rows, then the unseen ones
 
     def step(carry, f: _Frame):
-        prev_X, prev_valid, prev_class, prev_track, next_id = carry
-        gate = jnp.where(jnp.isnan(max_step), max_step_px * scene_units_per_px(rig, prev_X), max_step)
-        match = link_frame(prev_X, prev_valid, prev_class, f.X, f.valid, f.cls, gate)  # (H,)
+        prev_X, prev_valid, prev_class, prev_track, prev_age, next_id = carry
+        steps = (prev_age + 1).astype(prev_X.dtype)
+        gate = steps * jnp.where(jnp.isnan(max_step), max_step_px * scene_units_per_px(rig, prev_X), max_step)
+        match = link_frame(prev_X, prev_valid, prev_class, f.X, f.valid, f.cls, gate)  # (T,)
         rows = jnp.arange(H)
-        linked = jnp.any(match[:, None] == rows[None, :], axis=0)  # (H,) this frame's rows that continue a track
+        linked = jnp.any(match[:, None] == rows[None, :], axis=0)  # (H,) rows that continue a track
         inherited = jnp.max(jnp.where(match[:, None] == rows[None, :], prev_track[:, None], -1), axis=0)
         new = f.valid & ~linked
         track = jnp.where(linked, inherited, jnp.where(new, next_id + jnp.cumsum(new) - 1, -1)).astype(jnp.int32)
@@ -148,11 +152,20 @@ def track_sequence(rig: Rig, frames: _Frame, max_step: Float[Array, ""], max_ste
         if prior:
             lost = prev_valid & (match < 0)
             out = recover_tracks(rig, out, prev_X, lost, prev_class, prev_track, f.xy, f.mask, f.det_class,
-                                 max_step_px, f.err_gate_px, min_views)  # fmt: skip
-        return (out.X, out.valid, out.cls, out.track, next_id), out
+                                 steps * max_step_px, f.err_gate_px, min_views)  # fmt: skip
+        carried = (out.X, out.valid, out.cls, out.track, jnp.zeros(H, jnp.int32))
+        if max_gap:
+            seen = jnp.any((prev_track[:, None] == out.track[None, :]) & out.valid[None, :], axis=1)
+            unseen = prev_valid & ~seen & (prev_age < max_gap)
+            at = jnp.where(unseen, jnp.cumsum(unseen) - 1, H)  # the k-th unseen track in row k of the second half
+            second = lambda a, fill: jnp.full((H, *a.shape[1:]), fill, a.dtype).at[at].set(a, mode="drop")  # noqa: E731
+            tail = (second(prev_X, 0), second(unseen, False), second(prev_class, -1), second(prev_track, -1), second(prev_age + 1, 0))
+            carried = tuple(jnp.concatenate([a, b]) for a, b in zip(carried, tail))
+        return (*carried, next_id), out
 
     dtype = frames.X.dtype
-    init = (jnp.zeros((H, 3), dtype), jnp.zeros(H, bool), jnp.zeros(H, jnp.int32), jnp.full(H, -1, jnp.int32), jnp.int32(0))
+    init = (jnp.zeros((T, 3), dtype), jnp.zeros(T, bool), jnp.zeros(T, jnp.int32), jnp.full(T, -1, jnp.int32), jnp.zeros(T, jnp.int32),
+            jnp.int32(0))  # fmt: skip
     _, out = lax.scan(step, init, frames)
     return out
 
@@ -175,11 +188,12 @@ def track_groups(
     max_step: float | None = None,
     max_step_px: float = DEFAULT_MAX_STEP_PX,
     max_err_px: float | None = None,
+    max_gap: int = 0,
     min_views: int = 2,
     dist: Any = None,
 ) -> TrackedAssociation:
     """Give every group of a sequence of frames a track id, optionally recovering points the
-    association missed from the previous frame's points (ALGORITHM.md §16).
+    association missed from the previous frame's points (ALGORITHM.md §19).
 
     Args:
         rig: the ``M`` cameras.
@@ -199,6 +213,9 @@ def track_groups(
         max_step_px: the step gate in pixels (default 60 px: 10 fps walking people at 5 m).
         max_err_px: a recovered group's largest reprojection error (px); ``None``: the
             frame's epipolar gate ``tau_px``.
+        max_gap: the most frames a track may go unseen and still continue (linked, or found
+            by the prior, from its last point with the gates times the frames since); ``0``
+            (default): a point keeps its id while it is seen in consecutive frames.
         min_views: the fewest views of a recovered group.
         dist: the lens of every view (``(M, 5)`` or a ``Fisheye``) when ``xy`` are recorded
             pixels, as given to the association.
@@ -218,6 +235,8 @@ def track_groups(
     _check_gate("max_step", max_step, allow_none=True)
     _check_gate("max_step_px", max_step_px)
     _check_gate("max_err_px", max_err_px, allow_none=True)
+    if isinstance(max_gap, bool) or not isinstance(max_gap, (int, np.integer)) or max_gap < 0:
+        raise ValueError(f"track_groups: max_gap must be an int >= 0; got {max_gap!r}")
     if isinstance(min_views, bool) or not isinstance(min_views, (int, np.integer)) or not 2 <= min_views <= M:
         raise ValueError(f"track_groups: min_views must be an int in [2, {M}]; got {min_views!r}")
     dtype = np.asarray(assoc.points3d).dtype
@@ -253,7 +272,8 @@ def track_groups(
         jnp.asarray(err_gate),
     )  # fmt: skip
     step_units = jnp.asarray(np.nan if max_step is None else max_step, dtype)
-    out = track_sequence(rig, frames, step_units, jnp.asarray(max_step_px, dtype), prior=temporal_prior, min_views=int(min_views))
+    out = track_sequence(rig, frames, step_units, jnp.asarray(max_step_px, dtype), prior=temporal_prior, min_views=int(min_views),
+                         max_gap=int(max_gap))  # fmt: skip
     return _tracked(assoc, out, group_class is not None, names, C)
 
 

@@ -1,4 +1,4 @@
-"""Track ids and the temporal prior on walking people (docs/ALGORITHM.md §16).
+"""Track ids and the temporal prior on walking people (docs/ALGORITHM.md §19).
 
 Question: on sequences of 3–5 walking people in 5 views with the tails of real detections
 (Student-t ν = 2.5, σ = 5.21 px, as fitted in ``robustness_realistic.py``), and some joints

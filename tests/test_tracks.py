@@ -79,6 +79,9 @@ def test_a_point_that_vanishes_returns_with_a_new_id(seq):
         assert (1, 0) not in ids
         assert ids[0, 1] == ids[1, 1] == ids[2, 1]
         assert ids[2, 0] == 2 and tracked.num_tracks == 3, prior
+    bridged = associate_sequence(seq.rig, seq.xy, mask, method="paper", sigma=1.0, max_gap=1)
+    ids = _ids_by_point(bridged, seq.instance)
+    assert ids[0, 0] == ids[2, 0] != ids[0, 1] and bridged.num_tracks == 2
 
 
 def test_the_prior_recovers_a_missed_group_with_its_id(seq):
@@ -107,30 +110,36 @@ def test_the_prior_respects_its_gates(seq):
     assert (f, int(loose.association.n_views[f, g])) == (1, 2)
 
 
-def _link_oracle(X, valid, cls, max_step):
-    """Plain NumPy: pairs within the gate, cheapest first (ties by previous row, then row)."""
+def _link_oracle(X, valid, cls, max_step, max_gap):
+    """Plain NumPy: the tracks alive (seen within ``max_gap`` frames before, at their last
+    point) and this frame's groups, pairs within the gate times the frames since, cheapest
+    first."""
     ids = np.full(valid.shape, -1)
+    alive = {}  # track id -> (last point, class, frames since seen - 1)
     next_id = 0
     for f in range(valid.shape[0]):
-        taken_prev, taken = set(), set()
-        if f:
-            pairs = sorted(
-                (float(np.linalg.norm(X[f - 1, i].astype(np.float64) - X[f, g])), i, g)
-                for i in np.flatnonzero(valid[f - 1]) for g in np.flatnonzero(valid[f]) if cls[f - 1, i] == cls[f, g]
-            )  # fmt: skip
-            for d, i, g in pairs:
-                if d <= max_step and i not in taken_prev and g not in taken:
-                    ids[f, g] = ids[f - 1, i]
-                    taken_prev.add(i)
-                    taken.add(g)
+        pairs = sorted(
+            (float(np.linalg.norm(x.astype(np.float64) - X[f, g])), t, g)
+            for t, (x, c, age) in alive.items() for g in np.flatnonzero(valid[f])
+            if c == cls[f, g] and np.linalg.norm(x.astype(np.float64) - X[f, g]) <= max_step * (age + 1)
+        )  # fmt: skip
+        taken_track, taken = set(), set()
+        for d, t, g in pairs:
+            if t not in taken_track and g not in taken:
+                ids[f, g] = t
+                taken_track.add(t)
+                taken.add(g)
         for g in np.flatnonzero(valid[f]):
             if ids[f, g] < 0:
                 ids[f, g], next_id = next_id, next_id + 1
+        alive = {t: (x, c, age + 1) for t, (x, c, age) in alive.items() if t not in taken_track and age + 1 <= max_gap}
+        alive.update({int(ids[f, g]): (X[f, g], cls[f, g], 0) for g in np.flatnonzero(valid[f])})
     return ids
 
 
 @pytest.mark.parametrize("seed", range(12))
-def test_linking_equals_the_numpy_oracle(seed):
+@pytest.mark.parametrize("max_gap", [0, 1])
+def test_linking_equals_the_numpy_oracle(seed, max_gap):
     rng = np.random.default_rng(seed)
     Fr, G, P = 5, 6, 2
     count = rng.integers(0, G + 1, Fr)
@@ -147,8 +156,8 @@ def test_linking_equals_the_numpy_oracle(seed):
         ),
         group_class=np.where(valid, cls, -1), class_names=None, num_classes=2,
     )  # fmt: skip
-    tracked = track_groups(ring_rig(num_views=M), result, max_step=0.25)
-    np.testing.assert_array_equal(tracked.track_id, _link_oracle(X, valid, cls, 0.25))
+    tracked = track_groups(ring_rig(num_views=M), result, max_step=0.25, max_gap=max_gap)
+    np.testing.assert_array_equal(tracked.track_id, _link_oracle(X, valid, cls, 0.25, max_gap))
     np.testing.assert_array_equal(tracked.group_class, np.where(valid, cls, -1))
 
 
@@ -181,6 +190,8 @@ def test_bad_input_is_refused_before_any_work(seq):
     for name, value in (("max_step", -1.0), ("max_step_px", float("nan")), ("max_err_px", 0.0), ("max_step_px", float("inf"))):
         with pytest.raises(ValueError, match=f"{name} must be a finite number > 0.*got {value!r}"):
             track_groups(seq.rig, seq.result, **{name: value})
+    with pytest.raises(ValueError, match="max_gap must be an int >= 0; got -1"):
+        track_groups(seq.rig, seq.result, max_gap=-1)
     with pytest.raises(ValueError, match="min_views must be an int in \\[2, 3\\]; got 4"):
         track_groups(seq.rig, seq.result, min_views=4)
     with pytest.raises(ValueError, match="temporal_prior=True needs the detections"):
