@@ -35,6 +35,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from types import SimpleNamespace
 
 import jax
 import jax.numpy as jnp
@@ -50,7 +51,7 @@ SEED = 0
 
 
 def sequences(num_sequences: int, frames: int, drop: float, seed: int = SEED):
-    """The rig, every sequence's frames (a RealScene ``(F, …)``) with joints dropped, and the
+    """The rig, every sequence's frames (a RealScene's fields ``(F, …)``, NumPy) with joints dropped, and the
     share of real detections dropped."""
     rig = ring_rig()
     rng = np.random.default_rng(seed)
@@ -68,7 +69,7 @@ def sequences(num_sequences: int, frames: int, drop: float, seed: int = SEED):
                     for m in rng.permutation(views)[2:]:
                         mask[f, m] &= fr.instance[f, m] != point
         before, after = before + int((fr.mask & (fr.kind == 0)).sum()), after + int((mask & (fr.kind == 0)).sum())
-        out.append(fr.__class__(**{**{k: getattr(fr, k) for k in fr.__dataclass_fields__}, "mask": mask}))
+        out.append(SimpleNamespace(**{**{k: getattr(fr, k) for k in fr.__dataclass_fields__}, "mask": mask}))
     return rig, out, 1.0 - after / max(before, 1)
 
 
