@@ -31,7 +31,7 @@ from ._temporal_prior import recover_tracks
 from ._types import Array, Bool, Float, Int
 from ._validate import as_array
 from .geometry._camera import Rig
-from .geometry._distortion import undistorted
+from .geometry._distortion import as_lens, undistorted
 
 DEFAULT_MAX_STEP_PX = 60.0
 """Default gate of a track's step between frames (pixels at the point's depth): a wrist
@@ -226,7 +226,11 @@ def track_groups(
     """
     expect_args("track_groups", rig=(rig, Rig))
     assoc, group_class, names, C = _unpack(result)
-    labels = np.asarray(getattr(assoc, "labels", np.zeros(0)))
+    missing = [k for k in ("labels", "groups", "valid", "points3d", "bpe", "err_px", "tau_px") if not hasattr(assoc, k)]
+    if missing:
+        raise TypeError(f"track_groups: result must be an Association, a ClassAssociation or an object with their fields; "
+                        f"got {type(result).__name__} without {', '.join(missing)}")  # fmt: skip
+    labels = np.asarray(assoc.labels)
     if labels.ndim != 3:
         raise ValueError(f"track_groups: result must hold F frames (labels (F, M, P)); got labels of shape {labels.shape}")
     F, M, P = labels.shape
@@ -253,7 +257,8 @@ def track_groups(
         if det_class.shape != (F, M, P) or not np.issubdtype(det_class.dtype, np.integer):
             raise ValueError(f"track_groups: classes must be integer class ids of shape {(F, M, P)}; got {det_class.shape} {det_class.dtype}")
         if dist is not None:
-            xy = np.asarray(jax.vmap(lambda x, m: undistorted(rig, x, m, dist))(jnp.asarray(xy), jnp.asarray(mask)))
+            lens = as_lens(dist, dtype)
+            xy = np.asarray(jax.vmap(lambda x, m: undistorted(rig, x, m, lens))(jnp.asarray(xy), jnp.asarray(mask)))
     else:
         xy, mask, det_class = np.zeros((F, M, P, 2), dtype), np.zeros((F, M, P), bool), np.zeros((F, M, P), np.int32)
     valid = np.asarray(assoc.valid)

@@ -11,6 +11,8 @@ import jax
 import numpy as np
 import pytest
 
+import jax.numpy as jnp
+
 from cdog_jax import associate_batch, associate_sequence, track_groups
 from cdog_jax.io import save_association_csv, save_association_json, save_association_npz
 
@@ -108,6 +110,32 @@ def test_the_prior_respects_its_gates(seq):
     loose = track_groups(seq.rig, missed, xy=xy, mask=seq.mask, temporal_prior=True, max_err_px=3.0)
     f, g = np.argwhere(np.asarray(loose.recovered))[0]
     assert (f, int(loose.association.n_views[f, g])) == (1, 2)
+    lens = track_groups(seq.rig, missed, xy=xy, mask=seq.mask, temporal_prior=True, max_err_px=3.0, dist=np.zeros((M, 5), np.float32))
+    np.testing.assert_array_equal(lens.association.labels, loose.association.labels)  # a lens that does nothing changes nothing
+
+
+def test_sequences_vmap_as_a_loop(seq):
+    """The scan is a pure function of one sequence: vmapped over two, it equals two calls."""
+    from cdog_jax._tracks import _Frame, track_sequence
+
+    G, P = seq.result.valid.shape[1], seq.mask.shape[2]
+    tau = np.asarray(seq.result.tau_px)
+    a = seq.result
+    frames = _Frame(
+        jnp.concatenate([a.points3d, jnp.zeros_like(a.points3d)], 1), jnp.concatenate([a.valid, jnp.zeros_like(a.valid)], 1),
+        jnp.zeros((F, 2 * G), jnp.int32), jnp.concatenate([a.groups, jnp.full_like(a.groups, -1)], 1),
+        jnp.zeros((F, 2 * G)), jnp.zeros((F, 2 * G)), a.labels, jnp.asarray(seq.xy), jnp.asarray(seq.mask),
+        jnp.zeros((F, M, P), jnp.int32), jnp.asarray(tau),
+    )  # fmt: skip
+    missed = frames._replace(  # group 0 of frame 1 removed, its detections unassigned
+        valid=frames.valid.at[1, 0].set(False), labels=frames.labels.at[1].set(jnp.where(frames.labels[1] == 0, -1, frames.labels[1]))
+    )
+    both = jax.tree.map(lambda x, y: jnp.stack([x, y]), frames, missed)
+    run = lambda fr: track_sequence(seq.rig, fr, jnp.float32(np.nan), jnp.float32(60.0), prior=True, min_views=2, max_gap=0)  # noqa: E731
+    batched = jax.vmap(run)(both)
+    for i, fr in enumerate((frames, missed)):
+        jax.tree.map(lambda b, one: np.testing.assert_array_equal(b[i], one), batched, run(fr))
+    assert bool(batched.recovered[1].any()) and not bool(batched.recovered[0].any())
 
 
 def _link_oracle(X, valid, cls, max_step, max_gap):
@@ -150,7 +178,7 @@ def test_linking_equals_the_numpy_oracle(seed, max_gap):
     result = SimpleNamespace(
         association=SimpleNamespace(
             labels=np.full((Fr, M, P), -1, np.int32), groups=np.full((Fr, G, M), -1, np.int32), valid=valid,
-            points3d=np.where(valid[..., None], X, 0), bpe=np.zeros((Fr, G), np.float32), err_px=np.zeros((Fr, G), np.float32),
+            points3d=np.where(valid[..., None], X, np.nan), bpe=np.zeros((Fr, G), np.float32), err_px=np.zeros((Fr, G), np.float32),
             n_views=np.zeros((Fr, G), np.int32), sigma_px=np.ones(Fr, np.float32), tau_px=np.ones(Fr, np.float32),
             status=np.zeros(Fr, np.int32),
         ),
@@ -182,6 +210,8 @@ def test_output_files_carry_track_ids(seq, tmp_path):
 
 
 def test_bad_input_is_refused_before_any_work(seq):
+    with pytest.raises(TypeError, match="track_groups: result must be an Association"):
+        track_groups(seq.rig, seq.xy)
     one = jax.tree.map(lambda a: a[0], seq.result)
     with pytest.raises(ValueError, match=r"result must hold F frames.*\(3, 2\)"):
         track_groups(seq.rig, one)
