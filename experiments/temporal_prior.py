@@ -38,7 +38,6 @@ import time
 from types import SimpleNamespace
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from cdog_jax import associate_classes, track_groups
