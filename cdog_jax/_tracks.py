@@ -142,11 +142,11 @@ def track_sequence(rig: Rig, frames: _Frame, max_step: Float[Array, ""], max_ste
         steps = (prev_age + 1).astype(prev_X.dtype)
         gate = steps * jnp.where(jnp.isnan(max_step), max_step_px * scene_units_per_px(rig, prev_X), max_step)
         match = link_frame(prev_X, prev_valid, prev_class, f.X, f.valid, f.cls, gate)  # (T,)
-        rows = jnp.arange(H)
+        rows = jnp.arange(H, dtype=jnp.int32)
         linked = jnp.any(match[:, None] == rows[None, :], axis=0)  # (H,) rows that continue a track
         inherited = jnp.max(jnp.where(match[:, None] == rows[None, :], prev_track[:, None], -1), axis=0)
         new = f.valid & ~linked
-        track = jnp.where(linked, inherited, jnp.where(new, next_id + jnp.cumsum(new) - 1, -1)).astype(jnp.int32)
+        track = jnp.where(linked, inherited, jnp.where(new, next_id + jnp.cumsum(new, dtype=jnp.int32) - 1, -1)).astype(jnp.int32)
         next_id = next_id + jnp.sum(new, dtype=jnp.int32)
         out = _Out(f.X, f.valid, f.cls, f.groups, f.bpe, f.err_px, f.labels, track, jnp.zeros(H, bool), jnp.int32(0))
         if prior:

@@ -16,7 +16,7 @@ import jax.numpy as jnp
 from cdog_jax import associate_batch, associate_sequence, track_groups
 from cdog_jax.io import save_association_csv, save_association_json, save_association_npz
 
-from helpers import project_np, ring_rig
+from helpers import project_np, ring_rig, x64
 
 F, M = 3, 3
 STEP = np.array([0.05, 0.0, 0.0])  # per frame, scene units (≈ 13 px)
@@ -233,3 +233,17 @@ def test_bad_input_is_refused_before_any_work(seq):
         track_groups(seq.rig, classed, xy=seq.xy, mask=seq.mask, temporal_prior=True)
     with pytest.raises(ValueError, match=r"classes must be integer class ids of shape \(3, 3, 2\); got \(3, 3\)"):
         track_groups(seq.rig, classed, xy=seq.xy, mask=seq.mask, classes=np.zeros((F, M), np.int32), temporal_prior=True)
+
+
+def test_float64_links_and_recovers_alike(seq):
+    missed = _without_group(seq.result, 1, 0, seq.instance)
+    want = track_groups(seq.rig, missed, xy=seq.xy, mask=seq.mask, temporal_prior=True, max_gap=1)
+    with x64():
+        rig = jax.tree.map(lambda a: jnp.asarray(a, jnp.float64), seq.rig)
+        wide = SimpleNamespace(**{k: np.asarray(v, np.float64) if np.issubdtype(np.asarray(v).dtype, np.floating) else v
+                                  for k, v in vars(missed).items()})  # fmt: skip
+        got = track_groups(rig, wide, xy=seq.xy.astype(np.float64), mask=seq.mask, temporal_prior=True, max_gap=1)
+        assert got.association.points3d.dtype == jnp.float64
+    np.testing.assert_array_equal(got.track_id, want.track_id)
+    np.testing.assert_array_equal(got.recovered, want.recovered)
+    np.testing.assert_allclose(np.asarray(got.association.points3d), np.asarray(want.association.points3d), atol=1e-4)
