@@ -330,6 +330,8 @@ def run_associate(args: argparse.Namespace) -> int:
     ]
     if classed is not None:
         lines.append(_class_summary(classed, det))
+    if tracked is None and args.temporal_prior:
+        lines.append("  note: --temporal-prior needs a sequence of frames; one scene has nothing to carry over")
     if tracked is not None:
         lines.append(
             f"  tracks: {tracked.num_tracks} over {F} frame(s)"

@@ -43,3 +43,14 @@ def test_associate_writes_track_ids(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main([*common, "--track-step-px", "0"])
     assert "--track-step-px: must be a finite number > 0; got '0'" in capsys.readouterr().err
+
+
+def test_the_prior_on_one_scene_says_it_does_nothing(tmp_path, capsys):
+    rig = ring_rig(num_views=3)
+    xy, _ = project_np(rig, np.array([[0.2, 0.0, 0.1], [-0.3, 0.2, 0.0]]))
+    points, rig_path = tmp_path / "one.json", tmp_path / "rig.json"
+    points.write_text(json.dumps({"views": [[[float(v) for v in p] for p in xy[m]] for m in range(3)]}))
+    save_rig_json(rig_path, rig, image_size=(640, 480))
+    assert main(["associate", "--rig", rig_path, "--points", points, "--sigma", "1", "--method", "paper", "--temporal-prior"]) == 0
+    text = capsys.readouterr().out
+    assert "--temporal-prior needs a sequence of frames" in text and "tracks:" not in text
