@@ -3,6 +3,8 @@
 from ._classes import ClassAssociation as ClassAssociation, associate_classes as associate_classes, class_sigmas as class_sigmas
 from ._persons import PersonVote as PersonVote
 from ._associate import associate as associate, associate_batch as associate_batch
+from ._sequence import associate_sequence as associate_sequence
+from ._tracks import TrackedAssociation as TrackedAssociation, track_groups as track_groups
 from ._cdog import Config as Config, STAGES as STAGES, associate_traced as associate_traced
 from ._cdog import Thresholds as Thresholds
 from ._memory import estimate_peak_bytes as estimate_peak_bytes

@@ -56,6 +56,16 @@ def _sigma(text: str) -> float | str:
 _min_views = int_at_least(2, " (a group needs two views)")
 
 
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number > 0; got {text!r}") from None
+    if not (value > 0.0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0; got {text!r}")
+    return value
+
+
 _RIG_FORMATS_TEXT = (
     "an EasyVis/OpenMVG folder (K0.txt, R0.txt, T0.txt, ...), the project's .json or .npz, an anipose "
     "calibration.toml, a COLMAP text model (cameras.txt + images.txt), EasyMocap intri.yml + extri.yml, "
@@ -128,6 +138,17 @@ def add_parsers(subparsers) -> None:
     p.add_argument("--out", default=None, help="write the groups: .json (members, point, BPE), .npz (arrays) or .csv (one row per 3D point)")
     p.add_argument("--plot", default=None, help="figure of the first frame's groups (.png, .pdf, .svg, .jpg)")
     p.add_argument("--batch-size", type=_positive_int, default=16, help="frames associated at once (memory bound)")
+    p.add_argument(
+        "--temporal-prior",
+        action="store_true",
+        help="many frames: recover a point missed in a frame from the unassigned detections near its last point's reprojections",
+    )
+    p.add_argument(
+        "--track-step-px",
+        type=_positive_float,
+        default=60.0,
+        help="many frames: the most a point moves between frames, in pixels at its depth (track linking and the prior; default 60)",
+    )
     p.set_defaults(func=run_associate)
 
     r = subparsers.add_parser("rig", help="describe a rig file: centres, directions, baselines, warnings", description=_RIG_DESCRIPTION)
@@ -254,7 +275,7 @@ def run_associate(args: argparse.Namespace) -> int:
     import jax
     import jax.numpy as jnp
 
-    from .. import Status, associate_batch, associate_classes, method_from
+    from .. import Status, associate_batch, associate_classes, method_from, track_groups
     from ..graph._sigma import FALLBACK_SIGMA_PX
     from ..geometry._distortion import Fisheye
     from ..io import save_association_csv, save_association_json, save_association_npz
@@ -312,6 +333,13 @@ def run_associate(args: argparse.Namespace) -> int:
             ),
             jnp.asarray(det.xy, dtype), jnp.asarray(det.mask), weights, args.batch_size,
         )
+    tracked = None
+    if det.frames or F > 1:  # a sequence: every group gets a track id
+        tracked = track_groups(
+            rig, classed if classed is not None else result, xy=np.asarray(det.xy, dtype), mask=det.mask, classes=det.classes,
+            temporal_prior=args.temporal_prior, max_step_px=args.track_step_px, min_views=args.min_views, dist=dist,
+        )  # fmt: skip
+        result = tracked.association
     elapsed = time.perf_counter() - t0
     num_groups = np.asarray(result.num_groups)
     n_views = np.asarray(result.n_views)[np.asarray(result.valid)]
@@ -325,6 +353,15 @@ def run_associate(args: argparse.Namespace) -> int:
     ]
     if classed is not None:
         lines.append(_class_summary(classed, det))
+    if tracked is None and args.temporal_prior:
+        lines.append("  note: --temporal-prior needs a sequence of frames; one scene has nothing to carry over")
+    if tracked is not None:
+        lines.append(
+            f"  tracks: {tracked.num_tracks} over {F} frame(s)"
+            + (f"; {int(np.asarray(tracked.recovered).sum())} point(s) recovered by the temporal prior" if args.temporal_prior else "")
+        )
+        if int(tracked.unplaced.sum()):
+            lines.append(f"  warning: the temporal prior found {int(tracked.unplaced.sum())} point(s) it had no room to store")
     if n_views.size:
         counts = np.bincount(n_views, minlength=M + 1)
         lines.append("  views per point: " + ", ".join(f"{k}: {counts[k]}" for k in range(2, M + 1) if counts[k]))
@@ -352,7 +389,9 @@ def run_associate(args: argparse.Namespace) -> int:
         xy, mask = frame(det.xy), frame(det.mask)
         conf = None if det.confidence is None else frame(det.confidence)
         cls = None if det.classes is None else frame(det.classes)
-        if classed is not None:
+        if tracked is not None:
+            assoc = tracked
+        elif classed is not None:
             assoc = classed._replace(association=assoc, group_class=frame(classed.group_class))
         ext = os.path.splitext(args.out)[1].lower()
         if ext == ".json":

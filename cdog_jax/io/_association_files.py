@@ -20,6 +20,12 @@ Classes: every writer also takes what :func:`cdog_jax.associate_classes` returns
 ``"class_names"`` and the classes of the unassigned detections as ``"unassigned_classes"``
 (when the detections' ``classes`` are given); columns ``class, class_name`` at the end of
 the CSV; arrays ``group_class``, ``class_names`` (and ``classes``) in the NPZ.
+
+Tracks: every writer also takes what :func:`cdog_jax.track_groups` and
+:func:`cdog_jax.associate_sequence` return (a ``TrackedAssociation``). Each group then
+carries its track id: ``"track"`` (and ``"recovered"``, true for a group the temporal prior
+recovered) in the JSON, a last column ``track`` in the CSV, arrays ``track_id`` and
+``recovered`` in the NPZ.
 """
 
 from __future__ import annotations
@@ -60,6 +66,8 @@ def association_records(
     group_class: Any = None,
     class_names: Any = None,
     classes: Any = None,
+    track_id: Any = None,
+    recovered: Any = None,
 ) -> dict:
     """One scene's association as JSON-ready records.
 
@@ -76,6 +84,8 @@ def association_records(
             (and ``"class_name"`` from ``class_names``, the names by id).
         classes: optional ``(M, P)`` class ids of the detections: ``"unassigned_classes"``
             lists those of the unassigned rows, in their order.
+        track_id, recovered: optional ``(G,)`` track id and "recovered by the temporal
+            prior" flag of every group: each group gets ``"track"`` and ``"recovered"``.
 
     Returns:
         ``{"groups": [{"id", "members": [[view, slot, x, y], …], "point3d": [X, Y, Z],
@@ -120,6 +130,9 @@ def association_records(
             record["member_err_px"] = [_num(e) for e in _member_errors(cams, X, views, xy[views, slots])]
         if group_class is not None:
             record.update(_class_fields(int(np.asarray(group_class)[g]), class_names))
+        if track_id is not None:
+            record["track"] = int(np.asarray(track_id)[g])
+            record["recovered"] = bool(recovered is not None and np.asarray(recovered)[g])
         groups.append(record)
     left = np.argwhere(mask & ~used)
     unassigned = [row(int(m), int(i)) for m, i in left]
@@ -145,10 +158,19 @@ def _class_fields(c: int, names: Any) -> dict:
 
 
 def _unpack(result: Any) -> tuple[Any, np.ndarray | None, tuple | None]:
-    """``(association, group_class, class_names)`` of an Association or a ClassAssociation."""
+    """``(association, group_class, class_names)`` of an Association, a ClassAssociation or
+    a TrackedAssociation (whose group_class may be None)."""
     if hasattr(result, "group_class") and hasattr(result, "association"):
-        return result.association, np.asarray(result.group_class), result.class_names
+        gc = None if result.group_class is None else np.asarray(result.group_class)
+        return result.association, gc, result.class_names
     return result, None, None
+
+
+def _tracks(result: Any) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """``(track_id, recovered)`` of a TrackedAssociation, else ``(None, None)``."""
+    if getattr(result, "track_id", None) is None:
+        return None, None
+    return np.asarray(result.track_id), np.asarray(result.recovered)
 
 
 def save_association_json(
@@ -158,7 +180,9 @@ def save_association_json(
     or a batch (``labels (B, M, P)``, ``xy (B, M, P, 2)``, ``mask (B, M, P)``, from
     :func:`cdog_jax.associate_batch`) as ``{"frames": [one object per scene, …]}``.
     ``rig`` is shared by all scenes. ``assoc`` may be a ``ClassAssociation`` (frames;
-    ``classes (F, M, P)``, the detections' class ids, optional): see the module docstring."""
+    ``classes (F, M, P)``, the detections' class ids, optional), or a ``TrackedAssociation``:
+    see the module docstring."""
+    tracks, recovered = _tracks(assoc)
     assoc, group_class, names = _unpack(assoc)
     expect_args("save_association_json", path=(path, PATH), assoc=(assoc, _ASSOCIATION), xy=(xy, ARRAY), mask=(mask, ARRAY))
     labels = np.asarray(assoc.labels)
@@ -170,18 +194,21 @@ def save_association_json(
         conf = [None] * B if confidence is None else np.asarray(confidence)
         gc = [None] * B if group_class is None else group_class
         cls = [None] * B if classes is None else np.asarray(classes)
+        tid = [None] * B if tracks is None else tracks
+        rec = [None] * B if recovered is None else recovered
         data: dict = {
             "frames": [
                 association_records(
                     _scene(assoc, b), xy[b], mask[b], confidence=conf[b], rig=rig, group_class=gc[b], class_names=names,
-                    classes=cls[b],
+                    classes=cls[b], track_id=tid[b], recovered=rec[b],
                 )  # fmt: skip
                 for b in range(B)
             ]
         }
     else:
         data = association_records(
-            assoc, xy, mask, confidence=confidence, rig=rig, group_class=group_class, class_names=names, classes=classes
+            assoc, xy, mask, confidence=confidence, rig=rig, group_class=group_class, class_names=names, classes=classes,
+            track_id=tracks, recovered=recovered,
         )
     if names is not None:
         data["class_names"] = list(names)
@@ -217,7 +244,9 @@ def save_association_npz(
     ``valid``, ``points3d``, ``bpe`` (px²), ``err_px``, ``n_views``, ``num_groups``,
     ``sigma_px``, ``tau_px``; with a leading ``B`` for a batch), plus ``xy``, ``mask``,
     ``confidence`` and ``classes`` when given; for a ``ClassAssociation`` also
-    ``group_class (F, G)`` and ``class_names`` (strings, when known). Read it with ``np.load``."""
+    ``group_class (F, G)`` and ``class_names`` (strings, when known); for a
+    ``TrackedAssociation`` also ``track_id (F, G)`` and ``recovered (F, G)``. Read it with ``np.load``."""
+    tracks, recovered = _tracks(assoc)
     assoc, group_class, names = _unpack(assoc)
     expect_args("save_association_npz", path=(path, PATH), assoc=(assoc, _ASSOCIATION))
     arrays = _host(assoc)
@@ -225,6 +254,8 @@ def save_association_npz(
         arrays["group_class"] = group_class
     if names is not None:
         arrays["class_names"] = np.asarray(names, dtype=str)
+    if tracks is not None:
+        arrays["track_id"], arrays["recovered"] = tracks, recovered
     for name, v in (("xy", xy), ("mask", mask), ("confidence", confidence), ("classes", classes)):
         if v is not None:
             arrays[name] = np.asarray(v)
@@ -240,8 +271,9 @@ def save_association_csv(path: PathLike, assoc: Any) -> None:
     result's ``err_px`` and ``bpe``; ``x, y, z`` are in scene units. ``frame`` is the scene index of a batch (``labels (B, M, P)``), 0 for one
     scene. The file starts with a ``#`` comment line saying so (pandas: ``comment="#"``).
     A ``ClassAssociation`` adds the columns ``class, class_name`` (the name empty when
-    names are not known).
+    names are not known); a ``TrackedAssociation`` a last column ``track``.
     """
+    tracks, _ = _tracks(assoc)
     assoc, group_class, names = _unpack(assoc)
     expect_args("save_association_csv", path=(path, PATH), assoc=(assoc, _ASSOCIATION))
     a = _host(assoc)
@@ -249,7 +281,7 @@ def save_association_csv(path: PathLike, assoc: Any) -> None:
     with atomic_write(path, "w", newline="") as f:
         f.write(CSV_NOTE + "\n")
         writer = csv.writer(f)
-        writer.writerow(CSV_COLUMNS + (("class", "class_name") if group_class is not None else ()))
+        writer.writerow(CSV_COLUMNS + (("class", "class_name") if group_class is not None else ()) + (("track",) if tracks is not None else ()))
         for b in range(a["labels"].shape[0] if batch else 1):
             valid = a["valid"][b] if batch else a["valid"]
             for g in np.flatnonzero(valid):
@@ -264,6 +296,7 @@ def save_association_csv(path: PathLike, assoc: Any) -> None:
                         repr(float(a["bpe"][at])),
                         int(a["n_views"][at]),
                         *_class_columns(group_class, at, names),
+                        *([] if tracks is None else [int(tracks[at])]),
                     ]
                 )
 

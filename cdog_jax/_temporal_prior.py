@@ -1,0 +1,102 @@
+"""The temporal prior: a track that finds no group in a frame is looked for among the
+frame's unassigned detections, near the reprojections of its last point (docs/ALGORITHM.md
+§19, beyond the paper).
+
+For every such track, in every view, the nearest unassigned detection of its class within
+the step gate of its predicted pixel (one-to-one per view: each detection goes to the track
+it is nearest to, cheapest pair first); the candidates are triangulated, the worst one is
+dropped while some reprojects beyond the error gate (down to ``min_views``), and the track
+continues with the new group when ``>= min_views`` detections remain, all within the gate
+and in front of their cameras. A point the association missed in a frame (seen in too few
+views for it, or its pair too ambiguous) is so recovered when its detections are where the
+previous frame's point says they should be.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from jax import lax
+
+from ._matching import greedy_match
+from ._types import Array, Bool, Float, Int
+from .geometry._camera import Rig
+from .geometry._projection import project_views_last, reprojection_errors_views_last
+from .geometry._triangulate import triangulate_views_last
+
+
+def recover_tracks(
+    rig: Rig,
+    out: Any,
+    prev_X: Float[Array, "T 3"],
+    lost: Bool[Array, " T"],
+    prev_class: Int[Array, " T"],
+    prev_track: Int[Array, " T"],
+    xy: Float[Array, "M P 2"],
+    mask: Bool[Array, "M P"],
+    det_class: Int[Array, "M P"],
+    gate_px: Float[Array, " T"],
+    err_gate_px: Float[Array, ""],
+    min_views: int,
+) -> Any:
+    """One frame's table ``out`` (fields ``X (H, 3)``, ``valid``, ``cls``, ``groups (H, M)``,
+    ``bpe``, ``err_px``, ``labels (M, P)``, ``track``, ``recovered``, ``unplaced``) with a
+    group added in a free row for every ``lost (T,)`` track (last point ``prev_X (T, 3)``,
+    class, id) found among the unassigned detections ``xy (M, P, 2)`` (pixels), ``mask``,
+    ``det_class (M, P)``, within ``gate_px (T,)`` of its reprojections. ``unplaced``: tracks
+    found with no free row left."""
+    H = out.valid.shape[0]
+    T = prev_X.shape[0]
+    M, P = mask.shape
+    views = jnp.arange(M)
+    pred, in_front = project_views_last(rig, prev_X)  # (T, M, 2), (T, M)
+    free = mask & (out.labels < 0)
+    d = jnp.linalg.norm(pred[:, :, None, :] - xy[None], axis=-1)  # (T, M, P)
+    allowed = lost[:, None, None] & in_front[:, :, None] & free[None] & (det_class[None] == prev_class[:, None, None])
+    allowed = allowed & (d <= gate_px[:, None, None])
+    slot = jax.vmap(greedy_match, in_axes=1, out_axes=1)(jnp.where(allowed, d, jnp.inf))  # (T, M)
+    member = slot >= 0
+    pts = xy[views[None, :], jnp.maximum(slot, 0)]  # (T, M, 2)
+
+    def member_errors(member):
+        X, ok = triangulate_views_last(rig, pts, member)
+        err = reprojection_errors_views_last(rig, X, pts)  # (T, M)
+        _, front = project_views_last(rig, X)
+        return X, ok, jnp.where(jnp.isfinite(err) & front, err, jnp.inf)
+
+    def drop_worst(_, member):
+        _, _, err = member_errors(member)
+        err = jnp.where(member, err, -jnp.inf)
+        worst = jnp.argmax(err, axis=1)
+        drop = (jnp.max(err, axis=1) > err_gate_px) & (jnp.sum(member, axis=1) > min_views)
+        return member & ~(drop[:, None] & (views[None, :] == worst[:, None]))
+
+    member = lax.fori_loop(0, M - min_views, drop_worst, member)
+    X, ok, err = member_errors(member)
+    count = jnp.sum(member, axis=1)
+    found = lost & ok & (count >= min_views) & jnp.all(~member | (err <= err_gate_px), axis=1)
+
+    # The k-th found track takes the k-th free row.
+    free_rows = jnp.nonzero(~out.valid, size=H, fill_value=H)[0]
+    rank = jnp.cumsum(found) - 1
+    row = jnp.where(found, free_rows[jnp.clip(rank, 0, H - 1)], H)
+    row = jnp.where(rank < jnp.sum(~out.valid), row, H)
+    placed = found & (row < H)
+    at = jnp.where(placed, row, H)  # H: dropped by the scatters
+    n = jnp.maximum(count, 1).astype(X.dtype)
+    err_member = jnp.where(member, err, 0.0)
+    m_at = jnp.where(placed[:, None] & member, views[None, :], M)  # (T, M)
+    return out._replace(
+        X=out.X.at[at].set(X, mode="drop"),
+        valid=out.valid.at[at].set(True, mode="drop"),
+        cls=out.cls.at[at].set(prev_class, mode="drop"),
+        groups=out.groups.at[at].set(jnp.where(member, slot, -1), mode="drop"),
+        bpe=out.bpe.at[at].set(jnp.sum(err_member**2, axis=1) / n, mode="drop"),
+        err_px=out.err_px.at[at].set(jnp.sum(err_member, axis=1) / n, mode="drop"),
+        labels=out.labels.at[m_at, jnp.maximum(slot, 0)].set(jnp.broadcast_to(row[:, None], (T, M)).astype(jnp.int32), mode="drop"),
+        track=out.track.at[at].set(prev_track, mode="drop"),
+        recovered=out.recovered.at[at].set(True, mode="drop"),
+        unplaced=out.unplaced + jnp.sum(found & ~placed, dtype=jnp.int32),
+    )

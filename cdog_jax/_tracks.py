@@ -1,0 +1,329 @@
+"""Track ids across frames: each frame's groups linked to the previous frame's by the 3D
+distance of their points (docs/ALGORITHM.md §19, beyond the paper).
+
+A frame's groups are matched one to one with the groups alive in the frame before (same
+class only), greedily, cheapest pair first, under a gate on the distance a point may move
+between two frames. A matched group inherits the track id; an unmatched one starts a new
+id; ids are never reused. With ``temporal_prior=True`` the tracks left unmatched are first
+looked for among the frame's unassigned detections (:mod:`cdog_jax._temporal_prior`).
+
+The association of all frames runs first, in one batched call (it does not depend on the
+tracks: the prior only adds groups made of detections the association left unassigned);
+then one ``lax.scan`` over the frames links and recovers, a pure function of padded, masked
+tensors (``vmap`` it over sequences), since each frame needs the previous frame's final
+tracks, recovered points included.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import lax
+
+from ._expect import expect_args
+from ._matching import greedy_match
+from ._result import Association
+from ._temporal_prior import recover_tracks
+from ._types import Array, Bool, Float, Int
+from ._validate import as_array
+from .geometry._camera import Rig
+from .geometry._distortion import as_lens, undistorted
+
+DEFAULT_MAX_STEP_PX = 60.0
+"""Default gate of a track's step between frames (pixels at the point's depth): a wrist
+swinging at 2.4 m/s, filmed at 10 fps from 5 m with f = 1200 px, moves ≈ 58 px."""
+
+
+class TrackedAssociation(NamedTuple):
+    """Groups of ``F`` frames with a track id each (what :func:`track_groups` and
+    :func:`cdog_jax.associate_sequence` return).
+
+    Attributes:
+        association: an :class:`Association` with a leading frame axis, ``G'`` groups per
+            frame: the input's ``G`` rows, then (``temporal_prior=True``) ``G`` more rows for
+            groups recovered by the prior; ``labels (F, M, P)`` include the recovered
+            members. Valid groups come first in every frame.
+        track_id: ``(F, G')`` int32 track of every group, ``-1`` where not valid. Ids start at
+            0, in order of first appearance, and are never reused.
+        recovered: ``(F, G')`` bool, the group was recovered by the temporal prior.
+        group_class: ``(F, G')`` int32 class of every group (``-1`` where not valid), or
+            ``None`` when the detections carry no classes.
+        class_names: the names by class id, or ``None``.
+        num_classes: ``C``, or ``None`` without classes.
+        num_tracks: the number of track ids given.
+        unplaced: ``(F,)`` int32 tracks the prior found but could not store (the frame's
+            ``G`` extra rows were full); ``0`` everywhere in any ordinary sequence.
+    """
+
+    association: Association
+    track_id: np.ndarray
+    recovered: np.ndarray
+    group_class: np.ndarray | None
+    class_names: tuple[str, ...] | None
+    num_classes: int | None
+    num_tracks: int
+    unplaced: np.ndarray
+
+
+def scene_units_per_px(rig: Rig, X: Float[Array, "G 3"]) -> Float[Array, " G"]:
+    """Scene units that one pixel spans at the depth of each point ``X (G, 3)``, averaged
+    over the views: ``|z_cam · K₂₂| / sqrt|K₀₀ K₁₁|`` (a small motion ``d`` across a view's
+    line of sight moves the point by about ``d / units_per_px`` pixels)."""
+    z = jnp.abs(jnp.einsum("mj,gj->gm", rig.R[:, 2, :], X) + rig.t[None, :, 2])  # (G, M)
+    K = rig.K
+    per_view = jnp.abs(K[:, 2, 2]) / jnp.sqrt(jnp.abs(K[:, 0, 0] * K[:, 1, 1]))  # (M,)
+    return jnp.mean(z * per_view[None, :], axis=1)
+
+
+def link_frame(
+    prev_X: Float[Array, "H 3"],
+    prev_valid: Bool[Array, " H"],
+    prev_class: Int[Array, " H"],
+    X: Float[Array, "G 3"],
+    valid: Bool[Array, " G"],
+    cls: Int[Array, " G"],
+    gate: Float[Array, " H"],
+) -> Int[Array, " H"]:
+    """The group of this frame ``(H,)`` (``-1``: none) of every previous group: greedy
+    cheapest-first on the 3D distance, same class, at most ``gate (H,)`` (scene units, per
+    previous group)."""
+    d = jnp.linalg.norm(prev_X[:, None, :] - X[None, :, :], axis=-1)  # (H, G)
+    allowed = prev_valid[:, None] & valid[None, :] & (prev_class[:, None] == cls[None, :]) & (d <= gate[:, None])
+    return greedy_match(jnp.where(allowed, d, jnp.inf))
+
+
+class _Frame(NamedTuple):
+    """One frame's groups, capacity ``H`` (the inputs' ``G`` rows, padded)."""
+
+    X: Float[Array, "H 3"]
+    valid: Bool[Array, " H"]
+    cls: Int[Array, " H"]
+    groups: Int[Array, "H M"]
+    bpe: Float[Array, " H"]
+    err_px: Float[Array, " H"]
+    labels: Int[Array, "M P"]
+    xy: Float[Array, "M P 2"]
+    mask: Bool[Array, "M P"]
+    det_class: Int[Array, "M P"]
+    err_gate_px: Float[Array, ""]
+
+
+class _Out(NamedTuple):
+    X: Float[Array, "H 3"]
+    valid: Bool[Array, " H"]
+    cls: Int[Array, " H"]
+    groups: Int[Array, "H M"]
+    bpe: Float[Array, " H"]
+    err_px: Float[Array, " H"]
+    labels: Int[Array, "M P"]
+    track: Int[Array, " H"]
+    recovered: Bool[Array, " H"]
+    unplaced: Int[Array, ""]
+
+
+@partial(jax.jit, static_argnames=("prior", "min_views", "max_gap"))
+def track_sequence(rig: Rig, frames: _Frame, max_step: Float[Array, ""], max_step_px: Float[Array, ""], *, prior: bool,
+                   min_views: int, max_gap: int) -> _Out:  # fmt: skip
+    """Link (and with ``prior``, recover) every frame of one sequence: a ``lax.scan`` over
+    the ``F`` frames of ``frames`` (fields with a leading ``F``; ``H`` rows per frame, the
+    last rows free for recovered groups). ``max_step``: the gate in scene units, or ``nan``:
+    ``max_step_px`` pixels at each point's depth; a track unseen for ``a <= max_gap`` frames
+    is still linked from its last point, with ``a + 1`` times the gate. Returns the frames'
+    final tables, ``(F, …)``."""
+    H = frames.valid.shape[1]
+    T = H if max_gap == 0 else 2 * H  # tracks carried: this frame's rows, then the unseen ones
+
+    def step(carry, f: _Frame):
+        prev_X, prev_valid, prev_class, prev_track, prev_age, next_id = carry
+        steps = (prev_age + 1).astype(prev_X.dtype)
+        gate = steps * jnp.where(jnp.isnan(max_step), max_step_px * scene_units_per_px(rig, prev_X), max_step)
+        match = link_frame(prev_X, prev_valid, prev_class, f.X, f.valid, f.cls, gate)  # (T,)
+        rows = jnp.arange(H, dtype=jnp.int32)
+        linked = jnp.any(match[:, None] == rows[None, :], axis=0)  # (H,) rows that continue a track
+        inherited = jnp.max(jnp.where(match[:, None] == rows[None, :], prev_track[:, None], -1), axis=0)
+        new = f.valid & ~linked
+        track = jnp.where(linked, inherited, jnp.where(new, next_id + jnp.cumsum(new, dtype=jnp.int32) - 1, -1)).astype(jnp.int32)
+        next_id = next_id + jnp.sum(new, dtype=jnp.int32)
+        out = _Out(f.X, f.valid, f.cls, f.groups, f.bpe, f.err_px, f.labels, track, jnp.zeros(H, bool), jnp.int32(0))
+        if prior:
+            lost = prev_valid & (match < 0)
+            out = recover_tracks(rig, out, prev_X, lost, prev_class, prev_track, f.xy, f.mask, f.det_class,
+                                 steps * max_step_px, f.err_gate_px, min_views)  # fmt: skip
+        carried = (out.X, out.valid, out.cls, out.track, jnp.zeros(H, jnp.int32))
+        if max_gap:
+            seen = jnp.any((prev_track[:, None] == out.track[None, :]) & out.valid[None, :], axis=1)
+            unseen = prev_valid & ~seen & (prev_age < max_gap)
+            at = jnp.where(unseen, jnp.cumsum(unseen) - 1, H)  # the k-th unseen track in row k of the second half
+            second = lambda a, fill: jnp.full((H, *a.shape[1:]), fill, a.dtype).at[at].set(a, mode="drop")  # noqa: E731
+            tail = (second(prev_X, 0), second(unseen, False), second(prev_class, -1), second(prev_track, -1), second(prev_age + 1, 0))
+            carried = tuple(jnp.concatenate([a, b]) for a, b in zip(carried, tail))
+        return (*carried, next_id), out
+
+    dtype = frames.X.dtype
+    init = (jnp.zeros((T, 3), dtype), jnp.zeros(T, bool), jnp.zeros(T, jnp.int32), jnp.full(T, -1, jnp.int32), jnp.zeros(T, jnp.int32),
+            jnp.int32(0))  # fmt: skip
+    _, out = lax.scan(step, init, frames)
+    return out
+
+
+def _unpack(result: Any) -> tuple[Any, np.ndarray | None, tuple | None, int | None]:
+    if hasattr(result, "association") and hasattr(result, "group_class"):
+        gc = None if result.group_class is None else np.asarray(result.group_class)
+        return result.association, gc, result.class_names, result.num_classes
+    return result, None, None, None
+
+
+def track_groups(
+    rig: Rig,
+    result: Any,
+    *,
+    xy: Any = None,
+    mask: Any = None,
+    classes: Any = None,
+    temporal_prior: bool = False,
+    max_step: float | None = None,
+    max_step_px: float = DEFAULT_MAX_STEP_PX,
+    max_err_px: float | None = None,
+    max_gap: int = 0,
+    min_views: int = 2,
+    dist: Any = None,
+) -> TrackedAssociation:
+    """Give every group of a sequence of frames a track id, optionally recovering points the
+    association missed from the previous frame's points (ALGORITHM.md §19).
+
+    Args:
+        rig: the ``M`` cameras.
+        result: the association of ``F`` frames: what :func:`cdog_jax.associate_classes`
+            returns, or an :class:`Association` with a leading frame axis
+            (:func:`cdog_jax.associate_batch`: ``labels (F, M, P)``).
+        xy, mask: ``(F, M, P, 2)`` and ``(F, M, P)``, the detections ``result`` was computed
+            from; needed by the prior only.
+        classes: ``(F, M, P)`` their class ids; needed by the prior when ``result`` has classes.
+        temporal_prior: look for every track that ends in a frame among that frame's
+            unassigned detections of its class near the reprojections of its last point
+            (within ``max_step_px``); with detections in ``>= min_views`` views that
+            triangulate to a point reprojecting within ``max_err_px`` of each, the track
+            continues with that new group.
+        max_step: the most a point moves between frames (scene units); ``None``:
+            ``max_step_px`` pixels at the point's depth (:func:`scene_units_per_px`).
+        max_step_px: the step gate in pixels (default 60 px: 10 fps walking people at 5 m).
+        max_err_px: a recovered group's largest reprojection error (px); ``None``: the
+            frame's epipolar gate ``tau_px``.
+        max_gap: the most frames a track may go unseen and still continue (linked, or found
+            by the prior, from its last point with the gates times the frames since); ``0``
+            (default): a point keeps its id while it is seen in consecutive frames.
+        min_views: the fewest views of a recovered group.
+        dist: the lens of every view (``(M, 5)`` or a ``Fisheye``) when ``xy`` are recorded
+            pixels, as given to the association.
+
+    Returns:
+        A :class:`TrackedAssociation`. Raises ``ValueError`` before any work for a result of
+        one scene, shapes that do not match, or a gate that is not a positive number.
+    """
+    expect_args("track_groups", rig=(rig, Rig))
+    assoc, group_class, names, C = _unpack(result)
+    missing = [k for k in ("labels", "groups", "valid", "points3d", "bpe", "err_px", "tau_px") if not hasattr(assoc, k)]
+    if missing:
+        raise TypeError(f"track_groups: result must be an Association, a ClassAssociation or an object with their fields; "
+                        f"got {type(result).__name__} without {', '.join(missing)}")  # fmt: skip
+    labels = np.asarray(assoc.labels)
+    if labels.ndim != 3:
+        raise ValueError(f"track_groups: result must hold F frames (labels (F, M, P)); got labels of shape {labels.shape}")
+    F, M, P = labels.shape
+    if M != rig.num_views:
+        raise ValueError(f"track_groups: result has {M} views but the rig has {rig.num_views}")
+    _check_gate("max_step", max_step, allow_none=True)
+    _check_gate("max_step_px", max_step_px)
+    _check_gate("max_err_px", max_err_px, allow_none=True)
+    if isinstance(max_gap, bool) or not isinstance(max_gap, (int, np.integer)) or max_gap < 0:
+        raise ValueError(f"track_groups: max_gap must be an int >= 0; got {max_gap!r}")
+    if isinstance(min_views, bool) or not isinstance(min_views, (int, np.integer)) or not 2 <= min_views <= M:
+        raise ValueError(f"track_groups: min_views must be an int in [2, {M}]; got {min_views!r}")
+    dtype = np.asarray(assoc.points3d).dtype
+    if temporal_prior:
+        if xy is None or mask is None:
+            raise ValueError("track_groups: temporal_prior=True needs the detections xy (F, M, P, 2) and mask (F, M, P)")
+        xy, mask = np.asarray(as_array(xy), dtype), np.asarray(as_array(mask))
+        if xy.shape != (F, M, P, 2) or mask.shape != (F, M, P) or mask.dtype != bool:
+            raise ValueError(f"track_groups: xy and mask must have shapes {(F, M, P, 2)} and {(F, M, P)} (bool) like the result's "
+                             f"labels; got xy {xy.shape}, mask {mask.shape} {mask.dtype}")  # fmt: skip
+        if group_class is not None and classes is None:
+            raise ValueError("track_groups: the result has classes: temporal_prior=True needs the detections' classes (F, M, P)")
+        det_class = np.zeros((F, M, P), np.int32) if group_class is None else np.asarray(classes)
+        if det_class.shape != (F, M, P) or not np.issubdtype(det_class.dtype, np.integer):
+            raise ValueError(f"track_groups: classes must be integer class ids of shape {(F, M, P)}; got {det_class.shape} {det_class.dtype}")
+        if dist is not None:
+            lens = as_lens(dist, dtype)
+            xy = np.asarray(jax.vmap(lambda x, m: undistorted(rig, x, m, lens))(jnp.asarray(xy), jnp.asarray(mask)))
+    else:
+        xy, mask, det_class = np.zeros((F, M, P, 2), dtype), np.zeros((F, M, P), bool), np.zeros((F, M, P), np.int32)
+    valid = np.asarray(assoc.valid)
+    G = valid.shape[1]
+    H = 2 * G if temporal_prior else G
+    cls = np.zeros((F, G), np.int32) if group_class is None else group_class.astype(np.int32)
+    err_gate = np.asarray(assoc.tau_px, dtype) if max_err_px is None else np.full(F, max_err_px, dtype)
+
+    def rows(a, fill):
+        a = np.asarray(a)
+        return jnp.asarray(np.concatenate([a, np.full((F, H - G, *a.shape[2:]), fill, a.dtype)], axis=1))
+
+    frames = _Frame(
+        rows(assoc.points3d, 0), rows(valid, False), rows(cls, -1), rows(assoc.groups, -1), rows(assoc.bpe, 0),
+        rows(assoc.err_px, 0), jnp.asarray(labels), jnp.asarray(xy), jnp.asarray(mask), jnp.asarray(det_class, jnp.int32),
+        jnp.asarray(err_gate),
+    )  # fmt: skip
+    step_units = jnp.asarray(np.nan if max_step is None else max_step, dtype)
+    out = track_sequence(rig, frames, step_units, jnp.asarray(max_step_px, dtype), prior=temporal_prior, min_views=int(min_views),
+                         max_gap=int(max_gap))  # fmt: skip
+    return _tracked(assoc, out, group_class is not None, names, C)
+
+
+def _check_gate(name: str, value, allow_none: bool = False) -> None:
+    if value is None and allow_none:
+        return
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool) and np.isfinite(value) and value > 0
+    if not ok:
+        raise ValueError(f"track_groups: {name} must be a finite number > 0{' or None' if allow_none else ''}; got {value!r}")
+
+
+def _tracked(assoc, out: _Out, classed: bool, names, C) -> TrackedAssociation:
+    groups = np.asarray(out.groups)
+    valid = np.asarray(out.valid)
+    # Valid groups first in every frame (recovered groups fill the free rows in order).
+    order = np.argsort(~valid, axis=1, kind="stable")
+    take = lambda a: np.take_along_axis(np.asarray(a), order.reshape(order.shape + (1,) * (np.ndim(a) - 2)), axis=1)  # noqa: E731
+    F, H = valid.shape
+    rank = np.empty_like(order)
+    np.put_along_axis(rank, order, np.arange(H)[None, :].repeat(F, 0), axis=1)
+    labels = np.asarray(out.labels)
+    labels = np.where(labels >= 0, np.take_along_axis(rank, np.maximum(labels, 0).reshape(F, -1), axis=1).reshape(labels.shape), -1)
+    groups, valid = take(groups), take(valid)
+    fields = dict(
+        labels=jnp.asarray(labels.astype(np.int32)),
+        groups=jnp.asarray(groups),
+        valid=jnp.asarray(valid),
+        points3d=jnp.asarray(take(out.X)),
+        bpe=jnp.asarray(take(out.bpe)),
+        err_px=jnp.asarray(take(out.err_px)),
+        n_views=jnp.asarray(np.sum(groups >= 0, axis=2, dtype=np.int32)),
+        num_groups=jnp.asarray(np.sum(valid, axis=1, dtype=np.int32)),
+        sigma_px=jnp.asarray(assoc.sigma_px),
+        tau_px=jnp.asarray(assoc.tau_px),
+        status=jnp.asarray(assoc.status),
+    )
+    association = jax.vmap(lambda *v: Association(**dict(zip(fields, v))))(*fields.values())
+    track = take(out.track)
+    return TrackedAssociation(
+        association=association,
+        track_id=track,
+        recovered=take(out.recovered),
+        group_class=take(out.cls) if classed else None,
+        class_names=names,
+        num_classes=C,
+        num_tracks=int(track.max()) + 1 if track.size and track.max() >= 0 else 0,
+        unplaced=np.asarray(out.unplaced),
+    )
