@@ -45,6 +45,7 @@ from cdog_jax.synthetic import SKELETON_JOINTS, Realism, generate_skeleton_scene
 
 PRESETS = ("paper", "extended", "best")
 CONDITIONS = ((False, 0), (True, 0), (True, 1))  # (temporal_prior, max_gap)
+QUICK_CONDITIONS = ((False, 0), (True, 1))  # --quick: without and with the prior (each condition compiles its own tracker)
 NU, SIGMA_PX, RADIUS_M = 2.5, 5.21, 0.1
 SEED = 0
 
@@ -113,7 +114,7 @@ def score(tracked, fr, rig_frames):
                 joint_tracks=sum(per_joint), joints=len(per_joint), recovered=int(np.asarray(tracked.recovered).sum()))  # fmt: skip
 
 
-def run(*, num_sequences=6, frames=10, drop=0.2, presets=PRESETS, seed=SEED, log=print):
+def run(*, num_sequences=6, frames=10, drop=0.2, presets=PRESETS, conditions=CONDITIONS, seed=SEED, log=print):
     t0 = time.perf_counter()
     rig, seqs, dropped_share = sequences(num_sequences, frames, drop, seed)
     xy = np.concatenate([s.xy for s in seqs])
@@ -123,7 +124,7 @@ def run(*, num_sequences=6, frames=10, drop=0.2, presets=PRESETS, seed=SEED, log
     for preset in presets:
         result = associate_classes(rig, xy, mask, classes, class_names=SKELETON_JOINTS, method=preset, sigma="auto")
         log(f"{preset}: associated {xy.shape[0]} frames, {time.perf_counter() - t0:.0f} s")
-        for prior, gap in CONDITIONS:
+        for prior, gap in conditions:
             total = {}
             for q, s in enumerate(seqs):
                 part = slice(q * frames, (q + 1) * frames)
@@ -167,11 +168,12 @@ def main(argv=None):
     parser.add_argument("--presets", nargs="+", choices=PRESETS, default=list(PRESETS))
     parser.add_argument("--seed", type=int, default=SEED)
     parser.add_argument("--json", default=None, help="also write the numbers here")
-    parser.add_argument("--quick", action="store_true", help="tiny run: 1 sequence of 3 frames, paper() only")
+    parser.add_argument("--quick", action="store_true", help="tiny run: 1 sequence of 3 frames, paper() only, the prior off and on with max_gap=1")
     args = parser.parse_args(argv)
     if args.quick:
         args.sequences, args.frames, args.presets = 1, 3, ["paper"]
-    out = run(num_sequences=args.sequences, frames=args.frames, drop=args.drop, presets=tuple(args.presets), seed=args.seed)
+    out = run(num_sequences=args.sequences, frames=args.frames, drop=args.drop, presets=tuple(args.presets),
+              conditions=QUICK_CONDITIONS if args.quick else CONDITIONS, seed=args.seed)  # fmt: skip
     if args.json:
         with open(args.json, "w") as f:
             json.dump(out, f, indent=1)
