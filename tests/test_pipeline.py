@@ -49,15 +49,19 @@ def test_permuting_slots_permutes_labels(preset):
 
 
 def test_batch_equals_loop_shared_and_per_scene_rig():
-    scenes = [random_scene(RIG, n, P, sigma=s, seed=10 + n) for n, s in [(3, 0.0), (8, 1.0), (12, 2.0)]]
+    """Four views, as methods/test_conformance.py: the shared-rig batch (one chunk of 4) and
+    the single scenes run the programs that test compiles; the per-scene rigs run in chunks
+    of 2, the last padded."""
+    rig = ring_rig(4)
+    scenes = [random_scene(rig, n, P, sigma=s, seed=10 + n) for n, s in [(3, 0.0), (8, 1.0), (12, 2.0)]]
     xy = np.stack([s[0] for s in scenes])
     mask = np.stack([s[1] for s in scenes])
     sigmas = jnp.asarray([0.0, 1.0, 2.0], jnp.float32)
-    batched = associate_batch(RIG, xy, mask, sigma=sigmas, batch_size=2)
-    rigs = jax.tree.map(lambda a: jnp.stack([a] * 3), RIG)
-    per_scene = associate_batch(rigs, xy, mask, sigma=sigmas, batch_size=3)
+    batched = associate_batch(rig, xy, mask, sigma=sigmas)
+    rigs = jax.tree.map(lambda a: jnp.stack([a] * 3), rig)
+    per_scene = associate_batch(rigs, xy, mask, sigma=sigmas, batch_size=2)
     for b in range(3):
-        single = associate(RIG, xy[b], mask[b], sigma=float(sigmas[b]))
+        single = associate(rig, xy[b], mask[b], sigma=float(sigmas[b]))
         for f_single, f_batch, f_rigs in zip(jax.tree.leaves(single), jax.tree.leaves(batched), jax.tree.leaves(per_scene)):
             assert np.allclose(np.asarray(f_single), np.asarray(f_batch)[b], atol=1e-4)
             assert np.allclose(np.asarray(f_single), np.asarray(f_rigs)[b], atol=1e-4)
