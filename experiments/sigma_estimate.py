@@ -201,7 +201,7 @@ def run(*, scenes=4, seed=0, quick=False, log=print):
 
 
     # (d) heavy-tailed noise at σ = 1.
-    heavy_counts = HEAVY_COUNTS[:1] if quick else HEAVY_COUNTS
+    heavy_counts = grid_counts if quick else HEAVY_COUNTS  # --quick: the grid's scene shape
     for i, (label, kind, share) in enumerate(HEAVY[1:] if quick else HEAVY):
         counts = np.repeat(heavy_counts, scenes)
         batch = _scenes(rig, jax.random.fold_in(key, 300 + i), counts, 0.0, max(heavy_counts))
@@ -210,8 +210,8 @@ def run(*, scenes=4, seed=0, quick=False, log=print):
         rows.append(_ratio_row(f"heavy {label}", 1.0, old, new, fb))
     log(f"heavy: {time.perf_counter() - t0:.0f} s")
 
-    # The noise-free one-point scene.
-    batch = _scenes(rig, jax.random.fold_in(key, 500), np.ones(scenes, int), 0.0, 1)
+    # The noise-free one-point scene (--quick: in the grid's scene shape).
+    batch = _scenes(rig, jax.random.fold_in(key, 500), np.ones(scenes, int), 0.0, max(grid_counts) if quick else 1)
     old, new, fb = estimate_both(rig, batch.xy, batch.mask)
     noise_free = {"old": [float(v) for v in old], "new": [float(v) for v in new], "fallback": [bool(v) for v in fb]}
     # The same with every distance exactly 0 (one point in three views, exact arithmetic).
