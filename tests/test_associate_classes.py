@@ -180,7 +180,7 @@ def test_associate_traced_with_classes_never_joins_two_classes():
     config = cdog_jax.Config.paper()
     th = config.thresholds(0.2)
     run = jax.jit(cdog_jax.associate_traced, static_argnums=4)
-    plain = run(rig, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), th, config)
+    plain = cdog_jax.associate(rig, xy.astype(np.float32), mask, method=config, thresholds=th)  # a program other tests compile
     agreeing = run(rig, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), th, config, classes=jnp.asarray(instance % 2, jnp.int32))
     np.testing.assert_array_equal(np.asarray(plain.labels), np.asarray(agreeing.labels))
     random_classes = np.random.default_rng(2).integers(0, 2, instance.shape).astype(np.int32)
