@@ -179,10 +179,34 @@ def associate_traced(
     """
     kind = type(config).numbers_type if isinstance(config, Config) else Thresholds
     expect_args("associate_traced", rig=(rig, Rig), thresholds=(thresholds, kind), config=(config, Config))
+    scene, fallback = scene_tables(rig, xy, mask, thresholds, config, classes=classes)
+    M, P = mask.shape
+    G = max(M * P // 2, 1)
+    empty = GroupTable(jnp.full((G, M), -1, jnp.int32), jnp.zeros((G,), bool))
+    state = run_plan(plan(config), scene, State(empty, None, raise_flag(fallback, Status.SIGMA_FALLBACK)))
+    fit = state.fit
+    return association_from_groups(
+        state.table.groups, state.table.valid, fit.member, fit.X, fit.bpe, fit.err_px, P,
+        jnp.asarray(scene.sigma, xy.dtype), jnp.asarray(scene.tau, xy.dtype), state.status,
+    )
+
+
+def scene_tables(
+    rig: Rig,
+    xy: Float[Array, "M P 2"],
+    mask: Bool[Array, "M P"],
+    thresholds: Numbers,
+    config: Config,
+    *,
+    classes: Int[Array, "M P"] | None = None,
+) -> tuple[Scene, Bool[Array, ""]]:
+    """The tables every stage reads (:class:`Scene`: padding zeroed, epipolar distances,
+    DLT blocks, σ and τ), and whether σ estimation fell back; arguments as
+    :func:`associate_traced`."""
+    kind = type(config).numbers_type
     th = kind(*(jnp.asarray(v) for v in thresholds))  # NumPy scalars when called eagerly
     if config.threshold_unit == "focal":
         th = thresholds_in_pixels(th, focal_scale(rig.K), type(config).units)
-    M, P = mask.shape
     xy = jnp.where(mask[..., None], xy, 0.0)  # padding is neutral from here on
     d = epipolar_distances(rig, xy, mask)  # (M, P, M, P)
     if classes is not None:
@@ -195,15 +219,7 @@ def associate_traced(
     else:
         sigma, fallback = th.sigma_px, jnp.asarray(False)
     tau = tau_px(th, sigma, fitted if config.tau_mode == "fitted" else None)
-    scene = Scene(rig, xy, mask, mask.reshape(-1), d, dlt_blocks(rig, xy), sigma, tau, th)
-    G = max(M * P // 2, 1)
-    empty = GroupTable(jnp.full((G, M), -1, jnp.int32), jnp.zeros((G,), bool))
-    state = run_plan(plan(config), scene, State(empty, None, raise_flag(fallback, Status.SIGMA_FALLBACK)))
-    fit = state.fit
-    return association_from_groups(
-        state.table.groups, state.table.valid, fit.member, fit.X, fit.bpe, fit.err_px, P,
-        jnp.asarray(sigma, xy.dtype), jnp.asarray(tau, xy.dtype), state.status,
-    )
+    return Scene(rig, xy, mask, mask.reshape(-1), d, dlt_blocks(rig, xy), sigma, tau, th), fallback
 
 
 # --------------------------------------------------------------------------- the method
