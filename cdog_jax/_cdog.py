@@ -36,7 +36,7 @@ from .graph._sigma import estimate_sigma, focal_scale
 from .graph._sigma_robust import estimate_noise
 from .refine._attach import leftover_nodes
 from .refine._bpe_filter import BPE_FILTER
-from .refine._fit import FIT
+from .refine._fit import FIT, fit_groups
 from .refine._least_squares import REFINE
 from .refine._outliers import IQR
 from .refine._reassign import REASSIGN
@@ -147,10 +147,94 @@ def plan(config: "Config", stages: tuple[Stage, ...] | None = None) -> tuple[tup
 
 
 def run_plan(steps, scene: Scene, state: State) -> State:
-    """Run the resolved stages in order."""
+    """Run the resolved stages in order.
+
+    A plan in which a stage runs more than once (regrouping runs the graph and the IQR
+    again, ``seed_again``, ``refit``, ...) runs as :func:`run_plan_shared`: each distinct
+    stage is then compiled once instead of once per occurrence. The results are the same."""
+    if _has_repeats(steps):
+        return run_plan_shared(steps, scene, state)
+    return run_plan_inline(steps, scene, state)
+
+
+def run_plan_inline(steps, scene: Scene, state: State) -> State:
+    """Run the resolved stages in order, each one inlined where it occurs."""
     for stage, options in steps:
         state = stage.run(scene, state, options)
     return state
+
+
+class _Machine(NamedTuple):
+    """What :func:`run_plan_shared` carries from step to step: the state (its fit always
+    present: the last one made, read only by the stages that read a fit after a fit stage,
+    as in the plan), the nodes the graph stages may use, and what regrouping set aside
+    (the table and the status before it)."""
+
+    state: State
+    node_valid: Bool[Array, " N"]
+    aside: tuple
+
+
+class _StageStep(NamedTuple):
+    """One stage with its options as a step of :func:`run_plan_shared` (equal steps are
+    compiled once)."""
+
+    run: object
+    options: object
+
+    def __call__(self, scene: Scene, machine: _Machine) -> _Machine:
+        out = self.run(scene._replace(node_valid=machine.node_valid), machine.state, self.options)
+        return machine._replace(state=out._replace(fit=machine.state.fit if out.fit is None else out.fit))
+
+
+def _set_aside(scene: Scene, machine: _Machine) -> _Machine:
+    """Regrouping begins: the table and status aside, the graph stages see the leftovers."""
+    state = machine.state
+    left = leftover_nodes(*state.table, scene.mask)
+    return _Machine(state._replace(status=jnp.int32(0)), left, (state.table, state.status))
+
+
+def _merge_aside(scene: Scene, machine: _Machine) -> _Machine:
+    """Regrouping ends: the new groups join the table set aside (:func:`regroup_stage`)."""
+    table, status = machine.aside
+    state = machine.state
+    merged = State(_merge_groups(table, state.table), state.fit, status | state.status)
+    return _Machine(merged, scene.mask.reshape(-1), machine.aside)
+
+
+def _flat_steps(steps) -> list:
+    """The plan as steps of :func:`run_plan_shared`, regrouping unfolded into its stages."""
+    flat = []
+    for stage, options in steps:
+        if stage.run is regroup_stage:
+            inner = _flat_steps(options.plan)
+            if _set_aside in inner:
+                raise ValueError(f"stage {stage.name!r}: regrouping inside regrouping is not supported")
+            flat += [_set_aside, *inner, _merge_aside]
+        else:
+            flat.append(_StageStep(stage.run, options))
+    return flat
+
+
+def _has_repeats(steps) -> bool:
+    flat = [step for step in _flat_steps(steps) if isinstance(step, _StageStep)]
+    return len(set(flat)) < len(flat)
+
+
+def run_plan_shared(steps, scene: Scene, state: State) -> State:
+    """Run the resolved stages in order, each distinct stage compiled once: a loop over the
+    steps whose body switches on the step (an unbatched index, so under ``vmap`` the switch
+    stays a switch and runs one stage per step)."""
+    flat = _flat_steps(steps)
+    distinct = list(dict.fromkeys(flat))
+    which = np.asarray([distinct.index(step) for step in flat], np.int32)
+    fit = state.fit
+    if fit is None:  # a fit of the right shapes, never read before a fit stage replaces it
+        fit = jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype), jax.eval_shape(fit_groups, scene, state.table))
+    machine = _Machine(state._replace(fit=fit), scene.node_valid, (state.table, state.status))
+    branches = [lambda m, step=step: step(scene, m) for step in distinct]
+    machine = jax.lax.fori_loop(0, len(flat), lambda k, m: jax.lax.switch(jnp.asarray(which)[k], branches, m), machine)
+    return machine.state
 
 
 def associate_traced(
