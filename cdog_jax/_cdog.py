@@ -149,11 +149,18 @@ def plan(config: "Config", stages: tuple[Stage, ...] | None = None) -> tuple[tup
 def run_plan(steps, scene: Scene, state: State) -> State:
     """Run the resolved stages in order.
 
-    A plan in which a stage runs more than once (regrouping runs the graph and the IQR
-    again, ``seed_again``, ``refit``, ...) runs as :func:`run_plan_shared`: each distinct
-    stage is then compiled once instead of once per occurrence. The results are the same."""
-    if _has_repeats(steps):
-        return run_plan_shared(steps, scene, state)
+    When a stage runs more than once before the last fit (regrouping runs the graph and the
+    IQR again, ``seed_again`` the seeding, ...), the stages up to the last fit run as
+    :func:`run_plan_shared`: each distinct stage is then compiled once instead of once per
+    occurrence. The last fit and the stages after it are inlined."""
+    head, tail = _split_at_last_fit(steps)
+    if _has_repeats(head):
+        # The last fit and what follows stay inlined: XLA contracts a multiply and an add
+        # into one rounding only within a fused loop, so the numbers a step returns depend on
+        # what it is compiled beside; the points the result reports keep those of the
+        # stages compiled one after another.
+        state = run_plan_shared(head, scene, state)
+        return run_plan_inline(tail, scene, state)
     return run_plan_inline(steps, scene, state)
 
 
@@ -214,6 +221,12 @@ def _flat_steps(steps) -> list:
         else:
             flat.append(_StageStep(stage.run, options))
     return flat
+
+
+def _split_at_last_fit(steps) -> tuple[tuple, tuple]:
+    """The plan before its last fit stage, and from it on."""
+    last_fit = max((i for i, (stage, _) in enumerate(steps) if stage.run is FIT.run), default=len(steps))
+    return tuple(steps[:last_fit]), tuple(steps[last_fit:])
 
 
 def _has_repeats(steps) -> bool:
