@@ -72,10 +72,9 @@ def _em(x, w, count, c0, inv_kappa0, width, spread_min):
     total = jnp.maximum(jnp.sum(w), MIN_SCALE_PX)
     max_count = jnp.maximum(jnp.max(jnp.where(w > 0, count, 1.0)), 1.0)
 
-    def step(_, carry):
-        (c, inv_kappa, pi), _, _ = carry
-        parts = _log_parts(x, count, c, inv_kappa, pi, width)
-        resp = jax.nn.softmax(parts, axis=0) * w[None]
+    def step(_, state):
+        c, inv_kappa, pi = state
+        resp = jax.nn.softmax(_log_parts(x, count, c, inv_kappa, pi, width), axis=0) * w[None]
         match, hidden, none, uniform = resp
         a = x / c
         # E[T² | T > x] = c² (1 + a φ(a) / Q(a)) for T half-normal with scale c.
@@ -93,14 +92,11 @@ def _em(x, w, count, c0, inv_kappa0, width, spread_min):
         c = jnp.clip(c_new, MIN_SCALE_PX, width)
         inv_kappa = jnp.clip(inv_kappa, spread_min, width * max_count)
         pi = jnp.clip(jnp.stack([n_true, jnp.sum(none), jnp.sum(uniform)]) / total, 1e-4, 1.0)
-        return (c, inv_kappa, pi / jnp.sum(pi)), carry[0], parts
+        return c, inv_kappa, pi / jnp.sum(pi)
 
-    # One step more than EM_ITERS: its update is dropped, its log densities are those of the
-    # final fit (the density code is compiled once, inside the loop).
     pi0 = jnp.asarray([0.6, 0.3, 0.1], x.dtype)
-    params = (c0, inv_kappa0, pi0)
-    parts0 = jnp.zeros((4, x.shape[0]), x.dtype)
-    _, (c, _, _), parts = jax.lax.fori_loop(0, EM_ITERS + 1, step, (params, params, parts0))
+    c, inv_kappa, pi = jax.lax.fori_loop(0, EM_ITERS, step, (c0, inv_kappa0, pi0))
+    parts = _log_parts(x, count, c, inv_kappa, pi, width)
     log_lik = jnp.sum(w * jax.nn.logsumexp(parts, axis=0))
     resp = jax.nn.softmax(parts, axis=0)
     n_match = jnp.sum(w * (resp[0] + resp[1]))

@@ -74,16 +74,14 @@ def reassign_nearest(
     G, M = table.groups.shape
     N = err.shape[1]
     node_view = jnp.arange(N, dtype=jnp.int32) // num_slots
-
-    def attach_round(_, groups):
+    groups = jnp.full((G, M), -1, jnp.int32)
+    for _ in range(REASSIGN_ROUNDS):
         taken = groups >= 0  # (G, M)
         views = jnp.arange(M, dtype=jnp.int32)[None, :]
         placed = jnp.zeros((M, num_slots + 1), bool).at[views, jnp.where(taken, groups, num_slots)].set(True)
         placed = placed[:, :num_slots].reshape(N)
         open_cost = jnp.where(~taken[:, node_view] & ~placed[None, :], err, jnp.inf)
-        return attach_cheapest(groups, open_cost, gate)
-
-    groups = jax.lax.fori_loop(0, REASSIGN_ROUNDS, attach_round, jnp.full((G, M), -1, jnp.int32))
+        groups = attach_cheapest(groups, open_cost, gate)
     valid = jnp.sum(groups >= 0, axis=1) >= 2
     return GroupTable(groups, valid).keep(valid)
 
