@@ -36,7 +36,7 @@ from .graph._sigma import estimate_sigma, focal_scale
 from .graph._sigma_robust import estimate_noise
 from .refine._attach import leftover_nodes
 from .refine._bpe_filter import BPE_FILTER
-from .refine._fit import FIT
+from .refine._fit import FIT, fit_groups
 from .refine._least_squares import REFINE
 from .refine._outliers import IQR
 from .refine._reassign import REASSIGN
@@ -147,10 +147,107 @@ def plan(config: "Config", stages: tuple[Stage, ...] | None = None) -> tuple[tup
 
 
 def run_plan(steps, scene: Scene, state: State) -> State:
-    """Run the resolved stages in order."""
+    """Run the resolved stages in order.
+
+    When a stage runs more than once before the last fit (regrouping runs the graph and the
+    IQR again, ``seed_again`` the seeding, ...), the stages up to the last fit run as
+    :func:`run_plan_shared`: each distinct stage is then compiled once instead of once per
+    occurrence. The last fit and the stages after it are inlined."""
+    head, tail = _split_at_last_fit(steps)
+    if _has_repeats(head):
+        # The last fit and what follows stay inlined: XLA contracts a multiply and an add
+        # into one rounding only within a fused loop, so the numbers a step returns depend on
+        # what it is compiled beside; the points the result reports keep those of the
+        # stages compiled one after another.
+        state = run_plan_shared(head, scene, state)
+        return run_plan_inline(tail, scene, state)
+    return run_plan_inline(steps, scene, state)
+
+
+def run_plan_inline(steps, scene: Scene, state: State) -> State:
+    """Run the resolved stages in order, each one inlined where it occurs."""
     for stage, options in steps:
         state = stage.run(scene, state, options)
     return state
+
+
+class _Machine(NamedTuple):
+    """What :func:`run_plan_shared` carries from step to step: the state (its fit always
+    present: the last one made, read only by the stages that read a fit after a fit stage,
+    as in the plan), the nodes the graph stages may use, and what regrouping set aside
+    (the table and the status before it)."""
+
+    state: State
+    node_valid: Bool[Array, " N"]
+    aside: tuple
+
+
+class _StageStep(NamedTuple):
+    """One stage with its options as a step of :func:`run_plan_shared` (equal steps are
+    compiled once)."""
+
+    run: object
+    options: object
+
+    def __call__(self, scene: Scene, machine: _Machine) -> _Machine:
+        out = self.run(scene._replace(node_valid=machine.node_valid), machine.state, self.options)
+        return machine._replace(state=out._replace(fit=machine.state.fit if out.fit is None else out.fit))
+
+
+def _set_aside(scene: Scene, machine: _Machine) -> _Machine:
+    """Regrouping begins: the table and status aside, the graph stages see the leftovers."""
+    state = machine.state
+    left = leftover_nodes(*state.table, scene.mask)
+    return _Machine(state._replace(status=jnp.int32(0)), left, (state.table, state.status))
+
+
+def _merge_aside(scene: Scene, machine: _Machine) -> _Machine:
+    """Regrouping ends: the new groups join the table set aside (:func:`regroup_stage`)."""
+    table, status = machine.aside
+    state = machine.state
+    merged = State(_merge_groups(table, state.table), state.fit, status | state.status)
+    return _Machine(merged, scene.mask.reshape(-1), machine.aside)
+
+
+def _flat_steps(steps) -> list:
+    """The plan as steps of :func:`run_plan_shared`, regrouping unfolded into its stages."""
+    flat = []
+    for stage, options in steps:
+        if stage.run is regroup_stage:
+            inner = _flat_steps(options.plan)
+            if _set_aside in inner:
+                raise ValueError(f"stage {stage.name!r}: regrouping inside regrouping is not supported")
+            flat += [_set_aside, *inner, _merge_aside]
+        else:
+            flat.append(_StageStep(stage.run, options))
+    return flat
+
+
+def _split_at_last_fit(steps) -> tuple[tuple, tuple]:
+    """The plan before its last fit stage, and from it on."""
+    last_fit = max((i for i, (stage, _) in enumerate(steps) if stage.run is FIT.run), default=len(steps))
+    return tuple(steps[:last_fit]), tuple(steps[last_fit:])
+
+
+def _has_repeats(steps) -> bool:
+    flat = [step for step in _flat_steps(steps) if isinstance(step, _StageStep)]
+    return len(set(flat)) < len(flat)
+
+
+def run_plan_shared(steps, scene: Scene, state: State) -> State:
+    """Run the resolved stages in order, each distinct stage compiled once: a loop over the
+    steps whose body switches on the step (an unbatched index, so under ``vmap`` the switch
+    stays a switch and runs one stage per step)."""
+    flat = _flat_steps(steps)
+    distinct = list(dict.fromkeys(flat))
+    which = np.asarray([distinct.index(step) for step in flat], np.int32)
+    fit = state.fit
+    if fit is None:  # a fit of the right shapes, never read before a fit stage replaces it
+        fit = jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype), jax.eval_shape(fit_groups, scene, state.table))
+    machine = _Machine(state._replace(fit=fit), scene.node_valid, (state.table, state.status))
+    branches = [lambda m, step=step: step(scene, m) for step in distinct]
+    machine = jax.lax.fori_loop(0, len(flat), lambda k, m: jax.lax.switch(jnp.asarray(which)[k], branches, m), machine)
+    return machine.state
 
 
 def associate_traced(
@@ -179,10 +276,34 @@ def associate_traced(
     """
     kind = type(config).numbers_type if isinstance(config, Config) else Thresholds
     expect_args("associate_traced", rig=(rig, Rig), thresholds=(thresholds, kind), config=(config, Config))
+    scene, fallback = scene_tables(rig, xy, mask, thresholds, config, classes=classes)
+    M, P = mask.shape
+    G = max(M * P // 2, 1)
+    empty = GroupTable(jnp.full((G, M), -1, jnp.int32), jnp.zeros((G,), bool))
+    state = run_plan(plan(config), scene, State(empty, None, raise_flag(fallback, Status.SIGMA_FALLBACK)))
+    fit = state.fit
+    return association_from_groups(
+        state.table.groups, state.table.valid, fit.member, fit.X, fit.bpe, fit.err_px, P,
+        jnp.asarray(scene.sigma, xy.dtype), jnp.asarray(scene.tau, xy.dtype), state.status,
+    )
+
+
+def scene_tables(
+    rig: Rig,
+    xy: Float[Array, "M P 2"],
+    mask: Bool[Array, "M P"],
+    thresholds: Numbers,
+    config: Config,
+    *,
+    classes: Int[Array, "M P"] | None = None,
+) -> tuple[Scene, Bool[Array, ""]]:
+    """The tables every stage reads (:class:`Scene`: padding zeroed, epipolar distances,
+    DLT blocks, σ and τ), and whether σ estimation fell back; arguments as
+    :func:`associate_traced`."""
+    kind = type(config).numbers_type
     th = kind(*(jnp.asarray(v) for v in thresholds))  # NumPy scalars when called eagerly
     if config.threshold_unit == "focal":
         th = thresholds_in_pixels(th, focal_scale(rig.K), type(config).units)
-    M, P = mask.shape
     xy = jnp.where(mask[..., None], xy, 0.0)  # padding is neutral from here on
     d = epipolar_distances(rig, xy, mask)  # (M, P, M, P)
     if classes is not None:
@@ -195,15 +316,7 @@ def associate_traced(
     else:
         sigma, fallback = th.sigma_px, jnp.asarray(False)
     tau = tau_px(th, sigma, fitted if config.tau_mode == "fitted" else None)
-    scene = Scene(rig, xy, mask, mask.reshape(-1), d, dlt_blocks(rig, xy), sigma, tau, th)
-    G = max(M * P // 2, 1)
-    empty = GroupTable(jnp.full((G, M), -1, jnp.int32), jnp.zeros((G,), bool))
-    state = run_plan(plan(config), scene, State(empty, None, raise_flag(fallback, Status.SIGMA_FALLBACK)))
-    fit = state.fit
-    return association_from_groups(
-        state.table.groups, state.table.valid, fit.member, fit.X, fit.bpe, fit.err_px, P,
-        jnp.asarray(sigma, xy.dtype), jnp.asarray(tau, xy.dtype), state.status,
-    )
+    return Scene(rig, xy, mask, mask.reshape(-1), d, dlt_blocks(rig, xy), sigma, tau, th), fallback
 
 
 # --------------------------------------------------------------------------- the method
