@@ -34,6 +34,7 @@ from .graph._graph_stage import GRAPH
 from .graph._groups import compact_groups
 from .graph._sigma import estimate_sigma, focal_scale
 from .graph._sigma_robust import estimate_noise
+from .refine._ambiguity import AMBIGUITY
 from .refine._attach import leftover_nodes
 from .refine._bpe_filter import BPE_FILTER
 from .refine._fit import FIT
@@ -97,6 +98,7 @@ STAGES: tuple[Stage, ...] = (
     SEED._replace(name="seed_again", when=lambda config: config.seed and config.reassign),
     FIT._replace(name="refit", when=_REFIT_WHEN),
     SUPPORT._replace(name="support_again", when=lambda config: config.support_filter and _REFIT_WHEN(config)),
+    AMBIGUITY,
     REFINE,
     VALIDITY,
 )
@@ -246,7 +248,10 @@ class ConfigMethods(Method):
         re-assignment with merging of split groups (``reassign``), and seeding once more on
         what those rounds detached. Leaves few detections unassigned at large σ, where
         pruning and the IQR leave most of a dense scene over (docs/ALGORITHM.md §8f–8g)."""
-        base = dict(adjacency="union", recover=True, recover_frac=2.0, regroup=True, seed=True, reassign=True)
+        base = dict(
+            adjacency="union", recover=True, recover_frac=2.0, regroup=True, seed=True, reassign=True,
+            support_filter=True, support_frac=1.5, support_alpha=0.07, detach_ambiguous=True,
+        )
         base.update(overrides)
         return cls(**base)
 
