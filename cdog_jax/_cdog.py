@@ -34,6 +34,7 @@ from .graph._graph_stage import GRAPH
 from .graph._groups import compact_groups
 from .graph._sigma import estimate_sigma, focal_scale
 from .graph._sigma_robust import estimate_noise
+from .refine._ambiguity import AMBIGUITY
 from .refine._attach import leftover_nodes
 from .refine._bpe_filter import BPE_FILTER
 from .refine._fit import FIT, fit_groups
@@ -97,6 +98,7 @@ STAGES: tuple[Stage, ...] = (
     SEED._replace(name="seed_again", when=lambda config: config.seed and config.reassign),
     FIT._replace(name="refit", when=_REFIT_WHEN),
     SUPPORT._replace(name="support_again", when=lambda config: config.support_filter and _REFIT_WHEN(config)),
+    AMBIGUITY,
     REFINE,
     VALIDITY,
 )
@@ -355,11 +357,18 @@ class ConfigMethods(Method):
     @classmethod
     def best(cls, **overrides) -> "Config":
         """Our most accurate C-DOG, the default: :meth:`extended`, then groups seeded from
-        two-view hypotheses on what is still left (``seed``), rounds of nearest-point
+        two-view hypotheses on what is still left (``seed``; a pair whose point another
+        view sees with no detection near is refused), rounds of nearest-point
         re-assignment with merging of split groups (``reassign``), and seeding once more on
         what those rounds detached. Leaves few detections unassigned at large σ, where
-        pruning and the IQR leave most of a dense scene over (docs/ALGORITHM.md §8f–8g)."""
-        base = dict(adjacency="union", recover=True, recover_frac=2.0, regroup=True, seed=True, reassign=True)
+        pruning and the IQR leave most of a dense scene over (docs/ALGORITHM.md §8f–8g).
+        For precision, groups that views seeing their point do not detect are dropped
+        (``support_filter`` at 1.5 τ, ``support_alpha`` 0.07) and each group of ≥ 3 detaches
+        a member that another detection fits as well (``detach_ambiguous``; §8d, §8h)."""
+        base = dict(
+            adjacency="union", recover=True, recover_frac=2.0, regroup=True, seed=True, reassign=True,
+            support_filter=True, support_frac=1.5, support_alpha=0.07, detach_ambiguous=True,
+        )
         base.update(overrides)
         return cls(**base)
 

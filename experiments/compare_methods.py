@@ -28,7 +28,8 @@ Method:
 4. **Cache.** Each method's result is saved under ``--cache`` (default
    ``~/.cache/cdog_jax/compare/``) in a folder named by the method and a hash of its name,
    its ``repr`` (structure and numbers), the package version, the source of the module
-   that defines it and of the scene generator and the metrics, the base grid and the
+   that defines it (for a C-DOG config also of its stages' modules and the package modules
+   they use) and of the scene generator and the metrics, the base grid and the
    buckets. A rerun computes only new or changed methods (``--refresh`` recomputes all or the
    named ones).
 5. **Report.** One Markdown table per σ (0, 1, 3, 5): one row per method, G-F1, G-IoU,
@@ -125,6 +126,25 @@ def _source_hash(*objects) -> str:
     return h.hexdigest()
 
 
+def _rule_modules(method) -> list:
+    """The package modules the stages of a C-DOG config run (none for other methods) and,
+    transitively, the package modules they use: the module that defines the config does
+    not hold the rules, so a change in a stage's file must change the key too."""
+    stages = getattr(type(method), "stages", ())
+    todo = [sys.modules[stage.run.__module__] for stage in stages if stage.when(method)]
+    seen = {}
+    while todo:
+        module = todo.pop()
+        if module.__name__ in seen:
+            continue
+        seen[module.__name__] = module
+        for value in vars(module).values():
+            owner = value.__name__ if inspect.ismodule(value) else getattr(value, "__module__", None)
+            if isinstance(owner, str) and owner.split(".")[0] == "cdog_jax" and owner in sys.modules:
+                todo.append(sys.modules[owner])
+    return [seen[name] for name in sorted(seen)]
+
+
 def cache_folder(cache: str, name: str, method, base: Grid) -> str:
     """The cache folder of ``method`` (registered as ``name``) on the base grid ``base``."""
     from cdog_jax.metrics import _scores
@@ -135,7 +155,7 @@ def cache_folder(cache: str, name: str, method, base: Grid) -> str:
             "name": name,
             "method": repr(method),
             "version": cdog_jax.__version__,
-            "source": _source_hash(type(method), _scene, _scores),
+            "source": _source_hash(type(method), *_rule_modules(method), _scene, _scores),
             "grid": dataclasses.asdict(base),
             "buckets": BUCKETS,
         },

@@ -43,6 +43,7 @@ __all__ = [
     "group_bpe",
     "bpe_jump_keep",
     "support_keep",
+    "detach_ambiguous",
     "validity_gate",
     "oracle_associate",
     "look_at",
@@ -827,9 +828,22 @@ def _depth(R, t, m, X):
     return (R[m] @ X + t[m])[2]
 
 
-def seed_groups(K, R, t, xy, free, d, tau, gate, min_views):
+def _view_misses(K, R, t, xy, mask, X, m, radius):
+    """View ``m`` sees the point ``X`` (in front, inside the bounding box of its detections)
+    and holds no detection closer than ``radius`` pixels to its projection."""
+    det = xy[m][mask[m]]
+    if _depth(R, t, m, X) <= 0 or len(det) == 0:
+        return False
+    pix = project(K[m : m + 1], R[m : m + 1], t[m : m + 1], X)[0]
+    inside = np.all(det.min(0) <= pix) and np.all(pix <= det.max(0))
+    return bool(inside and not np.any(np.sum((det - pix) ** 2, axis=1) < radius * radius))
+
+
+def seed_groups(K, R, t, xy, free, d, tau, gate, min_views, mask=None, support=np.inf):
     """§8f: groups seeded from two-view hypotheses on the ``free`` (M, P) detections, as a
-    list of (M,) rows in the order they are accepted."""
+    list of (M,) rows in the order they are accepted. A hypothesis whose point a third view
+    sees with no detection of ``mask`` within ``support`` pixels is not seeded."""
+    mask = free if mask is None else mask
     M, P = free.shape
     hyps = []  # (count, err, index, a, b, distances (M, P) of the other views)
     for m in range(M):
@@ -864,6 +878,8 @@ def seed_groups(K, R, t, xy, free, d, tau, gate, min_views):
                             dist[v, j] = np.linalg.norm(pix[v] - xy[v, j])
                     if dist[v].min() < gate:
                         total, count = total + dist[v].min(), count + 1
+                if any(_view_misses(K, R, t, xy, mask, X, v, support) for v in range(M) if v not in (m, n)):
+                    continue
                 if count >= min_views:
                     hyps.append((-count, total / count, index, (m, i), (n, best), dist))
     hyps.sort(key=lambda h: h[:3])
@@ -994,7 +1010,7 @@ def _compact(rows, G, M):
 def _seed_stage(K, R, t, xy, mask, d, groups, gvalid, tau, cfg):
     G, M = groups.shape
     free = _free(mask, groups, gvalid)
-    new = seed_groups(K, R, t, xy, free, d, tau, cfg.seed_frac * tau, cfg.seed_min_views)
+    new = seed_groups(K, R, t, xy, free, d, tau, cfg.seed_frac * tau, cfg.seed_min_views, mask, cfg.seed_support_frac * tau)
     return _compact([groups[g] for g in np.flatnonzero(gvalid)] + new, G, M)
 
 
@@ -1039,6 +1055,37 @@ def support_keep(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg):
         tail = sum(math.comb(T, j) * q**j * (1.0 - q) ** (T - j) for j in range(k, T + 1))
         keep[g] = not behind[g] and (k == 0 or tail >= cfg.support_alpha)
     return keep
+
+
+def detach_ambiguous(K, R, t, xy, mask, groups, gvalid, tau, frac):
+    """§8h: every valid group of ≥ 3 members detaches its worst ambiguous member (largest
+    own distance; ties: the first view), one whose view holds another detection less than
+    ``frac · τ`` farther from the group's point than the member itself. Returns copies."""
+    groups = groups.copy()
+    M = groups.shape[1]
+    for g in np.flatnonzero(gvalid):
+        members = groups[g] >= 0
+        if members.sum() < 3:
+            continue
+        obs = np.zeros((M, 2))
+        for m in np.flatnonzero(members):
+            obs[m] = xy[m, groups[g, m]]
+        X, ok = _dlt_checked(K, R, t, obs, members)
+        if not ok:
+            continue
+        pix = project(K, R, t, X)
+        worst, worst_err = None, -np.inf
+        for m in np.flatnonzero(members):
+            if _depth(R, t, m, X) <= 0:
+                continue
+            dist = np.linalg.norm(xy[m] - pix[m], axis=1)
+            own = dist[groups[g, m]]
+            others = [dist[j] for j in np.flatnonzero(mask[m]) if j != groups[g, m]]
+            if others and min(others) - own < frac * tau and own > worst_err:
+                worst, worst_err = m, own
+        if worst is not None:
+            groups[g, worst] = -1
+    return groups
 
 
 def validity_gate(K, R, t, xy, groups, gvalid, pts, tau, max_err_frac, min_parallax_deg):
@@ -1183,6 +1230,9 @@ def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
             keep = support_keep(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg)
             groups[~keep] = -1
             gvalid = keep
+    if getattr(cfg, "detach_ambiguous", False):  # §8h
+        groups = detach_ambiguous(K, R, t, xy, mask, groups, gvalid, tau, cfg.ambiguous_frac)
+        pts, bpe, err = group_bpe(K, R, t, xy, groups, gvalid)
     stages["labels_recovered"] = _group_labels(groups, gvalid, M, P)
 
     # §12 validity gate

@@ -7,7 +7,7 @@ import dataclasses
 from cdog_jax import STAGES, Config
 from cdog_jax._cdog import SCENE, plan
 
-SWITCHES = {"iqr", "second_association", "bpe_filter", "support_filter", "recover", "regroup", "refine", "seed", "reassign"}
+SWITCHES = {"iqr", "second_association", "bpe_filter", "support_filter", "recover", "regroup", "refine", "seed", "reassign", "detach_ambiguous"}
 METHOD_LEVEL = {"sigma_mode", "tau_mode", "threshold_unit"}  # read by associate_traced itself (σ, τ, units)
 
 
@@ -20,7 +20,8 @@ def test_each_preset_runs_its_stages_in_order():
     assert _names(Config.reference()) == ["graph", "iqr", "second_association", "fit", "validity_gate"]
     assert _names(Config.extended()) == ["graph", "iqr", "fit", "bpe_filter", "recover", "regroup", "refit", "validity_gate"]
     assert _names(Config.best()) == [
-        "graph", "iqr", "fit", "bpe_filter", "recover", "regroup", "seed", "reassign", "seed_again", "refit", "validity_gate",
+        "graph", "iqr", "fit", "bpe_filter", "support", "recover", "regroup", "seed", "reassign", "seed_again", "refit",
+        "support_again", "detach_ambiguous", "validity_gate",
     ]
     assert _names(Config.paper(reassign=True)) == ["graph", "iqr", "fit", "bpe_filter", "reassign", "refit", "validity_gate"]
     everything = Config.extended(support_filter=True, refine=True, second_association=True)

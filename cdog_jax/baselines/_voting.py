@@ -82,7 +82,7 @@ def voting_groups(
 
     src, dst, cost, ok = nearest_candidates(symmetric_cost(d, mask), tau, 1)  # (H,)
     scored = score_hypotheses(rig, xy, mask, dlt_blocks(rig, xy), src, dst, ok, gate)
-    ok, reproj, count, err = scored
+    ok, reproj, count, err = scored.ok, scored.reproj, scored.count, scored.err
     hyp = jnp.arange(src.shape[0], dtype=jnp.int32)
     order = jnp.lexsort((hyp, err, -count))
 

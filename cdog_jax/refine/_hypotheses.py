@@ -23,6 +23,7 @@ class ScoredHypotheses(NamedTuple):
     reproj: Float[Array, "H M P"]
     count: Int[Array, " H"]
     err: Float[Array, " H"]
+    X: Float[Array, "H 3"]
 
 
 def score_hypotheses(
@@ -45,7 +46,8 @@ def score_hypotheses(
     N_node, r_node, origin = blocks
     N_node, r_node = N_node.reshape(N, 3, 3), r_node.reshape(N, 3)
     X, ok_dlt = solve_normal_3x3(N_node[src] + N_node[dst], r_node[src] + r_node[dst])
-    xy_hat, front = project_views_last(rig, X + origin[None, :])  # (H, M, 2), (H, M)
+    X = X + origin[None, :]
+    xy_hat, front = project_views_last(rig, X)  # (H, M, 2), (H, M)
     hyp = jnp.arange(src.shape[0], dtype=jnp.int32)
     ok = ok & ok_dlt & front[hyp, view_a] & front[hyp, view_b]
 
@@ -67,4 +69,4 @@ def score_hypotheses(
     count = jnp.where(ok, 2 + jnp.sum(voter, axis=-1, dtype=jnp.int32), 0)
     total = pair_error(src, view_a) + pair_error(dst, view_b) + jnp.sum(jnp.where(voter, nearest, 0.0), axis=-1)
     err = jnp.where(ok, total / jnp.maximum(count, 1).astype(total.dtype), jnp.inf)
-    return ScoredHypotheses(ok, reproj, count, err)
+    return ScoredHypotheses(ok, reproj, count, err, X)

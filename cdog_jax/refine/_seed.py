@@ -26,6 +26,7 @@ from ..geometry._camera import Rig
 from ..graph._groups import compact_groups
 from ._hypotheses import score_hypotheses
 from ._attach import leftover_nodes
+from ._support import missing_views
 
 
 class SeedOptions(NamedTuple):
@@ -37,11 +38,13 @@ class SeedOptions(NamedTuple):
 def seed_groups(
     rig: Rig,
     xy: Float[Array, "M P 2"],
+    mask: Bool[Array, "M P"],
     free: Bool[Array, "M P"],
     d: Float[Array, "M P M P"],
     blocks: tuple,
     tau_px: Float[Array, ""],
     gate_px: Float[Array, ""],
+    support_px: Float[Array, ""],
     min_views: int,
 ) -> Int[Array, "G M"]:
     """New groups ``(G, M)`` (slot per view or -1; unused rows all -1, ``G = M·P // 2``)
@@ -61,7 +64,9 @@ def seed_groups(
     dst = (views[None, None, :] * P + best).reshape(-1)
     ok = (best_cost < tau_px).reshape(-1)
     scored = score_hypotheses(rig, xy, free, blocks, src, dst, ok, gate_px)
-    ok = scored.ok & (scored.count >= min_views)
+    pair = (views[None, :] == (src // P)[:, None]) | (views[None, :] == (dst // P)[:, None])  # (H, M)
+    missing, _ = missing_views(rig, xy, mask, scored.X, pair, support_px)
+    ok = scored.ok & (scored.count >= min_views) & ~jnp.any(missing, axis=1)
     err = jnp.where(ok, scored.err, jnp.inf)
     reproj, count = scored.reproj, scored.count
     hyp = jnp.arange(src.shape[0], dtype=jnp.int32)
@@ -103,7 +108,8 @@ def seed_stage(scene: Scene, state: State, options: SeedOptions) -> State:
     M, P = scene.mask.shape
     free = leftover_nodes(*table, scene.mask).reshape(M, P)
     new = seed_groups(
-        scene.rig, scene.xy, free, scene.d, scene.blocks, scene.tau, scene.th.seed_frac * scene.tau, options.seed_min_views
+        scene.rig, scene.xy, scene.mask, free, scene.d, scene.blocks, scene.tau, scene.th.seed_frac * scene.tau,
+        scene.th.seed_support_frac * scene.tau, options.seed_min_views,
     )
     G = table.groups.shape[0]
     groups = jnp.concatenate([table.groups, new])
@@ -115,5 +121,9 @@ def seed_stage(scene: Scene, state: State, options: SeedOptions) -> State:
 SEED = Stage(
     "seed", seed_stage, SeedOptions,
     Switch("seed", False, "groups from two-view hypotheses on what is still left (beyond the paper)"),
-    numbers=(Number("seed_frac", 1.5, Range(0.0, low_open=True), doc="seeding: a detection within seed_frac · τ votes for a two-view point"),),
+    numbers=(
+        Number("seed_frac", 1.5, Range(0.0, low_open=True), doc="seeding: a detection within seed_frac · τ votes for a two-view point"),
+        Number("seed_support_frac", 1.5, Range(0.0, low_open=True),
+               doc="seeding: a two-view point is not seeded where a view sees it with no detection within seed_support_frac · τ"),
+    ),
 )

@@ -43,8 +43,11 @@ def missing_views(
     lo = jnp.min(jnp.where(mask[..., None], xy, jnp.inf), axis=1)  # (M, 2); +inf: no detection
     hi = jnp.max(jnp.where(mask[..., None], xy, -jnp.inf), axis=1)
     inside = in_front & jnp.all((pix >= lo[None]) & (pix <= hi[None]), axis=-1)  # (G, M)
-    diff = pix[:, :, None, :] - xy[None]  # (G, M, P, 2)
-    near = jnp.any(mask[None] & (jnp.sum(diff * diff, axis=-1) < radius_px * radius_px), axis=-1)  # (G, M)
+    # x and y apart, reduced at once: seeding asks this of every two-view hypothesis.
+    dx = pix[:, :, None, 0] - xy[None, :, :, 0]  # (G, M, P)
+    dy = pix[:, :, None, 1] - xy[None, :, :, 1]
+    nearest = jnp.min(jnp.where(mask[None], dx * dx + dy * dy, jnp.inf), axis=-1)  # (G, M) px²
+    near = nearest < radius_px * radius_px
     return inside & ~member & ~near, in_front
 
 

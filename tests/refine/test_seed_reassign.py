@@ -17,14 +17,14 @@ RIG = ring_rig(4)
 P = 12
 
 
-def _scene(sigma=0.0, seed=3, two_view=()):
+def _scene(sigma=0.0, seed=3, two_view=(), **numbers):
     """A 10-point scene on 4 views (every point in all 4); the points ``two_view`` keep only
-    their detections in views 0 and 1."""
+    their detections in views 0 and 1 (views 2 and 3 see them, and miss them)."""
     xy, mask, inst, _ = random_scene(RIG, 10, P, sigma=sigma, seed=seed)
     mask[2:] &= ~np.isin(inst[2:], two_view)
     inst = np.where(mask, inst, -1)
     xy, mask = jnp.asarray(xy, jnp.float32), jnp.asarray(mask)
-    th = Config.best().thresholds(1.0)
+    th = Config.best(**numbers).thresholds(1.0)
     th = th._replace(**{k: jnp.asarray(v) for k, v in th._asdict().items()})
     tau = jnp.asarray(2.0 * np.sqrt(2.0), jnp.float32)  # τ at σ = 1 px
     scene = Scene(RIG, xy, mask, mask.reshape(-1), epipolar_distances(RIG, xy, mask), dlt_blocks(RIG, xy),
@@ -64,7 +64,9 @@ def test_seeding_finds_every_point_of_a_noise_free_scene():
 
 
 def test_seeding_leaves_the_groups_it_is_given_and_uses_only_free_detections():
-    scene, inst = _scene(two_view=(8, 9))
+    # Views 2 and 3 miss points 8 and 9: seeding refuses such pairs unless any detection
+    # explains a view (a radius of 10⁶ τ here; the default is tested below).
+    scene, inst = _scene(two_view=(8, 9), seed_support_frac=1e6)
     groups, valid = _truth(inst, scene.mask)
     kept = np.arange(len(valid)) < 4  # the first 4 points stay; the rest are left over
     given = GroupTable(jnp.asarray(np.where((valid & kept)[:, None], groups, -1)), jnp.asarray(valid & kept))
@@ -75,6 +77,10 @@ def test_seeding_leaves_the_groups_it_is_given_and_uses_only_free_detections():
     three = seed_stage(scene, State(given, None, jnp.int32(0)), SeedOptions(3))
     new = _partition(three.table, 4) - _partition(given, 4)
     assert len(new) == 4 and all(len(g) == 4 for g in new)
+    # best()'s radius (1.5 τ): the pairs of points 8 and 9 are refused, the others found.
+    strict, _ = _scene(two_view=(8, 9))
+    state = seed_stage(strict, State(given, None, jnp.int32(0)), SeedOptions(2))
+    assert _partition(state.table, 4) == _partition(three.table, 4)
 
 
 def _split_and_swap(groups, valid, swap):
