@@ -22,6 +22,7 @@ from ._memory import check_memory
 from ._method import Method, Observations, method_argument
 from ._result import Association
 from ._shapes import chunk_size, pad_scenes, pad_slots, slot_capacity, trim
+from ._stored_programs import call_stored
 from ._types import Array, ArrayLike, Float
 from ._validate import as_array, check_batch_rig, check_observations, check_rig, check_sigma, check_threshold_shapes
 from .geometry._camera import Rig
@@ -148,13 +149,17 @@ def associate(
         if extras is not None and extras[1] is not None:
             extras = (extras[0], pad_slots(extras[1], capacity, axis=1), extras[2])
         return trim(_associate_host(rig, xy, mask, th, extras, static), P)
+    if extras is not None:
+        extras = (extras[0], None if extras[1] is None else pad_slots(extras[1], capacity, axis=1), extras[2])
+    return trim(_single_scene(rig, xy, mask, th, extras, static), P)
+
+
+def _single_scene(rig, xy, mask, th, extras, method):
+    """One padded scene through the method's compiled program; its lowered program is
+    stored on disk for later processes (``_stored_programs.py``)."""
     if extras is None:
-        result = _associate_jit(rig, xy, mask, th, method=static)
-    else:
-        dist, weights, min_views = extras
-        weights = None if weights is None else pad_slots(weights, capacity, axis=1)
-        result = _associate_extras_jit(rig, xy, mask, th, dist, weights, min_views, method=static)
-    return trim(result, P)
+        return call_stored(_associate_jit, (rig, xy, mask, th), method)
+    return call_stored(_associate_extras_jit, (rig, xy, mask, th, *extras), method)
 
 
 def _capacity(where, M, P, method, dtype, batch_size, budget_gb, vmapped) -> int:
@@ -325,13 +330,8 @@ def associate_batch(
         for b in range(B):
             rig_b = rig if shared else Rig(*(jnp.asarray(a[b]) for a in rig_arrays))
             th_b = type(th)(*(v[b] for v in th))
-            if extras is None:
-                one = _associate_jit(rig_b, xy[b], mask[b], th_b, method=static)
-            else:
-                one = _associate_extras_jit(
-                    rig_b, xy[b], mask[b], th_b, extras[0], None if extras[1] is None else extras[1][b], extras[2],
-                    method=static,
-                )
+            extras_b = None if extras is None else (extras[0], None if extras[1] is None else extras[1][b], extras[2])
+            one = _single_scene(rig_b, xy[b], mask[b], th_b, extras_b, static)
             results.append(jax.tree.map(lambda a: np.asarray(a)[None], one))
         padded = 0
     for start in range(0, padded, chunk):

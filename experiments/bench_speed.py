@@ -15,8 +15,13 @@ the process's peak RSS (``ru_maxrss``; device memory too on a GPU).
 Single scenes: ``associate`` on one scene of each count at σ = 1, capacity = count, the
 median of ``--single-runs`` warm calls.
 
+The grid runs once with one JAX CPU device and once with one device per core
+(``--cpu-devices``; ``cdog_jax.benchmark.use_cpu_cores``): :func:`sweep` shards its scenes
+over the devices, so on a CPU the second uses every core. Both columns are printed beside
+the numbers measured before the sweep used more than one core.
+
 Usage: ``python experiments/bench_speed.py [--runs 3] [--methods paper,reference] [--quick]
-[--skip-grid] [--skip-single]``.
+[--cpu-devices 1,0] [--skip-grid] [--skip-single]``.
 """
 
 from __future__ import annotations
@@ -33,12 +38,15 @@ import numpy as np
 SINGLE_COUNTS = (5, 10, 20, 40, 70, 100, 130)
 
 
-def _child(methods: list[str], quick: bool, warm_runs: int) -> dict:
-    """One process: the cold call, then ``warm_runs`` warm calls; returns the timings."""
+def _child(methods: list[str], quick: bool, warm_runs: int, cpu_devices: int) -> dict:
+    """One process: the cold call, then ``warm_runs`` warm calls; returns the timings.
+    ``cpu_devices``: JAX CPU devices (0: one per core), chosen before JAX runs anything."""
     t_start = time.perf_counter()
     import jax
 
-    from cdog_jax.benchmark import METHODS, Grid, sweep
+    from cdog_jax.benchmark import METHODS, Grid, sweep, use_cpu_cores
+
+    use_cpu_cores(cpu_devices or None)
     from cdog_jax.synthetic import default_rig
 
     grid = Grid.quick() if quick else Grid.paper()
@@ -60,6 +68,7 @@ def _child(methods: list[str], quick: bool, warm_runs: int) -> dict:
         "process_s": time.perf_counter() - t_start,
         "rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6,  # KiB on Linux
         "device": cold.device,
+        "devices": jax.device_count(),
         "pg_f1": {name: float(np.mean(cold.metrics[name]["pg_f1"])) for name in configs},
     }
     stats = jax.devices()[0].memory_stats() if jax.default_backend() != "cpu" else None
@@ -68,11 +77,12 @@ def _child(methods: list[str], quick: bool, warm_runs: int) -> dict:
     return out
 
 
-def full_grid(methods: list[str], runs: int, quick: bool, warm_runs: int) -> list[dict]:
+def full_grid(methods: list[str], runs: int, quick: bool, warm_runs: int, cpu_devices: int) -> list[dict]:
     """``runs`` fresh processes of :func:`_child`; their JSON reports."""
     reports = []
     for r in range(runs):
-        cmd = [sys.executable, __file__, "--_child", "--methods", ",".join(methods), "--warm", str(warm_runs)]
+        cmd = [sys.executable, __file__, "--_child", "--methods", ",".join(methods), "--warm", str(warm_runs),
+               "--cpu-devices", str(cpu_devices)]
         if quick:
             cmd.append("--quick")
         proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
@@ -119,6 +129,36 @@ def single_scene(methods: list[str], counts=SINGLE_COUNTS, runs: int = 7) -> lis
     return rows
 
 
+#: The full grid with paper() on the 2-core CPU before the sweep used more than one core
+#: (one device, median of 3 fresh processes): cold call, compile, warm call (s).
+REFERENCE_2CORE = {"cold_s": 37.0, "compile_s": 19.0, "warm_s": 17.9}
+
+
+def _grid_table(columns: list[list[dict]]) -> None:
+    """One column per device count (medians over its processes), then the reference."""
+    meds = [{k: float(np.median([r[k] for r in reps])) for k in ("cold_s", "compile_s", "warm_s", "rss_gb", "process_s")}
+            for reps in columns]
+    scenes = columns[0][0]["scenes"]
+    head = " | ".join(f"{reps[0]['devices']} device(s), median of {len(reps)}" for reps in columns)
+    print(f"\n| grid ({scenes} scenes, {columns[0][0]['device']}) | {head} | before (1 device, 2-core CPU) |")
+    print("|---" * (len(columns) + 2) + "|")
+
+    def row(label, fmt, key, ref=None):
+        cells = " | ".join(fmt(m[key]) for m in meds)
+        print(f"| {label} | {cells} | {fmt(ref) if ref is not None else ''} |")
+
+    row("cold call (trace + compile + run)", lambda v: f"{v:.1f} s", "cold_s", REFERENCE_2CORE["cold_s"])
+    row("of which compile", lambda v: f"{v:.1f} s", "compile_s", REFERENCE_2CORE["compile_s"])
+    row("warm call", lambda v: f"{v:.1f} s", "warm_s", REFERENCE_2CORE["warm_s"])
+    row("throughput, warm", lambda v: f"{scenes / v:.0f} scenes/s", "warm_s", REFERENCE_2CORE["warm_s"])
+    row("whole process (imports included)", lambda v: f"{v:.1f} s", "process_s")
+    row("peak RSS", lambda v: f"{v:.2f} GB", "rss_gb")
+    if "device_peak_gb" in columns[0][0]:
+        print("| peak device memory | " + " | ".join(f"{np.median([r['device_peak_gb'] for r in reps]):.2f} GB" for reps in columns) + " | |")
+    print("| mean PG-F1 over the grid | " + " | ".join(
+        ", ".join(f"{k} {v:.4f}" for k, v in reps[0]["pg_f1"].items()) for reps in columns) + " | |")
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--runs", type=int, default=3, help="fresh processes for the full grid (default 3)")
@@ -129,31 +169,27 @@ def main(argv=None) -> None:
     parser.add_argument("--quick", action="store_true", help="the --quick grid instead of the full one")
     parser.add_argument("--skip-grid", action="store_true")
     parser.add_argument("--skip-single", action="store_true")
+    parser.add_argument(
+        "--cpu-devices", default="1,0",
+        help="comma list of JAX CPU device counts to run the grid with, side by side (0: one per core; "
+        "default 1,0: one core, then every core)",
+    )
     parser.add_argument("--_child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     if args._child:
-        print(json.dumps(_child(methods, args.quick, args.warm)))
+        print(json.dumps(_child(methods, args.quick, args.warm, int(args.cpu_devices))))
         return
 
     import jax
 
     print(f"JAX {jax.__version__} on {jax.default_backend()} ({jax.device_count()} device(s)); methods {methods}")
     if not args.skip_grid:
-        print(f"Full grid, {args.runs} fresh processes:", flush=True)
-        reps = full_grid(methods, args.runs, args.quick, args.warm)
-        med = {k: float(np.median([r[k] for r in reps])) for k in ("cold_s", "compile_s", "warm_s", "rss_gb", "process_s")}
-        scenes = reps[0]["scenes"]
-        print(f"\n| grid ({scenes} scenes, {reps[0]['device']}) | median of {len(reps)} |\n|---|---|")
-        print(f"| cold call (trace + compile + run) | {med['cold_s']:.1f} s |")
-        print(f"| of which compile | {med['compile_s']:.1f} s |")
-        print(f"| warm call | {med['warm_s']:.1f} s |")
-        print(f"| throughput, warm | {scenes / med['warm_s']:.0f} scenes/s ({1000 * med['warm_s'] / scenes:.2f} ms/scene) |")
-        print(f"| whole process (imports included) | {med['process_s']:.1f} s |")
-        print(f"| peak RSS | {med['rss_gb']:.2f} GB |")
-        if "device_peak_gb" in reps[0]:
-            print(f"| peak device memory | {np.median([r['device_peak_gb'] for r in reps]):.2f} GB |")
-        print("| mean PG-F1 over the grid | " + ", ".join(f"{k} {v:.3f}" for k, v in reps[0]["pg_f1"].items()) + " |")
+        columns = []
+        for count in (int(c) for c in args.cpu_devices.split(",")):
+            print(f"Full grid, {args.runs} fresh processes, {count or 'one per core'} CPU device(s):", flush=True)
+            columns.append(full_grid(methods, args.runs, args.quick, args.warm, count))
+        _grid_table(columns)
     if not args.skip_single:
         print(f"\nSingle scene, σ = 1 px, capacity = count, median of {args.single_runs} warm calls:")
         print("| method | points | compile (s) | warm (ms) |\n|---|---|---|---|")

@@ -8,6 +8,10 @@ import numpy as np
 from cdog_jax import Rig
 
 # Tolerances: float32 checks in pixels / relative scene size, float64 tight.
+# XLA's older CPU code generator, which the suite runs with (tests/conftest.py): it compiles
+# our programs about a third faster; a test that needs XLA's default one removes it.
+FAST_COMPILE_FLAG = "--xla_cpu_use_fusion_emitters=false"
+
 TOL = {
     "float32": {"px": 2e-2, "rel": 1e-4},
     "float64": {"px": 1e-8, "rel": 1e-10},

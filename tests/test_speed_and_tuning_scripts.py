@@ -21,11 +21,16 @@ def _load(name):
 
 def test_bench_speed_quick_grid_in_a_fresh_process(capsys):
     module = _load("bench_speed")
-    module.main(["--quick", "--runs", "1", "--warm", "1", "--skip-single"])
+    module.main(["--quick", "--runs", "1", "--warm", "1", "--skip-single", "--cpu-devices", "1,2"])
     text = capsys.readouterr().out
-    assert "| grid (24 scenes, cpu: 1 × cpu (1 process)) | median of 1 |" in text, text
+    head = "| grid (24 scenes, cpu: 1 × cpu (1 process)) | 1 device(s), median of 1 | 2 device(s), median of 1 |"
+    assert head in text, text
     for row in ("| cold call (trace + compile + run) |", "| warm call |", "| peak RSS |", "scenes/s"):
         assert row in text, row
+    # The scenes sharded over two CPU devices score exactly as on one.
+    f1_row = next(line for line in text.splitlines() if line.startswith("| mean PG-F1"))
+    one, two = f1_row.split(" | ")[1:3]
+    assert one == two and one.startswith("paper 0."), f1_row
 
 
 def test_bench_speed_single_scene_rows():

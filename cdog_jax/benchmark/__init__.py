@@ -16,6 +16,7 @@ from ._io import save_results as save_results
 from ._io import summary_table as summary_table
 from ._sweep import SweepProgress as SweepProgress
 from ._sweep import SweepResult as SweepResult
+from ._cpu_cores import use_cpu_cores as use_cpu_cores
 from ._sweep import default_mesh as default_mesh
 from ._sweep import metric_fields as metric_fields
 from ._sweep import print_progress as print_progress

@@ -1,0 +1,186 @@
+"""Single-scene programs stored with ``jax.export``, so that a later process neither traces
+nor lowers them again.
+
+The persistent compilation cache (``_compile_cache.py``) skips XLA's compilation, but its
+key is the lowered program: every process still traces the pipeline and lowers it to
+StableHLO first (about 1 s for ``best()`` on a CPU, half of a whole ``cdog-jax associate``
+run once the cache is warm). Here the lowered program itself is stored, serialised by
+``jax.export``, next to the compiled ones; a later process deserialises it (milliseconds),
+and its compilation is then found in the compilation cache.
+
+Key: a hash of everything that decides the program: the package's own source files, the
+JAX and jaxlib versions, the backend, the JAX options that change tracing, the function,
+the static method (its ``repr``; only methods defined in this package, whose code the
+source hash covers) and the structure, shapes and dtypes of the arguments. A stale entry
+is therefore never loaded; an unreadable one is ignored and written again. Files are
+written whole or not at all (a temporary file renamed), so concurrent processes at worst
+export the same program twice. Off whenever the compilation cache is off.
+
+Results are bitwise those of calling the jitted function directly (XLA inlines the
+exported module's call; tests/test_stored_programs.py).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import hashlib
+import importlib
+import json
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+
+from ._compile_cache import cache_dir_from_environment
+
+_PACKAGE_ROOT = Path(__file__).resolve().parent
+_TRACING_OPTIONS = ("jax_enable_x64", "jax_default_matmul_precision", "jax_numpy_dtype_promotion",
+                    "jax_numpy_rank_promotion", "jax_default_prng_impl")
+_source_hash: str | None = None
+_loaded: dict[str, Callable] = {}  # key → jitted call of the deserialised program, this process
+
+
+def loaded_programs() -> int:
+    """Stored programs this process has loaded or exported (each one compiled once)."""
+    return len(_loaded)
+
+
+def stored_programs_dir() -> Path | None:
+    """Where exported programs are kept: ``exported/`` in the compilation cache's folder,
+    or None when the compilation cache is off (then nothing is stored)."""
+    if not jax.config.jax_compilation_cache_dir:
+        return None
+    folder = cache_dir_from_environment()
+    return None if folder is None else folder / "exported"
+
+
+def call_stored(jitted: Callable, args: tuple, method) -> Any:
+    """``jitted(*args, method=method)`` (a ``jax.jit`` with the static argument
+    ``method``), its lowered program loaded from disk where an earlier process stored it
+    (and stored here otherwise).
+
+    The function returns a dataclass pytree of arrays (e.g. an ``Association``); ``args``
+    may hold pytrees and None. Falls back to ``jitted`` itself where nothing can be stored:
+    the cache is off, the method is defined outside this package, or ``jax.export`` cannot
+    serialise (its ``flatbuffers`` dependency missing).
+    """
+    folder = stored_programs_dir()
+    if folder is None or not type(method).__module__.startswith(f"{__package__}."):
+        return jitted(*args, method=method)
+    fun = jitted.__wrapped__
+    leaves, treedef = jax.tree.flatten(args)
+    specs = [jax.ShapeDtypeStruct(np.shape(leaf), _dtype(leaf)) for leaf in leaves]
+    key = _key(fun, method, treedef, specs)
+    call = _loaded.get(key)
+    if call is None:
+        call = _load_or_export(folder / f"{key}.jaxexport", fun, method, treedef, specs)
+        if call is None:
+            return jitted(*args, method=method)
+        _loaded[key] = call
+    out_type, names, call = call
+    outputs = call(*leaves)
+    return out_type(**dict(zip(names, outputs)))
+
+
+def _dtype(leaf) -> np.dtype:
+    dtype = getattr(leaf, "dtype", None)
+    return np.dtype(dtype) if dtype is not None else np.asarray(leaf).dtype
+
+
+def _key(fun: Callable, method, treedef, specs) -> str:
+    """A hash of everything that decides the traced program."""
+    options = [(name, str(getattr(jax.config, name, None))) for name in _TRACING_OPTIONS]
+    parts = [
+        _package_source_hash(), jax.__version__, _jaxlib_version(),
+        jax.default_backend(), repr(options), f"{fun.__module__}.{fun.__qualname__}", repr(method), str(treedef),
+        repr([(tuple(s.shape), str(s.dtype)) for s in specs]),
+    ]
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:40]
+
+
+def _jaxlib_version() -> str:
+    try:
+        import jaxlib
+    except ImportError:
+        return ""
+    return str(getattr(jaxlib, "__version__", ""))
+
+
+def _package_source_hash() -> str:
+    """A hash of every ``.py`` file of the package (names and contents), once per process."""
+    global _source_hash
+    if _source_hash is None:
+        digest = hashlib.sha256()
+        for path in sorted(_PACKAGE_ROOT.rglob("*.py")):
+            digest.update(str(path.relative_to(_PACKAGE_ROOT)).encode())
+            digest.update(path.read_bytes())
+        _source_hash = digest.hexdigest()
+    return _source_hash
+
+
+def _load_or_export(path: Path, fun: Callable, method, treedef, specs):
+    """``(output type, output field names, jitted call)`` of the stored program at
+    ``path``, exported and written there first when missing or unreadable; None when
+    ``jax.export`` cannot serialise here.
+
+    File: one JSON line (the output dataclass and its field names, so that a later process
+    rebuilds the result without tracing), then the serialised program."""
+    from jax import export
+
+    try:
+        header, blob = path.read_bytes().split(b"\n", 1)
+        meta = json.loads(header)
+        out_type = _import_name(meta["output"])
+        return out_type, tuple(meta["fields"]), jax.jit(export.deserialize(bytearray(blob)).call)
+    except FileNotFoundError:
+        pass
+    except Exception:  # a file from an interrupted or foreign writer: export it again
+        pass
+    traced = {}
+
+    def flat(*leaves):
+        result = fun(*jax.tree.unflatten(treedef, leaves), method=method)
+        traced["type"] = type(result)
+        traced["fields"] = tuple(field.name for field in dataclasses.fields(result))
+        return tuple(getattr(result, name) for name in traced["fields"])
+
+    exported = export.export(jax.jit(flat))(*specs)
+    out_type, names = traced["type"], traced["fields"]
+    try:
+        blob = exported.serialize()
+    except ImportError:  # flatbuffers missing
+        return None
+    header = json.dumps({"output": f"{out_type.__module__}:{out_type.__qualname__}", "fields": names})
+    _write_whole(path, header.encode() + b"\n" + bytes(blob))
+    return out_type, names, jax.jit(exported.call)
+
+
+def _import_name(name: str) -> type:
+    """The object ``module:qualname`` names."""
+    module, qualname = name.split(":")
+    found = importlib.import_module(module)
+    for part in qualname.split("."):
+        found = getattr(found, part)
+    return found
+
+
+def _write_whole(path: Path, data: bytes) -> None:
+    """``data`` to ``path`` through a temporary file in its folder and a rename; a failure
+    (full disk, read-only folder) leaves nothing behind and is not an error."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError:
+        return
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.replace(temporary, path)
+    except OSError:
+        with contextlib.suppress(OSError):
+            os.unlink(temporary)

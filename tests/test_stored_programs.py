@@ -1,0 +1,126 @@
+"""Programs stored with ``jax.export`` (``cdog_jax/_stored_programs.py``): a later process
+loads the lowered program instead of tracing, with bitwise the same results; stale,
+corrupt or foreign entries are never used."""
+
+import dataclasses
+import os
+import subprocess
+import sys
+from unittest import mock
+
+import numpy as np
+import pytest
+from helpers import random_scene, ring_rig
+
+import cdog_jax
+from cdog_jax import Config
+from cdog_jax import _stored_programs as stored
+from cdog_jax._associate import _associate_jit, _prepare
+
+RIG = ring_rig(4)
+P = 20  # padded to 32 slots
+
+
+@pytest.fixture
+def fresh_store(tmp_path, monkeypatch):
+    """Stored programs in an empty folder, none loaded in this process yet."""
+    monkeypatch.setenv("CDOG_JAX_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(stored, "_loaded", {})
+    folder = stored.stored_programs_dir()
+    assert folder is not None and folder.is_relative_to(tmp_path)
+    return folder
+
+
+def _fields(result):
+    return {f.name: np.asarray(getattr(result, f.name)) for f in dataclasses.fields(result)}
+
+
+def _assert_bitwise(a, b):
+    fa, fb = _fields(a), _fields(b)
+    for name in fa:
+        assert fa[name].dtype == fb[name].dtype and np.array_equal(fa[name], fb[name]), name
+
+
+def _direct(xy, mask, sigma, method):
+    static, th = _prepare(method, sigma, None, np.float32)
+    padded_xy = np.pad(xy, ((0, 0), (0, 32 - P), (0, 0)))
+    padded_mask = np.pad(mask, ((0, 0), (0, 32 - P)))
+    return cdog_jax._shapes.trim(_associate_jit(RIG, padded_xy, padded_mask, th, method=static), P)
+
+
+def test_stored_program_is_written_then_loaded_without_tracing(fresh_store):
+    xy, mask, _, _ = random_scene(RIG, 12, P, sigma=1.0, seed=3)
+    method = Config.paper()
+    first = cdog_jax.associate(RIG, xy, mask, sigma=1.0, method=method)
+    files = list(fresh_store.glob("*.jaxexport"))
+    assert len(files) == 1 and stored.loaded_programs() == 1
+    _assert_bitwise(first, _direct(xy, mask, 1.0, method))
+
+    # As a new process would: nothing loaded yet; the method is never traced again.
+    stored._loaded.clear()
+    with mock.patch.object(Config, "associate_scene", side_effect=AssertionError("traced again")):
+        again = cdog_jax.associate(RIG, xy, mask, sigma=1.0, method=method)
+    _assert_bitwise(first, again)
+    assert list(fresh_store.glob("*.jaxexport")) == files
+
+
+def test_a_corrupt_entry_is_exported_again(fresh_store):
+    xy, mask, _, _ = random_scene(RIG, 12, P, sigma=1.0, seed=4)
+    method = Config.paper()
+    first = cdog_jax.associate(RIG, xy, mask, sigma=1.0, method=method)
+    (path,) = fresh_store.glob("*.jaxexport")
+    path.write_bytes(path.read_bytes()[:1000])  # an interrupted writer from elsewhere
+    stored._loaded.clear()
+    again = cdog_jax.associate(RIG, xy, mask, sigma=1.0, method=method)
+    _assert_bitwise(first, again)
+    assert path.stat().st_size > 1000
+
+
+def test_every_input_that_changes_the_program_changes_the_key(fresh_store):
+    xy, mask, _, _ = random_scene(RIG, 12, P, sigma=1.0, seed=5)
+    cdog_jax.associate(RIG, xy, mask, sigma=1.0, method=Config.paper())
+    cdog_jax.associate(RIG, xy, mask, sigma=2.0, method=Config.paper(delta=0.7))  # numbers only: same program
+    assert len(list(fresh_store.glob("*.jaxexport"))) == 1
+    cdog_jax.associate(RIG, xy, mask, sigma="auto", method=Config.paper())  # σ estimated: another structure
+    xy40, mask40, _, _ = random_scene(RIG, 12, 40, sigma=1.0, seed=5)
+    cdog_jax.associate(RIG, xy40, mask40, sigma=1.0, method=Config.paper())  # 64 slots
+    cdog_jax.associate(RIG, xy, mask, sigma=1.0, method=Config.paper(), min_views=3)  # the finishing program
+    assert len(list(fresh_store.glob("*.jaxexport"))) == 4
+    with mock.patch.object(stored, "_package_source_hash", return_value="edited source"):
+        cdog_jax.associate(RIG, xy, mask, sigma=1.0, method=Config.paper())
+    assert len(list(fresh_store.glob("*.jaxexport"))) == 5
+
+
+def test_nothing_is_stored_when_the_cache_is_off_or_the_method_is_foreign(fresh_store, monkeypatch):
+    from methods.mutual_nn_method import MutualNearest
+
+    xy, mask, _, _ = random_scene(RIG, 12, P, sigma=1.0, seed=6)
+    cdog_jax.associate(RIG, xy, mask, sigma=1.0, method=MutualNearest())  # code outside the package
+    assert not fresh_store.exists() or not list(fresh_store.glob("*.jaxexport"))
+    monkeypatch.setenv("CDOG_JAX_CACHE", "0")
+    assert stored.stored_programs_dir() is None
+    cdog_jax.associate(RIG, xy, mask, sigma=1.0, method=Config.paper())
+    assert not fresh_store.exists() or not list(fresh_store.glob("*.jaxexport"))
+
+
+def test_a_second_process_loads_the_program_and_agrees(fresh_store, tmp_path):
+
+    script = (
+        "import sys, numpy as np, cdog_jax\n"
+        "sys.path.insert(0, sys.argv[2])\n"
+        "from helpers import random_scene, ring_rig\n"
+        "xy, mask, _, _ = random_scene(ring_rig(4), 12, 20, sigma=1.0, seed=7)\n"
+        "r = cdog_jax.associate(ring_rig(4), xy, mask, sigma=1.0, method=cdog_jax.Config.paper())\n"
+        "np.savez(sys.argv[1], labels=np.asarray(r.labels), points3d=np.asarray(r.points3d))\n"
+    )
+    tests = os.path.dirname(__file__)
+    outputs, written = [], []
+    for run in range(2):
+        out = tmp_path / f"run{run}.npz"
+        subprocess.run([sys.executable, "-c", script, str(out), tests], check=True)
+        outputs.append(np.load(out))
+        (path,) = fresh_store.glob("*.jaxexport")
+        written.append(path.stat().st_mtime_ns)
+    assert written[0] == written[1]  # the second process loaded it, wrote nothing
+    for name in ("labels", "points3d"):
+        assert np.array_equal(outputs[0][name], outputs[1][name])
