@@ -338,9 +338,9 @@ def associate_batch(
         part = slice(start, start + chunk)
         rig_part = rig if shared else Rig(*(jnp.asarray(a[part]) for a in rig_arrays))
         extras_part = None if extras is None else (extras[0], None if extras[1] is None else extras[1][part], extras[2])
-        results.append(_associate_batch_jit(
-            rig_part, xy[part], mask[part], type(th)(*(v[part] for v in th)), extras_part,
-            method=static, shared_rig=shared,
+        results.append(call_stored(
+            _associate_batch_jit, (rig_part, xy[part], mask[part], type(th)(*(v[part] for v in th)), extras_part),
+            static, shared_rig=shared,
         ))
     if len(results) > 1:
         results = [jax.tree.map(lambda *parts: np.concatenate([np.asarray(p) for p in parts]), *results)]

@@ -10,8 +10,8 @@ and its compilation is then found in the compilation cache.
 
 Key: a hash of everything that decides the program: the package's own source files, the
 JAX and jaxlib versions, the backend, the JAX options that change tracing, the function,
-the static method (its ``repr``; only methods defined in this package, whose code the
-source hash covers) and the structure, shapes and dtypes of the arguments. A stale entry
+the static method and arguments (their ``repr``; only methods defined in this package,
+whose code the source hash covers) and the structure, shapes and dtypes of the arguments. A stale entry
 is therefore never loaded; an unreadable one is ignored and written again. Files are
 written whole or not at all (a temporary file renamed), so concurrent processes at worst
 export the same program twice. Off whenever the compilation cache is off.
@@ -42,11 +42,11 @@ _PACKAGE_ROOT = Path(__file__).resolve().parent
 _TRACING_OPTIONS = ("jax_enable_x64", "jax_default_matmul_precision", "jax_numpy_dtype_promotion",
                     "jax_numpy_rank_promotion", "jax_default_prng_impl")
 _source_hash: str | None = None
-_loaded: dict[str, Callable] = {}  # key → jitted call of the deserialised program, this process
+_loaded: dict[str, tuple | None] = {}  # key → (output structure, jitted call), None: not storable
 
 
 def loaded_programs() -> int:
-    """Stored programs this process has loaded or exported (each one compiled once)."""
+    """Programs this process has looked up here (loaded, exported, or found not storable)."""
     return len(_loaded)
 
 
@@ -59,32 +59,32 @@ def stored_programs_dir() -> Path | None:
     return None if folder is None else folder / "exported"
 
 
-def call_stored(jitted: Callable, args: tuple, method) -> Any:
-    """``jitted(*args, method=method)`` (a ``jax.jit`` with the static argument
-    ``method``), its lowered program loaded from disk where an earlier process stored it
-    (and stored here otherwise).
+def call_stored(jitted: Callable, args: tuple, method, **static) -> Any:
+    """``jitted(*args, method=method, **static)`` (a ``jax.jit`` whose static arguments
+    are ``method`` and ``static``'s, hashable values with a deterministic ``repr``), its
+    lowered program loaded from disk where an earlier process stored it (and stored here
+    otherwise).
 
     The function returns a dataclass pytree of arrays (e.g. an ``Association``); ``args``
     may hold pytrees and None. Falls back to ``jitted`` itself where nothing can be stored:
     the cache is off, the method is defined outside this package, or ``jax.export`` cannot
-    serialise (its ``flatbuffers`` dependency missing).
+    serialise (its ``flatbuffers`` dependency missing, or custom calls it does not store).
     """
     folder = stored_programs_dir()
     if folder is None or not type(method).__module__.startswith(f"{__package__}."):
-        return jitted(*args, method=method)
+        return jitted(*args, method=method, **static)
     fun = jitted.__wrapped__
     leaves, treedef = jax.tree.flatten(args)
     specs = [jax.ShapeDtypeStruct(np.shape(leaf), _dtype(leaf)) for leaf in leaves]
-    key = _key(fun, method, treedef, specs)
-    call = _loaded.get(key)
-    if call is None:
-        call = _load_or_export(folder / f"{key}.jaxexport", fun, method, treedef, specs)
-        if call is None:
-            return jitted(*args, method=method)
-        _loaded[key] = call
-    out_type, names, call = call
+    static = dict(sorted(static.items()), method=method)
+    key = _key(fun, static, treedef, specs)
+    if key not in _loaded:
+        _loaded[key] = _load_or_export(folder / f"{key}.jaxexport", fun, static, treedef, specs)
+    if _loaded[key] is None:  # not storable: traced and compiled as usual
+        return jitted(*args, **static)
+    out_tree, call = _loaded[key]
     outputs = call(*leaves)
-    return out_type(**dict(zip(names, outputs)))
+    return jax.tree.unflatten(out_tree, outputs)
 
 
 def _dtype(leaf) -> np.dtype:
@@ -92,12 +92,12 @@ def _dtype(leaf) -> np.dtype:
     return np.dtype(dtype) if dtype is not None else np.asarray(leaf).dtype
 
 
-def _key(fun: Callable, method, treedef, specs) -> str:
+def _key(fun: Callable, static: dict, treedef, specs) -> str:
     """A hash of everything that decides the traced program."""
     options = [(name, str(getattr(jax.config, name, None))) for name in _TRACING_OPTIONS]
     parts = [
         _package_source_hash(), jax.__version__, _jaxlib_version(),
-        jax.default_backend(), repr(options), f"{fun.__module__}.{fun.__qualname__}", repr(method), str(treedef),
+        jax.default_backend(), repr(options), f"{fun.__module__}.{fun.__qualname__}", repr(static), str(treedef),
         repr([(tuple(s.shape), str(s.dtype)) for s in specs]),
     ]
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:40]
@@ -123,8 +123,8 @@ def _package_source_hash() -> str:
     return _source_hash
 
 
-def _load_or_export(path: Path, fun: Callable, method, treedef, specs):
-    """``(output type, output field names, jitted call)`` of the stored program at
+def _load_or_export(path: Path, fun: Callable, static: dict, treedef, specs):
+    """``(output pytree structure, jitted call)`` of the stored program at
     ``path``, exported and written there first when missing or unreadable; None when
     ``jax.export`` cannot serialise here.
 
@@ -135,8 +135,8 @@ def _load_or_export(path: Path, fun: Callable, method, treedef, specs):
     try:
         header, blob = path.read_bytes().split(b"\n", 1)
         meta = json.loads(header)
-        out_type = _import_name(meta["output"])
-        return out_type, tuple(meta["fields"]), jax.jit(export.deserialize(bytearray(blob)).call)
+        out_tree = _output_tree(_import_name(meta["output"]), meta["fields"])
+        return out_tree, jax.jit(export.deserialize(bytearray(blob)).call)
     except FileNotFoundError:
         pass
     except Exception:  # a file from an interrupted or foreign writer: export it again
@@ -144,20 +144,36 @@ def _load_or_export(path: Path, fun: Callable, method, treedef, specs):
     traced = {}
 
     def flat(*leaves):
-        result = fun(*jax.tree.unflatten(treedef, leaves), method=method)
+        result = fun(*jax.tree.unflatten(treedef, leaves), **static)
         traced["type"] = type(result)
         traced["fields"] = tuple(field.name for field in dataclasses.fields(result))
         return tuple(getattr(result, name) for name in traced["fields"])
 
-    exported = export.export(jax.jit(flat))(*specs)
-    out_type, names = traced["type"], traced["fields"]
     try:
+        exported = export.export(jax.jit(flat))(*specs)
         blob = exported.serialize()
     except ImportError:  # flatbuffers missing
         return None
+    except ValueError as error:
+        # Custom calls without a compatibility promise (e.g. a LAPACK solve of refinement):
+        # jax.export refuses them; such a program is traced and compiled as usual.
+        if "custom call" in str(error):
+            return None
+        raise
+    out_type, names = traced["type"], traced["fields"]
     header = json.dumps({"output": f"{out_type.__module__}:{out_type.__qualname__}", "fields": names})
     _write_whole(path, header.encode() + b"\n" + bytes(blob))
-    return out_type, names, jax.jit(exported.call)
+    return _output_tree(out_type, names), jax.jit(exported.call)
+
+
+def _output_tree(kind: type, names) -> Any:
+    """The pytree structure of a ``kind`` dataclass whose fields ``names`` are arrays, built
+    without its ``__init__`` (whose shape checks a batched result would fail), as
+    ``jax.tree.unflatten`` builds one."""
+    template = object.__new__(kind)
+    for name in names:
+        object.__setattr__(template, name, 0)
+    return jax.tree.structure(template)
 
 
 def _import_name(name: str) -> type:

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -85,7 +86,8 @@ def full_grid(methods: list[str], runs: int, quick: bool, warm_runs: int, cpu_de
                "--cpu-devices", str(cpu_devices)]
         if quick:
             cmd.append("--quick")
-        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        env = dict(os.environ, CDOG_JAX_CACHE="0")  # every cold call compiles from nothing
+        proc = subprocess.run(cmd, capture_output=True, text=True, check=False, env=env)
         if proc.returncode != 0:
             raise RuntimeError(f"run {r} failed:\n{proc.stderr[-3000:]}")
         reports.append(json.loads(proc.stdout.strip().splitlines()[-1]))
@@ -139,8 +141,8 @@ def _grid_table(columns: list[list[dict]]) -> None:
     meds = [{k: float(np.median([r[k] for r in reps])) for k in ("cold_s", "compile_s", "warm_s", "rss_gb", "process_s")}
             for reps in columns]
     scenes = columns[0][0]["scenes"]
-    head = " | ".join(f"{reps[0]['devices']} device(s), median of {len(reps)}" for reps in columns)
-    print(f"\n| grid ({scenes} scenes, {columns[0][0]['device']}) | {head} | before (1 device, 2-core CPU) |")
+    head = " | ".join(f"{reps[0]['device']}, median of {len(reps)}" for reps in columns)
+    print(f"\n| grid ({scenes} scenes) | {head} | before (1 device, 2-core CPU) |")
     print("|---" * (len(columns) + 2) + "|")
 
     def row(label, fmt, key, ref=None):

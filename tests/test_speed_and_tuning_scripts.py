@@ -23,7 +23,7 @@ def test_bench_speed_quick_grid_in_a_fresh_process(capsys):
     module = _load("bench_speed")
     module.main(["--quick", "--runs", "1", "--warm", "1", "--skip-single", "--cpu-devices", "1,2"])
     text = capsys.readouterr().out
-    head = "| grid (24 scenes, cpu: 1 × cpu (1 process)) | 1 device(s), median of 1 | 2 device(s), median of 1 |"
+    head = "| grid (24 scenes) | cpu: 1 × cpu (1 process), median of 1 | cpu: 2 × cpu (1 process), median of 1 |"
     assert head in text, text
     for row in ("| cold call (trace + compile + run) |", "| warm call |", "| peak RSS |", "scenes/s"):
         assert row in text, row

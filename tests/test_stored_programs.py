@@ -124,3 +124,15 @@ def test_a_second_process_loads_the_program_and_agrees(fresh_store, tmp_path):
     assert written[0] == written[1]  # the second process loaded it, wrote nothing
     for name in ("labels", "points3d"):
         assert np.array_equal(outputs[0][name], outputs[1][name])
+
+
+def test_a_stored_batch_program_agrees_with_its_first_run(fresh_store):
+    scenes = [random_scene(RIG, 12, P, sigma=1.0, seed=s) for s in range(3)]
+    xy, mask = np.stack([s[0] for s in scenes]), np.stack([s[1] for s in scenes])
+    first = cdog_jax.associate_batch(RIG, xy, mask, sigma=1.0, method=Config.paper(), batch_size=2)
+    assert len(list(fresh_store.glob("*.jaxexport"))) == 1  # one program: chunks of 2 scenes
+    stored._loaded.clear()
+    with mock.patch.object(Config, "associate_scene", side_effect=AssertionError("traced again")):
+        again = cdog_jax.associate_batch(RIG, xy, mask, sigma=1.0, method=Config.paper(), batch_size=2)
+    _assert_bitwise(first, again)
+    assert first.labels.shape == (3, RIG.num_views, P)
