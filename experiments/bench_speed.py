@@ -47,7 +47,7 @@ def _child(methods: list[str], quick: bool, warm_runs: int, cpu_devices: int) ->
 
     from cdog_jax.benchmark import METHODS, Grid, sweep, use_cpu_cores
 
-    use_cpu_cores(cpu_devices or None)
+    use_cpu_cores(count=cpu_devices or None)
     from cdog_jax.synthetic import default_rig
 
     grid = Grid.quick() if quick else Grid.paper()

@@ -92,7 +92,9 @@ def test_every_input_that_changes_the_program_changes_the_key(fresh_store):
 
 
 def test_nothing_is_stored_when_the_cache_is_off_or_the_method_is_foreign(fresh_store, monkeypatch):
-    from methods.mutual_nn_method import MutualNearest
+    # Imported by the name tests/methods/test_new_method.py uses: one module, one registration.
+    sys.path.insert(0, os.path.join(os.path.dirname(__file__), "methods"))
+    from mutual_nn_method import MutualNearest
 
     xy, mask, _, _ = random_scene(RIG, 12, P, sigma=1.0, seed=6)
     cdog_jax.associate(RIG, xy, mask, sigma=1.0, method=MutualNearest())  # code outside the package

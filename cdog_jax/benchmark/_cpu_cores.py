@@ -30,7 +30,7 @@ def cpu_device_count_chosen() -> bool:
     return int(jax.config.jax_num_cpu_devices) > 0 or "xla_force_host_platform_device_count" in os.environ.get("XLA_FLAGS", "")
 
 
-def use_cpu_cores(count: int | None = None) -> int:
+def use_cpu_cores(*, count: int | None = None) -> int:
     """Give JAX ``count`` CPU devices (default: one per usable core) for :func:`sweep`.
 
     Call it right after ``import jax`` and before any JAX operation: JAX fixes its devices
@@ -53,7 +53,7 @@ def use_cpu_cores(count: int | None = None) -> int:
         have = len(jax.devices("cpu"))
         if count is not None and have != wanted:
             raise RuntimeError(
-                f"use_cpu_cores: JAX already runs with {have} CPU device(s); call use_cpu_cores({wanted}) "
+                f"use_cpu_cores: JAX already runs with {have} CPU device(s); call use_cpu_cores(count={wanted}) "
                 "right after `import jax`, before any JAX operation"
             )
         return have

@@ -25,7 +25,7 @@ def test_a_fresh_process_gets_one_device_per_core_or_the_count_asked_for():
         "n = use_cpu_cores({arg})\nprint(n, len(jax.devices('cpu')))"
     )
     assert _run(code.format(arg="")) == f"{usable_cores()} {usable_cores()}"
-    assert _run(code.format(arg="3")) == "3 3"
+    assert _run(code.format(arg="count=3")) == "3 3"
 
 
 def test_a_count_the_user_chose_is_kept():
@@ -38,7 +38,7 @@ def test_too_late_is_an_error_that_says_what_to_do():
         "import jax, jax.numpy as jnp\nfrom cdog_jax.benchmark import use_cpu_cores\n"
         "jnp.zeros(2).block_until_ready()\n"
         "have = len(jax.devices('cpu'))\nassert use_cpu_cores() == have\n"
-        "try:\n    use_cpu_cores(have + 1)\nexcept RuntimeError as e:\n    print(e)\n"
+        "try:\n    use_cpu_cores(count=have + 1)\nexcept RuntimeError as e:\n    print(e)\n"
     )
     message = _run(code)
     assert "already runs with 1 CPU device(s)" in message and "right after `import jax`" in message
@@ -46,4 +46,4 @@ def test_too_late_is_an_error_that_says_what_to_do():
 
 def test_a_count_below_one_is_refused():
     with pytest.raises(ValueError, match="count must be at least 1"):
-        use_cpu_cores(0)
+        use_cpu_cores(count=0)
