@@ -69,6 +69,11 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--no-timing", action="store_true", help="skip the per-scene time estimates")
+    p.add_argument(
+        "--no-progress", action="store_true",
+        help="no progress between buckets: the compiled sweep is then kept in the compilation cache for later "
+        "runs (a sweep that reports progress calls back into Python, and JAX never stores such a program)",
+    )
     p.set_defaults(func=run)
 
 
@@ -170,7 +175,10 @@ def run(args: argparse.Namespace) -> int:
     )
     print("Generating, associating and scoring every scene in one compiled call (compiling first) …", flush=True)
     # A live bar in a terminal; in a log, one line per finished bucket.
-    progress, close_bar = sweep_bar(grid.num_scenes) if interactive() else (print_progress, lambda: None)
+    if args.no_progress:
+        progress, close_bar = None, lambda: None
+    else:
+        progress, close_bar = sweep_bar(grid.num_scenes) if interactive() else (print_progress, lambda: None)
     t0 = time.perf_counter()
     try:
         result = sweep(

@@ -57,8 +57,9 @@ def test_benchmark_rig_file_with_explicit_box(tmp_path, capsys):
     out = tmp_path / "bench"
     argv = ["benchmark", "--quick", "--rig", str(tmp_path / "rig.json"), "--sigmas", "1", "--counts", "4"]
     argv += ["--scenes", "1", "--methods", "paper", "--no-figures", "--no-timing", "--out", out]
-    argv += ["--box", "-0.5", "-0.5", "0", "0.5", "0.5", "0.4"]
+    argv += ["--box", "-0.5", "-0.5", "0", "0.5", "0.5", "0.4", "--no-progress"]
     assert main(argv) == 0
     text = capsys.readouterr().out
     assert "image 640×480 px (the rig file)" in text and "(--box)" in text
+    assert "bucket 1/1" not in text  # --no-progress: no report between buckets
     np.testing.assert_allclose(load_results(out).box, [[-0.5, -0.5, 0.0], [0.5, 0.5, 0.4]], rtol=1e-6)
