@@ -43,6 +43,7 @@ _TRACING_OPTIONS = ("jax_enable_x64", "jax_default_matmul_precision", "jax_numpy
                     "jax_numpy_rank_promotion", "jax_default_prng_impl")
 _source_hash: str | None = None
 _loaded: dict[str, tuple | None] = {}  # key → (output structure, jitted call), None: not storable
+_keys: dict[tuple, str] = {}  # call signature → key, this process
 
 
 def loaded_programs() -> int:
@@ -75,10 +76,16 @@ def call_stored(jitted: Callable, args: tuple, method, **static) -> Any:
         return jitted(*args, method=method, **static)
     fun = jitted.__wrapped__
     leaves, treedef = jax.tree.flatten(args)
-    specs = [jax.ShapeDtypeStruct(np.shape(leaf), _dtype(leaf)) for leaf in leaves]
+    avals = tuple((np.shape(leaf), _dtype(leaf)) for leaf in leaves)
     static = dict(sorted(static.items()), method=method)
-    key = _key(fun, static, treedef, specs)
+    options = tuple(str(getattr(jax.config, name, None)) for name in _TRACING_OPTIONS)
+    # Hashing the key takes ~0.1 ms: computed once per process for each call signature.
+    signature = (fun, tuple(static.items()), treedef, avals, options)
+    if signature not in _keys:
+        _keys[signature] = _key(fun, static, treedef, avals, options)
+    key = _keys[signature]
     if key not in _loaded:
+        specs = [jax.ShapeDtypeStruct(shape, dtype) for shape, dtype in avals]
         _loaded[key] = _load_or_export(folder / f"{key}.jaxexport", fun, static, treedef, specs)
     if _loaded[key] is None:  # not storable: traced and compiled as usual
         return jitted(*args, **static)
@@ -92,13 +99,13 @@ def _dtype(leaf) -> np.dtype:
     return np.dtype(dtype) if dtype is not None else np.asarray(leaf).dtype
 
 
-def _key(fun: Callable, static: dict, treedef, specs) -> str:
-    """A hash of everything that decides the traced program."""
-    options = [(name, str(getattr(jax.config, name, None))) for name in _TRACING_OPTIONS]
+def _key(fun: Callable, static: dict, treedef, avals, options: tuple) -> str:
+    """A hash of everything that decides the traced program (``avals``: each argument
+    leaf's shape and dtype; ``options``: the values of ``_TRACING_OPTIONS``)."""
     parts = [
         _package_source_hash(), jax.__version__, _jaxlib_version(),
-        jax.default_backend(), repr(options), f"{fun.__module__}.{fun.__qualname__}", repr(static), str(treedef),
-        repr([(tuple(s.shape), str(s.dtype)) for s in specs]),
+        jax.default_backend(), repr(list(zip(_TRACING_OPTIONS, options))), f"{fun.__module__}.{fun.__qualname__}", repr(static), str(treedef),
+        repr([(tuple(shape), str(dtype)) for shape, dtype in avals]),
     ]
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:40]
 
@@ -137,9 +144,7 @@ def _load_or_export(path: Path, fun: Callable, static: dict, treedef, specs):
         meta = json.loads(header)
         out_tree = _output_tree(_import_name(meta["output"]), meta["fields"])
         return out_tree, jax.jit(export.deserialize(bytearray(blob)).call)
-    except FileNotFoundError:
-        pass
-    except Exception:  # a file from an interrupted or foreign writer: export it again
+    except Exception:  # missing, or from an interrupted or foreign writer: export it (again)
         pass
     traced = {}
 
@@ -187,7 +192,9 @@ def _import_name(name: str) -> type:
 
 def _write_whole(path: Path, data: bytes) -> None:
     """``data`` to ``path`` through a temporary file in its folder and a rename; a failure
-    (full disk, read-only folder) leaves nothing behind and is not an error."""
+    (full disk, read-only folder) leaves nothing behind and is not an error. (Not
+    ``cdog_jax.io``'s ``atomic_write``: this base module may not import the file layer, and
+    a cache entry needs no fsync, permissions or link handling.)"""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)

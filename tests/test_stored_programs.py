@@ -26,6 +26,7 @@ def fresh_store(tmp_path, monkeypatch):
     """Stored programs in an empty folder, none loaded in this process yet."""
     monkeypatch.setenv("CDOG_JAX_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(stored, "_loaded", {})
+    monkeypatch.setattr(stored, "_keys", {})
     folder = stored.stored_programs_dir()
     assert folder is not None and folder.is_relative_to(tmp_path)
     return folder
@@ -86,6 +87,7 @@ def test_every_input_that_changes_the_program_changes_the_key(fresh_store):
     cdog_jax.associate(RIG, xy40, mask40, sigma=1.0, method=Config.paper())  # 64 slots
     cdog_jax.associate(RIG, xy, mask, sigma=1.0, method=Config.paper(), min_views=3)  # the finishing program
     assert len(list(fresh_store.glob("*.jaxexport"))) == 4
+    stored._keys.clear()  # as a new process with edited source would start
     with mock.patch.object(stored, "_package_source_hash", return_value="edited source"):
         cdog_jax.associate(RIG, xy, mask, sigma=1.0, method=Config.paper())
     assert len(list(fresh_store.glob("*.jaxexport"))) == 5

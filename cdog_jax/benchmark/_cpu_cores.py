@@ -24,12 +24,6 @@ def usable_cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def cpu_device_count_chosen() -> bool:
-    """Whether the user already chose JAX's CPU device count (``jax_num_cpu_devices`` or
-    ``XLA_FLAGS=--xla_force_host_platform_device_count``)."""
-    return int(jax.config.jax_num_cpu_devices) > 0 or "xla_force_host_platform_device_count" in os.environ.get("XLA_FLAGS", "")
-
-
 def use_cpu_cores(*, count: int | None = None) -> int:
     """Give JAX ``count`` CPU devices (default: one per usable core) for :func:`sweep`.
 
@@ -57,15 +51,17 @@ def use_cpu_cores(*, count: int | None = None) -> int:
                 "right after `import jax`, before any JAX operation"
             )
         return have
-    if count is None and cpu_device_count_chosen():
-        return _chosen_count()
+    chosen = _chosen_count()
+    if count is None and chosen is not None:
+        return chosen
     jax.config.update("jax_num_cpu_devices", wanted)
     return wanted
 
 
-def _chosen_count() -> int:
-    """The CPU device count the user chose (the JAX option first, then ``XLA_FLAGS``)."""
+def _chosen_count() -> int | None:
+    """The CPU device count the user already chose (``jax_num_cpu_devices`` first, then
+    ``XLA_FLAGS=--xla_force_host_platform_device_count=N``), or None."""
     if int(jax.config.jax_num_cpu_devices) > 0:
         return int(jax.config.jax_num_cpu_devices)
     match = re.search(r"xla_force_host_platform_device_count=(\d+)", os.environ.get("XLA_FLAGS", ""))
-    return int(match.group(1)) if match else 1
+    return int(match.group(1)) if match else None
