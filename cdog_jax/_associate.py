@@ -21,7 +21,7 @@ from ._finish import finish_groups
 from ._memory import check_memory
 from ._method import Method, Observations, method_argument
 from ._result import Association
-from ._shapes import chunk_size, pad_scenes, pad_slots, slot_capacity, trim
+from ._shapes import chunk_size, occupied_slots, pad_scenes, pad_slots, slot_capacity, trim
 from ._stored_programs import call_stored
 from ._types import Array, ArrayLike, Float
 from ._validate import as_array, check_batch_rig, check_observations, check_rig, check_sigma, check_threshold_shapes
@@ -118,9 +118,10 @@ def associate(
     at most the image diagonal: twice the largest principal point of ``rig.K``, or the
     detections' extent ``hypot(max |x|, max |y|)`` where that is larger.
 
-    The compiled program runs at a padded capacity (the smallest power of two ``>= P``, at
-    least 32; ``P`` itself where only that fits the memory budget), so that frames of
-    different counts share a handful of programs; the result is trimmed back to ``P``.
+    The compiled program runs at a padded capacity (the smallest power of two ``>=`` the
+    slots in use, i.e. ``P`` less the trailing slots no view fills, and at least 32; the
+    slots in use themselves where only that fits the memory budget), so that frames of
+    different counts share a handful of programs; the result is brought back to ``P``.
 
     Returns:
         An :class:`Association` (labels, groups, points, errors). Its ``status`` is
@@ -138,7 +139,7 @@ def associate(
         check_threshold_shapes(thresholds, None)
     dtype = _float_dtype(xy)
     M, P = np.shape(mask)
-    capacity = _capacity("associate", M, P, method, dtype, 1, memory_budget_gb, vmapped=None)
+    capacity = _capacity("associate", M, occupied_slots(mask), method, dtype, 1, memory_budget_gb, vmapped=None)
     static, th = _prepare(method, sigma, thresholds, dtype)
     np_dtype = np.dtype(dtype)
     xy = pad_slots(np.asarray(xy, np_dtype), capacity, axis=1)
@@ -164,7 +165,9 @@ def _single_scene(rig, xy, mask, th, extras, method):
 
 def _capacity(where, M, P, method, dtype, batch_size, budget_gb, vmapped) -> int:
     """The padded slot capacity (:func:`slot_capacity`), or ``P`` itself where only the
-    unpadded shapes fit the memory budget; raises ``MemoryError`` where neither does."""
+    unpadded shapes fit the memory budget; raises ``MemoryError`` where neither does.
+    ``P``: the slots in use (:func:`occupied_slots`; one at least)."""
+    P = max(int(P), 1)
     capacity = slot_capacity(P)
     try:
         check_memory(where, M, capacity, method, dtype, batch_size, budget_gb, vmapped=vmapped)
@@ -302,7 +305,7 @@ def associate_batch(
     dtype = _float_dtype(xy)
     M, P = np.shape(mask)[1:]
     chunk = chunk_size(B, batch_size)
-    capacity = _capacity("associate_batch", M, P, method, dtype, chunk, memory_budget_gb, vmapped=True)
+    capacity = _capacity("associate_batch", M, occupied_slots(mask), method, dtype, chunk, memory_budget_gb, vmapped=True)
     static, th = _prepare(method, sigma, thresholds, dtype)
     if dist is not None and not shared:
         raise ValueError("dist needs a shared rig (K of shape (M, 3, 3)); undistort per-scene rigs yourself")

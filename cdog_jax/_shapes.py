@@ -4,7 +4,10 @@ the number of scenes ``B`` (powers of two up to ``batch_size``, then whole chunk
 ``batch_size``), so that a process compiles a handful of programs whatever its frames'
 counts. Padding is neutral: padded slots hold no detection, padded scenes none at all, and
 the result is trimmed back to the caller's shapes (bitwise what the unpadded program
-returns; ALGORITHM.md §16).
+returns; ALGORITHM.md §16). For the same reason trailing slots that no view fills are not
+sent to the program at all: the ladder's rung is chosen from the slots in use
+(:func:`occupied_slots`), and the result is filled back out to the caller's ``P`` with
+what an empty slot and an empty group row hold.
 
 Padding and trimming happen in NumPy on the host, so that they compile nothing.
 """
@@ -33,11 +36,21 @@ def chunk_size(num_scenes: int, batch_size: int) -> int:
     return min(batch_size, 1 << max(int(num_scenes) - 1, 0).bit_length())
 
 
+def occupied_slots(mask: np.ndarray | jax.Array) -> int:
+    """Slots per view up to the last detection of any view (and scene) of ``mask (..., P)``:
+    ``P`` less the trailing slots that hold no detection anywhere; 0 without detections."""
+    used = np.flatnonzero(np.any(np.reshape(mask, (-1, np.shape(mask)[-1])), axis=0))
+    return int(used[-1]) + 1 if used.size else 0
+
+
 def pad_slots(array: np.ndarray, capacity: int, axis: int, fill=0) -> np.ndarray:
-    """``array`` padded along ``axis`` with ``fill`` to length ``capacity``."""
+    """``array`` padded along ``axis`` with ``fill`` to length ``capacity``, or cut to it
+    (callers cut only slots that hold no detection: see :func:`occupied_slots`)."""
     extra = capacity - array.shape[axis]
     if extra == 0:
         return array
+    if extra < 0:
+        return np.take(array, np.arange(capacity), axis=axis)
     widths = [(0, 0)] * array.ndim
     widths[axis] = (0, extra)
     return np.pad(array, widths, constant_values=fill)
@@ -52,19 +65,27 @@ def pad_scenes(array: np.ndarray, num_scenes: int) -> np.ndarray:
     return np.concatenate([array, np.repeat(array[-1:], extra, axis=0)])
 
 
+_EMPTY_ROW = {"groups": -1, "valid": False, "points3d": 0, "bpe": 0, "err_px": 0, "n_views": 0}
+"""What every field of an :class:`Association` holds in a group row past the last group."""
+
+
 def trim(result: Association, num_slots: int, num_scenes: int | None = None) -> Association:
-    """``result`` of a padded call cut back to ``num_slots`` slots per view, hence
+    """``result`` of a padded call brought back to ``num_slots`` slots per view, hence
     ``G = M · num_slots // 2`` group rows (valid groups come first), and, for a batch, to
-    ``num_scenes`` scenes. Fields become device arrays again."""
+    ``num_scenes`` scenes. A call at fewer slots (trailing empty slots left out) is filled
+    out: labels with -1, group rows with :data:`_EMPTY_ROW`, as the program at
+    ``num_slots`` returns them (a group needs two detections, so the program at fewer
+    slots already holds every row a group can use). Fields become device arrays again."""
     host = jax.tree.map(np.asarray, jax.device_get(result))
     lead = () if num_scenes is None else (slice(0, num_scenes),)
     num_groups_max = host.labels.shape[-2] * num_slots // 2
+    group_axis = 0 if num_scenes is None else 1
 
     def cut(name, value):
         if name == "labels":
-            return value[(*lead, Ellipsis, slice(0, num_slots))]
-        if name in ("groups", "valid", "points3d", "bpe", "err_px", "n_views"):
-            return value[(*lead, slice(0, num_groups_max))]
+            return pad_slots(value[lead], num_slots, axis=value.ndim - 1, fill=-1)
+        if name in _EMPTY_ROW:
+            return pad_slots(value[lead], num_groups_max, axis=group_axis, fill=_EMPTY_ROW[name])
         return value[lead]
 
     names = [field.name for field in dataclasses.fields(Association)]  # the pytree's leaf order

@@ -129,3 +129,26 @@ def test_frames_of_up_to_32_detections_per_view_compile_one_program():
     finally:
         jax.monitoring.unregister_event_duration_listener(listener)
     assert len(compiles) <= 1, compiles  # the 32-slot program (none if already compiled)
+
+
+def test_trailing_empty_slots_are_left_out(monkeypatch):
+    """Slots that no view fills at the end of ``P`` are not sent to the program: 13 slots in
+    use of 40 run at 32 slots, not 64, and the result is bitwise that of the program at 40
+    slots (labels of the empty slots -1, the extra group rows empty)."""
+    import cdog_jax._associate as associate_module
+
+    scenes = [_scene(seed, clutter=1) for seed in (6, 7)]
+    wide = [(np.pad(xy, ((0, 0), (0, 27), (0, 0))), np.pad(mask, ((0, 0), (0, 27)))) for xy, mask in scenes]
+    shapes = []
+    program = associate_module._single_scene
+    monkeypatch.setattr(
+        associate_module, "_single_scene", lambda rig, xy, *rest: shapes.append(np.shape(xy)) or program(rig, xy, *rest)
+    )
+    config = Config.paper()
+    got = associate(RIG, *wide[0], config=config)
+    assert shapes == [(RIG.num_views, 32, 2)]
+    _assert_same(got, _unpadded(*wide[0], config))
+    batch = associate_batch(RIG, np.stack([w[0] for w in wide]), np.stack([w[1] for w in wide]), config=config, batch_size=1)
+    for b, (xy, mask) in enumerate(wide):
+        _assert_same(jax.tree.map(lambda a: a[b], batch), _unpadded(xy, mask, config))
+    assert shapes[1:] == [(RIG.num_views, 32, 2)] * 2

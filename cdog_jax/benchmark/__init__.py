@@ -1,5 +1,5 @@
 """The benchmark sweep (docs/BENCHMARK.md §1–2): a noise × density grid generated, associated and
-scored in one compiled call, sharded over devices, saved to NPZ/CSV/JSON, summarised; the named
+scored in one compiled program per capacity bucket, sharded over devices, saved to NPZ/CSV/JSON, summarised; the named
 configurations it compares. Its figures are in :mod:`cdog_jax.viz`."""
 
 from ._grid import DRAW_CAPACITY as DRAW_CAPACITY

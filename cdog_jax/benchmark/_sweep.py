@@ -1,13 +1,16 @@
 """The benchmark sweep (docs/BENCHMARK.md §1–2): generate, associate and score a whole grid
-in one compiled call.
+in one compiled program per capacity bucket.
 
 :func:`sweep` builds every scene of a :class:`Grid` from its own key, runs every config on
-it and scores it with :func:`cdog_jax.metrics.scene_metrics`, all inside one ``jax.jit``:
+it and scores it with :func:`cdog_jax.metrics.scene_metrics`, all inside compiled code:
 
 - Capacity buckets: a scene of ``n`` points is padded to the smallest bucket capacity
   ``>= n`` (scenes are drawn at ``Grid.capacity`` and compacted, so a scene is the same
-  whatever the bucketing). Each bucket is its own ``lax.map`` (``batch_size`` scenes
-  vmapped per step, which bounds memory); results are gathered back to grid order.
+  whatever the bucketing). Each bucket is one ``jax.jit`` program, a ``lax.map``
+  (``batch_size`` scenes vmapped per step, which bounds memory); all are compiled first,
+  then dispatched one after another, and the results gathered back to grid order. Progress
+  is reported from the host as each bucket's results arrive, so the programs hold no
+  callback and persist in the compilation cache with or without progress.
 - Devices: the scene axis of every bucket is split over a one-axis mesh named
   ``"scenes"`` with ``jax.shard_map`` (default: all devices of ``jax.devices()``), each
   bucket padded with empty scenes (dropped afterwards) to ``devices × steps × batch``,
@@ -34,13 +37,12 @@ from __future__ import annotations
 import dataclasses
 import functools
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax.experimental import io_callback
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from .._expect import expect_args
@@ -82,9 +84,10 @@ class SweepResult:
             ``sigma_px_used`` (σ given or estimated), ``tau_px_used`` and ``num_groups``.
         time_s: ``{config: (S,) float64}`` estimated association time per scene (module
             docstring; NaN when timing was off).
-        wall_s: run time of the compiled sweep call (generate + associate + score, all
-            configs and scenes; includes copying the results to the host).
-        compile_s: trace + compile time of that call (0 when it came from the cache).
+        wall_s: run time of the compiled bucket programs (generate + associate + score,
+            all configs and scenes; includes copying the results to the host).
+        compile_s: trace + compile time of those programs (0 for a program this process
+            compiled before; a few seconds when read from the persistent cache).
         timing_s: time spent on the per-bucket timing afterwards (compiles included).
         config_repr: ``{config: repr(Config)}``.
         versions: ``{"jax": …, "jaxlib": …, "cdog_jax": …, "numpy": …}``.
@@ -173,7 +176,6 @@ class _Plan:
     draw_capacity: int
     image_size: tuple[int, int]
     mesh: Mesh
-    progress: bool  # compile in a host callback after each bucket
 
 
 def _scene_outputs(rig, box, thresholds, plan, capacity, batch, args):
@@ -206,58 +208,46 @@ def _map(fn, xs, batch: int):
     return jax.lax.map(fn, xs, batch_size=batch if batch > 1 else None)
 
 
-def _sweep_body(rig, box, thresholds, buckets, gather, *, plan):
-    """All buckets on all devices; returns per-scene outputs in grid order."""
+def _bucket_body(rig, box, thresholds, inputs, *, plan, bucket: int):
+    """One bucket's scenes on all devices: ``(num_points, per-group outputs)``, each with
+    the bucket's (padded) scene axis first."""
+    capacity, batch = plan.capacities[bucket], plan.batch_sizes[bucket]
 
-    def per_device(rig, box, thresholds, buckets):
-        outs = []
-        # With progress, buckets are chained through the report's (always 0) return value:
-        # a report needs its bucket's output and the next bucket needs the report, so XLA
-        # can neither run the reports at the end nor reorder the buckets.
-        token = jnp.int32(0)
-        for b, ((keys, count, sigma), capacity, batch) in enumerate(zip(buckets, plan.capacities, plan.batch_sizes)):
-            one = functools.partial(_scene_outputs, rig, box, thresholds, plan, capacity, batch)
-            num_points, per_group = _map(one, (keys, count + token, sigma), batch)
-            if plan.progress:
-                token = io_callback(_bucket_done, jax.ShapeDtypeStruct((), jnp.int32), b, jnp.sum(num_points))
-                num_points = num_points + token
-            outs.append((num_points, per_group))
-        return tuple(outs)
+    def per_device(rig, box, thresholds, inputs):
+        one = functools.partial(_scene_outputs, rig, box, thresholds, plan, capacity, batch)
+        return _map(one, inputs, batch)
 
     if plan.mesh.devices.size == 1:
         # One device: nothing to split. Without shard_map's manual axes, refinement's
         # linear solves (lineax) trace too: under shard_map they fail ("pytree does not
         # match out_structure"), which _sweep refuses up front for a mesh of several devices.
-        outs = per_device(rig, box, thresholds, buckets)
-    else:
-        rep, shard = PartitionSpec(), PartitionSpec(AXIS)
-        outs = jax.shard_map(
-            per_device,
-            mesh=plan.mesh,
-            in_specs=(rep, rep, rep, shard),
-            out_specs=shard,
-            # The pipeline's loops start from constant carries (replicated) that become
-            # per-scene (varying) values; there are no collectives, so skip the VMA check.
-            check_vma=False,
-        )(rig, box, thresholds, buckets)
-    # Buckets side by side (padding included), then back to grid order.
-    stacked = jax.tree.map(lambda *a: jnp.concatenate(a, axis=0), *outs)
-    return jax.tree.map(lambda a: a[gather], stacked)
+        return per_device(rig, box, thresholds, inputs)
+    rep, shard = PartitionSpec(), PartitionSpec(AXIS)
+    return jax.shard_map(
+        per_device,
+        mesh=plan.mesh,
+        in_specs=(rep, rep, rep, shard),
+        out_specs=shard,
+        # The pipeline's loops start from constant carries (replicated) that become
+        # per-scene (varying) values; there are no collectives, so skip the VMA check.
+        check_vma=False,
+    )(rig, box, thresholds, inputs)
 
 
-_COMPILED: dict = {}  # (plan, argument structure and shapes) -> compiled sweep
-_COMPILED_MAX = 8  # executables kept (oldest dropped first)
+_COMPILED: dict = {}  # (plan, bucket, argument structure and shapes) -> compiled bucket
+_COMPILED_MAX = 16  # executables kept (oldest dropped first)
 
 
-def _compiled(plan: _Plan, args):
-    """The compiled sweep for ``plan`` and the argument shapes (cached); and its compile time."""
+def _compiled(plan: _Plan, bucket: int, args):
+    """The compiled program of one bucket for ``plan`` and the argument shapes (cached in
+    this process, and in the persistent compilation cache); and its compile time."""
     avals = jax.tree.map(lambda a: (a.shape, a.dtype), args)
-    cache_key = (plan, jax.tree.structure(args), tuple(jax.tree.leaves(avals)))
+    cache_key = (plan, bucket, jax.tree.structure(args), tuple(jax.tree.leaves(avals)))
     if cache_key in _COMPILED:
         return _COMPILED[cache_key], 0.0
     t0 = time.perf_counter()
     replicated = NamedSharding(plan.mesh, PartitionSpec())
-    fn = jax.jit(functools.partial(_sweep_body, plan=plan), out_shardings=replicated)
+    fn = jax.jit(functools.partial(_bucket_body, plan=plan, bucket=bucket), out_shardings=replicated)
     compiled = fn.lower(*args).compile()
     elapsed = time.perf_counter() - t0
     _COMPILED[cache_key] = compiled
@@ -278,7 +268,7 @@ class SweepProgress(NamedTuple):
         capacity: slot capacity of the finished bucket.
         scenes_done: grid scenes in all finished buckets.
         num_scenes: grid scenes in the sweep.
-        elapsed_s: seconds since the compiled call started.
+        elapsed_s: seconds since the first bucket program started.
     """
 
     bucket: int
@@ -287,43 +277,6 @@ class SweepProgress(NamedTuple):
     scenes_done: int
     num_scenes: int
     elapsed_s: float
-
-
-class _ProgressState:
-    """Host side of the progress callback: the compiled program calls the module-level
-    :func:`_bucket_done` (so a cached executable works for any callback), which counts
-    device reports and forwards finished buckets to the callback of the running sweep."""
-
-    def __init__(self, callback, layout: "_Layout", num_devices: int):
-        self.callback, self.layout, self.num_devices = callback, layout, num_devices
-        self.reports = [0] * len(layout.capacities)
-        self.done = 0
-        self.t0 = time.perf_counter()
-
-    def bucket_done(self, b: int) -> None:
-        self.reports[b] += 1
-        if self.reports[b] != self.num_devices:  # every device reports its shard
-            return
-        self.done += self.layout.members[b].size
-        self.callback(
-            SweepProgress(
-                bucket=b,
-                num_buckets=len(self.layout.capacities),
-                capacity=self.layout.capacities[b],
-                scenes_done=self.done,
-                num_scenes=int(sum(m.size for m in self.layout.members)),
-                elapsed_s=time.perf_counter() - self.t0,
-            )
-        )
-
-
-_ACTIVE_PROGRESS: list[_ProgressState] = []  # the running sweep's state (one at a time)
-
-
-def _bucket_done(bucket, _) -> np.ndarray:
-    if _ACTIVE_PROGRESS:
-        _ACTIVE_PROGRESS[-1].bucket_done(int(bucket))
-    return np.zeros((), np.int32)
 
 
 def print_progress(p: SweepProgress) -> None:
@@ -454,7 +407,7 @@ def sweep(
     progress: Callable[[SweepProgress], None] | str | bool | None = "auto",
     configs: Mapping[str, Method | str] | None = None,
 ) -> SweepResult:
-    """Generate, associate and score every scene of ``grid`` in one compiled call.
+    """Generate, associate and score every scene of ``grid``: one compiled program per bucket.
 
     Args:
         rig: the cameras, ``K (M, 3, 3)``, ``R (M, 3, 3)``, ``t (M, 3)``; ``grid.views``
@@ -476,9 +429,8 @@ def sweep(
         timing: estimate per-scene association time afterwards (module docstring).
         timing_runs: timed runs per chunk (the median is kept).
         progress: called on the host with a :class:`SweepProgress` each time a bucket
-            finishes, while the compiled call runs (e.g. :func:`print_progress`). Buckets
-            are the only points where the one compiled call reports back; a sweep with
-            and one without progress are two programs (each compiled once). ``"auto"``
+            finishes (e.g. :func:`print_progress`). Reported from the host between the
+            bucket programs, so progress does not change what is compiled. ``"auto"``
             (default, or ``True``): a progress bar on stderr when it is a terminal, else none;
             ``False``: none. In a terminal a line also says while the sweep
             compiles.
@@ -543,7 +495,6 @@ def _sweep(rig, grid, configs, buckets, batch_size, box, image_size, mesh, timin
         draw_capacity=grid.capacity,
         image_size=tuple(int(v) for v in image_size),
         mesh=mesh,
-        progress=progress is not None,
     )
     values = list(configs.values())
     thresholds = tuple(
@@ -551,21 +502,22 @@ def _sweep(rig, grid, configs, buckets, batch_size, box, image_size, mesh, timin
         for _, members in plan.groups
     )
     replicated = NamedSharding(mesh, PartitionSpec())
-    args = (
-        *jax.device_put((rig, box, thresholds), replicated),
-        jax.device_put(layout.inputs, NamedSharding(mesh, PartitionSpec(AXIS))),
-        jax.device_put(layout.gather, replicated),
-    )
+    shared = jax.device_put((rig, box, thresholds), replicated)
+    bucket_args = [(*shared, jax.device_put(inputs, NamedSharding(mesh, PartitionSpec(AXIS)))) for inputs in layout.inputs]
     with compiling(f"the sweep ({len(configs)} method(s), {len(layout.capacities)} bucket(s))"):
-        compiled, compile_s = _compiled(plan, args)
-    if progress is not None:
-        _ACTIVE_PROGRESS.append(_ProgressState(progress, layout, int(mesh.devices.size)))
+        programs = [_compiled(plan, b, args) for b, args in enumerate(bucket_args)]
+    compile_s = sum(elapsed for _, elapsed in programs)
     t0 = time.perf_counter()
-    try:
-        num_points, per_group = jax.device_get(compiled(*args))  # after every report
-    finally:
-        if progress is not None:
-            _ACTIVE_PROGRESS.pop()
+    outputs = [program(*args) for (program, _), args in zip(programs, bucket_args)]  # all dispatched
+    if progress is not None:
+        done, total = 0, int(sum(m.size for m in layout.members))
+        for b, out in enumerate(outputs):
+            jax.block_until_ready(out)
+            done += layout.members[b].size
+            progress(SweepProgress(b, len(outputs), layout.capacities[b], done, total, time.perf_counter() - t0))
+    # Buckets side by side (padding included), then back to grid order.
+    stacked = jax.tree.map(lambda *a: np.concatenate(a, axis=0), *jax.device_get(outputs))
+    num_points, per_group = jax.tree.map(lambda a: a[layout.gather], stacked)
     wall_s = time.perf_counter() - t0
 
     t0 = time.perf_counter()

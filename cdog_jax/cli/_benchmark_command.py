@@ -1,6 +1,6 @@
 """``cdog-jax benchmark``: the benchmark grid (docs/BENCHMARK.md) for several methods, tables and figures.
 
-Runs :func:`~cdog_jax.benchmark.sweep` once (every method and scene in one compiled call),
+Runs :func:`~cdog_jax.benchmark.sweep` once (every method and scene, one compiled program per bucket),
 prints the paper-style table at σ = 0, 1, 3, 5, saves the per-scene results (NPZ, CSV,
 JSON) and writes the figures of :mod:`cdog_jax.viz` into ``--out``.
 """
@@ -32,7 +32,7 @@ def _method_list(text: str) -> tuple[str, ...]:
 
 _DESCRIPTION = (
     "Generate, associate and score a grid of synthetic scenes (noise σ × point count × scenes; "
-    "docs/BENCHMARK.md) for several methods in one compiled call, print the paper-style table "
+    "docs/BENCHMARK.md) for several methods in one compiled program per bucket, print the paper-style table "
     "at σ = 0, 1, 3, 5, save the per-scene results (NPZ, CSV, JSON) and write figures (heat "
     "maps, score surfaces, metrics against σ, time against point count) into --out. The full "
     "grid is 4,410 scenes; --quick runs a small one in under a minute. On a CPU the scenes "
@@ -71,8 +71,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--no-timing", action="store_true", help="skip the per-scene time estimates")
     p.add_argument(
         "--no-progress", action="store_true",
-        help="no progress between buckets: the compiled sweep is then kept in the compilation cache for later "
-        "runs (a sweep that reports progress calls back into Python, and JAX never stores such a program)",
+        help="no progress bar or per-bucket lines (e.g. for a log of several runs)",
     )
     p.set_defaults(func=run)
 
@@ -173,7 +172,7 @@ def run(args: argparse.Namespace) -> int:
         f"methods: {', '.join(configs)}; buckets {buckets}",
         flush=True,
     )
-    print("Generating, associating and scoring every scene in one compiled call (compiling first) …", flush=True)
+    print("Generating, associating and scoring every scene, one compiled program per bucket (compiling first) …", flush=True)
     # A live bar in a terminal; in a log, one line per finished bucket.
     if args.no_progress:
         progress, close_bar = None, lambda: None

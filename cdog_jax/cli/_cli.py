@@ -7,7 +7,7 @@ Commands:
     demo       built-in rig → synthetic scene → :func:`cdog_jax.associate` → summary, metrics
                (docs/BENCHMARK.md §2), timings and a PNG figure; ``--save-scene`` writes files
                (``_demo_command.py``).
-    benchmark  the benchmark grid (docs/BENCHMARK.md §1) for several methods in one compiled call → tables, saved
+    benchmark  the benchmark grid (docs/BENCHMARK.md §1) for several methods, one compiled program per bucket → tables, saved
                results, figures (``_benchmark_command.py``).
     calibrate  perturb the built-in rig, refine it from associations, before/after table and
                a convergence figure (``_calibrate_command.py``).

@@ -12,7 +12,7 @@ import jax.numpy as jnp
 
 from .._status import Status
 from .._types import Array, Bool, Float, Int
-from ._adjacency import EdgeTable, alive_edges
+from ._adjacency import EdgeTable, alive_edges, undirected_ids
 from ._components import component_view_counts, connected_components_capped
 from ._overlap import remove_edges
 
@@ -29,6 +29,13 @@ def _segment_argbest(key, active, seg, num_segments, minimise=True):
     init = jnp.full((num_segments,), fill, key.dtype)
     best = init.at[seg].min(k) if minimise else init.at[seg].max(k)
     return active & (k == best[seg])
+
+
+def _remove(alive, remove, pair):
+    """``alive (E,)`` without the undirected edges of the flagged proposals ``remove (E,)``
+    (every proposal joining the same two nodes, ``pair`` from :func:`undirected_ids`)."""
+    removed = jnp.zeros(alive.shape, bool).at[pair].max(remove, mode="drop")
+    return alive & ~removed.at[pair].get(mode="fill", fill_value=False)
 
 
 def split_conflicts(
@@ -48,61 +55,74 @@ def split_conflicts(
     and an int32 :class:`~cdog_jax.Status` ``()``: ``SPLIT_CAPPED`` when conflicts were left
     after ``max_iters`` rounds (the last resort decided them), ``COMPONENTS_CAPPED`` when a
     components pass stopped at its bound.
+
+    Every edge of ``A`` that the splitting works on is a proposal, so the loop carries the
+    proposals' ``(E,)`` liveness rather than the ``(N, N)`` matrix (E = N·M ≪ N²).
     """
     N = A.shape[0]
     pair_lo = jnp.minimum(edges.src, edges.dst).astype(theta.dtype)
     pair_hi = jnp.maximum(edges.src, edges.dst).astype(theta.dtype)
+    pair = undirected_ids(edges, N)
 
-    def components(A):
-        return connected_components_capped(edges, alive_edges(edges, A), N)
+    def components(alive):
+        return connected_components_capped(edges, alive, N)
 
     def cond(carry):
         _, _, any_conflict, _, it = carry
         return any_conflict & (it < max_iters)
 
     def body(carry):
-        A, labels, _, comp_capped, it = carry
+        alive, labels, _, comp_capped, it = carry
         conflict, _ = _conflicting(labels, node_view, valid, num_views)
         seg = labels[edges.src]
-        cand = alive_edges(edges, A) & conflict[seg]
+        cand = alive & conflict[seg]
         # Lexicographic (θ ↑, distance ↓, pair ↑) best per component; both proposals of
         # one undirected edge tie on every key and are removed together.
         cand = _segment_argbest(theta, cand, seg, N)
         cand = _segment_argbest(edge_dist, cand, seg, N, minimise=False)
         cand = _segment_argbest(pair_lo, cand, seg, N)
         cand = _segment_argbest(pair_hi, cand, seg, N)
-        A = remove_edges(A, edges, cand)
-        labels, capped = components(A)
+        alive = _remove(alive, cand, pair)
+        labels, capped = components(alive)
         conflict, _ = _conflicting(labels, node_view, valid, num_views)
-        return A, labels, jnp.any(conflict), comp_capped | capped, it + 1
+        return alive, labels, jnp.any(conflict), comp_capped | capped, it + 1
 
-    labels, comp_capped = components(A)
+    alive = alive_edges(edges, A)
+    labels, comp_capped = components(alive)
     conflict, _ = _conflicting(labels, node_view, valid, num_views)
-    carry = (A, labels, jnp.any(conflict), comp_capped, jnp.int32(0))
-    A, labels, any_conflict, comp_capped, _ = jax.lax.while_loop(cond, body, carry)
-    A, labels, last_capped = jax.lax.cond(
+    carry = (alive, labels, jnp.any(conflict), comp_capped, jnp.int32(0))
+    alive, labels, any_conflict, comp_capped, _ = jax.lax.while_loop(cond, body, carry)
+    alive, labels, last_capped = jax.lax.cond(
         any_conflict,
-        lambda: _detach_last_resort(A, labels, edges, edge_dist, node_view, valid, num_views),
-        lambda: (A, labels, jnp.bool_(False)),
+        lambda: _detach_last_resort(alive, labels, edges, edge_dist, pair, node_view, valid, num_views),
+        lambda: (alive, labels, jnp.bool_(False)),
     )
+    # The graph: A without every proposal-edge that was removed (edges of A that are not
+    # proposals cannot exist: A is built from them).
+    removed = edges.ok & A[edges.src, edges.dst] & ~alive
+    A = remove_edges(A, edges, removed)
     status = jnp.where(any_conflict, jnp.int32(int(Status.SPLIT_CAPPED)), jnp.int32(0))
     return A, labels, status | jnp.where(comp_capped | last_capped, jnp.int32(int(Status.COMPONENTS_CAPPED)), jnp.int32(0))
 
 
-def _detach_last_resort(A, labels, edges, edge_dist, node_view, valid, num_views):
+def _detach_last_resort(alive, labels, edges, edge_dist, pair, node_view, valid, num_views):
     """In each conflicting component, keep per over-full view the node of smallest mean edge
-    distance (ties: smallest index) and remove every edge of the others; returns the graph,
-    its labels and whether the components pass stopped at its bound."""
-    N = A.shape[0]
+    distance (ties: smallest index) and remove every edge of the others; returns the
+    proposals' liveness, the labels and whether the components pass stopped at its bound."""
+    N = labels.shape[0]
     conflict, counts = _conflicting(labels, node_view, valid, num_views)
-    alive = alive_edges(edges, A)
-    # Each undirected edge may appear as one or two proposals: count it once per endpoint
-    # through a dense symmetric matrix of edge distances.
-    E_dense = jnp.zeros((N, N), edge_dist.dtype).at[edges.src, edges.dst].max(jnp.where(alive, edge_dist, 0.0))
-    E_dense = jnp.maximum(E_dense, E_dense.T)
-    A_f = A.astype(edge_dist.dtype)
-    deg = jnp.sum(A_f, axis=1)
-    mean_dist = jnp.sum(A_f * E_dense, axis=1) / jnp.maximum(deg, 1.0)
+    # Each undirected edge counts once at each end, through its first proposal, with the
+    # largest distance among its proposals.
+    first = alive & (pair == jnp.arange(pair.shape[0], dtype=jnp.int32))
+    other_end = first & (edges.src != edges.dst)
+    dist = edge_dist.dtype
+    pair_dist = jnp.zeros(edge_dist.shape, dist).at[pair].max(jnp.where(alive, edge_dist, 0.0), mode="drop")
+    pair_dist = pair_dist.at[pair].get(mode="fill", fill_value=0.0)
+    total = jnp.zeros((N,), dist).at[edges.src].add(jnp.where(first, pair_dist, 0.0)).at[edges.dst].add(
+        jnp.where(other_end, pair_dist, 0.0)
+    )
+    deg = jnp.zeros((N,), dist).at[edges.src].add(first.astype(dist)).at[edges.dst].add(other_end.astype(dist))
+    mean_dist = total / jnp.maximum(deg, 1.0)
     over_full = conflict[labels] & (counts[labels, node_view] >= 2) & valid  # (N,)
     # Winner per (label, view): smallest mean distance, then smallest node index.
     key = jnp.where(over_full, mean_dist, jnp.inf)
@@ -111,5 +131,5 @@ def _detach_last_resort(A, labels, edges, edge_dist, node_view, valid, num_views
     idx = jnp.where(tied, jnp.arange(N, dtype=jnp.int32), N)
     first = jnp.full((N, num_views), N, jnp.int32).at[labels, node_view].min(idx.astype(jnp.int32))
     detach = over_full & (first[labels, node_view] != jnp.arange(N, dtype=jnp.int32))
-    A = A & ~detach[:, None] & ~detach[None, :]
-    return (A, *connected_components_capped(edges, alive_edges(edges, A), N))
+    alive = alive & ~detach[edges.src] & ~detach[edges.dst]
+    return (alive, *connected_components_capped(edges, alive, N))

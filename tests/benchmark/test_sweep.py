@@ -158,6 +158,13 @@ def test_bucketed_equals_padded_to_max(rig, padded):
     np.testing.assert_array_equal(bucketed.num_points, padded.num_points)
     _assert_same_metrics(bucketed, padded, exact=False)
     assert np.isnan(bucketed.time_s["paper"]).all()
+    # Progress is reported from the host between the bucket programs: without it, the same
+    # programs run (none compiled again), with the same results.
+    quiet = sweep(rig, GRID, configs=CONFIGS, buckets=(8, 16), batch_size=1, timing=False, progress=None)
+    assert quiet.compile_s == 0.0
+    for name in CONFIGS:
+        for field, value in bucketed.metrics[name].items():
+            np.testing.assert_array_equal(quiet.metrics[name][field], value, err_msg=f"{name}.{field}")
 
 
 def test_sharded_equals_unsharded(padded, sharded_run):

@@ -77,3 +77,37 @@ def test_split_reports_its_iteration_bound():
     for c in np.unique(np.asarray(labels)):
         views = np.asarray(view)[np.asarray(labels) == c]
         assert len(views) == len(set(views))
+
+
+def test_split_equals_the_numpy_oracle_with_duplicate_proposals():
+    """Random view-structured graphs whose edges are listed once, or twice (u → v and
+    v → u), as proposals are: the weakest-edge loop and the last resort give the oracle's
+    graph and labels."""
+    from oracle import overlap_theta, split_view_unique
+
+    rng = np.random.default_rng(3)
+    M, P = 4, 4
+    N = M * P
+    view = np.arange(N) // P
+    for trial in range(6):
+        A = np.zeros((N, N), bool)
+        for u, v in rng.integers(0, N, (28, 2)):
+            if view[u] != view[v]:
+                A[u, v] = A[v, u] = True
+        theta = overlap_theta(A)
+        e = rng.integers(1, 40, (N, N)) / 8.0
+        e = np.minimum(e, e.T)  # symmetric distances, as the pipeline's are
+        pairs = []
+        for u, v in zip(*np.nonzero(np.triu(A))):
+            pairs += [(u, v), (v, u)] if rng.random() < 0.5 else [(u, v) if rng.random() < 0.5 else (v, u)]
+        src = np.asarray([p[0] for p in pairs], np.int32)
+        dst = np.asarray([p[1] for p in pairs], np.int32)
+        edges = EdgeTable(jnp.asarray(src), jnp.asarray(dst), jnp.ones(len(pairs), bool))
+        for iters in (1, 2, 64):
+            A_expected, labels_expected = split_view_unique(A, theta, e, M, P, max_iters=iters)
+            A2, labels, _ = split_conflicts(
+                jnp.asarray(A), edges, jnp.asarray(theta[src, dst], jnp.float32), jnp.asarray(e[src, dst], jnp.float32),
+                jnp.asarray(view), jnp.ones(N, bool), M, max_iters=iters,
+            )
+            np.testing.assert_array_equal(np.asarray(A2), A_expected, err_msg=f"trial {trial}, {iters} iterations")
+            np.testing.assert_array_equal(np.asarray(labels), labels_expected, err_msg=f"trial {trial}, {iters} iterations")
