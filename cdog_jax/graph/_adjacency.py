@@ -42,17 +42,22 @@ def nearest_neighbour_edges(d: Float[Array, "M P M P"], tau_px: Float[Array, ""]
     return EdgeTable(src=src, dst=jnp.where(ok, dst, src), ok=ok)
 
 
+def _first_proposals(edges: EdgeTable, num_nodes: int) -> Int[Array, "N N"]:
+    """``(N, N)``: the smallest index of an ``ok`` proposal ``u → v`` at ``[u, v]``, ``E``
+    where there is none. Read at ``(v, u)`` by a gather, it answers what a transpose would,
+    and a transpose of an ``(N, N)`` matrix is slow on a CPU (see :func:`adjacency_from_edges`)."""
+    E, N = edges.src.shape[0], num_nodes
+    return jnp.full((N, N), E, jnp.int32).at[jnp.where(edges.ok, edges.src, N), edges.dst].min(
+        jnp.arange(E, dtype=jnp.int32), mode="drop"
+    )
+
+
 def undirected_ids(edges: EdgeTable, num_nodes: int) -> Int[Array, " E"]:
     """``(E,)``: for every proposal that is an edge (``ok``), the smallest index of an ``ok``
     proposal joining the same two nodes in either direction (one id per undirected edge);
-    ``E`` for the others. Found through an ``(N, N)`` table of the first proposal of each
-    ordered pair, read at ``(u, v)`` and ``(v, u)``: gathers, where a transpose of an
-    ``(N, N)`` matrix is slow on a CPU (see :func:`adjacency_from_edges`)."""
+    ``E`` for the others."""
     E = edges.src.shape[0]
-    N = num_nodes
-    first = jnp.full((N, N), E, jnp.int32).at[jnp.where(edges.ok, edges.src, N), edges.dst].min(
-        jnp.arange(E, dtype=jnp.int32), mode="drop"
-    )
+    first = _first_proposals(edges, num_nodes)
     pair = jnp.minimum(first[edges.src, edges.dst], first[edges.dst, edges.src])
     return jnp.where(edges.ok, pair, E)
 
@@ -68,11 +73,8 @@ def adjacency_from_edges(edges: EdgeTable, num_nodes: int, mode: Adjacency) -> B
     N = num_nodes
     if mode == "mutual":
         # u → v is mutual when v proposed u too (u → u: itself).
-        E = edges.src.shape[0]
-        first = jnp.full((N, N), E, jnp.int32).at[jnp.where(edges.ok, edges.src, N), edges.dst].min(
-            jnp.arange(E, dtype=jnp.int32), mode="drop"
-        )
-        keep = edges.ok & (first[edges.dst, edges.src] < E)
+        first = _first_proposals(edges, N)
+        keep = edges.ok & (first[edges.dst, edges.src] < edges.src.shape[0])
     elif mode == "union":
         keep = edges.ok
     else:

@@ -113,15 +113,15 @@ def _detach_last_resort(alive, labels, edges, edge_dist, pair, node_view, valid,
     conflict, counts = _conflicting(labels, node_view, valid, num_views)
     # Each undirected edge counts once at each end, through its first proposal, with the
     # largest distance among its proposals.
-    first = alive & (pair == jnp.arange(pair.shape[0], dtype=jnp.int32))
-    other_end = first & (edges.src != edges.dst)
+    counted = alive & (pair == jnp.arange(pair.shape[0], dtype=jnp.int32))
+    other_end = counted & (edges.src != edges.dst)
     dist = edge_dist.dtype
     pair_dist = jnp.zeros(edge_dist.shape, dist).at[pair].max(jnp.where(alive, edge_dist, 0.0), mode="drop")
     pair_dist = pair_dist.at[pair].get(mode="fill", fill_value=0.0)
-    total = jnp.zeros((N,), dist).at[edges.src].add(jnp.where(first, pair_dist, 0.0)).at[edges.dst].add(
+    total = jnp.zeros((N,), dist).at[edges.src].add(jnp.where(counted, pair_dist, 0.0)).at[edges.dst].add(
         jnp.where(other_end, pair_dist, 0.0)
     )
-    deg = jnp.zeros((N,), dist).at[edges.src].add(first.astype(dist)).at[edges.dst].add(other_end.astype(dist))
+    deg = jnp.zeros((N,), dist).at[edges.src].add(counted.astype(dist)).at[edges.dst].add(other_end.astype(dist))
     mean_dist = total / jnp.maximum(deg, 1.0)
     over_full = conflict[labels] & (counts[labels, node_view] >= 2) & valid  # (N,)
     # Winner per (label, view): smallest mean distance, then smallest node index.
