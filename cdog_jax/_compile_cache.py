@@ -11,6 +11,9 @@ Where: the per-user cache folder of the platform (``$XDG_CACHE_HOME/cdog_jax`` o
 line's ``--no-cache``). A cache folder the user already configured through JAX
 (``jax_compilation_cache_dir``) is left alone.
 
+What: every program that took at least 0.1 s to compile (a whole pipeline takes seconds);
+operations run one at a time outside ``jit`` compile in milliseconds and are not stored.
+
 Safety: JAX keys every entry by the program, the compiler options, the device and the
 JAX/XLA versions, so a stale entry is never loaded; entries are size-bounded and the folder
 is locked (``filelock``) while an entry is read or written, so concurrent processes share it.
@@ -26,6 +29,8 @@ import jax
 
 #: Entries beyond this total size are evicted, least recently used first (bytes).
 MAX_CACHE_BYTES = 2 * 1024**3
+#: Programs that compile faster than this are not stored (seconds).
+MIN_COMPILE_SECONDS = 0.1
 
 
 def default_cache_dir() -> Path:
@@ -66,10 +71,14 @@ def enable_compilation_cache(path: str | os.PathLike[str] | None = None) -> Path
     except OSError:
         return None  # read-only home, full disk: run without the cache rather than fail
     jax.config.update("jax_compilation_cache_dir", str(folder))
-    # Every program counts: the pipeline's compile in 0.3-5 s each, below JAX's 1 s default.
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    # The pipeline's programs compile in 0.3-7 s each, below JAX's 1 s default. Programs of
+    # one operation (what running JAX outside jit compiles, 5-50 ms each) are left out: they
+    # compile about as fast as they load, and each entry makes every later write slower
+    # (below).
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", MIN_COMPILE_SECONDS)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
-    # A size bound turns on JAX's file lock around every read and write of the folder.
+    # A size bound turns on JAX's file lock around every read and write of the folder; each
+    # write then also reads the size and last use of every entry to evict the oldest.
     jax.config.update("jax_compilation_cache_max_size", MAX_CACHE_BYTES)
     return folder
 

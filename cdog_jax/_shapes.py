@@ -39,7 +39,8 @@ def chunk_size(num_scenes: int, batch_size: int) -> int:
 def occupied_slots(mask: np.ndarray | jax.Array) -> int:
     """Slots per view up to the last detection of any view (and scene) of ``mask (..., P)``:
     ``P`` less the trailing slots that hold no detection anywhere; 0 without detections."""
-    used = np.flatnonzero(np.any(np.reshape(mask, (-1, np.shape(mask)[-1])), axis=0))
+    mask = np.asarray(mask)  # on the host: a JAX array's reshape would compile a program
+    used = np.flatnonzero(np.any(mask.reshape(-1, mask.shape[-1]), axis=0))
     return int(used[-1]) + 1 if used.size else 0
 
 

@@ -11,7 +11,7 @@ compilation cache off. Two tables:
 1. The whole program (``jax.jit(associate_traced)``): seconds to trace, lower and compile
    (``.trace()``, ``.lower()``, ``.compile()``), warm run time (median of 10), and its size:
    operations of the lowered StableHLO, ``while`` loops in it, and in the optimised HLO
-   XLA compiled, the instructions, fusions and ``while`` loops.
+   XLA compiled, the instructions, fusions, distinct kernels and ``while`` loops.
 2. Each stage alone: the scene tables (epipolar distances, σ, DLT blocks) as one program,
    then every stage of the config's plan jitted on its own, on the state the stages before
    it produced (so each sees a realistic table): lower + compile seconds and the same
@@ -56,8 +56,24 @@ def _sizes(lowered, compiled) -> dict:
         "while": text.count("stablehlo.while"),
         "hlo": len(lines),
         "fusions": sum(1 for line in lines if " fusion(" in line),
+        "kernels": _distinct_kernels(hlo),
         "hlo_while": sum(1 for line in lines if " while(" in line),
     }
+
+
+def _distinct_kernels(hlo: str) -> int:
+    """Fused (and wrapped single-operation) computations of the optimised HLO that differ
+    other than by their names: XLA's CPU backend generates code once per distinct kernel
+    (``experiments/kernel_cost.py``), so this, not the instruction count, is what compile
+    time follows."""
+    bodies = set()
+    for computation in hlo.split("\n\n"):
+        lines = computation.strip().splitlines()
+        if not lines or not re.match(r"%?(fused_computation|wrapped_)", lines[0]):
+            continue
+        body = (re.sub(r"%[\w.\-]+", "%", re.sub(r", metadata=\{[^}]*\}", "", line)).strip() for line in lines[1:])
+        bodies.add("\n".join(body))
+    return len(bodies)
 
 
 def _compile(f, *args):
@@ -110,13 +126,13 @@ def per_stage(config, rig, xy, mask, sigma: float = 1.0) -> list[tuple[str, dict
 def main(presets=("paper", "extended", "best"), sigmas=("given", "auto"), stages: bool = True) -> None:
     rig, xy, mask = _scene_inputs()
     print(f"scene: {mask.shape[0]} views, {int(mask.sum(axis=1).max())} of {mask.shape[1]} slots; {jax.devices()[0].platform}")
-    print("\nwhole program        trace  lower compile    cpu  warm ms    ops while |    hlo fusions while")
+    print("\nwhole program        trace  lower compile    cpu  warm ms    ops while |    hlo fusions kernels while")
     for preset in presets:
         for sigma_mode in sigmas:
             config = getattr(Config, preset)(sigma_mode=sigma_mode)
             r = whole_program(config, rig, xy, mask)
             print(f"{preset:>9} σ {sigma_mode:<6} {r['trace']:6.2f} {r['lower']:6.2f} {r['compile']:7.2f} {r['cpu']:6.2f} {r['warm_ms']:8.2f} "
-                  f"{r['ops']:6d} {r['while']:5d} | {r['hlo']:6d} {r['fusions']:7d} {r['hlo_while']:5d}")
+                  f"{r['ops']:6d} {r['while']:5d} | {r['hlo']:6d} {r['fusions']:7d} {r['kernels']:7d} {r['hlo_while']:5d}")
     if not stages:
         return
     for preset in presets:
@@ -127,10 +143,10 @@ def main(presets=("paper", "extended", "best"), sigmas=("given", "auto"), stages
             rows = per_stage(config, rig, xy, mask)
             total = sum(r["cpu"] for _, r in rows)
             print(f"\n{preset}(sigma_mode={sigma_mode!r}), each stage alone: trace+lower / compile (s), share of the compile CPU sum ({total:.2f} s)")
-            print("stage                 lower compile    cpu  share    ops while |    hlo fusions while")
+            print("stage                 lower compile    cpu  share    ops while |    hlo fusions kernels while")
             for name, r in rows:
                 print(f"{name:<20} {r['lower']:6.2f} {r['compile']:7.2f} {r['cpu']:6.2f} {100 * r['cpu'] / total:5.1f}% "
-                      f"{r['ops']:6d} {r['while']:5d} | {r['hlo']:6d} {r['fusions']:7d} {r['hlo_while']:5d}")
+                      f"{r['ops']:6d} {r['while']:5d} | {r['hlo']:6d} {r['fusions']:7d} {r['kernels']:7d} {r['hlo_while']:5d}")
 
 
 if __name__ == "__main__":

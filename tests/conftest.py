@@ -23,17 +23,21 @@ import sys  # noqa: E402
 # Test modules live in sub-folders without __init__.py; make tests/helpers.py importable.
 sys.path.insert(0, os.path.dirname(__file__))
 
-from helpers import FAST_COMPILE_FLAG  # noqa: E402
+from helpers import FAST_COMPILE_FLAGS  # noqa: E402
 
-# The suite's time is compilation, not running: XLA's older CPU code generator (one LLVM
-# function per fusion, no MLIR fusion emitters) compiles our programs about a third faster;
-# the newer one runs the benchmark grid ~40 % faster, which is why the library leaves XLA's
-# default alone. XLA reads the flag when JAX starts its backend (no operation has run yet);
-# child processes (command-line tests) inherit it. It changes how operations are fused,
-# hence possibly the last bit of a float: bitwise comparisons are between programs compiled
-# alike, except tests/test_shapes.py's batch test, which runs with XLA's default.
+# The suite's time is compilation, not running. Three XLA switches cut it (tests/helpers.py):
+# XLA's older CPU code generator (one LLVM function per fusion, no MLIR fusion emitters),
+# LLVM without optimisation passes, and SSE4.2 code. Together they compile our programs
+# about 2.5 times faster and run them about 5 times slower; the library keeps XLA's
+# defaults (the newer generator runs the benchmark grid ~40 % faster). SSE4.2 has no fused
+# multiply-add, and the one thing the other two switches change in a result is where a
+# multiply and an add are fused into one rounding: without it, every way of compiling a
+# program gives the same bits, so the suite's bitwise comparisons hold whatever XLA
+# fuses. XLA reads the flags when JAX starts its backend (no operation has run yet); child
+# processes (command-line tests) inherit them. tests/test_shapes.py's batch test runs with
+# XLA's defaults, the code users run.
 if "xla_cpu_use_fusion_emitters" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {FAST_COMPILE_FLAG}".strip()
+    os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {FAST_COMPILE_FLAGS}".strip()
 
 jax.config.update("jax_numpy_rank_promotion", "raise")
 jax.config.update("jax_numpy_dtype_promotion", "strict")
@@ -93,3 +97,43 @@ def pytest_xdist_auto_num_workers(config):
 def pytest_sessionfinish(session, exitstatus):
     if _OWNS_CACHE:  # the process that made the folder removes it, after its workers
         shutil.rmtree(_COMPILE_CACHE, ignore_errors=True)
+
+
+# The longest test files (worker seconds, measured on the 2-core machine), heaviest first.
+# pytest-xdist hands each worker whole files in collection order; started last, a long file
+# would run alone at the end while the other worker idles. Order only: a stale list
+# costs time, never a result.
+_LONGEST_FILES = (
+    "methods/test_conformance.py",
+    "test_shapes.py",
+    "cli/test_associate_command.py",
+    "test_pipeline_vs_oracle.py",
+    "cli/test_cli.py",
+    "benchmark/test_sweep.py",
+    "test_pipeline.py",
+    "test_accuracy.py",
+    "test_associate_classes.py",
+    "test_stored_programs.py",
+    "test_threshold_units.py",
+    "test_associate_options.py",
+    "calibration/test_calibration.py",
+    "graph/test_sigma.py",
+    "baselines/test_exact.py",
+    "test_speed_and_tuning_scripts.py",
+    "baselines/test_soft_ba.py",
+    "test_walkthrough_notebook.py",
+    "test_robustness_realistic_script.py",
+    "graph/test_split.py",
+)
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """The files of ``_LONGEST_FILES`` first, in that order; every file's tests stay
+    together and in their order (a stable sort)."""
+    rank = {name: i for i, name in enumerate(_LONGEST_FILES)}
+    here = os.path.dirname(__file__)
+
+    def file_rank(item) -> int:
+        return rank.get(os.path.relpath(str(item.path), here).replace(os.sep, "/"), len(rank))
+
+    items.sort(key=file_rank)

@@ -8,9 +8,10 @@ import numpy as np
 from cdog_jax import Rig
 
 # Tolerances: float32 checks in pixels / relative scene size, float64 tight.
-# XLA's older CPU code generator, which the suite runs with (tests/conftest.py): it compiles
-# our programs about a third faster; a test that needs XLA's default one removes it.
-FAST_COMPILE_FLAG = "--xla_cpu_use_fusion_emitters=false"
+# How the suite compiles (tests/conftest.py): XLA's older CPU code generator, LLVM without
+# optimisation, and SSE4.2 code (no fused multiply-add, so every way of compiling a program
+# rounds alike). A test that needs XLA's defaults removes these flags.
+FAST_COMPILE_FLAGS = "--xla_cpu_use_fusion_emitters=false --xla_backend_optimization_level=0 --xla_cpu_max_isa=SSE4_2"
 
 TOL = {
     "float32": {"px": 2e-2, "rel": 1e-4},

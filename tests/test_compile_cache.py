@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from cdog_jax._compile_cache import cache_dir_from_environment, default_cache_dir
+from cdog_jax._compile_cache import MIN_COMPILE_SECONDS, cache_dir_from_environment, default_cache_dir
 
 
 def test_folder_follows_the_environment(monkeypatch, tmp_path):
@@ -32,13 +32,18 @@ _CHILD = textwrap.dedent(
     import jax, jax.numpy as jnp
     hits = []
     jax.monitoring.register_event_listener(lambda name, **kw: hits.append(name) if name.endswith("cache_hits") else None)
-    import cdog_jax
-    from cdog_jax.geometry import triangulate
-    from cdog_jax.synthetic import default_rig
+    from cdog_jax import Config, associate
+    from cdog_jax.synthetic import default_rig, generate_scene
     rig = default_rig()
-    X, ok = jax.jit(triangulate)(rig, jnp.zeros((10, 4, 2)), jnp.ones((10, 4), bool))
-    print("dir", jax.config.jax_compilation_cache_dir)
+    scene = generate_scene(jax.random.PRNGKey(0), rig, 5, 1.0, capacity=8)
+    associate(rig, scene.xy, scene.mask, config=Config.paper(), sigma=1.0)  # a program of seconds
+    jnp.sin(jnp.arange(3.0)).block_until_ready()  # one operation outside jit: not stored
+    folder = jax.config.jax_compilation_cache_dir
+    print("dir", folder)
     print("hits", len(hits))
+    print("min_s", jax.config.jax_persistent_cache_min_compile_time_secs)
+    import os
+    print("entries", " ".join(sorted(os.listdir(folder))) if folder else "")
     """
 )
 
@@ -52,7 +57,10 @@ def test_second_process_loads_the_compiled_program(tmp_path):
     env = dict(os.environ, CDOG_JAX_CACHE_DIR=str(tmp_path), CDOG_JAX_CACHE="1", JAX_PLATFORMS="cpu")
     first = _run_child(env)
     assert Path(first["dir"]).parent == tmp_path
-    assert any(Path(first["dir"]).iterdir()), "the first process stored nothing"
+    assert any(name.startswith("jit_call-") for name in first["entries"].split()), first["entries"]
+    # Programs of one operation compile as fast as they load: not stored.
+    assert float(first["min_s"]) == MIN_COMPILE_SECONDS > 0
+    assert not any(name.startswith("jit_sin-") for name in first["entries"].split()), first["entries"]
     second = _run_child(env)
     assert int(second["hits"]) > int(first["hits"])
     off = _run_child(dict(env, CDOG_JAX_CACHE="0"))

@@ -9,7 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import FAST_COMPILE_FLAG, random_scene, ring_rig
+from helpers import FAST_COMPILE_FLAGS, random_scene, ring_rig
 
 from cdog_jax import Config, associate, associate_batch
 from cdog_jax._associate import _associate_extras_jit, _associate_jit, _check_extras, _prepare
@@ -88,10 +88,11 @@ def padded_batch_is_bitwise_one_scene_at_a_time():
 
 
 def test_padded_batch_is_bitwise_one_scene_at_a_time():
-    """In a child process with XLA's default code generator, the one users run: the suite's
-    faster-compiling one (tests/conftest.py) fuses the vmapped program differently, and the
-    last bit of a float can then differ from the single-scene program's."""
-    env = dict(os.environ, XLA_FLAGS=os.environ.get("XLA_FLAGS", "").replace(FAST_COMPILE_FLAG, ""))
+    """In a child process with XLA's defaults, the code users run: there, where XLA fuses a
+    multiply and an add into one rounding depends on how the program is fused, and the
+    vmapped program is fused differently from the single-scene one (with the suite's
+    switches, tests/conftest.py, no multiply-add is fused at all)."""
+    env = dict(os.environ, XLA_FLAGS=os.environ.get("XLA_FLAGS", "").replace(FAST_COMPILE_FLAGS, ""))
     here = os.path.dirname(__file__)
     code = f"import sys; sys.path.insert(0, {here!r}); import test_shapes; test_shapes.padded_batch_is_bitwise_one_scene_at_a_time()"
     subprocess.run([sys.executable, "-c", code], env=env, check=True)

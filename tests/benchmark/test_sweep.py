@@ -58,7 +58,8 @@ def sharded_run(tmp_path_factory):
     set before jax starts); started early so that it compiles while this process does."""
     out = tmp_path_factory.mktemp("sharded")
     code = textwrap.dedent(_SHARDED).format(grid=GRID, configs=CONFIGS, batch=BATCH)
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu")
+    flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count=4".strip()
+    env = dict(os.environ, XLA_FLAGS=flags, JAX_PLATFORMS="cpu")
     with open(out / "stderr.txt", "w") as err:
         proc = subprocess.Popen([sys.executable, "-c", code, str(out / "results")], env=env, stdout=err, stderr=err)
     yield proc, out

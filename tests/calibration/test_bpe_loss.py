@@ -243,9 +243,11 @@ def test_jit_and_vmap_equal_plain_calls():
         return over_scenes, over_rigs, bpe(rig, *scenes[0])
 
     over_scenes, over_rigs, jitted = batched(rig_batch, stacked)
-    np.testing.assert_allclose(np.asarray(over_scenes), plain_scenes, rtol=1e-5)
-    np.testing.assert_allclose(np.asarray(over_rigs), plain_rigs, rtol=1e-5)
-    np.testing.assert_allclose(float(jitted), plain_scenes[0], rtol=1e-5)
+    # float32: a mean over the groups of errors that each end a 3×3 solve; summed in another
+    # order (vmapped, fused), the last bits differ: 1e-5 relative has been seen.
+    np.testing.assert_allclose(np.asarray(over_scenes), plain_scenes, rtol=3e-5)
+    np.testing.assert_allclose(np.asarray(over_rigs), plain_rigs, rtol=3e-5)
+    np.testing.assert_allclose(float(jitted), plain_scenes[0], rtol=3e-5)
 
 
 def test_given_points_equal_triangulated_and_are_stationary():
