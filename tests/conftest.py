@@ -25,17 +25,17 @@ sys.path.insert(0, os.path.dirname(__file__))
 
 from helpers import FAST_COMPILE_FLAGS  # noqa: E402
 
-# The suite's time is compilation, not running. Three XLA switches cut it (tests/helpers.py):
-# XLA's older CPU code generator (one LLVM function per fusion, no MLIR fusion emitters),
-# LLVM without optimisation passes, and SSE4.2 code. Together they compile our programs
-# about 2.5 times faster and run them about 5 times slower; the library keeps XLA's
-# defaults (the newer generator runs the benchmark grid ~40 % faster). SSE4.2 has no fused
-# multiply-add, and the one thing the other two switches change in a result is where a
-# multiply and an add are fused into one rounding: without it, every way of compiling a
-# program gives the same bits, so the suite's bitwise comparisons hold whatever XLA
-# fuses. XLA reads the flags when JAX starts its backend (no operation has run yet); child
-# processes (command-line tests) inherit them. tests/test_shapes.py's batch test runs with
-# XLA's defaults, the code users run.
+# The suite's time is compilation, not running. Three XLA switches cut it (on x86-64;
+# tests/helpers.py): XLA's older CPU code generator (one LLVM function per fusion, no MLIR
+# fusion emitters), LLVM without optimisation passes, and SSE4.2 code. Together they
+# compile our programs about 2.5 times faster and run them about 5 times slower; the
+# library keeps XLA's defaults (the newer generator runs the benchmark grid ~40 % faster).
+# SSE4.2 has no fused multiply-add, and the one thing the other two switches change in a
+# result is where a multiply and an add are fused into one rounding: without it, every way
+# of compiling a program gives the same bits, so the suite's bitwise comparisons hold
+# whatever XLA fuses. XLA reads the flags when JAX starts its backend (no operation has run
+# yet); child processes (command-line tests) inherit them. tests/test_shapes.py's batch
+# test runs with XLA's defaults, the code users run.
 if "xla_cpu_use_fusion_emitters" not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {FAST_COMPILE_FLAGS}".strip()
 
