@@ -1,7 +1,10 @@
 """Shared test builders: a small hand-built rig, noise-free/noisy scenes with shuffled
 slots, tolerances per dtype, tree comparison."""
 
+import os
 import platform
+import subprocess
+import sys
 
 import jax
 import jax.numpy as jnp
@@ -20,6 +23,17 @@ FAST_COMPILE_FLAGS = (
     if platform.machine().lower() in ("x86_64", "amd64")
     else "--xla_cpu_use_fusion_emitters=false"
 )
+
+
+def run_with_xla_defaults(test_file: str, function: str) -> None:
+    """Call ``function()`` of the test module at ``test_file`` in a child process compiled
+    with XLA's defaults, the code users run, rather than with the suite's switches."""
+    env = dict(os.environ, XLA_FLAGS=os.environ.get("XLA_FLAGS", "").replace(FAST_COMPILE_FLAGS, ""))
+    folder, module = os.path.split(os.path.splitext(os.path.abspath(test_file))[0])
+    tests = os.path.dirname(os.path.abspath(__file__))
+    code = f"import sys; sys.path[:0] = [{tests!r}, {folder!r}]; import {module}; {module}.{function}()"
+    subprocess.run([sys.executable, "-c", code], env=env, check=True)
+
 
 TOL = {
     "float32": {"px": 2e-2, "rel": 1e-4},

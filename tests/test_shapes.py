@@ -1,15 +1,11 @@
 """Padded shapes: ``associate`` / ``associate_batch`` run at a capacity from a short ladder
 and pad the batch, and return bitwise what the unpadded program returns."""
 
-import os
-import subprocess
-import sys
-
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import FAST_COMPILE_FLAGS, random_scene, ring_rig
+from helpers import random_scene, ring_rig, run_with_xla_defaults
 
 from cdog_jax import Config, associate, associate_batch
 from cdog_jax._associate import _associate_extras_jit, _associate_jit, _check_extras, _prepare
@@ -92,10 +88,7 @@ def test_padded_batch_is_bitwise_one_scene_at_a_time():
     multiply and an add into one rounding depends on how the program is fused, and the
     vmapped program is fused differently from the single-scene one (with the suite's
     switches, tests/conftest.py, no multiply-add is fused at all)."""
-    env = dict(os.environ, XLA_FLAGS=os.environ.get("XLA_FLAGS", "").replace(FAST_COMPILE_FLAGS, ""))
-    here = os.path.dirname(__file__)
-    code = f"import sys; sys.path.insert(0, {here!r}); import test_shapes; test_shapes.padded_batch_is_bitwise_one_scene_at_a_time()"
-    subprocess.run([sys.executable, "-c", code], env=env, check=True)
+    run_with_xla_defaults(__file__, "padded_batch_is_bitwise_one_scene_at_a_time")
 
 
 def test_one_scene_batch_runs_the_single_scene_program():
