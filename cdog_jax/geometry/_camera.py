@@ -46,6 +46,13 @@ class Rig(eqx.Module):
         """Optical axes in world coordinates (unit), ``(M, 3)``: the third row of R."""
         return self.R[..., 2, :]
 
+    def centers_and_dirs_on_host(self) -> tuple[np.ndarray, np.ndarray]:
+        """:attr:`centers` and :attr:`view_dirs` in NumPy float64, ``(M, 3)`` each: for code
+        outside ``jit`` (figures, reports), where the properties would each compile a small
+        program."""
+        R, t = np.asarray(self.R, dtype=np.float64), np.asarray(self.t, dtype=np.float64)
+        return -np.einsum("...ji,...j->...i", R, t), R[..., 2, :]
+
     def select(self, views) -> "Rig":
         """The sub-rig of the given view indices (a sequence or an int array)."""
         views = np.asarray(views)

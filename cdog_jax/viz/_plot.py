@@ -182,10 +182,7 @@ def plot_association(
         ax.set_title(f"{n_det} det., {n_un} unassigned", fontsize=9, loc="right", pad=3, color="0.3")
 
     ax3 = fig.add_axes((0.02, 0.5 / fig_h, 0.56, (views_bottom * fig_h - 0.9) / fig_h), projection="3d")
-    # In NumPy: a rig's properties outside jit would each compile a small program.
-    R, t = np.asarray(rig.R, dtype=np.float64), np.asarray(rig.t, dtype=np.float64)
-    centers = -np.einsum("mji,mj->mi", R, t)  # rig.centers
-    dirs = R[:, 2, :]  # rig.view_dirs
+    centers, dirs = rig.centers_and_dirs_on_host()
     cloud = [centers]
     if group_ids.size:
         cloud.append(points3d[group_ids])
