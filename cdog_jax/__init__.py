@@ -19,10 +19,6 @@ from ._method import (
 )
 from ._result import Association as Association
 from ._status import Status as Status, check_status as check_status, status_messages as status_messages
-from .viz import plot_rays as plot_rays, plot_rig as plot_rig
-from .viz import plot_association as plot_association
-from .viz import plot_epipolar as plot_epipolar
-from .viz import plot_bpe_histogram as plot_bpe_histogram
 from .geometry import Rig as Rig, project as project, rig_from_arrays as rig_from_arrays, triangulate as triangulate
 from . import baselines as baselines  # registers the baseline methods
 
@@ -31,3 +27,22 @@ from ._version import __version__ as __version__  # noqa: E402
 from ._compile_cache import enable_compilation_cache as _enable_compilation_cache  # noqa: E402
 
 _enable_compilation_cache()  # compiled programs persist across processes (CDOG_JAX_CACHE=0: off)
+
+
+# The figures load on first use: `import cdog_jax` reads neither the plotting modules nor
+# the file formats they write through.
+_FROM_VIZ = ("plot_association", "plot_bpe_histogram", "plot_epipolar", "plot_rays", "plot_rig")
+
+
+def __getattr__(name: str):
+    if name in _FROM_VIZ:
+        from . import viz
+
+        value = getattr(viz, name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_FROM_VIZ))

@@ -1,0 +1,38 @@
+"""``import cdog_jax`` loads what associating needs and nothing more: the figures, the file
+formats, the benchmark, calibration (and optimistix), the command line and matplotlib load
+on first use."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+_CHILD = """
+import json, sys
+import cdog_jax
+before = sorted(sys.modules)
+figure = cdog_jax.plot_rig
+print(json.dumps({"before": before, "after": sorted(sys.modules), "figure": f"{figure.__module__}.{figure.__name__}",
+                  "listed": "plot_association" in dir(cdog_jax)}))
+"""
+LATER = ("cdog_jax.io", "cdog_jax.viz", "cdog_jax.benchmark", "cdog_jax.calibration", "cdog_jax.cli",
+         "cdog_jax.synthetic", "matplotlib", "optimistix")
+
+
+def test_import_leaves_figures_formats_and_tools_for_later():
+    done = subprocess.run([sys.executable, "-c", _CHILD], capture_output=True, text=True, check=True)
+    loaded = json.loads(done.stdout.strip().splitlines()[-1])
+    early = [m for m in loaded["before"] if m.split(".")[0] in ("matplotlib", "optimistix") or m.startswith(LATER)]
+    assert early == [], f"import cdog_jax loaded {early}"
+    assert "cdog_jax._associate" in loaded["before"] and "cdog_jax.baselines" in loaded["before"]
+    # The figures are still where users find them, and load when asked for.
+    assert loaded["figure"] == "cdog_jax.viz._rig_plot.plot_rig" and loaded["listed"]
+    assert "cdog_jax.viz" in loaded["after"]
+
+
+def test_an_unknown_name_is_an_attribute_error():
+    import cdog_jax
+
+    with pytest.raises(AttributeError, match="has no attribute 'plot_everything'"):
+        cdog_jax.plot_everything  # noqa: B018
