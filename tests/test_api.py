@@ -23,8 +23,8 @@ PUBLIC = sorted(
     {
         (mod.__name__, name): obj
         for mod in MODULES
-        for name, obj in vars(mod).items()
-        if not name.startswith("_") and (inspect.isfunction(obj) or inspect.isclass(obj))
+        for name in dir(mod)  # dir, not vars: it also lists the names a module loads on first use
+        if not name.startswith("_") and (inspect.isfunction(obj := getattr(mod, name)) or inspect.isclass(obj))
     }.items()
 )
 FUNCTIONS = [(key, obj) for key, obj in PUBLIC if inspect.isfunction(obj)]
