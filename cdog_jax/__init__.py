@@ -46,3 +46,6 @@ def __getattr__(name: str):
 
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(_FROM_VIZ))
+
+
+__all__ = sorted({name for name in globals() if not name.startswith("_")} | set(_FROM_VIZ))

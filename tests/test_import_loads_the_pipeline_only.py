@@ -36,3 +36,9 @@ def test_an_unknown_name_is_an_attribute_error():
 
     with pytest.raises(AttributeError, match="has no attribute 'plot_everything'"):
         cdog_jax.plot_everything  # noqa: B018
+
+
+def test_a_star_import_still_brings_the_figures():
+    names = {}
+    exec("from cdog_jax import *", names)
+    assert {"associate", "Config", "plot_rig", "plot_association"} <= set(names)
