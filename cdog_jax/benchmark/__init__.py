@@ -2,23 +2,35 @@
 scored in one compiled program per capacity bucket, sharded over devices, saved to NPZ/CSV/JSON, summarised; the named
 configurations it compares. Its figures are in :mod:`cdog_jax.viz`."""
 
-from ._grid import DRAW_CAPACITY as DRAW_CAPACITY
-from ._grid import Grid as Grid
-from ._grid import GridIndex as GridIndex
-from ._grid import bucket_of as bucket_of
-from ._grid import compact_scene as compact_scene
-from ._grid import scene_keys as scene_keys
-from ._io import load_results as load_results
 from ._methods import DEFAULT_METHODS as DEFAULT_METHODS
 from ._methods import METHODS as METHODS
 from ._methods import ablation_stages as ablation_stages
-from ._io import save_results as save_results
-from ._io import summary_table as summary_table
-from ._sweep import SweepProgress as SweepProgress
-from ._sweep import SweepResult as SweepResult
-from ._cpu_cores import use_cpu_cores as use_cpu_cores
-from ._sweep import default_mesh as default_mesh
-from ._sweep import metric_fields as metric_fields
-from ._sweep import print_progress as print_progress
-from ._sweep import sweep as sweep
-from ._host_sweep import sweep_host as sweep_host
+
+# The rest loads on first use: the command line lists the named methods in its help (above)
+# without loading the sweep, the grid and the file writers for every command.
+_LATER = {
+    "DRAW_CAPACITY": "_grid", "Grid": "_grid", "GridIndex": "_grid", "bucket_of": "_grid",
+    "compact_scene": "_grid", "scene_keys": "_grid",
+    "load_results": "_io", "save_results": "_io", "summary_table": "_io",
+    "SweepProgress": "_sweep", "SweepResult": "_sweep", "default_mesh": "_sweep", "metric_fields": "_sweep",
+    "print_progress": "_sweep", "sweep": "_sweep",
+    "use_cpu_cores": "_cpu_cores",
+    "sweep_host": "_host_sweep",
+}
+
+
+def __getattr__(name: str):
+    if name in _LATER:
+        import importlib
+
+        value = getattr(importlib.import_module(f"{__name__}.{_LATER[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LATER))
+
+
+__all__ = sorted({name for name in globals() if not name.startswith("_")} | set(_LATER))

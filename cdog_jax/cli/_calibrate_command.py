@@ -8,7 +8,6 @@ import argparse
 
 import numpy as np
 
-from ..viz._calibration_plot import convergence_figure
 from ._common import _FIGURE_EXTENSIONS, _nonnegative_float, _positive_int, check_sigma_fits
 
 
@@ -87,6 +86,8 @@ def run(args: argparse.Namespace) -> int:
         wand_points=args.wand_points, gates_px=gates, seed=args.seed, timing_runs=timing,
     )
     print(format_table(rows))
+    from ..viz._calibration_plot import convergence_figure  # matplotlib's figure, on first use
+
     write_output(str(args.out), "--out", lambda: convergence_figure(rows, str(args.out)))
     print(f"Figure: {args.out}")
     return 0
