@@ -29,23 +29,10 @@ from ._compile_cache import enable_compilation_cache as _enable_compilation_cach
 _enable_compilation_cache()  # compiled programs persist across processes (CDOG_JAX_CACHE=0: off)
 
 
+
 # The figures load on first use: `import cdog_jax` reads neither the plotting modules nor
 # the file formats they write through.
-_FROM_VIZ = ("plot_association", "plot_bpe_histogram", "plot_epipolar", "plot_rays", "plot_rig")
+from ._lazy_names import load_on_first_use as _load_on_first_use  # noqa: E402
 
-
-def __getattr__(name: str):
-    if name in _FROM_VIZ:
-        from . import viz
-
-        value = getattr(viz, name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_FROM_VIZ))
-
-
-__all__ = sorted({name for name in globals() if not name.startswith("_")} | set(_FROM_VIZ))
+_FIGURES = ("plot_association", "plot_bpe_histogram", "plot_epipolar", "plot_rays", "plot_rig")
+__getattr__, __dir__, __all__ = _load_on_first_use(globals(), dict.fromkeys(_FIGURES, ".viz"))

@@ -21,8 +21,8 @@ ROOT = Path(__file__).resolve().parents[1] / PACKAGE
 # "." is a subpackage (all its modules); any other entry is one module. Entries that do not
 # exist (yet) are tolerated. Keep in step with docs/ARCHITECTURE.md.
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
-    ("base", ("_types", "_expect", "_status", "_progress", "_compile_cache", "_stored_programs", "_version",
-              "_config", "_options", "_method")),
+    ("base", ("_types", "_expect", "_status", "_progress", "_compile_cache", "_stored_programs", "_lazy_names",
+              "_version", "_config", "_options", "_method")),
     ("geometry", ("geometry.",)),
     ("stage", ("_stage",)),
     ("stages", ("graph.", "refine.")),
