@@ -323,13 +323,16 @@ def _pooled_sigma(rig, scenes: _Scenes, F: int, dist, dtype, pool: str, estimato
     if robust:
         sigma, _ = _pooled_robust_fit(*tables, focal)
     else:
-        sigma, _ = jax.vmap(sigma_from_samples, in_axes=(0, 0, 0, None))(*tables, focal)
+        sigma, _ = _pooled_fit(*tables, focal)
     sigma = np.asarray(sigma)
     return sigma if pool == "frame" else np.full(F, sigma[0])
 
 
-# Compiled once per table shape (the twelve fits of the robust estimator run eagerly take
-# seconds more than compiling them).
+# Compiled once per table shape. Run eagerly, the fits' EM loops are traced and compiled
+# again on every call (each call then leaves its programs' code mapped in memory, until
+# the process runs out of memory maps), and the robust estimator's twelve fits take
+# seconds more than compiling them.
+_pooled_fit = jax.jit(jax.vmap(sigma_from_samples, in_axes=(0, 0, 0, None)))
 _pooled_robust_fit = jax.jit(jax.vmap(robust_sigma_from_samples, in_axes=(0, 0, 0, 0, None)))
 
 

@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .geometry._camera import Rig
-from .geometry._distortion import as_lens, undistorted
+from .geometry._distortion import as_lens, undistorted_frames
 from .geometry._projection import group_errors
 from .geometry._triangulate import triangulate_views_last
 
@@ -336,7 +336,7 @@ def person_consistent(rig: Rig, assoc, group_class, xy, mask, classes, instances
     pinhole = np.asarray(xy, np.float64)
     if dist is not None:
         lens, xy_j = as_lens(dist, rig.K.dtype), jnp.asarray(xy, rig.K.dtype)
-        pinhole = np.asarray(jax.vmap(undistorted, in_axes=(None, 0, 0, None))(rig, xy_j, jnp.asarray(mask), lens), np.float64)
+        pinhole = np.asarray(undistorted_frames(rig, xy_j, jnp.asarray(mask), lens), np.float64)
     camera = _Camera(rig)
     fields = {k: np.asarray(getattr(assoc, k)) for k in ("groups", "valid", "points3d", "bpe", "err_px")}
     tau = np.asarray(assoc.tau_px)

@@ -31,7 +31,7 @@ from ._temporal_prior import recover_tracks
 from ._types import Array, Bool, Float, Int
 from ._validate import as_array
 from .geometry._camera import Rig
-from .geometry._distortion import as_lens, undistorted
+from .geometry._distortion import as_lens, undistorted_frames
 
 DEFAULT_MAX_STEP_PX = 60.0
 """Default gate of a track's step between frames (pixels at the point's depth): a wrist
@@ -177,10 +177,6 @@ def _unpack(result: Any) -> tuple[Any, np.ndarray | None, tuple | None, int | No
     return result, None, None, None
 
 
-# Every frame undistorted in one compiled program (compiled once per shape, not per call).
-_undistort_frames = jax.jit(jax.vmap(undistorted, in_axes=(None, 0, 0, None)))  # (F, M, P, 2) → same
-
-
 def track_groups(
     rig: Rig,
     result: Any,
@@ -262,7 +258,7 @@ def track_groups(
             raise ValueError(f"track_groups: classes must be integer class ids of shape {(F, M, P)}; got {det_class.shape} {det_class.dtype}")
         if dist is not None:
             lens = as_lens(dist, dtype)
-            xy = np.asarray(_undistort_frames(rig, xy, mask, lens))
+            xy = np.asarray(undistorted_frames(rig, xy, mask, lens))
     else:
         xy, mask, det_class = np.zeros((F, M, P, 2), dtype), np.zeros((F, M, P), bool), np.zeros((F, M, P), np.int32)
     valid = np.asarray(assoc.valid)

@@ -26,6 +26,7 @@ if all three arguments carry them, and ``jax.vmap`` works as usual.
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import lax
@@ -284,3 +285,8 @@ def undistorted(
     pixels of ``rig`` through OpenCV distortion ``dist (M, 5)`` or a :class:`Fisheye`;
     padding stays 0."""
     return jnp.where(mask[..., None], undistort_pixels(rig.K, dist, jnp.where(mask[..., None], xy, 0.0)), 0.0)
+
+
+undistorted_frames = jax.jit(jax.vmap(undistorted, in_axes=(None, 0, 0, None)))
+""":func:`undistorted` of every frame, ``xy (F, M, P, 2)`` → same, as one compiled program
+(run eagerly, its Newton loop would be compiled again on every call)."""
