@@ -118,10 +118,11 @@ def associate(
     at most the image diagonal: twice the largest principal point of ``rig.K``, or the
     detections' extent ``hypot(max |x|, max |y|)`` where that is larger.
 
-    The compiled program runs at a padded capacity (the smallest power of two ``>=`` the
-    slots in use, i.e. ``P`` less the trailing slots no view fills, and at least 32; the
-    slots in use themselves where only that fits the memory budget), so that frames of
-    different counts share a handful of programs; the result is brought back to ``P``.
+    The compiled program runs at a padded capacity: the smallest rung of the ladder 4, 6, 8,
+    12, 16, 24, 32, 48, … that holds the slots in use (``P`` less the trailing slots no view
+    fills), or the slots in use themselves where only that fits the memory budget, so that
+    frames of different counts share a handful of programs; the result is brought back to
+    ``P``.
 
     Returns:
         An :class:`Association` (labels, groups, points, errors). Its ``status`` is
@@ -280,11 +281,11 @@ def associate_batch(
 
     The rig is shared (``K (M, 3, 3)``) or per scene (``K (B, M, 3, 3)``); ``sigma`` and the
     thresholds may be scalars or ``(B,)`` arrays. Scenes run ``batch_size`` at a time
-    (vmapped), which bounds memory; fewer scenes run as the smallest power of two that
-    holds them, and ``P`` is padded as in :func:`associate`, so few programs are compiled. Every field of the result gains a
-    leading ``B`` axis. ``dist (M, 5)`` and ``min_views`` are shared by all scenes,
-    ``weights (B, M, P)`` are per scene. Inputs are checked as in :func:`associate`; an
-    error names the scene. The memory budget counts ``batch_size`` scenes (see
+    (vmapped), which bounds memory; fewer scenes run as the smallest rung of the same ladder
+    that holds them, and ``P`` is padded as in :func:`associate`, so few programs are
+    compiled. Every field of the result gains a leading ``B`` axis. ``dist (M, 5)`` and
+    ``min_views`` are shared by all scenes, ``weights (B, M, P)`` are per scene. Inputs are
+    checked as in :func:`associate`; an error names the scene. The memory budget counts ``batch_size`` scenes (see
     :func:`associate`); ``status`` is per scene.
     """
     expect_args("associate_batch", rig=(rig, Rig))

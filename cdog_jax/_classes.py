@@ -106,9 +106,10 @@ def associate_classes(
             class in one view holds too few detections for its own estimate.
         sigma_pool: ``"frame"`` (one σ per frame, default), ``"all"`` (one for all frames)
             or ``"scene"`` (each (frame, class) scene its own, as ``associate_batch``).
-        batch_size: scenes per compiled call (memory bound; scenes are small). The scenes
-            are padded with empty ones to a multiple of it, so one compiled program serves
-            any number of frames and classes.
+        batch_size: the most scenes per compiled call (memory bound; scenes are small).
+            Fewer scenes run as the smallest rung of a fine ladder (1, 2, 3, 4, 6, 8, 12,
+            16, 24, 32, 48, …) that holds them, more in chunks of ``batch_size``, so a few
+            compiled programs serve any number of frames and classes.
         instances: optional ``(F, M, P)`` int per-view instance index of every detection
             (the 2D skeleton it belongs to in its view, ``-1``: unknown).
         person_vote: make the groups of each frame consistent with ``instances`` (a
@@ -158,19 +159,14 @@ def associate_classes(
         method = method.replace(sigma_mode="given")
     else:
         sigma_arg = "auto" if auto else sigma
-    # Chunks of exactly batch_size scenes: one compiled program for any number of frames
-    # and classes (it depends on M, P_c, the dtype and the options only).
-    padded = _pad_scenes(scenes, batch_size, sigma_arg)
-    chunks = []
-    for lo in range(0, len(padded.xy), batch_size):
-        part = slice(lo, lo + batch_size)
-        chunks.append(associate_batch(
-            rig, jnp.asarray(padded.xy[part], dtype), jnp.asarray(padded.mask[part]), method=method,
-            sigma=jnp.asarray(padded.sigma[part]) if isinstance(padded.sigma, np.ndarray) else padded.sigma,
-            dist=dist, weights=None if weights is None else jnp.asarray(padded.weights[part], dtype),
-            min_views=min_views, batch_size=batch_size, memory_budget_gb=memory_budget_gb,
-        ))  # fmt: skip
-    result = jax.tree_util.tree_map(lambda *a: np.concatenate([np.asarray(x) for x in a])[:B], *chunks)
+    # associate_batch runs the scenes in chunks of a ladder rung (at most batch_size): few
+    # compiled programs, whatever the number of frames and classes, and little padding.
+    result = associate_batch(
+        rig, scenes.xy.astype(dtype, copy=False), scenes.mask, method=method,
+        sigma=jnp.asarray(sigma_arg) if isinstance(sigma_arg, np.ndarray) else sigma_arg, dist=dist, weights=None if weights is None else scenes.weights.astype(dtype, copy=False),
+        min_views=min_views, batch_size=batch_size, memory_budget_gb=memory_budget_gb,
+    )  # fmt: skip
+    result = jax.tree_util.tree_map(np.asarray, result)
     out = _map_back(result, scenes, F, M, P, C, class_names)
     if vote is not None:
         fixed = person_consistent(rig, out.association, out.group_class, xy, mask, classes, instances, vote,
@@ -268,23 +264,6 @@ def _regroup(xy, mask, classes, C, weights) -> _Scenes:
         s_w = np.zeros((B, M, Pc), weights.dtype)
         s_w[b, mk, rk] = weights[fk, mk, pk]
     return _Scenes(s_xy, s_mask, slot, live // C, live % C, s_w)
-
-
-class _Padded(NamedTuple):
-    xy: np.ndarray
-    mask: np.ndarray
-    weights: np.ndarray | None
-    sigma: object
-
-
-def _pad_scenes(scenes: _Scenes, batch: int, sigma) -> _Padded:
-    """Empty scenes appended up to a multiple of ``batch`` (one compiled chunk shape)."""
-    B = len(scenes.frame)
-    extra = -B % batch
-    pad = lambda a: np.concatenate([a, np.zeros((extra, *a.shape[1:]), a.dtype)])  # noqa: E731
-    if isinstance(sigma, np.ndarray):
-        sigma = np.concatenate([sigma, np.full(extra, sigma.max() if B else 0.0, sigma.dtype)])
-    return _Padded(pad(scenes.xy), pad(scenes.mask), None if scenes.weights is None else pad(scenes.weights), sigma)
 
 
 @partial(jax.jit, static_argnames=("robust",))

@@ -1,13 +1,15 @@
-"""Few shapes, few compiled programs: :func:`cdog_jax.associate` pads the slot capacity ``P``
-to a short ladder (powers of two from 32) and :func:`cdog_jax.associate_batch` also pads
-the number of scenes ``B`` (powers of two up to ``batch_size``, then whole chunks of
-``batch_size``), so that a process compiles a handful of programs whatever its frames'
-counts. Padding is neutral: padded slots hold no detection, padded scenes none at all, and
-the result is trimmed back to the caller's shapes (bitwise what the unpadded program
-returns; ALGORITHM.md §16). For the same reason trailing slots that no view fills are not
-sent to the program at all: the ladder's rung is chosen from the slots in use
-(:func:`occupied_slots`), and the result is filled back out to the caller's ``P`` with
-what an empty slot and an empty group row hold.
+"""Few shapes, few compiled programs, little padding: :func:`cdog_jax.associate` pads the slot
+capacity ``P`` to a rung of a fine ladder (powers of two and one and a half times them:
+4, 6, 8, 12, 16, 24, 32, 48, …) and :func:`cdog_jax.associate_batch` also pads the number of
+scenes ``B`` (a rung of the same ladder from 1 up to ``batch_size``, then whole chunks of
+``batch_size``), so that a process compiles two programs per doubling of its frames'
+counts while a padded program does at most 1.5× the slots (2.25× the pairwise work) and
+1.5× the scenes of the unpadded one. Padding is neutral: padded slots hold no detection,
+padded scenes none at all, and the result is trimmed back to the caller's shapes (bitwise
+what the unpadded program returns; ALGORITHM.md §16). For the same reason trailing slots
+that no view fills are not sent to the program at all: the ladder's rung is chosen from the
+slots in use (:func:`occupied_slots`), and the result is filled back out to the caller's
+``P`` with what an empty slot and an empty group row hold.
 
 Padding and trimming happen in NumPy on the host, so that they compile nothing.
 """
@@ -21,19 +23,29 @@ import numpy as np
 
 from ._result import Association
 
-MIN_CAPACITY = 32  # slots per view of the smallest program
+MIN_CAPACITY = 4  # slots per view of the smallest program
+
+
+def ladder_rung(count: int, smallest: int = 1) -> int:
+    """The smallest rung ``>= max(count, smallest)`` of the ladder 1, 2, 3, 4, 6, 8, 12, 16,
+    24, 32, 48, … (``2^k`` and ``3 · 2^(k-1)``): two rungs per doubling, so a count is padded
+    by less than half of itself."""
+    n = max(int(count), int(smallest), 1)
+    power = 1 << (n - 1).bit_length()  # the smallest power of two >= n
+    three_quarters = 3 * power // 4  # the 1.5× rung below it (an integer from 4 up)
+    return three_quarters if power >= 4 and n <= three_quarters else power
 
 
 def slot_capacity(num_slots: int) -> int:
-    """The padded capacity for ``num_slots`` slots per view: the smallest power of two
-    ``>= max(num_slots, 32)``."""
-    return max(MIN_CAPACITY, 1 << max(int(num_slots) - 1, 0).bit_length())
+    """The padded capacity for ``num_slots`` slots per view: the smallest ladder rung
+    (:func:`ladder_rung`) ``>= max(num_slots, MIN_CAPACITY)``."""
+    return ladder_rung(num_slots, MIN_CAPACITY)
 
 
 def chunk_size(num_scenes: int, batch_size: int) -> int:
-    """Scenes per compiled call: ``batch_size``, or for fewer scenes the smallest power of
-    two ``>= num_scenes`` (at most ``batch_size``)."""
-    return min(batch_size, 1 << max(int(num_scenes) - 1, 0).bit_length())
+    """Scenes per compiled call: ``batch_size``, or for fewer scenes the smallest ladder rung
+    ``>= num_scenes`` (at most ``batch_size``)."""
+    return min(int(batch_size), ladder_rung(num_scenes))
 
 
 def occupied_slots(mask: np.ndarray | jax.Array) -> int:

@@ -1,4 +1,4 @@
-"""Padded shapes: ``associate`` / ``associate_batch`` run at a capacity from a short ladder
+"""Padded shapes: ``associate`` / ``associate_batch`` run at a capacity from a fine ladder
 and pad the batch, and return bitwise what the unpadded program returns."""
 
 import jax
@@ -9,10 +9,10 @@ from helpers import random_scene, ring_rig, run_with_xla_defaults
 
 from cdog_jax import Config, associate, associate_batch
 from cdog_jax._associate import _associate_extras_jit, _associate_jit, _check_extras, _prepare
-from cdog_jax._shapes import chunk_size, slot_capacity
+from cdog_jax._shapes import chunk_size, ladder_rung, slot_capacity
 
 RIG = ring_rig(5)
-P = 13  # not on the ladder: associate runs at 32
+P = 13  # not on the ladder: associate runs at 16
 
 
 def _unpadded(xy, mask, config, sigma=1.0, dist=None, weights=None, min_views=2):
@@ -40,9 +40,13 @@ def _assert_same(got, want, float_rtol=0.0):
 
 
 def test_ladders():
-    assert [slot_capacity(p) for p in (1, 5, 32, 33, 64, 65, 118, 129, 600)] == [32, 32, 32, 64, 64, 128, 128, 256, 1024]
-    assert [chunk_size(b, 16) for b in (1, 2, 3, 5, 16, 17, 100)] == [1, 2, 4, 8, 16, 16, 16]
+    assert [slot_capacity(p) for p in (1, 5, 7, 32, 33, 64, 65, 118, 129, 600)] == [4, 6, 8, 32, 48, 64, 96, 128, 192, 768]
+    assert [chunk_size(b, 16) for b in (1, 2, 3, 5, 16, 17, 100)] == [1, 2, 3, 6, 16, 16, 16]
     assert chunk_size(9, 10) == 10
+    rungs = [ladder_rung(n) for n in range(1, 4097)]
+    assert all(n <= r <= max(1.5 * n, 2) for n, r in enumerate(rungs, start=1))  # less than half padding
+    assert all(ladder_rung(r) == r for r in rungs)  # a rung pads to itself
+    assert len(set(rungs)) == 24  # two programs per doubling: 1, 2, 3, 4, 6, …, 3072, 4096
 
 
 def _scene(seed, clutter=0):
@@ -104,30 +108,30 @@ def test_capacity_falls_back_to_the_unpadded_shape_only_where_the_budget_needs_i
     from cdog_jax._associate import _capacity
 
     config = Config.extended()
-    at_33, at_64 = (estimate_peak_bytes(10, p, config) for p in (33, 64))
-    between = (at_33 + at_64) / 2 / 1e9
-    assert _capacity("associate", 10, 33, config, np.float32, 1, 2 * at_64 / 1e9, None) == 64
+    at_33, at_48 = (estimate_peak_bytes(10, p, config) for p in (33, 48))
+    between = (at_33 + at_48) / 2 / 1e9
+    assert _capacity("associate", 10, 33, config, np.float32, 1, 2 * at_48 / 1e9, None) == 48
     assert _capacity("associate", 10, 33, config, np.float32, 1, between, None) == 33
     with pytest.raises(MemoryError, match="10 views × 33 slots"):
         _capacity("associate", 10, 33, config, np.float32, 1, at_33 / 2 / 1e9, None)
 
 
-def test_frames_of_up_to_32_detections_per_view_compile_one_program():
+def test_frames_within_one_rung_compile_one_program():
     compiles = []
     listener = lambda name, secs, **kw: compiles.append(name) if name == "/jax/core/compile/backend_compile_duration" else None  # noqa: E731
     jax.monitoring.register_event_duration_secs_listener(listener)
     try:
         xy, mask = _scene(6)
-        for count in (3, 7, 11, 13):  # shapes no other test uses: any per-shape program would compile here
+        for count in (9, 10, 11, 12):  # shapes no other test uses: any per-shape program would compile here
             associate(RIG, xy[:, :count], mask[:, :count], config=Config.paper(), sigma=1.0)
     finally:
         jax.monitoring.unregister_event_duration_listener(listener)
-    assert len(compiles) <= 1, compiles  # the 32-slot program (none if already compiled)
+    assert len(compiles) <= 1, compiles  # the 12-slot program (none if already compiled)
 
 
 def test_trailing_empty_slots_are_left_out(monkeypatch):
     """Slots that no view fills at the end of ``P`` are not sent to the program: 13 slots in
-    use of 40 run at 32 slots, not 64, and the result is bitwise that of the program at 40
+    use of 40 run at 16 slots, not 48, and the result is bitwise that of the program at 40
     slots (labels of the empty slots -1, the extra group rows empty)."""
     import cdog_jax._associate as associate_module
 
@@ -140,9 +144,9 @@ def test_trailing_empty_slots_are_left_out(monkeypatch):
     )
     config = Config.paper()
     got = associate(RIG, *wide[0], config=config)
-    assert shapes == [(RIG.num_views, 32, 2)]
+    assert shapes == [(RIG.num_views, 16, 2)]
     _assert_same(got, _unpadded(*wide[0], config))
     batch = associate_batch(RIG, np.stack([w[0] for w in wide]), np.stack([w[1] for w in wide]), config=config, batch_size=1)
     for b, (xy, mask) in enumerate(wide):
         _assert_same(jax.tree.map(lambda a: a[b], batch), _unpadded(xy, mask, config))
-    assert shapes[1:] == [(RIG.num_views, 32, 2)] * 2
+    assert shapes[1:] == [(RIG.num_views, 16, 2)] * 2

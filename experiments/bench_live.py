@@ -1,0 +1,149 @@
+"""A frame loop as a live user runs it: one frame per call, warm, in one process.
+
+Questions:
+
+1. Shelf-like frames (5 cameras, 25 keypoint classes, 2–4 people, about one detection in
+   ten missed, a few stray detections per view; ~250–400 detections a frame) through
+   :func:`cdog_jax.associate_classes` with its defaults (σ estimated per frame): the time
+   per frame (p50 / p95 / p99), the first call (compile), and whether memory maps and
+   resident memory stay flat over ``--frames`` frames.
+2. One 10-camera frame of 130 points through :func:`cdog_jax.associate` with its defaults:
+   the warm time per frame.
+
+Frames are drawn once (``--pool`` distinct frames, cycled), so that frames of different
+counts meet the same programs as in a recording. Targets beside the numbers: p50 ≤ 6 ms and
+p99 ≤ 20 ms per Shelf-like frame, 10 × 130 ≤ 50 ms; the original C-DOG code needs 0.35–2.6 s
+per frame, 4D association runs at 30 frames/s with 5 cameras.
+
+    python experiments/bench_live.py                 # 2,000 frames
+    python experiments/bench_live.py --frames 300 --out live.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import cdog_jax
+from cdog_jax.synthetic import DEFAULT_BOX, default_rig, generate_scene
+
+TARGETS_MS = {"shelf_p50": 6.0, "shelf_p99": 20.0, "ten_views_130_points": 50.0}
+
+
+def shelf_like_frames(rig, count: int, classes: int = 25, seed: int = 0):
+    """``count`` frames, each ``(xy (1, M, P, 2), mask, classes, instances)`` with its own
+    ``P``: 2–4 people whose joints lie within 15 % of the box of a centre, σ = 2 px, 10 % of the
+    detections missed, 0–2 stray detections of random class per view."""
+    rng = np.random.default_rng(seed)
+    lo, hi = (np.asarray(b) for b in DEFAULT_BOX)
+    spread = 0.15 * (hi - lo)  # a person's joints lie within this of its centre, per axis
+    M = rig.num_views
+    frames = []
+    for _ in range(count):
+        people = int(rng.integers(2, 5))
+        centres = rng.uniform(lo + spread, hi - spread, (people, 1, 3))
+        X = (centres + rng.uniform(-spread, spread, (people, classes, 3))).reshape(-1, 3)
+        xy, _ = cdog_jax.project(rig, jnp.asarray(X, jnp.float32))
+        xy = np.asarray(xy) + rng.normal(0.0, 2.0, (M, len(X), 2))
+        cls = np.broadcast_to(np.tile(np.arange(classes), people), (M, len(X))).copy()
+        inst = np.broadcast_to(np.repeat(np.arange(people), classes), (M, len(X))).copy()
+        keep = rng.random((M, len(X))) > 0.1
+        strays = rng.integers(0, 3, M)
+        P = int((keep.sum(1) + strays).max())
+        f_xy, f_mask = np.zeros((M, P, 2), np.float32), np.zeros((M, P), bool)
+        f_cls, f_inst = np.zeros((M, P), np.int64), np.full((M, P), -1, np.int64)
+        for m in range(M):
+            n = int(keep[m].sum())
+            order = rng.permutation(n + strays[m])
+            x = np.concatenate([xy[m, keep[m]], rng.uniform((0, 0), (640, 480), (strays[m], 2))])
+            c = np.concatenate([cls[m, keep[m]], rng.integers(0, classes, strays[m])])
+            i = np.concatenate([inst[m, keep[m]], np.full(strays[m], -1)])
+            f_xy[m, : len(order)], f_cls[m, : len(order)], f_inst[m, : len(order)] = x[order], c[order], i[order]
+            f_mask[m, : len(order)] = True
+        frames.append((f_xy[None], f_mask[None], f_cls[None], f_inst[None]))
+    return frames
+
+
+def _maps() -> int:
+    with open("/proc/self/maps", "rb") as f:
+        return sum(1 for _ in f)
+
+
+def _rss_gb() -> float:
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * resource.getpagesize() / 1e9
+
+
+def _percentiles(seconds) -> dict:
+    ms = 1e3 * np.asarray(seconds)
+    return {f"p{q}_ms": float(np.percentile(ms, q)) for q in (50, 95, 99)}
+
+
+def shelf_loop(frames, rig, count: int, checkpoints: int = 5) -> dict:
+    """``count`` calls over the cycled ``frames``: first-call time, warm percentiles and the
+    memory maps and resident memory at a few points of the loop."""
+    t0 = time.perf_counter()
+    for xy, mask, cls, _ in frames:  # every frame once: compiles whatever its shapes need
+        cdog_jax.associate_classes(rig, xy, mask, cls)
+    warm_up_s = time.perf_counter() - t0
+    memory, times = [], []
+    marks = set(np.linspace(0, count - 1, checkpoints).astype(int).tolist())
+    for i in range(count):
+        xy, mask, cls, _ = frames[i % len(frames)]
+        t = time.perf_counter()
+        cdog_jax.associate_classes(rig, xy, mask, cls)
+        times.append(time.perf_counter() - t)
+        if i in marks:
+            memory.append({"frame": i, "maps": _maps(), "rss_gb": round(_rss_gb(), 3)})
+    return {"frames": count, "warm_up_s": warm_up_s, **_percentiles(times), "memory": memory}
+
+
+def ten_views(count: int = 20) -> dict:
+    rig = default_rig(num_views=10)
+    scene = generate_scene(jax.random.PRNGKey(0), rig, 130, 1.0, capacity=130)
+    xy, mask = np.asarray(scene.xy), np.asarray(scene.mask)
+    t = time.perf_counter()
+    jax.block_until_ready(cdog_jax.associate(rig, xy, mask))
+    first = time.perf_counter() - t
+    times = []
+    for _ in range(count):
+        t = time.perf_counter()
+        jax.block_until_ready(cdog_jax.associate(rig, xy, mask))
+        times.append(time.perf_counter() - t)
+    return {"first_s": first, **_percentiles(times)}
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--frames", type=int, default=2000)
+    p.add_argument("--pool", type=int, default=50)
+    p.add_argument("--out", help="write the numbers as JSON here")
+    p.add_argument("--skip-ten-views", action="store_true")
+    args = p.parse_args(argv)
+    rig = default_rig(num_views=5)
+    frames = shelf_like_frames(rig, args.pool)
+    sizes = [int(f[1].sum()) for f in frames]
+    print(f"Shelf-like frames: 5 views, 25 classes, {min(sizes)}–{max(sizes)} detections, {args.frames} calls")
+    out = {"shelf_like": shelf_loop(frames, rig, args.frames), "targets_ms": TARGETS_MS}
+    s = out["shelf_like"]
+    print(f"  warm-up over {len(frames)} frames {s['warm_up_s']:.1f} s; per frame p50 {s['p50_ms']:.1f} / "
+          f"p95 {s['p95_ms']:.1f} / p99 {s['p99_ms']:.1f} ms (targets {TARGETS_MS['shelf_p50']} / {TARGETS_MS['shelf_p99']})")
+    for m in s["memory"]:
+        print(f"  frame {m['frame']:>5}: {m['maps']} maps, {m['rss_gb']:.2f} GB resident")
+    if not args.skip_ten_views:
+        out["ten_views_130_points"] = t = ten_views()
+        print(f"10 views × 130 points: first {t['first_s']:.1f} s, warm p50 {t['p50_ms']:.1f} ms "
+              f"(target {TARGETS_MS['ten_views_130_points']})")
+    if args.out:
+        with open(args.out, "w") as f:
+            json.dump(out, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
