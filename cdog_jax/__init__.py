@@ -5,6 +5,7 @@ from ._persons import PersonVote as PersonVote
 from ._associate import associate as associate, associate_batch as associate_batch
 from ._sequence import associate_sequence as associate_sequence
 from ._tracks import TrackedAssociation as TrackedAssociation, track_groups as track_groups
+from ._live import LiveAssociator as LiveAssociator, LiveFrame as LiveFrame
 from ._cdog import Config as Config, STAGES as STAGES, associate_traced as associate_traced
 from ._cdog import Thresholds as Thresholds
 from ._memory import estimate_peak_bytes as estimate_peak_bytes

@@ -288,6 +288,31 @@ def associate_batch(
     checked as in :func:`associate`; an error names the scene. The memory budget counts ``batch_size`` scenes (see
     :func:`associate`); ``status`` is per scene.
     """
+    return associate_batch_at(
+        rig, xy, mask, method=method, sigma=sigma, thresholds=thresholds, batch_size=batch_size, dist=dist,
+        weights=weights, min_views=min_views, memory_budget_gb=memory_budget_gb, config=config,
+    )  # fmt: skip
+
+
+def associate_batch_at(
+    rig: Rig,
+    xy: ArrayLike,
+    mask: ArrayLike,
+    *,
+    method: Method | str | None = None,
+    sigma: float | str | Float[Array, " B"] = 1.0,
+    thresholds: tuple | None = None,
+    batch_size: int = 16,
+    dist: ArrayLike | Fisheye | None = None,
+    weights: ArrayLike | None = None,
+    min_views: int = 2,
+    memory_budget_gb: float | None = None,
+    config: Method | str | None = None,
+    min_slots: int = 0,
+) -> Association:
+    """:func:`associate_batch` at a slot capacity of at least ``min_slots`` per view (the
+    rung that holds it): a caller that must meet one compiled program on every call (a live
+    loop) gives its capacity here; results are those of :func:`associate_batch`."""
     expect_args("associate_batch", rig=(rig, Rig))
     expect(batch_size, INT, "batch_size", "associate_batch")
     method = method_argument(method, config, "associate_batch")
@@ -306,7 +331,8 @@ def associate_batch(
     dtype = _float_dtype(xy)
     M, P = np.shape(mask)[1:]
     chunk = chunk_size(B, batch_size)
-    capacity = _capacity("associate_batch", M, occupied_slots(mask), method, dtype, chunk, memory_budget_gb, vmapped=True)
+    in_use = max(occupied_slots(mask), int(min_slots))
+    capacity = _capacity("associate_batch", M, in_use, method, dtype, chunk, memory_budget_gb, vmapped=True)
     static, th = _prepare(method, sigma, thresholds, dtype)
     if dist is not None and not shared:
         raise ValueError("dist needs a shared rig (K of shape (M, 3, 3)); undistort per-scene rigs yourself")

@@ -14,6 +14,8 @@ one class by construction, and the graph of a class costs ``(M · P_c)²`` inste
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 from functools import partial
 from typing import NamedTuple
 
@@ -21,7 +23,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._associate import associate_batch
+from ._associate import associate_batch_at
+from ._shapes import slot_capacity
 from ._persons import check_instances, person_consistent, person_vote_argument
 from ._method import method_argument
 from ._expect import INT, expect, expect_args
@@ -123,6 +126,39 @@ def associate_classes(
         a negative class or one ``>= num_classes``, names of the wrong length, or
         ``instances`` not integers ``>= -1`` of ``mask``'s shape.
     """
+    return associate_classes_at(
+        rig, xy, mask, classes, class_names=class_names, num_classes=num_classes, method=method, sigma=sigma,
+        sigma_pool=sigma_pool, dist=dist, weights=weights, min_views=min_views, batch_size=batch_size,
+        memory_budget_gb=memory_budget_gb, config=config, instances=instances, person_vote=person_vote,
+    )  # fmt: skip
+
+
+def associate_classes_at(
+    rig: Rig,
+    xy,
+    mask,
+    classes,
+    *,
+    class_names=None,
+    num_classes: int | None = None,
+    method=None,
+    sigma: float | str = "auto",
+    sigma_pool: str = "frame",
+    dist=None,
+    weights=None,
+    min_views: int = 2,
+    batch_size: int = 64,
+    memory_budget_gb: float | None = None,
+    config=None,
+    instances=None,
+    person_vote=None,
+    min_scenes: int = 0,
+    min_slots: int = 0,
+) -> ClassAssociation:
+    """:func:`associate_classes` with at least ``min_scenes`` scenes (empty ones added) of at
+    least ``min_slots`` slots per view: a caller that must meet the same compiled programs
+    on every call (a live loop) gives its shapes here; results are those of
+    :func:`associate_classes`, up to the last bits of σ with ``sigma="auto"``."""
     expect_args("associate_classes", rig=(rig, Rig))
     expect(batch_size, INT, "batch_size", "associate_classes")
     method = method_argument(method, config, "associate_classes")
@@ -146,6 +182,8 @@ def associate_classes(
     F, M, P = mask.shape
     scenes = _regroup(xy, mask, classes, C, weights)
     B = len(scenes.frame)
+    if B and (min_scenes or min_slots):
+        scenes = _at_least(scenes, min_scenes, min_slots)
     if B == 0:
         return _empty(rig, F, M, P, xy.dtype, C, class_names)
     dtype = jax.dtypes.canonicalize_dtype(xy.dtype if np.issubdtype(xy.dtype, np.floating) else np.float64)
@@ -161,10 +199,10 @@ def associate_classes(
         sigma_arg = "auto" if auto else sigma
     # associate_batch runs the scenes in chunks of a ladder rung (at most batch_size): few
     # compiled programs, whatever the number of frames and classes, and little padding.
-    result = associate_batch(
+    result = associate_batch_at(
         rig, scenes.xy.astype(dtype, copy=False), scenes.mask, method=method,
         sigma=jnp.asarray(sigma_arg) if isinstance(sigma_arg, np.ndarray) else sigma_arg, dist=dist, weights=None if weights is None else scenes.weights.astype(dtype, copy=False),
-        min_views=min_views, batch_size=batch_size, memory_budget_gb=memory_budget_gb,
+        min_views=min_views, batch_size=batch_size, memory_budget_gb=memory_budget_gb, min_slots=min_slots,
     )  # fmt: skip
     result = jax.tree_util.tree_map(np.asarray, result)
     out = _map_back(result, scenes, F, M, P, C, class_names)
@@ -172,7 +210,7 @@ def associate_classes(
         fixed = person_consistent(rig, out.association, out.group_class, xy, mask, classes, instances, vote,
                                   dist=dist, weights=weights, min_views=min_views)  # fmt: skip
         a = out.association
-        assoc = _batched(**{k: jnp.asarray(v) for k, v in fixed._asdict().items() if k != "group_class"},
+        assoc = _batched(**{k: v for k, v in fixed._asdict().items() if k != "group_class"},
                          sigma_px=a.sigma_px, tau_px=a.tau_px, status=a.status)  # fmt: skip
         out = out._replace(association=assoc, group_class=fixed.group_class)
     return out
@@ -266,6 +304,26 @@ def _regroup(xy, mask, classes, C, weights) -> _Scenes:
     return _Scenes(s_xy, s_mask, slot, live // C, live % C, s_w)
 
 
+def _at_least(scenes: _Scenes, count: int, slots: int) -> _Scenes:
+    """``scenes`` followed by empty ones up to ``count`` scenes (of the last scene's frame,
+    so the scenes stay sorted by frame) and with empty slots up to the ladder rung that
+    holds ``slots``: the σ samples and the association then meet the same compiled shapes
+    whatever the frame holds. Empty scenes and slots carry no sample weight and hold no
+    group."""
+    B, _, Pc = scenes.mask.shape
+    extra, wide = max(count - B, 0), slot_capacity(max(Pc, slots)) - Pc
+
+    def pad(a, fill):
+        widths = [(0, extra), (0, 0), (0, wide)] + [(0, 0)] * (a.ndim - 3)
+        return np.pad(a, widths, constant_values=fill)
+
+    return _Scenes(
+        pad(scenes.xy, 0), pad(scenes.mask, False), pad(scenes.slot, -1),
+        np.concatenate([scenes.frame, np.full(extra, scenes.frame[-1])]), np.concatenate([scenes.cls, np.zeros(extra, scenes.cls.dtype)]),
+        None if scenes.weights is None else pad(scenes.weights, 0),
+    )  # fmt: skip
+
+
 @partial(jax.jit, static_argnames=("robust",))
 def _nearest_samples(rig, xy, mask, dist, robust: bool):
     """The σ estimator's samples of every scene, each ``(B, M, Pc, M)``: a detection's
@@ -347,26 +405,38 @@ def _map_back(r, scenes: _Scenes, F, M, P, C, names) -> ClassAssociation:
     sigma = _per_frame(r.sigma_px, scenes.frame, F)
     tau = _per_frame(r.tau_px, scenes.frame, F)
     assoc = _batched(
-        labels=jnp.asarray(labels),
-        groups=jnp.asarray(groups),
-        valid=jnp.asarray(valid),
-        points3d=jnp.asarray(place(r.points3d)),
-        bpe=jnp.asarray(place(r.bpe)),
-        err_px=jnp.asarray(place(r.err_px)),
-        n_views=jnp.asarray(place(r.n_views)),
-        num_groups=jnp.asarray(count.astype(np.int32)),
-        sigma_px=jnp.asarray(sigma),
-        tau_px=jnp.asarray(tau),
-        status=jnp.asarray(status),
+        labels=labels,
+        groups=groups,
+        valid=valid,
+        points3d=place(r.points3d),
+        bpe=place(r.bpe),
+        err_px=place(r.err_px),
+        n_views=place(r.n_views),
+        num_groups=count.astype(np.int32),
+        sigma_px=sigma,
+        tau_px=tau,
+        status=status,
     )
     return ClassAssociation(assoc, group_class, None if names is None else tuple(names), C)
 
 
 def _batched(**fields) -> Association:
-    """An :class:`Association` with a leading frame axis (built per frame, so that each
-    field's shape is checked as for one scene)."""
-    names = tuple(fields)
-    return jax.vmap(lambda *values: Association(**dict(zip(names, values))))(*fields.values())
+    """An :class:`Association` with a leading frame axis from its fields (host or device
+    arrays). Built from the pytree's leaves, so that nothing runs eagerly: a ``vmap`` of the
+    constructor traced new operations for every new group count."""
+    names = [field.name for field in dataclasses.fields(Association)]  # the pytree's leaf order
+    return jax.tree.unflatten(_association_structure(), [jax.device_put(np.asarray(fields[name])) for name in names])
+
+
+@functools.cache
+def _association_structure():
+    """The pytree structure of an :class:`Association` (a batched one has the same)."""
+    one, z = jnp.zeros(1, jnp.int32), jnp.zeros((), jnp.int32)
+    f = jnp.zeros(1, jnp.float32)
+    return jax.tree.structure(Association(
+        labels=one[:, None], groups=one[:, None], valid=one > 0, points3d=jnp.zeros((1, 3), jnp.float32), bpe=f, err_px=f,
+        n_views=one, num_groups=z, sigma_px=f[0], tau_px=f[0], status=z,
+    ))  # fmt: skip
 
 
 def _per_frame(values: np.ndarray, frame: np.ndarray, F: int) -> np.ndarray:
@@ -380,10 +450,10 @@ def _per_frame(values: np.ndarray, frame: np.ndarray, F: int) -> np.ndarray:
 
 def _empty(rig, F, M, P, dtype, C, names) -> ClassAssociation:
     dtype = dtype if np.issubdtype(dtype, np.floating) else np.float64
-    z = lambda *shape, dt=dtype: jnp.zeros(shape, dt)  # noqa: E731
+    z = lambda *shape, dt=dtype: np.zeros(shape, dt)  # noqa: E731
     assoc = _batched(
-        labels=jnp.full((F, M, P), -1, jnp.int32), groups=jnp.full((F, 1, M), -1, jnp.int32),
-        valid=jnp.zeros((F, 1), bool), points3d=z(F, 1, 3), bpe=z(F, 1), err_px=z(F, 1),
+        labels=np.full((F, M, P), -1, np.int32), groups=np.full((F, 1, M), -1, np.int32),
+        valid=np.zeros((F, 1), bool), points3d=z(F, 1, 3), bpe=z(F, 1), err_px=z(F, 1),
         n_views=z(F, 1, dt=np.int32), num_groups=z(F, dt=np.int32), sigma_px=z(F), tau_px=z(F),
         status=z(F, dt=np.int32),
     )  # fmt: skip

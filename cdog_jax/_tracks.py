@@ -125,49 +125,61 @@ class _Out(NamedTuple):
     unplaced: Int[Array, ""]
 
 
+def track_step(rig: Rig, carry: tuple, f: _Frame, max_step: Float[Array, ""], max_step_px: Float[Array, ""], *, prior: bool,
+               min_views: int, max_gap: int) -> tuple[tuple, _Out]:  # fmt: skip
+    """Link (and with ``prior``, recover) one frame ``f`` (``H`` rows, the last rows free for
+    recovered groups) to the tracks in ``carry`` (:func:`initial_tracks`): the new carry and
+    the frame's final table. ``max_step``: the gate in scene units, or ``nan``:
+    ``max_step_px`` pixels at each point's depth; a track unseen for ``a <= max_gap`` frames
+    is still linked from its last point, with ``a + 1`` times the gate."""
+    H = f.valid.shape[0]
+    prev_X, prev_valid, prev_class, prev_track, prev_age, next_id = carry
+    steps = (prev_age + 1).astype(prev_X.dtype)
+    gate = steps * jnp.where(jnp.isnan(max_step), max_step_px * scene_units_per_px(rig, prev_X), max_step)
+    match = link_frame(prev_X, prev_valid, prev_class, f.X, f.valid, f.cls, gate)  # (T,)
+    rows = jnp.arange(H, dtype=jnp.int32)
+    linked = jnp.any(match[:, None] == rows[None, :], axis=0)  # (H,) rows that continue a track
+    inherited = jnp.max(jnp.where(match[:, None] == rows[None, :], prev_track[:, None], -1), axis=0)
+    new = f.valid & ~linked
+    track = jnp.where(linked, inherited, jnp.where(new, next_id + jnp.cumsum(new, dtype=jnp.int32) - 1, -1)).astype(jnp.int32)
+    next_id = next_id + jnp.sum(new, dtype=jnp.int32)
+    out = _Out(f.X, f.valid, f.cls, f.groups, f.bpe, f.err_px, f.labels, track, jnp.zeros(H, bool), jnp.int32(0))
+    if prior:
+        lost = prev_valid & (match < 0)
+        out = recover_tracks(rig, out, prev_X, lost, prev_class, prev_track, f.xy, f.mask, f.det_class,
+                             steps * max_step_px, f.err_gate_px, min_views)  # fmt: skip
+    carried = (out.X, out.valid, out.cls, out.track, jnp.zeros(H, jnp.int32))
+    if max_gap:
+        seen = jnp.any((prev_track[:, None] == out.track[None, :]) & out.valid[None, :], axis=1)
+        unseen = prev_valid & ~seen & (prev_age < max_gap)
+        at = jnp.where(unseen, jnp.cumsum(unseen) - 1, H)  # the k-th unseen track in row k of the second half
+        second = lambda a, fill: jnp.full((H, *a.shape[1:]), fill, a.dtype).at[at].set(a, mode="drop")  # noqa: E731
+        tail = (second(prev_X, 0), second(unseen, False), second(prev_class, -1), second(prev_track, -1), second(prev_age + 1, 0))
+        carried = tuple(jnp.concatenate([a, b]) for a, b in zip(carried, tail))
+    return (*carried, next_id), out
+
+
+def initial_tracks(rows: int, max_gap: int, dtype) -> tuple:
+    """The tracks before the first frame of frames of ``rows`` rows: none (``T = rows``, or
+    ``2 · rows`` with ``max_gap``, carried rows), the next id 0."""
+    T = rows if max_gap == 0 else 2 * rows  # tracks carried: this frame's rows, then the unseen ones
+    return (np.zeros((T, 3), dtype), np.zeros(T, bool), np.zeros(T, np.int32), np.full(T, -1, np.int32), np.zeros(T, np.int32),
+            np.int32(0))  # fmt: skip
+
+
 @partial(jax.jit, static_argnames=("prior", "min_views", "max_gap"))
 def track_sequence(rig: Rig, frames: _Frame, max_step: Float[Array, ""], max_step_px: Float[Array, ""], *, prior: bool,
                    min_views: int, max_gap: int) -> _Out:  # fmt: skip
-    """Link (and with ``prior``, recover) every frame of one sequence: a ``lax.scan`` over
-    the ``F`` frames of ``frames`` (fields with a leading ``F``; ``H`` rows per frame, the
-    last rows free for recovered groups). ``max_step``: the gate in scene units, or ``nan``:
-    ``max_step_px`` pixels at each point's depth; a track unseen for ``a <= max_gap`` frames
-    is still linked from its last point, with ``a + 1`` times the gate. Returns the frames'
-    final tables, ``(F, …)``."""
-    H = frames.valid.shape[1]
-    T = H if max_gap == 0 else 2 * H  # tracks carried: this frame's rows, then the unseen ones
-
-    def step(carry, f: _Frame):
-        prev_X, prev_valid, prev_class, prev_track, prev_age, next_id = carry
-        steps = (prev_age + 1).astype(prev_X.dtype)
-        gate = steps * jnp.where(jnp.isnan(max_step), max_step_px * scene_units_per_px(rig, prev_X), max_step)
-        match = link_frame(prev_X, prev_valid, prev_class, f.X, f.valid, f.cls, gate)  # (T,)
-        rows = jnp.arange(H, dtype=jnp.int32)
-        linked = jnp.any(match[:, None] == rows[None, :], axis=0)  # (H,) rows that continue a track
-        inherited = jnp.max(jnp.where(match[:, None] == rows[None, :], prev_track[:, None], -1), axis=0)
-        new = f.valid & ~linked
-        track = jnp.where(linked, inherited, jnp.where(new, next_id + jnp.cumsum(new, dtype=jnp.int32) - 1, -1)).astype(jnp.int32)
-        next_id = next_id + jnp.sum(new, dtype=jnp.int32)
-        out = _Out(f.X, f.valid, f.cls, f.groups, f.bpe, f.err_px, f.labels, track, jnp.zeros(H, bool), jnp.int32(0))
-        if prior:
-            lost = prev_valid & (match < 0)
-            out = recover_tracks(rig, out, prev_X, lost, prev_class, prev_track, f.xy, f.mask, f.det_class,
-                                 steps * max_step_px, f.err_gate_px, min_views)  # fmt: skip
-        carried = (out.X, out.valid, out.cls, out.track, jnp.zeros(H, jnp.int32))
-        if max_gap:
-            seen = jnp.any((prev_track[:, None] == out.track[None, :]) & out.valid[None, :], axis=1)
-            unseen = prev_valid & ~seen & (prev_age < max_gap)
-            at = jnp.where(unseen, jnp.cumsum(unseen) - 1, H)  # the k-th unseen track in row k of the second half
-            second = lambda a, fill: jnp.full((H, *a.shape[1:]), fill, a.dtype).at[at].set(a, mode="drop")  # noqa: E731
-            tail = (second(prev_X, 0), second(unseen, False), second(prev_class, -1), second(prev_track, -1), second(prev_age + 1, 0))
-            carried = tuple(jnp.concatenate([a, b]) for a, b in zip(carried, tail))
-        return (*carried, next_id), out
-
-    dtype = frames.X.dtype
-    init = (jnp.zeros((T, 3), dtype), jnp.zeros(T, bool), jnp.zeros(T, jnp.int32), jnp.full(T, -1, jnp.int32), jnp.zeros(T, jnp.int32),
-            jnp.int32(0))  # fmt: skip
+    """:func:`track_step` over the ``F`` frames of ``frames`` (fields with a leading ``F``), as
+    one ``lax.scan``. Returns the frames' final tables, ``(F, …)``."""
+    init = initial_tracks(frames.valid.shape[1], max_gap, frames.X.dtype)
+    step = partial(track_step, rig, max_step=max_step, max_step_px=max_step_px, prior=prior, min_views=min_views, max_gap=max_gap)
     _, out = lax.scan(step, init, frames)
     return out
+
+
+track_one = jax.jit(track_step, static_argnames=("prior", "min_views", "max_gap"))
+"""One frame of :func:`track_step`, compiled (the live loop's linking)."""
 
 
 def _unpack(result: Any) -> tuple[Any, np.ndarray | None, tuple | None, int | None]:
@@ -261,25 +273,36 @@ def track_groups(
             xy = np.asarray(undistorted_frames(rig, xy, mask, lens))
     else:
         xy, mask, det_class = np.zeros((F, M, P, 2), dtype), np.zeros((F, M, P), bool), np.zeros((F, M, P), np.int32)
-    valid = np.asarray(assoc.valid)
-    G = valid.shape[1]
-    H = 2 * G if temporal_prior else G
-    cls = np.zeros((F, G), np.int32) if group_class is None else group_class.astype(np.int32)
-    err_gate = np.asarray(assoc.tau_px, dtype) if max_err_px is None else np.full(F, max_err_px, dtype)
-
-    def rows(a, fill):
-        a = np.asarray(a)
-        return jnp.asarray(np.concatenate([a, np.full((F, H - G, *a.shape[2:]), fill, a.dtype)], axis=1))
-
-    frames = _Frame(
-        rows(assoc.points3d, 0), rows(valid, False), rows(cls, -1), rows(assoc.groups, -1), rows(assoc.bpe, 0),
-        rows(assoc.err_px, 0), jnp.asarray(labels), jnp.asarray(xy), jnp.asarray(mask), jnp.asarray(det_class, jnp.int32),
-        jnp.asarray(err_gate),
-    )  # fmt: skip
+    frames = tracking_frames(assoc, group_class, labels, xy, mask, det_class, max_err_px, np.asarray(assoc.valid).shape[1],
+                             temporal_prior)  # fmt: skip
     step_units = jnp.asarray(np.nan if max_step is None else max_step, dtype)
     out = track_sequence(rig, frames, step_units, jnp.asarray(max_step_px, dtype), prior=temporal_prior, min_views=int(min_views),
                          max_gap=int(max_gap))  # fmt: skip
     return _tracked(assoc, out, group_class is not None, names, C)
+
+
+def tracking_frames(assoc, group_class, labels, xy, mask, det_class, max_err_px, rows: int, prior: bool) -> _Frame:
+    """The ``F`` frames of an association (fields ``(F, G, …)``; ``group_class (F, G)`` or
+    ``None``) as the tracker reads them: ``rows`` group rows (the first ``rows`` of ``G``,
+    valid groups first, or padded with empty rows), ``rows`` more free rows for recovered
+    groups with ``prior``. ``labels``, ``xy``, ``mask``, ``det_class``: ``(F, M, P, …)``,
+    the detections the prior searches (zeros without it)."""
+    dtype = np.asarray(assoc.points3d).dtype
+    valid = np.asarray(assoc.valid)
+    F = valid.shape[0]
+    H = 2 * rows if prior else rows
+    cls = np.zeros(valid.shape, np.int32) if group_class is None else np.asarray(group_class).astype(np.int32)
+    err_gate = np.asarray(assoc.tau_px, dtype) if max_err_px is None else np.full(F, max_err_px, dtype)
+
+    def at_rows(a, fill):
+        a = np.asarray(a)[:, :rows]
+        return jnp.asarray(np.concatenate([a, np.full((F, H - a.shape[1], *a.shape[2:]), fill, a.dtype)], axis=1))
+
+    return _Frame(
+        at_rows(assoc.points3d, 0), at_rows(valid, False), at_rows(cls, -1), at_rows(assoc.groups, -1), at_rows(assoc.bpe, 0),
+        at_rows(assoc.err_px, 0), jnp.asarray(labels), jnp.asarray(xy), jnp.asarray(mask), jnp.asarray(det_class, jnp.int32),
+        jnp.asarray(err_gate),
+    )  # fmt: skip
 
 
 def _check_gate(name: str, value, allow_none: bool = False) -> None:

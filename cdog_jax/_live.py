@@ -1,0 +1,317 @@
+"""Frame by frame: an object made once for a rig that associates, triangulates and tracks each
+frame as it arrives (docs/LIVE.md).
+
+Each frame runs the same compiled programs as the offline functions: the classes'
+association (:func:`cdog_jax.associate_classes`, every class one small scene; without
+classes, the whole frame one scene) and one step of the tracker's ``lax.scan``
+(:func:`cdog_jax.track_groups`), whose carried state (the tracks, their last points and
+ages, the next id) the object holds. The frame's shapes are padded to capacities the
+object keeps (slots per view and per class, scenes, group rows), so that every frame that
+fits meets programs already compiled; a frame that does not fit raises a capacity to the
+next rung of the shape ladder, compiles once for it and says so (a warning).
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._classes import associate_classes_at
+from ._expect import expect_args
+from ._method import method_argument
+from ._shapes import ladder_rung, slot_capacity
+from ._tracks import DEFAULT_MAX_STEP_PX, _check_gate, initial_tracks, track_one, tracking_frames
+from ._validate import as_array, check_observations, check_rig
+from .geometry._camera import Rig
+from .geometry._distortion import as_lens, undistorted_frames
+
+DEFAULT_SLOTS = 8
+"""Detections of one class in one view that the first compiled programs hold (a person
+detector's joints: one per person in view)."""
+
+
+class LiveFrame(NamedTuple):
+    """One frame's answer from :meth:`LiveAssociator.update`, in NumPy arrays; ``G`` is the
+    number of groups found in the frame (every row is a group).
+
+    Attributes:
+        frame: the frame's index in the stream (0, 1, …).
+        labels: ``(M, P)`` int32 group of every detection in the input's slots, ``-1`` if
+            unassigned or padding.
+        groups: ``(G, M)`` int32 slot of every group's detection in each view, ``-1``.
+        points3d: ``(G, 3)`` triangulated points, scene units.
+        err_px: ``(G,)`` mean reprojection distance of the members (px).
+        n_views: ``(G,)`` int32 views of every group.
+        track_id: ``(G,)`` int32 track of every group (kept while it is seen; ids start at 0
+            and are never reused).
+        recovered: ``(G,)`` bool, found by the temporal prior rather than the association.
+        group_class: ``(G,)`` int32 class of every group, or ``None`` without classes.
+        sigma_px: the frame's noise σ (px), given or estimated.
+        tau_px: the frame's epipolar gate (px).
+        status: int bit flags of :class:`cdog_jax.Status` (0: nothing to report).
+    """
+
+    frame: int
+    labels: np.ndarray
+    groups: np.ndarray
+    points3d: np.ndarray
+    err_px: np.ndarray
+    n_views: np.ndarray
+    track_id: np.ndarray
+    recovered: np.ndarray
+    group_class: np.ndarray | None
+    sigma_px: float
+    tau_px: float
+    status: int
+
+
+class LiveAssociator:
+    """Associate, triangulate and track one frame at a time with the same answers as the
+    offline :func:`cdog_jax.associate_sequence` on the same frames.
+
+    Args:
+        rig: the ``M`` cameras.
+        num_classes, class_names: the detections' classes (keypoint types, marker colours):
+            ``C`` class ids, or their names; neither: the detections carry no class.
+        method, sigma, dist, min_views, person_vote: as in :func:`cdog_jax.associate_classes`
+            (``sigma="auto"``: estimated in every frame from that frame).
+        temporal_prior, max_step, max_step_px, max_err_px, max_gap: as in
+            :func:`cdog_jax.track_groups`.
+        slots: detections of one class in one view (all detections of a view without
+            classes) that the first programs hold (at least 4); a frame with more raises it
+            to the next rung of the shape ladder (one compile, a warning).
+
+    Every frame's programs are compiled on the first frame and reused for every frame that
+    fits; :attr:`compiles` counts the capacity raises since. State (the tracks) lives in the
+    object: :meth:`reset` starts a new recording.
+    """
+
+    def __init__(
+        self,
+        rig: Rig,
+        *,
+        num_classes: int | None = None,
+        class_names: Any = None,
+        method: Any = None,
+        sigma: float | str = "auto",
+        dist: Any = None,
+        min_views: int = 2,
+        person_vote: Any = None,
+        temporal_prior: bool = False,
+        max_step: float | None = None,
+        max_step_px: float = DEFAULT_MAX_STEP_PX,
+        max_err_px: float | None = None,
+        max_gap: int = 0,
+        slots: int = DEFAULT_SLOTS,
+    ):
+        expect_args("LiveAssociator", rig=(rig, Rig))
+        check_rig(rig)
+        if class_names is not None:
+            if isinstance(class_names, str) or not all(isinstance(n, str) for n in class_names):
+                raise ValueError(f"LiveAssociator: class_names must be a list of strings; got {class_names!r}")
+            if num_classes is not None and num_classes != len(class_names):
+                raise ValueError(f"LiveAssociator: num_classes = {num_classes} but class_names has {len(class_names)} names")
+            num_classes = len(class_names)
+        if num_classes is not None and (isinstance(num_classes, bool) or not isinstance(num_classes, (int, np.integer)) or num_classes < 1):
+            raise ValueError(f"LiveAssociator: num_classes must be a positive int; got {num_classes!r}")
+        for name, value in (("slots", slots), ("max_gap", max_gap), ("min_views", min_views)):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < (1 if name == "slots" else 0):
+                raise ValueError(f"LiveAssociator: {name} must be a positive int; got {value!r}")
+        if not 2 <= min_views <= rig.num_views:
+            raise ValueError(f"LiveAssociator: min_views must be an int in [2, {rig.num_views}]; got {min_views!r}")
+        _check_gate("max_step", max_step, allow_none=True)
+        _check_gate("max_step_px", max_step_px)
+        _check_gate("max_err_px", max_err_px, allow_none=True)
+        if not (sigma == "auto" or (isinstance(sigma, (int, float)) and not isinstance(sigma, bool) and np.isfinite(sigma) and sigma > 0)):
+            raise ValueError(f"LiveAssociator: sigma must be 'auto' or a finite number > 0 (px); got {sigma!r}")
+        self.rig = rig
+        self.classed = num_classes is not None
+        self.num_classes = int(num_classes) if self.classed else 1
+        self.class_names = None if class_names is None else tuple(class_names)
+        self.method = method_argument(method, None, "LiveAssociator")
+        self.sigma = sigma
+        self.dist = dist
+        self.lens = None if dist is None else as_lens(dist, rig.K.dtype)
+        self.min_views = int(min_views)
+        self.person_vote = person_vote
+        self.temporal_prior = bool(temporal_prior)
+        self.max_step, self.max_step_px, self.max_err_px, self.max_gap = max_step, max_step_px, max_err_px, int(max_gap)
+        self.dtype = np.dtype(rig.K.dtype)
+        self.slots = slot_capacity(slots)  # per class and view, the association's programs
+        # Group rows the tracker carries: room for every class to hold half its slots' groups.
+        self.rows = ladder_rung(self.num_classes * self.slots // 2, 8)
+        self.compiles = 0
+        self._compiled = False
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every track: the next frame is frame 0 of a new recording."""
+        self.frame = 0
+        self._carry = None
+
+    def update(self, xy: Any, mask: Any = None, *, classes: Any = None, instances: Any = None) -> LiveFrame:
+        """Associate, triangulate and track one frame.
+
+        Args:
+            xy: ``(M, P, 2)`` detections (pixels), or a :class:`cdog_jax.io.Detections` of
+                one frame (as the readers return it; its mask, classes and instances are
+                used).
+            mask: ``(M, P)`` bool (default: every slot).
+            classes: ``(M, P)`` int class ids, needed when the object has classes.
+            instances: ``(M, P)`` int per-view skeleton index (for the person vote).
+
+        Returns:
+            A :class:`LiveFrame`. Raises ``ValueError`` for a frame of the wrong shape or
+            classes; the object's state is then unchanged.
+        """
+        xy, mask, classes, instances = self._frame(xy, mask, classes, instances)
+        M, P = mask.shape
+        # Each view's detections packed to the front, in order (the association sees the
+        # same scenes as with the input's gaps); labels and groups go back to the input's slots.
+        order = np.argsort(~mask, axis=1, kind="stable")
+        count = int(mask.sum(axis=1).max())
+        per_class = _most_per_class(mask, classes, self.num_classes)
+        if per_class > self.slots:
+            what = "of one class " if self.classed else ""
+            self._raise("slots", slot_capacity(per_class), f"{per_class} detections {what}in one view")
+        # Every view's table holds every class at full capacity: a frame that fits the
+        # association's programs fits the tracker's.
+        self.frame_slots = ladder_rung(self.num_classes * self.slots)
+
+        def pad(a, fill):
+            packed = np.take_along_axis(a, order.reshape(order.shape + (1,) * (a.ndim - 2)), axis=1)[:, :count]
+            return np.concatenate([packed, np.full((M, self.frame_slots - count, *a.shape[2:]), fill, a.dtype)], axis=1)
+
+        xy_p, mask_p, cls_p = pad(xy, 0), pad(mask, False), pad(classes, 0)
+        inst_p = None if instances is None else pad(instances, -1)
+        result = associate_classes_at(
+            self.rig, xy_p[None], mask_p[None], cls_p[None], num_classes=self.num_classes, method=self.method,
+            sigma=self.sigma, dist=self.dist, min_views=self.min_views, instances=None if inst_p is None else inst_p[None],
+            person_vote=self.person_vote, min_scenes=self.num_classes, min_slots=self.slots,
+        )  # fmt: skip
+        assoc = result.association
+        found = int(np.asarray(assoc.num_groups)[0])
+        if found > self.rows:
+            old = self.rows
+            self._raise("rows", ladder_rung(found), f"{found} groups")
+            if self._carry is not None:
+                self._carry = jax.device_put(_grown(self._carry, self._table_rows(old), self._table_rows(self.rows), self.max_gap))
+        if self._carry is None:
+            # On the device from the start: the program's own output is, and arrays placed
+            # differently would be a second program.
+            self._carry = jax.device_put(initial_tracks(self._table_rows(self.rows), self.max_gap, self.dtype))
+        if self.temporal_prior:
+            pinhole = xy_p[None] if self.lens is None else np.asarray(undistorted_frames(self.rig, xy_p[None], mask_p[None], self.lens))
+            det = (pinhole.astype(self.dtype), mask_p[None], cls_p[None])
+        else:
+            det = (np.zeros((1, M, self.frame_slots, 2), self.dtype), np.zeros((1, M, self.frame_slots), bool),
+                   np.zeros((1, M, self.frame_slots), np.int32))  # fmt: skip
+        group_class = result.group_class if self.classed else None
+        frames = tracking_frames(assoc, group_class, np.asarray(assoc.labels), *det, self.max_err_px, self.rows, self.temporal_prior)
+        one = type(frames)(*(a[0] for a in frames))
+        step_units = jnp.asarray(np.nan if self.max_step is None else self.max_step, self.dtype)
+        carry, out = track_one(self.rig, self._carry, one, step_units, jnp.asarray(self.max_step_px, self.dtype),
+                               prior=self.temporal_prior, min_views=self.min_views, max_gap=self.max_gap)  # fmt: skip
+        self._carry = carry
+        self._compiled = True
+        answer = _answer(self.frame, out, order, P, self.classed, assoc)
+        self.frame += 1
+        return answer
+
+    def _frame(self, xy, mask, classes, instances):
+        """The frame as NumPy arrays ``xy (M, P, 2)``, ``mask``, ``classes``, ``instances``,
+        checked."""
+        if hasattr(xy, "xy") and hasattr(xy, "mask") and hasattr(xy, "counts"):  # a Detections
+            det = xy
+            if det.xy.shape[0] != 1:
+                raise ValueError(f"LiveAssociator.update: give one frame; the detections hold {det.xy.shape[0]} frames")
+            xy, mask = det.xy[0], det.mask[0]
+            classes = classes if det.classes is None else det.classes[0]
+            instances = instances if det.instances is None else det.instances[0]
+        xy = np.asarray(as_array(xy))
+        if xy.ndim != 3 or xy.shape[-1] != 2:
+            raise ValueError(f"LiveAssociator.update: xy must have shape (M, P, 2); got {xy.shape}")
+        mask = np.ones(xy.shape[:2], bool) if mask is None else np.asarray(as_array(mask))
+        check_observations(xy, mask, self.rig.num_views)
+        if self.classed:
+            if classes is None:
+                raise ValueError("LiveAssociator.update: this associator has classes; give the frame's classes (M, P)")
+            classes = np.asarray(classes)
+            if classes.shape != mask.shape or not np.issubdtype(classes.dtype, np.integer):
+                raise ValueError(f"LiveAssociator.update: classes must be integer ids of shape {mask.shape}; got {classes.shape} {classes.dtype}")
+            bad = mask & ((classes < 0) | (classes >= self.num_classes))
+            if bad.any():
+                m, i = (int(v) for v in np.argwhere(bad)[0])
+                raise ValueError(f"LiveAssociator.update: class {int(classes[m, i])} at view {m}, slot {i} is not in [0, {self.num_classes})")
+            classes = np.where(mask, classes, 0).astype(np.int64)
+        else:
+            classes = np.zeros(mask.shape, np.int64)
+        if instances is not None:
+            instances = np.asarray(instances)
+            if instances.shape != mask.shape or not np.issubdtype(instances.dtype, np.integer):
+                raise ValueError(f"LiveAssociator.update: instances must be integer indices of shape {mask.shape}; got {instances.shape}")
+        return xy.astype(self.dtype), mask.astype(bool), classes, instances
+
+    def _table_rows(self, rows: int) -> int:
+        """Rows of the tracker's frame table: the groups', then as many free rows for
+        recovered groups with the temporal prior."""
+        return 2 * rows if self.temporal_prior else rows
+
+    def _raise(self, name: str, value: int, why: str) -> None:
+        if not self._compiled:  # the first frame compiles anyway: its capacities are free
+            setattr(self, name, value)
+            return
+        warnings.warn(f"LiveAssociator: a frame with {why} does not fit the compiled programs ({name} = {getattr(self, name)}); "
+                      f"compiling once for {value}", stacklevel=3)  # fmt: skip
+        setattr(self, name, value)
+        self.compiles += 1
+
+
+def _most_per_class(mask: np.ndarray, classes: np.ndarray, C: int) -> int:
+    """The most detections of one class in one view."""
+    M = mask.shape[0]
+    if not mask.any():
+        return 0
+    view = np.broadcast_to(np.arange(M)[:, None], mask.shape)[mask]
+    return int(np.bincount(view * C + classes[mask], minlength=M * C).max())
+
+
+def _grown(carry: tuple, old: int, new: int, max_gap: int) -> tuple:
+    """The tracker's state for frame tables of ``old`` rows (two blocks of them with
+    ``max_gap``: the frame's tracks, then the unseen ones) as ``new`` rows: empty rows
+    appended to each block (they hold no track)."""
+    X, valid, cls, track, age, next_id = (np.asarray(a) for a in carry)
+    fills = (0, False, -1, -1, 0)
+    halves = 1 if max_gap == 0 else 2
+    out = []
+    for a, fill in zip((X, valid, cls, track, age), fills):
+        parts = np.split(a, halves)
+        out.append(np.concatenate([np.concatenate([p, np.full((new - old, *a.shape[1:]), fill, a.dtype)]) for p in parts]))
+    return (*out, next_id)
+
+
+def _answer(frame: int, out, order: np.ndarray, P: int, classed: bool, assoc) -> LiveFrame:
+    """The tracker's table of one frame as a :class:`LiveFrame`: its valid rows, in order
+    (groups of the association, then recovered ones), slots those of the input
+    (``order (M, P)``: the input slot of every packed slot)."""
+    valid = np.asarray(out.valid)
+    rows = np.flatnonzero(valid)
+    rank = np.full(valid.shape[0] + 1, -1, np.int32)
+    rank[rows] = np.arange(len(rows), dtype=np.int32)
+    table = np.asarray(out.labels)
+    width = min(P, table.shape[1])
+    labels = np.full((table.shape[0], P), -1, np.int32)
+    np.put_along_axis(labels, order[:, :width], rank[np.where(table[:, :width] >= 0, table[:, :width], -1)], axis=1)
+    packed = np.asarray(out.groups)[rows]
+    views = np.arange(packed.shape[1])[None, :]
+    groups = np.where(packed >= 0, order[views, np.maximum(packed, 0)], -1).astype(np.int32)
+    return LiveFrame(
+        frame=frame, labels=labels, groups=groups, points3d=np.asarray(out.X)[rows], err_px=np.asarray(out.err_px)[rows],
+        n_views=np.sum(groups >= 0, axis=1, dtype=np.int32), track_id=np.asarray(out.track)[rows],
+        recovered=np.asarray(out.recovered)[rows], group_class=np.asarray(out.cls)[rows] if classed else None,
+        sigma_px=float(np.asarray(assoc.sigma_px)[0]), tau_px=float(np.asarray(assoc.tau_px)[0]), status=int(np.asarray(assoc.status)[0]),
+    )  # fmt: skip

@@ -1,0 +1,151 @@
+"""LiveAssociator: frame by frame, the same groups, points, classes and track ids as the
+offline sequence functions on the same frames; nothing compiled after the first frame for
+frames that fit; a frame that does not fit raises a capacity once, said so; bad frames are
+refused before any work and leave the state as it was."""
+
+import jax
+import numpy as np
+import pytest
+
+import cdog_jax
+from cdog_jax import LiveAssociator, associate_sequence
+from cdog_jax.io import detections_from_array
+from cdog_jax.synthetic import default_rig, generate_skeleton_scenes
+
+M, PEOPLE, FRAMES, J = 4, 2, 6, 17
+LOWERING = "/jax/core/compile/jaxpr_to_mlir_module_duration"
+
+
+@pytest.fixture(scope="module")
+def walk():
+    """Two people walking for six frames, seen by four cameras (17 joint classes)."""
+    rig = default_rig(num_views=M)
+    sk = generate_skeleton_scenes(jax.random.PRNGKey(1), rig, PEOPLE, 1.0, num_frames=FRAMES)
+    mask = np.asarray(sk.frames.mask)
+    classes = np.where(mask, np.asarray(sk.frames.class_id), 0)
+    return rig, np.asarray(sk.frames.xy, np.float32), mask, classes
+
+
+def _assert_same_frame(live, offline, f, classed=True):
+    a = offline.association
+    valid = np.asarray(a.valid[f])
+    np.testing.assert_array_equal(live.groups, np.asarray(a.groups[f])[valid])
+    np.testing.assert_array_equal(live.labels, np.asarray(a.labels[f]))
+    np.testing.assert_array_equal(live.track_id, offline.track_id[f][valid])
+    np.testing.assert_array_equal(live.recovered, offline.recovered[f][valid])
+    np.testing.assert_allclose(live.points3d, np.asarray(a.points3d[f])[valid], rtol=0, atol=1e-5)
+    if classed:
+        np.testing.assert_array_equal(live.group_class, offline.group_class[f][valid])
+    else:
+        assert live.group_class is None
+    assert live.frame == f
+
+
+@pytest.mark.parametrize("prior", [False, True], ids=["tracks", "temporal-prior"])
+def test_same_answers_as_the_offline_sequence(walk, prior):
+    rig, xy, mask, classes = walk
+    offline = associate_sequence(rig, xy, mask, classes=classes, temporal_prior=prior, max_gap=1)
+    live = LiveAssociator(rig, num_classes=J, temporal_prior=prior, max_gap=1)
+    for f in range(FRAMES):
+        _assert_same_frame(live.update(xy[f], mask[f], classes=classes[f]), offline, f)
+    assert offline.num_tracks > PEOPLE * 5  # a real sequence: many joints tracked
+
+
+def test_without_classes_same_answers_as_the_offline_sequence(walk):
+    """Detections with no class: the whole frame is one scene (one class of its own)."""
+    rig, xy, mask, classes = walk
+    one = classes == 0  # the noses alone: one point per person
+    xy, mask = np.where(one[..., None], xy, 0.0).astype(np.float32), mask & one
+    offline = associate_sequence(rig, xy, mask)
+    live = LiveAssociator(rig)
+    for f in range(FRAMES):
+        _assert_same_frame(live.update(xy[f], mask[f]), offline, f, classed=False)
+
+
+def test_nothing_compiled_after_the_first_frame(walk):
+    rig, xy, mask, classes = walk
+    live = LiveAssociator(rig, num_classes=J, temporal_prior=True)
+    live.update(xy[0], mask[0], classes=classes[0])
+    lowered = []
+    listener = lambda name, secs, **kw: lowered.append(kw.get("fun_name")) if name == LOWERING else None  # noqa: E731
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        for f in range(1, FRAMES):
+            keep = np.random.default_rng(f).random(mask[f].shape) > 0.2  # frames of other counts
+            live.update(xy[f], mask[f] & keep, classes=classes[f])
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)
+    assert lowered == [] and live.compiles == 0
+
+
+def test_a_frame_that_does_not_fit_raises_its_capacity_once(walk):
+    """A view with more detections of one class than the programs hold (4): one warning,
+    one larger program, the same answers as offline; the next such frame compiles nothing."""
+    rig, xy, mask, classes = walk
+    extra = 5  # stray detections of class 0 in view 0 of frames 1 and 2
+    xy, mask, classes = (np.pad(a[:3], [(0, 0), (0, 0), (0, extra)] + [(0, 0)] * (a.ndim - 3)) for a in (xy, mask, classes))
+    strays = np.random.default_rng(0).uniform(100, 400, (2, extra, 2))
+    xy[1:, 0, -extra:], mask[1:, 0, -extra:] = strays, True
+    live = LiveAssociator(rig, num_classes=J, slots=4)
+    offline = associate_sequence(rig, xy, mask, classes=classes)
+    _assert_same_frame(live.update(xy[0], mask[0], classes=classes[0]), offline, 0)
+    with pytest.warns(UserWarning, match="[5-7] detections of one class in one view does not fit"):
+        _assert_same_frame(live.update(xy[1], mask[1], classes=classes[1]), offline, 1)
+    assert live.compiles == 1 and live.slots in (6, 8)
+    _assert_same_frame(live.update(xy[2], mask[2], classes=classes[2]), offline, 2)
+    assert live.compiles == 1
+
+
+def test_reads_a_detections_frame_and_reset_starts_over(walk):
+    rig, xy, mask, _ = walk
+    det = detections_from_array(np.where(mask[0, ..., None], xy[0], np.nan), missing="nan")
+    live = LiveAssociator(rig)
+    first = live.update(det)
+    assert live.update(det).frame == 1
+    live.reset()
+    again = live.update(det)
+    assert again.frame == 0
+    np.testing.assert_array_equal(again.track_id, first.track_id)
+
+
+def test_bad_frames_refused_and_state_kept(walk):
+    rig, xy, mask, classes = walk
+    live = LiveAssociator(rig, num_classes=J)
+    with pytest.raises(ValueError, match="give the frame's classes"):
+        live.update(xy[0], mask[0])
+    slot = int(np.flatnonzero(mask[0, 0])[0])
+    with pytest.raises(ValueError, match=rf"class 17 at view 0, slot {slot} is not in \[0, 17\)"):
+        live.update(xy[0], mask[0], classes=np.where(np.arange(xy.shape[2]) == slot, 17, classes[0]))
+    with pytest.raises(ValueError, match=r"xy must have shape \(M, P, 2\)"):
+        live.update(xy[:2], mask[:2], classes=classes[:2])
+    assert live.frame == 0
+    with pytest.raises(ValueError, match="num_classes must be a positive int"):
+        LiveAssociator(rig, num_classes=0)
+    with pytest.raises(ValueError, match="sigma must be 'auto' or a finite number"):
+        LiveAssociator(rig, sigma=-1.0)
+    with pytest.raises(TypeError):
+        LiveAssociator(np.eye(3))
+    assert cdog_jax.LiveFrame._fields[0] == "frame"
+
+
+def test_person_vote_same_answers_as_offline(walk):
+    """With each detection's per-view skeleton (the person vote), frame by frame as offline."""
+    rig, xy, mask, classes = walk
+    sk = generate_skeleton_scenes(jax.random.PRNGKey(1), rig, PEOPLE, 1.0, num_frames=FRAMES)
+    person = np.where(mask, np.asarray(sk.frames.instance) // J, -1)
+    offline = associate_sequence(rig, xy[:3], mask[:3], classes=classes[:3], instances=person[:3])
+    live = LiveAssociator(rig, num_classes=J, person_vote=True)
+    for f in range(3):
+        _assert_same_frame(live.update(xy[f], mask[f], classes=classes[f], instances=person[f]), offline, f)
+
+
+def test_the_documented_loop_runs(capsys):
+    import os
+    import re
+
+    with open(os.path.join(os.path.dirname(__file__), "..", "docs", "LIVE.md"), encoding="utf-8") as f:
+        block = re.search(r"```python\n(.*?)```", f.read(), re.S).group(1)
+    assert len(block.splitlines()) <= 20
+    exec(compile(block, "docs/LIVE.md", "exec"), {"__name__": "__live__"})
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 5 and all(line.startswith(f"frame {f}: ") for f, line in enumerate(lines))
