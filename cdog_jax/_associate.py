@@ -295,21 +295,21 @@ def associate_batch(
 
 
 def associate_batch_at(
-    rig: Rig,
-    xy: ArrayLike,
-    mask: ArrayLike,
+    rig,
+    xy,
+    mask,
     *,
-    method: Method | str | None = None,
-    sigma: float | str | Float[Array, " B"] = 1.0,
-    thresholds: tuple | None = None,
-    batch_size: int = 16,
-    dist: ArrayLike | Fisheye | None = None,
-    weights: ArrayLike | None = None,
-    min_views: int = 2,
-    memory_budget_gb: float | None = None,
-    config: Method | str | None = None,
-    min_slots: int = 0,
-) -> Association:
+    method=None,
+    sigma=1.0,
+    thresholds=None,
+    batch_size=16,
+    dist=None,
+    weights=None,
+    min_views=2,
+    memory_budget_gb=None,
+    config=None,
+    min_slots=0,
+):
     """:func:`associate_batch` at a slot capacity of at least ``min_slots`` per view (the
     rung that holds it): a caller that must meet one compiled program on every call (a live
     loop) gives its capacity here; results are those of :func:`associate_batch`."""

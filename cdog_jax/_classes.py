@@ -134,27 +134,27 @@ def associate_classes(
 
 
 def associate_classes_at(
-    rig: Rig,
+    rig,
     xy,
     mask,
     classes,
     *,
     class_names=None,
-    num_classes: int | None = None,
+    num_classes=None,
     method=None,
-    sigma: float | str = "auto",
-    sigma_pool: str = "frame",
+    sigma="auto",
+    sigma_pool="frame",
     dist=None,
     weights=None,
-    min_views: int = 2,
-    batch_size: int = 64,
-    memory_budget_gb: float | None = None,
+    min_views=2,
+    batch_size=64,
+    memory_budget_gb=None,
     config=None,
     instances=None,
     person_vote=None,
-    min_scenes: int = 0,
-    min_slots: int = 0,
-) -> ClassAssociation:
+    min_scenes=0,
+    min_slots=0,
+):
     """:func:`associate_classes` with at least ``min_scenes`` scenes (empty ones added) of at
     least ``min_slots`` slots per view: a caller that must meet the same compiled programs
     on every call (a live loop) gives its shapes here; results are those of
@@ -254,18 +254,26 @@ def _check_classes(classes, mask: np.ndarray) -> np.ndarray:
     return np.where(mask, c, 0).astype(np.int64)
 
 
-def _num_classes(classes: np.ndarray, mask: np.ndarray, names, num_classes) -> int:
-    largest = int(classes[mask].max()) + 1 if mask.any() else 0
+def given_classes(names, num_classes, where: str = "") -> int | None:
+    """The number of classes that ``class_names`` (a list of strings) and ``num_classes``
+    (a positive int) state, checked against each other; ``None`` when neither is given.
+    ``where`` starts the messages."""
     if names is not None:
         if isinstance(names, str) or not all(isinstance(n, str) for n in names):
-            raise ValueError(f"class_names must be a list of strings; got {names!r}")
+            raise ValueError(f"{where}class_names must be a list of strings; got {names!r}")
         if num_classes is not None and num_classes != len(names):
-            raise ValueError(f"num_classes = {num_classes} but class_names has {len(names)} names")
+            raise ValueError(f"{where}num_classes = {num_classes} but class_names has {len(names)} names")
         num_classes = len(names)
+    if num_classes is not None and (isinstance(num_classes, bool) or not isinstance(num_classes, (int, np.integer)) or num_classes < 1):
+        raise ValueError(f"{where}num_classes must be a positive int; got {num_classes!r}")
+    return num_classes
+
+
+def _num_classes(classes: np.ndarray, mask: np.ndarray, names, num_classes) -> int:
+    largest = int(classes[mask].max()) + 1 if mask.any() else 0
+    num_classes = given_classes(names, num_classes)
     if num_classes is None:
         return max(largest, 1)
-    if isinstance(num_classes, bool) or not isinstance(num_classes, (int, np.integer)) or num_classes < 1:
-        raise ValueError(f"num_classes must be a positive int; got {num_classes!r}")
     if largest > num_classes:
         f, m, i = (int(v) for v in np.argwhere(mask & (classes >= num_classes))[0])
         raise ValueError(f"class id {int(classes[f, m, i])} at frame {f}, view {m}, slot {i} is >= num_classes = {num_classes}")

@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._classes import associate_classes_at
+from ._classes import associate_classes_at, given_classes
 from ._expect import expect_args
 from ._method import method_argument
 from ._shapes import ladder_rung, slot_capacity
@@ -110,14 +110,7 @@ class LiveAssociator:
     ):
         expect_args("LiveAssociator", rig=(rig, Rig))
         check_rig(rig)
-        if class_names is not None:
-            if isinstance(class_names, str) or not all(isinstance(n, str) for n in class_names):
-                raise ValueError(f"LiveAssociator: class_names must be a list of strings; got {class_names!r}")
-            if num_classes is not None and num_classes != len(class_names):
-                raise ValueError(f"LiveAssociator: num_classes = {num_classes} but class_names has {len(class_names)} names")
-            num_classes = len(class_names)
-        if num_classes is not None and (isinstance(num_classes, bool) or not isinstance(num_classes, (int, np.integer)) or num_classes < 1):
-            raise ValueError(f"LiveAssociator: num_classes must be a positive int; got {num_classes!r}")
+        num_classes = given_classes(class_names, num_classes, "LiveAssociator: ")
         for name, value in (("slots", slots), ("max_gap", max_gap), ("min_views", min_views)):
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < (1 if name == "slots" else 0):
                 raise ValueError(f"LiveAssociator: {name} must be a positive int; got {value!r}")

@@ -7,7 +7,9 @@ Questions:
    :func:`cdog_jax.associate_classes` with its defaults (σ estimated per frame): the time
    per frame (p50 / p95 / p99), the first call (compile), and whether memory maps and
    resident memory stay flat over ``--frames`` frames.
-2. One 10-camera frame of 130 points through :func:`cdog_jax.associate` with its defaults:
+2. The same frames through one :class:`cdog_jax.LiveAssociator` (25 classes; tracks, and
+   with the temporal prior): the first frame and the warm time per frame.
+3. One 10-camera frame of 130 points through :func:`cdog_jax.associate` with its defaults:
    the warm time per frame.
 
 Frames are drawn once (``--pool`` distinct frames, cycled), so that frames of different
@@ -104,6 +106,22 @@ def shelf_loop(frames, rig, count: int, checkpoints: int = 5) -> dict:
     return {"frames": count, "warm_up_s": warm_up_s, **_percentiles(times), "memory": memory}
 
 
+def live_loop(frames, rig, count: int, **options) -> dict:
+    """``count`` frames through one :class:`cdog_jax.LiveAssociator` (25 classes): the first
+    frame (compile), warm percentiles, the capacity raises and the memory at the end."""
+    live = cdog_jax.LiveAssociator(rig, num_classes=25, **options)
+    t = time.perf_counter()
+    live.update(frames[0][0][0], frames[0][1][0], classes=frames[0][2][0])
+    first = time.perf_counter() - t
+    times = []
+    for i in range(1, count):
+        xy, mask, cls, _ = frames[i % len(frames)]
+        t = time.perf_counter()
+        live.update(xy[0], mask[0], classes=cls[0])
+        times.append(time.perf_counter() - t)
+    return {"first_s": first, **_percentiles(times), "raises": live.compiles, "maps": _maps(), "rss_gb": round(_rss_gb(), 3)}
+
+
 def ten_views(count: int = 20) -> dict:
     rig = default_rig(num_views=10)
     scene = generate_scene(jax.random.PRNGKey(0), rig, 130, 1.0, capacity=130)
@@ -136,6 +154,10 @@ def main(argv=None):
           f"p95 {s['p95_ms']:.1f} / p99 {s['p99_ms']:.1f} ms (targets {TARGETS_MS['shelf_p50']} / {TARGETS_MS['shelf_p99']})")
     for m in s["memory"]:
         print(f"  frame {m['frame']:>5}: {m['maps']} maps, {m['rss_gb']:.2f} GB resident")
+    for name, options in (("live", {}), ("live_temporal_prior", {"temporal_prior": True})):
+        out[name] = t = live_loop(frames, rig, args.frames, **options)
+        print(f"LiveAssociator {options or ''}: first frame {t['first_s']:.1f} s; per frame p50 {t['p50_ms']:.1f} / "
+              f"p95 {t['p95_ms']:.1f} / p99 {t['p99_ms']:.1f} ms; {t['raises']} capacity raises; {t['maps']} maps, {t['rss_gb']:.2f} GB")
     if not args.skip_ten_views:
         out["ten_views_130_points"] = t = ten_views()
         print(f"10 views × 130 points: first {t['first_s']:.1f} s, warm p50 {t['p50_ms']:.1f} ms "

@@ -23,7 +23,7 @@ import sys  # noqa: E402
 # Test modules live in sub-folders without __init__.py; make tests/helpers.py importable.
 sys.path.insert(0, os.path.dirname(__file__))
 
-from helpers import FAST_COMPILE_FLAGS  # noqa: E402
+from helpers import FAST_COMPILE_FLAGS, memory_mappings  # noqa: E402
 
 # The suite's time is compilation, not running. Three XLA switches cut it (on x86-64;
 # tests/helpers.py): XLA's older CPU code generator (one LLVM function per fusion, no MLIR
@@ -55,15 +55,6 @@ def getkey():
     return _getkey
 
 
-def _memory_mappings() -> int | None:
-    """Memory mappings of this process (Linux), or None where /proc is not there."""
-    try:
-        with open("/proc/self/maps", "rb") as f:
-            return sum(1 for _ in f)
-    except OSError:
-        return None
-
-
 @pytest.fixture(autouse=True, scope="module")
 def _release_compiled_programs():
     """Drop JAX's compiled programs after a test module once the process holds many
@@ -75,7 +66,7 @@ def _release_compiled_programs():
     Clearing only above a third of that keeps the programs that later modules reuse.
     """
     yield
-    count = _memory_mappings()
+    count = memory_mappings()
     if count is None or count > 20_000:
         jax.clear_caches()
         import gc

@@ -7,6 +7,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import memory_mappings
 
 import cdog_jax
 from cdog_jax import associate_classes
@@ -34,14 +35,6 @@ def frame():
     return rig, xy[None].astype(np.float32), mask, truth[None] // K, truth[None] % K
 
 
-def _mappings() -> int | None:
-    try:
-        with open("/proc/self/maps", "rb") as f:
-            return sum(1 for _ in f)
-    except OSError:
-        return None
-
-
 def _loop(call, count):
     """``call()`` once to warm up, then ``count`` times: ``(programs lowered, mappings
     before, mappings after)`` of the repeated calls."""
@@ -50,10 +43,10 @@ def _loop(call, count):
     listener = lambda name, secs, **kw: lowered.append(name) if name == LOWERING else None  # noqa: E731
     jax.monitoring.register_event_duration_secs_listener(listener)
     try:
-        before = _mappings()
+        before = memory_mappings()
         for _ in range(count):
             call()
-        after = _mappings()
+        after = memory_mappings()
     finally:
         jax.monitoring.unregister_event_duration_listener(listener)
     return len(lowered), before, after

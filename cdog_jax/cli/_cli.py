@@ -14,6 +14,9 @@ Commands:
     associate  your rig file and detections file → groups, 3D points (JSON/NPZ/CSV), figure.
     rig        describe a rig file (centres, directions, baselines, warnings), draw it
                (both in ``_associate_command.py``).
+    track      frames streamed as JSON lines on standard input → one JSON line per frame
+               (groups, track ids, 3D points), flushed as each frame is done
+               (``_track_command.py``).
 
 Errors: a user error (a bad file, path or value: ``ValueError``, which includes
 :class:`cdog_jax.io.InputError`, and ``OSError``) prints one line ``cdog-jax: error: <file>:
@@ -33,10 +36,10 @@ import sys
 from collections.abc import Sequence
 
 from .._version import __version__
-from . import _associate_command, _benchmark_command, _calibrate_command, _demo_command
+from . import _associate_command, _benchmark_command, _calibrate_command, _demo_command, _track_command
 
 _SUBCOMMANDS = (_demo_command.add_parser, _benchmark_command.add_parser, _calibrate_command.add_parser,
-                _associate_command.add_parsers)
+                _associate_command.add_parsers, _track_command.add_parser)
 
 
 def build_parser() -> argparse.ArgumentParser:

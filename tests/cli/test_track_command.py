@@ -1,0 +1,73 @@
+"""``cdog-jax track`` in a real pipe: each frame's line is written and flushed before the next
+frame is sent, a bad line gets one error line and the stream goes on, the end of input
+ends the command with status 0; the answers are the live associator's."""
+
+import json
+import subprocess
+import sys
+
+import jax
+import numpy as np
+import pytest
+
+from cdog_jax import LiveAssociator
+from cdog_jax.io import save_rig_json
+from cdog_jax.synthetic import SKELETON_JOINTS, default_rig, generate_skeleton_scenes
+
+M, J = 3, 17
+
+
+@pytest.fixture(scope="module")
+def stream(tmp_path_factory):
+    """A 3-camera rig file and three frames of two walking people as JSON lines (joint
+    names as classes)."""
+    from cdog_jax.synthetic import SKELETON_JOINTS
+
+    folder = tmp_path_factory.mktemp("track")
+    rig = default_rig(num_views=M)
+    save_rig_json(str(folder / "rig.json"), rig, image_size=(640, 480))
+    sk = generate_skeleton_scenes(jax.random.PRNGKey(2), rig, 2, 1.0, num_frames=3).frames
+    xy, mask, cls = (np.asarray(a) for a in (sk.xy, sk.mask, sk.class_id))
+    lines = []
+    for f in range(3):
+        views = [[[float(v) for v in xy[f, m, i]] for i in np.flatnonzero(mask[f, m])] for m in range(M)]
+        names = [[SKELETON_JOINTS[cls[f, m, i]] for i in np.flatnonzero(mask[f, m])] for m in range(M)]
+        lines.append(json.dumps({"views": views, "classes": names, "frame": 100 + f}))
+    return folder / "rig.json", lines, rig, (xy, mask, cls)
+
+
+def test_frames_stream_through_a_pipe(stream):
+    rig_path, lines, rig, (xy, mask, cls) = stream
+    command = [sys.executable, "-m", "cdog_jax", "track", "--rig", str(rig_path), "--keypoints", "COCO_17"]
+    with subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) as child:
+        answers = []
+        for line in (lines[0], "{not json", lines[1], '{"views": [[[1, 2]]]}', lines[2]):
+            child.stdin.write(line + "\n")
+            child.stdin.flush()
+            answers.append(json.loads(child.stdout.readline()))  # written before the next line is sent
+        child.stdin.close()
+        assert child.wait(timeout=120) == 0, child.stderr.read()
+        assert child.stdout.read() == ""
+    assert answers[1] == {"line": 2, "error": answers[1]["error"]} and answers[1]["error"].startswith("line 2: not JSON")
+    assert answers[3]["line"] == 4 and "views" in answers[3]["error"]
+    frames = [answers[0], answers[2], answers[4]]
+    assert [a["frame"] for a in frames] == [100, 101, 102]
+    # The same as the live associator on the same frames (slots are the input's order).
+    live = LiveAssociator(rig, class_names=list(SKELETON_JOINTS))
+    for f, answer in enumerate(frames):
+        order = [np.flatnonzero(mask[f, m]) for m in range(M)]
+        out = live.update(xy[f], mask[f], classes=np.where(mask[f], cls[f], 0))
+        assert len(answer["groups"]) == len(out.groups) > 5
+        for group, g in zip(answer["groups"], range(len(out.groups))):
+            members = [[m, int(np.flatnonzero(order[m] == s)[0])] for m, s in enumerate(out.groups[g]) if s >= 0]
+            assert group["members"] == members and group["track"] == int(out.track_id[g])
+            np.testing.assert_allclose(group["point"], out.points3d[g], atol=1e-5)
+
+
+def test_track_command_errors_are_one_line(tmp_path, capsys):
+    from cdog_jax.cli import main
+
+    assert main(["track", "--rig", str(tmp_path / "missing.json")]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
+    assert main(["track", "--rig", "x.json", "--class-names", "a,,b"]) == 2
+    assert "--class-names" in capsys.readouterr().err
