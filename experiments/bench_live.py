@@ -19,6 +19,7 @@ per frame, 4D association runs at 30 frames/s with 5 cameras.
 
     python experiments/bench_live.py                 # 2,000 frames
     python experiments/bench_live.py --frames 300 --out live.json
+    python experiments/bench_live.py --skip-prior --skip-ten-views   # memory over 2,000 frames
 """
 
 from __future__ import annotations
@@ -143,6 +144,7 @@ def main(argv=None):
     p.add_argument("--pool", type=int, default=50)
     p.add_argument("--out", help="write the numbers as JSON here")
     p.add_argument("--skip-ten-views", action="store_true")
+    p.add_argument("--skip-prior", action="store_true", help="leave out the live loop with the temporal prior")
     args = p.parse_args(argv)
     rig = default_rig(num_views=5)
     frames = shelf_like_frames(rig, args.pool)
@@ -154,7 +156,8 @@ def main(argv=None):
           f"p95 {s['p95_ms']:.1f} / p99 {s['p99_ms']:.1f} ms (targets {TARGETS_MS['shelf_p50']} / {TARGETS_MS['shelf_p99']})")
     for m in s["memory"]:
         print(f"  frame {m['frame']:>5}: {m['maps']} maps, {m['rss_gb']:.2f} GB resident")
-    for name, options in (("live", {}), ("live_temporal_prior", {"temporal_prior": True})):
+    loops = (("live", {}),) if args.skip_prior else (("live", {}), ("live_temporal_prior", {"temporal_prior": True}))
+    for name, options in loops:
         out[name] = t = live_loop(frames, rig, args.frames, **options)
         print(f"LiveAssociator {options or ''}: first frame {t['first_s']:.1f} s; per frame p50 {t['p50_ms']:.1f} / "
               f"p95 {t['p95_ms']:.1f} / p99 {t['p99_ms']:.1f} ms; {t['raises']} capacity raises; {t['maps']} maps, {t['rss_gb']:.2f} GB")
