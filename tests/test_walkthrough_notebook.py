@@ -1,7 +1,7 @@
 """examples/walkthrough.ipynb runs from top to bottom in a fresh kernel (nbclient): it
 associates a 30-point scene, draws the four figures, differentiates the BPE and refines a
-drifted rig (its last cell asserts that the refinement lowers the BPE and halves the
-rotation error). The notebook is the one source: what users open is what runs here."""
+drifted rig (a cell asserts that the refinement lowers the BPE and halves the rotation
+error), then tracks two walking people frame by frame. The notebook is the one source: what users open is what runs here."""
 
 import os
 
@@ -23,7 +23,7 @@ def test_walkthrough_notebook_executes(monkeypatch):
     outputs = [o for cell in nb.cells if cell.cell_type == "code" for o in cell.outputs]
     assert not [o for o in outputs if o.output_type == "error"]
     text = "".join(o.get("text", "") for o in outputs if o.output_type == "stream")
-    for expected in ("10 views", "groups; PG-F1", "d BPE / d focal of view 0", "rotation error"):
+    for expected in ("10 views", "groups; PG-F1", "d BPE / d focal of view 0", "rotation error", "frame 4: "):
         assert expected in text, expected
     images = [o for o in outputs if "image/png" in o.get("data", {})]
     assert len(images) == 4  # association, epipolar lines, BPE histogram, rays
