@@ -14,15 +14,17 @@ def greedy_match(cost: Float[Array, "A B"]) -> Int[Array, " A"]:
     Ties go to the smaller flat index ``a · B + b``."""
     A, B = cost.shape
 
-    def step(_, carry):
-        cost, match = carry
+    def step(carry):
+        k, cost, match, _ = carry
         flat = jnp.argmin(cost)
         a, b = flat // B, flat % B
         ok = jnp.isfinite(cost[a, b])
         match = jnp.where(ok, match.at[a].set(b.astype(jnp.int32)), match)
         cost = jnp.where(ok, cost.at[a, :].set(jnp.inf).at[:, b].set(jnp.inf), cost)
-        return cost, match
+        return k + 1, cost, match, ok
 
-    # Each step matches a pair or finds none left, so min(A, B) steps match them all.
-    _, match = lax.fori_loop(0, min(A, B), step, (cost, jnp.full((A,), -1, jnp.int32)))
+    # Each step matches a pair or finds none left (then every later step would do nothing
+    # too, so the loop stops), so at most min(A, B) steps match them all.
+    init = (jnp.int32(0), cost, jnp.full((A,), -1, jnp.int32), jnp.bool_(True))
+    _, _, match, _ = lax.while_loop(lambda c: (c[0] < min(A, B)) & c[3], step, init)
     return match
