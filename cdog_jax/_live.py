@@ -132,14 +132,22 @@ class LiveAssociator:
         self.min_views = int(min_views)
         self.person_vote = person_vote
         self.temporal_prior = bool(temporal_prior)
-        self.max_step, self.max_step_px, self.max_err_px, self.max_gap = max_step, max_step_px, max_err_px, int(max_gap)
+        self.max_err_px, self.max_gap = max_err_px, int(max_gap)
         self.dtype = np.dtype(rig.K.dtype)
+        # The tracker's gates as it reads them (scene units, or nan: pixels at the depth).
+        self._gates = (jnp.asarray(np.nan if max_step is None else max_step, self.dtype), jnp.asarray(max_step_px, self.dtype))
         self.slots = slot_capacity(slots)  # per class and view, the association's programs
         # Group rows the tracker carries: room for every class to hold half its slots' groups.
         self.rows = ladder_rung(self.num_classes * self.slots // 2, 8)
         self.compiles = 0
         self._compiled = False
         self.reset()
+
+    @property
+    def frame_slots(self) -> int:
+        """Slots per view of the tracker's tables: every class at full capacity, so that a
+        frame that fits the association's programs fits the tracker's."""
+        return ladder_rung(self.num_classes * self.slots)
 
     def reset(self) -> None:
         """Forget every track: the next frame is frame 0 of a new recording."""
@@ -171,10 +179,6 @@ class LiveAssociator:
         if per_class > self.slots:
             what = "of one class " if self.classed else ""
             self._raise("slots", slot_capacity(per_class), f"{per_class} detections {what}in one view")
-        # Every view's table holds every class at full capacity: a frame that fits the
-        # association's programs fits the tracker's.
-        self.frame_slots = ladder_rung(self.num_classes * self.slots)
-
         def pad(a, fill):
             packed = np.take_along_axis(a, order.reshape(order.shape + (1,) * (a.ndim - 2)), axis=1)[:, :count]
             return np.concatenate([packed, np.full((M, self.frame_slots - count, *a.shape[2:]), fill, a.dtype)], axis=1)
@@ -206,9 +210,8 @@ class LiveAssociator:
         group_class = result.group_class if self.classed else None
         frames = tracking_frames(assoc, group_class, np.asarray(assoc.labels), *det, self.max_err_px, self.rows, self.temporal_prior)
         one = type(frames)(*(a[0] for a in frames))
-        step_units = jnp.asarray(np.nan if self.max_step is None else self.max_step, self.dtype)
-        carry, out = track_one(self.rig, self._carry, one, step_units, jnp.asarray(self.max_step_px, self.dtype),
-                               prior=self.temporal_prior, min_views=self.min_views, max_gap=self.max_gap)  # fmt: skip
+        carry, out = track_one(self.rig, self._carry, one, *self._gates, prior=self.temporal_prior, min_views=self.min_views,
+                               max_gap=self.max_gap)  # fmt: skip
         self._carry = carry
         self._compiled = True
         answer = _answer(self.frame, out, order, P, self.classed, assoc)

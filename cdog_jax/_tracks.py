@@ -286,7 +286,8 @@ def tracking_frames(assoc, group_class, labels, xy, mask, det_class, max_err_px,
     ``None``) as the tracker reads them: ``rows`` group rows (the first ``rows`` of ``G``,
     valid groups first, or padded with empty rows), ``rows`` more free rows for recovered
     groups with ``prior``. ``labels``, ``xy``, ``mask``, ``det_class``: ``(F, M, P, …)``,
-    the detections the prior searches (zeros without it)."""
+    the detections the prior searches (zeros without it). Host arrays: the compiled
+    tracker takes them as they are."""
     dtype = np.asarray(assoc.points3d).dtype
     valid = np.asarray(assoc.valid)
     F = valid.shape[0]
@@ -296,12 +297,11 @@ def tracking_frames(assoc, group_class, labels, xy, mask, det_class, max_err_px,
 
     def at_rows(a, fill):
         a = np.asarray(a)[:, :rows]
-        return jnp.asarray(np.concatenate([a, np.full((F, H - a.shape[1], *a.shape[2:]), fill, a.dtype)], axis=1))
+        return np.concatenate([a, np.full((F, H - a.shape[1], *a.shape[2:]), fill, a.dtype)], axis=1)
 
     return _Frame(
         at_rows(assoc.points3d, 0), at_rows(valid, False), at_rows(cls, -1), at_rows(assoc.groups, -1), at_rows(assoc.bpe, 0),
-        at_rows(assoc.err_px, 0), jnp.asarray(labels), jnp.asarray(xy), jnp.asarray(mask), jnp.asarray(det_class, jnp.int32),
-        jnp.asarray(err_gate),
+        at_rows(assoc.err_px, 0), np.asarray(labels), np.asarray(xy), np.asarray(mask), np.asarray(det_class, np.int32), err_gate,
     )  # fmt: skip
 
 
