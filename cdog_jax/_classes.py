@@ -24,7 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._associate import associate_batch_at
-from ._shapes import slot_capacity
+from ._shapes import ladder_rung, slot_capacity
 from ._persons import check_instances, person_consistent, person_vote_argument
 from ._method import method_argument
 from ._expect import INT, expect, expect_args
@@ -154,10 +154,12 @@ def associate_classes_at(
     person_vote=None,
     min_scenes=0,
     min_slots=0,
+    min_samples=0,
 ):
     """:func:`associate_classes` with at least ``min_scenes`` scenes (empty ones added) of at
-    least ``min_slots`` slots per view: a caller that must meet the same compiled programs
-    on every call (a live loop) gives its shapes here; results are those of
+    least ``min_slots`` slots per view, the σ fit's table at least ``min_samples`` wide: a
+    caller that must meet the same compiled programs on every call (a live loop) gives its
+    shapes here; results are those of
     :func:`associate_classes`, up to the last bits of σ with ``sigma="auto"``."""
     expect_args("associate_classes", rig=(rig, Rig))
     expect(batch_size, INT, "batch_size", "associate_classes")
@@ -190,7 +192,7 @@ def associate_classes_at(
     auto = sigma == "auto" or method.sigma_mode != "given"
     if auto and sigma_pool != "scene":
         estimator = "robust" if method.sigma_mode == "robust" else "auto"
-        frame_sigma = _pooled_sigma(rig, scenes, F, dist, dtype, sigma_pool, estimator)
+        frame_sigma = _pooled_sigma(rig, scenes, F, dist, dtype, sigma_pool, estimator, min_samples)
         sigma_arg = np.asarray(frame_sigma[scenes.frame], dtype)
         if getattr(method, "threshold_unit", "px") == "focal":  # the pipeline reads a given σ in focal lengths
             sigma_arg = np.asarray(sigma_arg * (REFERENCE_FOCAL_PX / np.asarray(focal_scale(rig.K), dtype)), dtype)
@@ -347,23 +349,16 @@ def _nearest_samples(rig, xy, mask, dist, robust: bool):
     return jax.vmap(one)(xy, mask)
 
 
-def _pooled_sigma(rig, scenes: _Scenes, F: int, dist, dtype, pool: str, estimator: str) -> np.ndarray:
+def _pooled_sigma(rig, scenes: _Scenes, F: int, dist, dtype, pool: str, estimator: str, min_samples: int = 0) -> np.ndarray:
     """``(F,)`` σ per frame by the estimator of ``sigma_mode=estimator`` (``"auto"`` or
     ``"robust"``) on the nearest-distance samples of all the frame's class scenes
-    (``pool="all"``: of all frames, one value)."""
+    (``pool="all"``: of all frames, one value); the fit's table at least ``min_samples`` wide."""
     d = None if dist is None else jnp.asarray(dist, dtype)
     robust = estimator == "robust"
     samples = _nearest_samples(rig, jnp.asarray(scenes.xy, dtype), jnp.asarray(scenes.mask), d, robust)
     group = scenes.frame if pool == "frame" else np.zeros_like(scenes.frame)
     G = F if pool == "frame" else 1
-    start = np.r_[0, np.flatnonzero(np.diff(group)) + 1]  # scenes are sorted by frame
-    rank = np.arange(len(group)) - np.repeat(start, np.diff(np.r_[start, len(group)]))
-    tables = []
-    for a in samples:  # distance, weight, count; weight 0 marks an unused entry
-        a = np.asarray(a).reshape(len(scenes.frame), -1)
-        table = np.zeros((G, int(rank.max()) + 1, a.shape[1]), a.dtype)
-        table[group, rank] = a
-        tables.append(jnp.asarray(table.reshape(G, -1)))
+    tables = _sample_tables([np.asarray(a).reshape(len(group), -1) for a in samples], group, G, min_samples)
     focal = focal_scale(rig.K)
     if robust:
         sigma, _ = _pooled_robust_fit(*tables, focal)
@@ -371,6 +366,35 @@ def _pooled_sigma(rig, scenes: _Scenes, F: int, dist, dtype, pool: str, estimato
         sigma, _ = _pooled_fit(*tables, focal)
     sigma = np.asarray(sigma)
     return sigma if pool == "frame" else np.full(F, sigma[0])
+
+
+def _sample_tables(samples: list[np.ndarray], group: np.ndarray, G: int, min_width: int = 0) -> list:
+    """The σ fit's inputs, ``(G, S)`` per array: each group's used samples (weight > 0) side
+    by side, in scene order, then padding of weight 0 up to the ladder rung above the
+    largest group's count and ``min_width`` (so few table shapes are compiled). ``samples``: the arrays of
+    :func:`_nearest_samples` flattened per scene ``(B, ·)`` (distance, weight, count[, second
+    distance]); ``group (B,)`` each scene's group, sorted.
+
+    Only the used samples enter the fit: a frame's table is mostly padding (empty slots, empty
+    classes, a view against itself), and the EM's cost is per entry. The one number the fit
+    reads from unused entries, the largest view count, is kept in every padding entry."""
+    weight, count = samples[1], samples[2]
+    used = weight > 0
+    per_group = np.bincount(group, weights=used.sum(axis=1), minlength=G).astype(np.int64)
+    width = ladder_rung(max(int(per_group.max()) + 1, min_width), 16)  # + 1: room for the largest count
+    rows = np.repeat(group, used.sum(axis=1))  # the group of each used sample, in order
+    start = np.r_[0, np.cumsum(per_group)[:-1]]
+    column = np.arange(len(rows)) - start[rows]
+    largest = np.zeros(G, count.dtype)
+    np.maximum.at(largest, group, count.max(axis=1))
+    tables = []
+    for k, a in enumerate(samples):  # padding: weight 0, distance 0; count the group's largest
+        table = np.zeros((G, width), a.dtype)
+        if k == 2:
+            table[:] = largest[:, None]
+        table[rows, column] = a[used]
+        tables.append(jnp.asarray(table))
+    return tables
 
 
 # Compiled once per table shape. Run eagerly, the fits' EM loops are traced and compiled

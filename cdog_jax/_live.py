@@ -189,6 +189,8 @@ class LiveAssociator:
             self.rig, xy_p[None], mask_p[None], cls_p[None], num_classes=self.num_classes, method=self.method,
             sigma=self.sigma, dist=self.dist, min_views=self.min_views, instances=None if inst_p is None else inst_p[None],
             person_vote=self.person_vote, min_scenes=self.num_classes, min_slots=self.slots,
+            batch_size=self.num_classes,  # one program of exactly one scene per class
+            min_samples=self.num_classes * self.slots * M * (M - 1) + 1,  # σ fit: a frame that fits, + 1
         )  # fmt: skip
         assoc = result.association
         found = int(np.asarray(assoc.num_groups)[0])
