@@ -1,0 +1,214 @@
+"""experiments/real/shelf.py and shelf_score.py on a tiny made-up stand-in for Shelf, in
+Shelf's file formats (calibration.json, detection/<v>.txt with BODY_25 candidates and PAF
+scores, gt.txt): two people seen by five cameras over three frames."""
+
+import json
+import os
+import runpy
+
+import numpy as np
+import pytest
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REAL = os.path.join(HERE, "..", "experiments", "real")
+shelf = runpy.run_path(os.path.join(REAL, "shelf.py"), run_name="shelf")
+score = runpy.run_path(os.path.join(REAL, "shelf_score.py"), run_name="shelf_score")
+
+SIZE = (1032, 776)
+# A standing person's BODY_25 joints (metres, z up; its right side at -x, so it faces -y).
+TEMPLATE = np.array([
+    (0, 0.1, 1.65), (0, 0, 1.5), (-0.2, 0, 1.45), (-0.25, 0, 1.2), (-0.28, 0.05, 0.95), (0.2, 0, 1.45),
+    (0.25, 0, 1.2), (0.28, 0.05, 0.95), (0, 0, 0.95), (-0.1, 0, 0.95), (-0.11, 0.02, 0.5), (-0.12, 0, 0.08),
+    (0.1, 0, 0.95), (0.11, 0.02, 0.5), (0.12, 0, 0.08), (-0.04, 0.09, 1.7), (0.04, 0.09, 1.7),
+    (-0.08, 0, 1.68), (0.08, 0, 1.68), (0.13, 0.15, 0.02), (0.17, 0.13, 0.02), (0.12, -0.05, 0.03),
+    (-0.13, 0.15, 0.02), (-0.17, 0.13, 0.02), (-0.12, -0.05, 0.03),
+]) * (1, -1, 1)  # fmt: skip
+
+
+def _cameras(M=5):
+    """``M`` cameras on a circle of radius 4 m, 2.5 m up, looking at (0, 0, 1)."""
+    K = np.array([[1000.0, 0, SIZE[0] / 2], [0, 1000.0, SIZE[1] / 2], [0, 0, 1]])
+    Ks, Rs, ts = [], [], []
+    for m in range(M):
+        a = 2 * np.pi * m / M
+        centre = np.array([4 * np.cos(a), 4 * np.sin(a), 2.5])
+        z = np.array([0, 0, 1.0]) - centre
+        z /= np.linalg.norm(z)
+        x = np.cross(z, [0, 0, 1.0])
+        x /= np.linalg.norm(x)
+        y = np.cross(z, x)
+        R = np.stack([x, y, z])
+        Ks.append(K)
+        Rs.append(R)
+        ts.append(-R @ centre)
+    return np.array(Ks), np.array(Rs), np.array(ts)
+
+
+def _people(frames=3):
+    """``(F, 2, 25, 3)``: two people walking slowly apart."""
+    out = []
+    for f in range(frames):
+        out.append([TEMPLATE + (-0.8 - 0.05 * f, 0, 0), TEMPLATE + (0.8, 0.3 + 0.05 * f, 0)])
+    return np.array(out)
+
+
+def _write_standin(folder, frames=3):
+    K, R, t = _cameras()
+    people = _people(frames)
+    cams = {str(m): {"K": K[m].reshape(-1).tolist(), "RT": np.c_[R[m], t[m]].reshape(-1).tolist(),
+                     "imgSize": list(SIZE)} for m in range(5)}  # fmt: skip
+    os.makedirs(os.path.join(folder, "detection"))
+    with open(os.path.join(folder, "calibration.json"), "w") as f:
+        json.dump(cams, f)
+    rng = np.random.default_rng(0)
+    order_by_view = []
+    for m in range(5):
+        lines = [f"4\t{frames}"]
+        orders = []
+        for f in range(frames):
+            cam = (R[m] @ people[f].reshape(-1, 3).T).T + t[m]
+            uv = (K[m] @ cam.T).T
+            uv = (uv[:, :2] / uv[:, 2:]).reshape(2, 25, 2)
+            order = rng.permutation(2)  # the candidates' order differs by view and frame
+            orders.append(order)
+            for j in range(25):
+                xy = uv[order, j] / (np.array(SIZE) - 1)
+                lines += ["2", " ".join(map(str, xy[:, 0].tolist())), " ".join(map(str, xy[:, 1].tolist())), "0.9 0.8"]
+            for a, b in shelf["PAF_PAIRS"]:
+                same = np.equal.outer(order, order)
+                lines += [" ".join("0.85" if s else "0.05" for s in row) for row in same]
+        order_by_view.append(orders)
+        with open(os.path.join(folder, "detection", f"{m}.txt"), "w") as f:
+            f.write("\n".join(lines) + "\n")
+    shelf_joints = [[score["shelf_from_body25"](p) for p in frame] for frame in people]
+    lines = [f"15\t{frames}"]
+    for frame in shelf_joints:
+        lines.append("2")
+        for pid, joints in enumerate(frame):
+            lines.append(str(pid))
+            block = np.vstack([joints.T, np.ones(15)])
+            lines += [" ".join(map(str, row.tolist())) for row in block]
+    with open(os.path.join(folder, "gt.txt"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+    return people, order_by_view, (K, R, t)
+
+
+@pytest.fixture(scope="module")
+def standin(tmp_path_factory):
+    folder = str(tmp_path_factory.mktemp("shelf"))
+    people, orders, cams = _write_standin(folder)
+    return folder, people, orders, cams
+
+
+def test_readers_give_back_what_was_written(standin):
+    folder, people, orders, (K, R, t) = standin
+    names, K2, R2, t2, size = shelf["read_calibration"](os.path.join(folder, "calibration.json"))
+    assert names == ["0", "1", "2", "3", "4"] and size == SIZE
+    np.testing.assert_allclose(K2, K)
+    np.testing.assert_allclose(R2, R)
+    np.testing.assert_allclose(t2, t)
+    frames = shelf["read_candidates"](os.path.join(folder, "detection", "0.txt"), size)
+    assert len(frames) == 3 and len(frames[0].joints) == 25 and len(frames[0].pafs) == 26
+    cam = (R[0] @ people[0, orders[0][0][0], 1]) + t[0]
+    uv = (K[0] @ cam)[:2] / (K[0] @ cam)[2]
+    np.testing.assert_allclose(frames[0].joints[1][0, :2], uv, atol=1e-6)  # pixels again
+    gt = shelf["read_skeletons"](os.path.join(folder, "gt.txt"))
+    assert len(gt) == 3 and sorted(gt[0]) == [0, 1] and gt[0][0].shape == (15, 3)
+
+
+def test_people_are_parsed_from_the_paf_scores(standin):
+    folder, people, orders, _ = standin
+    frames = shelf["read_candidates"](os.path.join(folder, "detection", "2.txt"), SIZE)
+    for f, frame in enumerate(frames):
+        parsed = shelf["parse_people"](frame)
+        assert len(parsed) == 2
+        # each parsed person holds one candidate index for every joint: the same person's
+        got = sorted(tuple(p) for p in parsed)
+        assert got == [(0,) * 25, (1,) * 25]
+
+
+def test_partial_people_merge_and_small_ones_are_dropped():
+    """No neck: the limbs build a shoulder–elbow person and, apart, a nose–eye–ear person;
+    the shoulder–ear limb (late in OpenPose's order) merges them. A lone ankle–toe pair of
+    another person is too small to keep."""
+    joints = [np.zeros((0, 3)) for _ in range(25)]
+    for j in (2, 3, 0, 15, 17):
+        joints[j] = np.array([[10.0 * j, 5.0, 0.9]])
+    joints[14] = np.array([[1.0, 1.0, 0.9]])
+    joints[19] = np.array([[2.0, 2.0, 0.9]])
+    pafs = [np.full((len(joints[a]), len(joints[b])), 0.7) for a, b in shelf["PAF_PAIRS"]]
+    parsed = shelf["parse_people"](shelf["Frame"](joints, pafs))
+    assert len(parsed) == 1
+    assert sorted(np.flatnonzero(parsed[0] >= 0)) == [0, 2, 3, 15, 17]
+
+
+def test_the_command_runs_as_a_user_runs_it(standin, tmp_path):
+    folder, people, _, _ = standin
+    work = str(tmp_path / "work")
+    report = shelf["main"]([folder, "--work", work, "--split", "all", "--json", str(tmp_path / "s.json")])
+    assert sorted(os.listdir(os.path.join(work, "pose"))) == ["0", "1", "2", "3", "4"]
+    with open(os.path.join(work, "pose", "0", "000001_keypoints.json")) as f:
+        assert len(json.load(f)["people"]) == 2
+    assert report["frames"] == 3 and report["recall_10cm"] == 1.0
+    with open(tmp_path / "s.json") as f:
+        assert json.load(f)["recall_10cm"] == 1.0
+
+
+def test_splits_alternate_blocks_of_25():
+    dev, held = shelf["split_frames"](301, "dev"), shelf["split_frames"](301, "held-out")
+    assert list(dev[:26]) == list(range(25)) + [50] and list(held[:2]) == [25, 26]
+    assert len(dev) + len(held) == 301 and held[-1] == 300 and not set(dev) & set(held)
+
+
+def _truth():
+    return score["shelf_from_body25"](TEMPLATE)
+
+
+def test_pcp_counts_each_part_by_half_its_length():
+    true = _truth()
+    gt = [{0: true, 1: true + (2, 0, 0)}]
+    perfect = score["pcp"]([[true, true + (2, 0, 0)]], gt, [0])
+    assert perfect["pcp"] == {"actor 1": 100.0, "actor 2": 100.0} and perfect["mpjpe_mm"] == 0.0
+    wrist = true.copy()
+    length = np.linalg.norm(true[7] - true[6])  # right lower arm: elbow 7, wrist 6
+    wrist[6] += (1.02 * length, 0, 0)  # mean end error 0.51 · length: wrong
+    parts = score["correct_parts"](wrist, true)
+    names = [name for name, _, _ in score["PARTS"]]
+    assert list(np.flatnonzero(~parts)) == [names.index("right lower arm")]
+    wrist[6] = true[6] + (0.98 * length, 0, 0)  # 0.49 · length: right
+    assert score["correct_parts"](wrist, true).all()
+    missing = true.copy()
+    missing[13] = np.nan  # no head top: the head is wrong, the rest is scored
+    assert list(np.flatnonzero(~score["correct_parts"](missing, true))) == [names.index("head")]
+
+
+def test_pcp_matches_each_actor_to_its_nearest_person_and_scores_misses():
+    true = _truth()
+    gt = [{0: true, 1: true + (2, 0, 0)}, {0: true}]
+    far = true + (0.3, 0, 0)
+    out = score["pcp"]([[far, true + (2, 0, 0), true], []], gt, [0, 1])
+    assert out["pcp"] == {"actor 1": 50.0, "actor 2": 100.0}  # frame 1: no one predicted
+    assert out["scored"] == 3
+
+
+def test_the_head_follows_the_4d_association_rule():
+    """Neck half-way from the shoulders' centre to the ears' centre; head top 0.125 m along
+    the face normal and 0.145 m up (the 4D-association repository's evaluation)."""
+    body = TEMPLATE
+    shelf15 = score["shelf_from_body25"](body)
+    shoulders = (body[2] + body[5]) / 2
+    ears = (body[17] + body[18]) / 2
+    np.testing.assert_allclose(shelf15[12], shoulders + 0.5 * (ears - shoulders))
+    face = np.cross(body[1] - body[8], body[2] - body[5])
+    np.testing.assert_allclose(shelf15[13], shelf15[12] + 0.125 * face / np.linalg.norm(face) + (0, 0, 0.145))
+    assert np.allclose(face / np.linalg.norm(face), (0, -1, 0))  # it faces -y
+    skel19 = body[list(score["BODY25_OF_SKEL19"])]
+    body_again = score["body25_from_skel19"](skel19)
+    np.testing.assert_allclose(score["shelf_from_body25"](body_again), shelf15)
+
+
+def test_joint_recall_counts_points_of_the_joint_type_within_10_cm():
+    true = _truth()
+    gt = [{0: true}]
+    points = [{score["BODY25_OF_SHELF"][s]: true[s][None] + (0.09 if s < 6 else 0.11, 0, 0) for s in range(12)}]
+    assert score["joint_recall"](points, gt, [0]) == 0.5
