@@ -9,6 +9,8 @@ import runpy
 import numpy as np
 import pytest
 
+from cdog_jax.synthetic import look_at_rotation
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 REAL = os.path.join(HERE, "..", "experiments", "real")
 shelf = runpy.run_path(os.path.join(REAL, "shelf.py"), run_name="shelf")
@@ -32,12 +34,7 @@ def _cameras(M=5):
     for m in range(M):
         a = 2 * np.pi * m / M
         centre = np.array([4 * np.cos(a), 4 * np.sin(a), 2.5])
-        z = np.array([0, 0, 1.0]) - centre
-        z /= np.linalg.norm(z)
-        x = np.cross(z, [0, 0, 1.0])
-        x /= np.linalg.norm(x)
-        y = np.cross(z, x)
-        R = np.stack([x, y, z])
+        R = look_at_rotation(centre, (0.0, 0.0, 1.0))
         Ks.append(K)
         Rs.append(R)
         ts.append(-R @ centre)
