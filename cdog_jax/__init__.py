@@ -1,7 +1,7 @@
 """cdog_jax: multi-view, multi-instance point association with connected δ-overlap graphs."""
 
 from ._classes import ClassAssociation as ClassAssociation, associate_classes as associate_classes, class_sigmas as class_sigmas
-from ._persons import PersonVote as PersonVote
+from ._persons import People as People, PersonVote as PersonVote, identify_people as identify_people
 from ._associate import associate as associate, associate_batch as associate_batch
 from ._sequence import associate_sequence as associate_sequence
 from ._tracks import TrackedAssociation as TrackedAssociation, track_groups as track_groups

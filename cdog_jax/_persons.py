@@ -156,6 +156,38 @@ def _mode(values: np.ndarray) -> int:
     return int(np.argmax(np.bincount(values))) if values.size else -1
 
 
+class FramePeople(NamedTuple):
+    """One frame's people: ``det_person (M, P)`` person of every detection (-1: instance
+    unknown), ``group_person (G,)`` person of every group (the most frequent among its
+    members; -1 when none is known) and ``foreign (G, M)`` members of another person than
+    their group's, where the two people share a view (two people seen in one view cannot be
+    one; two that share no view may be one person with too few votes to merge, so such a
+    member is no evidence against its group). Persons are labelled by their first node."""
+
+    det_person: np.ndarray
+    group_person: np.ndarray
+    foreign: np.ndarray
+
+
+def frame_people(groups: np.ndarray, valid: np.ndarray, instances: np.ndarray, min_votes: int | float) -> FramePeople | None:
+    """The people of one frame's groups ``groups (G, M)``, ``valid (G,)``, from the per-view
+    ``instances (M, P)`` (:func:`person_nodes`, :func:`vote_matrix`, :func:`cluster_people`);
+    ``None`` when no instance is known."""
+    M = groups.shape[1]
+    node, node_view = person_nodes(instances)
+    if len(node_view) == 0:
+        return None
+    person = cluster_people(vote_matrix(groups, valid, node), node_view, min_votes)
+    det_person = np.where(node >= 0, person[np.maximum(node, 0)], -1)  # (M, P)
+    member_person = _member_values(det_person, groups, valid)
+    group_person = np.array([_mode(row) for row in member_person], np.int64).reshape(len(groups))
+    person_views = np.zeros((len(node_view), M), bool)
+    person_views[person, node_view] = True
+    clash = (person_views[np.maximum(member_person, 0)] & person_views[np.maximum(group_person, 0)][:, None, :]).any(axis=-1)
+    foreign = (member_person >= 0) & (member_person != group_person[:, None]) & clash
+    return FramePeople(det_person, group_person, foreign)
+
+
 class FrameGroups(NamedTuple):
     """A frame's groups after the vote: ``groups (G', M)``, ``valid (G',)``, ``group_class
     (G',)``, ``changed (G',)`` (members changed or new: to re-triangulate) and ``source
@@ -197,21 +229,10 @@ def consistent_groups(
     """
     M = groups.shape[1]
     groups = np.where(valid[:, None], groups, -1)
-    node, node_view = person_nodes(instances)
-    if len(node_view) == 0:  # no instance known: nothing to vote on
+    people = frame_people(groups, valid, instances, vote.min_votes)
+    if people is None:  # no instance known: nothing to vote on
         return FrameGroups(groups, valid, group_class, np.zeros(len(valid), bool), np.arange(len(valid)))
-    person = cluster_people(vote_matrix(groups, valid, node), node_view, vote.min_votes)
-    det_person = np.where(node >= 0, person[np.maximum(node, 0)], -1)  # (M, P)
-
-    # (2) detach the members of another person than the group's, where the two people
-    # share a view (two clusters that do not share one may be one person with too few
-    # votes to merge: no evidence against the group).
-    member_person = _member_values(det_person, groups, valid)
-    group_person = np.array([_mode(row) for row in member_person], np.int64)
-    person_views = np.zeros((len(node_view), M), bool)
-    person_views[person, node_view] = True
-    clash = (person_views[np.maximum(member_person, 0)] & person_views[np.maximum(group_person, 0)][:, None, :]).any(axis=-1)
-    detach = (member_person >= 0) & (member_person != group_person[:, None]) & clash
+    det_person, group_person, detach = people.det_person, people.group_person, people.foreign
     kept = np.where(detach, -1, groups)
     small = valid & ((kept >= 0).sum(axis=1) < min_views) & detach.any(axis=1)
     detach |= small[:, None] & (kept >= 0) & (det_person[np.arange(M)[None, :], np.maximum(kept, 0)] >= 0)
@@ -372,4 +393,171 @@ def person_consistent(rig: Rig, assoc, group_class, xy, mask, classes, instances
         out.num_groups[f] = n
         k, m = np.nonzero(g >= 0)
         out.labels[f, m, g[k, m]] = k
+    return out
+
+
+# ------------------------------------------------------------------ people as the output
+
+
+class People(NamedTuple):
+    """What :func:`identify_people` returns: every frame's people as skeletons.
+
+    Attributes:
+        points: ``(F, N, C, 3)`` the 3D point (scene units) of every person's joint of every
+            class, NaN where the person has no group of that class in the frame. ``N`` is the
+            most people of any frame (at least 1); rows past a frame's people are NaN.
+        person_id: ``(F, N)`` int32 id of every person, ``-1`` in padding rows; rows in order
+            of id. Ids start at 0 in order of first appearance and are never reused; with a
+            tracked result (:func:`cdog_jax.associate_sequence`, :func:`cdog_jax.track_groups`)
+            a person keeps its id over frames, else ids are per frame.
+        group_person: ``(F, G)`` int32 person id of every group of the result, ``-1`` where the
+            group is not valid or none of its detections has a known instance.
+        merged: ``(F, N)`` bool: the person holds two groups of one class (two people's joints
+            in one), or took joints tracked as another person who is not seen in the frame.
+        split: ``(F, N)`` bool: joints tracked as one person went to this person and to another
+            person of the frame.
+        mixed: ``(F, G)`` bool: the group holds detections of two people seen in one view.
+        num_people: the number of ids given.
+        class_names: the joint names by class id, or ``None``.
+    """
+
+    points: np.ndarray
+    person_id: np.ndarray
+    group_person: np.ndarray
+    merged: np.ndarray
+    split: np.ndarray
+    mixed: np.ndarray
+    num_people: int
+    class_names: tuple[str, ...] | None
+
+
+class PersonLinker:
+    """People linked over frames through the track ids of their joints, one frame at a time
+    (state: the person that owns every track id seen so far). Used offline by
+    :func:`identify_people` and live by :class:`cdog_jax.LiveAssociator`."""
+
+    def __init__(self, min_votes: int | float = 2.0):
+        self.min_votes = min_votes
+        self.owner: dict[int, int] = {}  # track id -> person id
+        self.next_id = 0
+
+    def step(self, local: np.ndarray, track_id: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``local (G,)`` person of every group in ``0..K-1`` (-1 none), ``track_id (G,)``
+        (-1 none; ``None``: ids per frame). Returns ``ids (K,)``, ``merged (K,)`` (took
+        ``min_votes`` or more tracks of a known person not seen in this frame) and ``split
+        (K,)`` (holds ``min_votes`` or more tracks of a person another one of the frame took).
+        Each person takes the id of the known person that owns most of its groups' tracks,
+        greedily, most votes first (ties: the smaller id), one to one; the others get new ids."""
+        K = int(local.max()) + 1 if local.size else 0
+        ids = np.full(K, -1, np.int64)
+        merged, split = np.zeros(K, bool), np.zeros(K, bool)
+        votes: dict[tuple[int, int], int] = {}
+        if track_id is not None:
+            for p, t in zip(local.tolist(), np.asarray(track_id).tolist()):
+                if p >= 0 and t >= 0 and t in self.owner:
+                    votes[p, self.owner[t]] = votes.get((p, self.owner[t]), 0) + 1
+        taken: dict[int, int] = {}  # known person -> local person
+        for (p, q), _ in sorted(votes.items(), key=lambda kv: (-kv[1], kv[0][1], kv[0][0])):
+            if ids[p] < 0 and q not in taken:
+                ids[p], taken[q] = q, p
+        for p in range(K):
+            if ids[p] < 0:
+                ids[p] = self.next_id
+                self.next_id += 1
+        for (p, q), n in votes.items():
+            if n >= self.min_votes and q != ids[p]:
+                if q in taken:
+                    split[p] = split[taken[q]] = True
+                else:
+                    merged[p] = True
+        if track_id is not None:
+            for p, t in zip(local.tolist(), np.asarray(track_id).tolist()):
+                if p >= 0 and t >= 0:
+                    self.owner[t] = int(ids[p])
+        return ids, merged, split
+
+
+def identify_people(result, instances, *, min_votes: int | float = 2.0) -> People:
+    """Who is who: the people of every frame of a classed result, as skeletons with ids.
+
+    Args:
+        result: a :class:`cdog_jax.TrackedAssociation` with classes (ids kept over frames) or
+            a :class:`cdog_jax.ClassAssociation` (ids per frame), e.g. keypoints of an
+            OpenPose folder through :func:`cdog_jax.associate_sequence`.
+        instances: ``(F, M, P)`` int per-view instance of every detection (the 2D skeleton it
+            belongs to in its view, as the detector numbered them; -1: unknown), in the
+            result's slots (``load_openpose(...).instances``).
+        min_votes: groups that must link two (view, instance) nodes, on average over their
+            node pairs, to make them one person (as :class:`cdog_jax.PersonVote`); also the
+            tracks that flag a merge or a split.
+
+    Each frame's (view, instance) nodes are clustered into people by the groups that join
+    them, under view uniqueness; a group belongs to the most frequent person of its members
+    (``mixed`` when members of a person seen in one of the same views disagree). A person's
+    joint of a class is its group of that class with the most views (then the smallest
+    ``err_px``); two such groups flag the person ``merged``. With track ids, a person keeps
+    the id of the person that owned most of its joints' tracks (:class:`PersonLinker`).
+    Plain NumPy on the host (a frame holds a few dozen nodes).
+    """
+    assoc = result.association
+    group_class = getattr(result, "group_class", None)
+    if group_class is None or getattr(result, "num_classes", None) is None:
+        raise ValueError("identify_people needs a classed result (associate_classes, or associate_sequence with classes=)")
+    labels = np.asarray(assoc.labels)
+    if labels.ndim != 3:
+        raise ValueError(f"identify_people needs a result with a frame axis (labels (F, M, P)); got labels {labels.shape}")
+    instances = check_instances(instances, np.ones(labels.shape, bool))
+    groups, valid = np.asarray(assoc.groups), np.asarray(assoc.valid)
+    points3d, n_views, err = np.asarray(assoc.points3d), np.asarray(assoc.n_views), np.asarray(assoc.err_px)
+    group_class = np.asarray(group_class)
+    track = getattr(result, "track_id", None)
+    track = None if track is None else np.asarray(track)
+    F, G, _ = groups.shape
+    C = int(result.num_classes)
+    linker = PersonLinker(min_votes)
+    group_person = np.full((F, G), -1, np.int32)
+    mixed = np.zeros((F, G), bool)
+    frames = []
+    for f in range(F):
+        fp = frame_people(np.where(valid[f][:, None], groups[f], -1), valid[f], instances[f], min_votes)
+        if fp is None:
+            frames.append((np.zeros(0, np.int64), np.zeros((0, C, 3)), np.zeros(0, bool), np.zeros(0, bool)))
+            if track is not None:
+                linker.step(np.full(G, -1), track[f])
+            continue
+        gp = np.where(valid[f], fp.group_person, -1)
+        mixed[f] = fp.foreign.any(axis=1) & valid[f]
+        people, local = np.unique(gp[gp >= 0], return_inverse=True)
+        local_of = np.full(G, -1, np.int64)
+        local_of[gp >= 0] = local
+        if track is None:
+            ids, temporal_merge, split = linker.step(local_of, None)
+        else:
+            ids, temporal_merge, split = linker.step(local_of, track[f])
+        K = len(people)
+        skeleton = np.full((K, C, 3), np.nan)
+        best = np.full((K, C), -1, np.int64)
+        twice = np.zeros(K, bool)
+        for g in np.flatnonzero(local_of >= 0):
+            k, c = local_of[g], group_class[f, g]
+            h = best[k, c]
+            if h >= 0:
+                twice[k] = True
+                if (n_views[f, g], -err[f, g]) <= (n_views[f, h], -err[f, h]):
+                    continue
+            best[k, c] = g
+            skeleton[k, c] = points3d[f, g]
+        group_person[f] = np.where(local_of >= 0, ids[np.maximum(local_of, 0)], -1)
+        frames.append((ids, skeleton, twice | temporal_merge, split))
+    N = max(1, max(len(ids) for ids, *_ in frames))
+    out = People(
+        points=np.full((F, N, C, 3), np.nan, points3d.dtype), person_id=np.full((F, N), -1, np.int32),
+        group_person=group_person, merged=np.zeros((F, N), bool), split=np.zeros((F, N), bool), mixed=mixed,
+        num_people=linker.next_id, class_names=result.class_names,
+    )  # fmt: skip
+    for f, (ids, skeleton, merged, split) in enumerate(frames):
+        order = np.argsort(ids, kind="stable")
+        n = len(ids)
+        out.points[f, :n], out.person_id[f, :n] = skeleton[order], ids[order]
+        out.merged[f, :n], out.split[f, :n] = merged[order], split[order]
     return out
