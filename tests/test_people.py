@@ -125,3 +125,34 @@ def test_bad_arguments_refused(walk):
         identify_people(tracked, instances[:, :2])
     with pytest.raises(ValueError, match="classed result"):
         identify_people(tracked._replace(group_class=None, num_classes=None), instances)
+
+
+def test_writers_carry_the_people(walk, tmp_path):
+    from cdog_jax.io import load_trc, save_association_csv, save_association_npz, save_people_trc, save_trc
+    from cdog_jax.io._trc import track_markers
+
+    tracked, instances, *_ = walk
+    people = identify_people(tracked, instances)
+    save_association_npz(tmp_path / "r.npz", tracked, people=people)
+    with np.load(tmp_path / "r.npz") as z:
+        np.testing.assert_array_equal(z["person_id"], people.group_person)
+        np.testing.assert_array_equal(z["people_points"], people.points)
+        np.testing.assert_array_equal(z["people_id"], people.person_id)
+        assert z["mixed"].shape == z["people_merged"].shape[:1] + tracked.track_id.shape[1:]
+    save_association_csv(tmp_path / "r.csv", tracked, people=people)
+    rows = [line.split(",") for line in (tmp_path / "r.csv").read_text().splitlines()[2:]]
+    a = tracked.association
+    f, g = np.nonzero(np.asarray(a.valid))
+    assert [int(r[-1]) for r in rows] == people.group_person[f, g].tolist()
+    written = save_people_trc(tmp_path / "p.trc", people, rate=10)
+    assert [w.rsplit("/", 1)[-1] for w in written] == ["p_person0.trc", "p_person1.trc", "p_person2.trc"]
+    for pid, w in enumerate(written):
+        f, n = np.nonzero(people.person_id == pid)
+        np.testing.assert_allclose(load_trc(w).markers[f], people.points[f, n], rtol=1e-6)
+    markers, names = track_markers(tracked)  # without people: one marker per track
+    assert markers.shape == (F, tracked.num_tracks, 3) and names[0].endswith("_0")
+    assert names[0].rsplit("_", 1)[0] in SKELETON_JOINTS
+    save_trc(tmp_path / "t.trc", markers, names, rate=10)
+    assert load_trc(tmp_path / "t.trc").names == names
+    with pytest.raises(ValueError, match="People of this result"):
+        save_association_csv(tmp_path / "x.csv", tracked, people=people._replace(group_person=people.group_person[:2]))

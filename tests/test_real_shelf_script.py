@@ -147,6 +147,7 @@ def test_the_command_runs_as_a_user_runs_it(standin, tmp_path):
     with open(os.path.join(work, "pose", "0", "000001_keypoints.json")) as f:
         assert len(json.load(f)["people"]) == 2
     assert report["frames"] == 3 and report["recall_10cm"] == 1.0
+    assert report["pcp_mean"] == 100.0 and report["mpjpe_mm"] < 5.0  # the people of the command's output
     with open(tmp_path / "s.json") as f:
         assert json.load(f)["recall_10cm"] == 1.0
 
@@ -209,3 +210,40 @@ def test_joint_recall_counts_points_of_the_joint_type_within_10_cm():
     gt = [{0: true}]
     points = [{score["BODY25_OF_SHELF"][s]: true[s][None] + (0.09 if s < 6 else 0.11, 0, 0) for s in range(12)}]
     assert score["joint_recall"](points, gt, [0]) == 0.5
+
+
+def test_openpose_folders_to_skeletons_in_one_command(standin, tmp_path):
+    """``cdog-jax associate --points pose/ --keypoints BODY_25 --out people.trc``: one .trc
+    file per person, BODY_25 names as markers; the JSON and CSV carry every group's person."""
+    import subprocess
+    import sys
+
+    from cdog_jax.io import load_trc
+
+    folder, people, _, _ = standin
+    ready = shelf["prepare"](folder, str(tmp_path / "work"))
+    base = [sys.executable, "-m", "cdog_jax", "associate", "--rig", ready["rig"], "--points", ready["pose"], "--keypoints", "BODY_25"]
+    done = subprocess.run(base + ["--out", str(tmp_path / "people.trc"), "--fps", "25", "--z-up"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert "people: 2 id(s) over 3 frame(s), at most 2 per frame" in done.stdout and "warning" not in done.stdout
+    files = sorted(p.name for p in tmp_path.glob("people_person*.trc"))
+    assert files == ["people_person0.trc", "people_person1.trc"]
+    truth = people[..., [1, 2, 0]]  # z up written as y up
+    for name in files:
+        trc = load_trc(tmp_path / name)
+        assert trc.names[:3] == ("Nose", "Neck", "RShoulder") and len(trc.names) == 25 and trc.rate == 25
+        assert trc.markers.shape == (3, 25, 3)
+        # the same true person in every frame (ids kept), within 1 cm
+        err = [[np.nanmean(np.linalg.norm(trc.markers[f] - truth[f, k], axis=-1)) for k in range(2)] for f in range(3)]
+        k = int(np.argmin(err[0]))
+        assert all(np.argmin(e) == k and min(e) < 0.01 for e in err)
+    done = subprocess.run(base + ["--out", str(tmp_path / "r.json")], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    with open(tmp_path / "r.json") as f:
+        frames = json.load(f)["frames"]
+    assert all(sorted({g["person"] for g in fr["groups"]}) == [0, 1] for fr in frames)
+    assert [p["person"] for p in frames[0]["people"]] == [0, 1] and not any(g["mixed"] for g in frames[0]["groups"])
+    done = subprocess.run(base + ["--out", str(tmp_path / "r.csv")], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    header = (tmp_path / "r.csv").read_text().splitlines()[1].split(",")
+    assert header[-1] == "person"

@@ -37,7 +37,7 @@ from ..io._keypoints import SKELETONS
 from ..io._rig_files import FORMATS
 
 _POINT_FORMATS = ("auto", "detections", "openpose", "table")
-_OUT_FORMATS = (".json", ".npz", ".csv")
+_OUT_FORMATS = (".json", ".npz", ".csv", ".trc")
 _NOTES_SHOWN = 12  # notes printed in the summary; a long video can have thousands
 
 
@@ -64,6 +64,12 @@ def _positive_float(text: str) -> float:
     if not (value > 0.0 and math.isfinite(value)):
         raise argparse.ArgumentTypeError(f"must be a finite number > 0; got {text!r}")
     return value
+
+
+def _units(text: str) -> str:
+    if not text or any(c.isspace() for c in text):
+        raise argparse.ArgumentTypeError(f"must be a unit's name without spaces, such as m or mm; got {text!r}")
+    return text
 
 
 _RIG_FORMATS_TEXT = (
@@ -135,7 +141,16 @@ def add_parsers(subparsers) -> None:
         "joint groups consistent with the people (a person-level vote, then re-association of the joints that disagree)",
     )
     p.add_argument("--capacity", type=_positive_int, default=None, help="slots per view (default: the largest view); refuse if exceeded")
-    p.add_argument("--out", default=None, help="write the groups: .json (members, point, BPE), .npz (arrays) or .csv (one row per 3D point)")
+    p.add_argument(
+        "--out",
+        default=None,
+        help="write the groups: .json (members, point, BPE), .npz (arrays), .csv (one row per 3D point) or .trc (marker "
+        "trajectories for OpenSim/Pose2Sim: one file per person, <stem>_person<id>.trc, with per-view people; else one "
+        "marker per track); with per-view people every group carries its person id",
+    )
+    p.add_argument("--fps", type=_positive_float, default=30.0, help="frame rate written in a .trc file (default 30)")
+    p.add_argument("--units", type=_units, default="m", help="the rig's length unit, written in a .trc file (default m)")
+    p.add_argument("--z-up", action="store_true", help="the world's up axis is Z: write a .trc file with Y up, as OpenSim expects")
     p.add_argument("--plot", default=None, help="figure of the first frame's groups (.png, .pdf, .svg, .jpg)")
     p.add_argument("--batch-size", type=_positive_int, default=16, help="frames associated at once (memory bound)")
     p.add_argument(
@@ -275,7 +290,7 @@ def run_associate(args: argparse.Namespace) -> int:
     import jax
     import jax.numpy as jnp
 
-    from .. import Status, associate_batch, associate_classes, method_from, track_groups
+    from .. import Status, associate_batch, associate_classes, identify_people, method_from, track_groups
     from ..graph._sigma import FALLBACK_SIGMA_PX
     from ..geometry._distortion import Fisheye
     from ..io import save_association_csv, save_association_json, save_association_npz
@@ -290,6 +305,10 @@ def run_associate(args: argparse.Namespace) -> int:
                          "(an OpenPose folder, or a table with an instance column)")  # fmt: skip
     rig = rig_file.rig
     dtype = rig.K.dtype
+    trc = args.out is not None and os.path.splitext(args.out)[1].lower() == ".trc"
+    if trc and not det.frames and det.mask.shape[0] == 1 and (det.classes is None or det.instances is None):
+        raise InputError(f"{args.out}: --out .trc: marker trajectories need a sequence of frames or per-view people "
+                         "(an OpenPose folder); one scene has neither")  # fmt: skip
     check_float_range(det, dtype, args.points)
     if not isinstance(args.sigma, str):
         diagonal, source = _image_diagonal(rig_file)
@@ -340,6 +359,9 @@ def run_associate(args: argparse.Namespace) -> int:
             temporal_prior=args.temporal_prior, max_step_px=args.track_step_px, min_views=args.min_views, dist=dist,
         )  # fmt: skip
         result = tracked.association
+    people = None
+    if classed is not None and det.instances is not None:
+        people = identify_people(tracked if tracked is not None else classed, det.instances)
     elapsed = time.perf_counter() - t0
     num_groups = np.asarray(result.num_groups)
     n_views = np.asarray(result.n_views)[np.asarray(result.valid)]
@@ -353,6 +375,8 @@ def run_associate(args: argparse.Namespace) -> int:
     ]
     if classed is not None:
         lines.append(_class_summary(classed, det))
+    if people is not None:
+        lines.append(_people_summary(people))
     if tracked is None and args.temporal_prior:
         lines.append("  note: --temporal-prior needs a sequence of frames; one scene has nothing to carry over")
     if tracked is not None:
@@ -395,12 +419,15 @@ def run_associate(args: argparse.Namespace) -> int:
             assoc = classed._replace(association=assoc, group_class=frame(classed.group_class))
         ext = os.path.splitext(args.out)[1].lower()
         if ext == ".json":
-            _write(args.out, "--out", lambda: save_association_json(args.out, assoc, xy, mask, confidence=conf, classes=cls))
+            _write(args.out, "--out", lambda: save_association_json(args.out, assoc, xy, mask, confidence=conf, classes=cls, people=people))
         elif ext == ".npz":
-            _write(args.out, "--out", lambda: save_association_npz(args.out, assoc, xy=xy, mask=mask, confidence=conf, classes=cls))
+            _write(args.out, "--out", lambda: save_association_npz(args.out, assoc, xy=xy, mask=mask, confidence=conf, classes=cls, people=people))
+        elif ext == ".csv":
+            _write(args.out, "--out", lambda: save_association_csv(args.out, assoc, people=people))
         else:
-            _write(args.out, "--out", lambda: save_association_csv(args.out, assoc))
-        lines.append(f"Wrote {args.out}")
+            lines.append(_write_trc(args, people, tracked))
+        if ext != ".trc":
+            lines.append(f"Wrote {args.out}")
     if args.plot is not None:
         from ..viz import plot_association
         from ..synthetic import intrinsics_image_size
@@ -413,6 +440,43 @@ def run_associate(args: argparse.Namespace) -> int:
         lines.append(f"Figure: {args.plot}")
     _emit(lines)
     return 0
+
+
+def _people_summary(people) -> str:
+    """People: ids, most per frame, and the frames where people merge or split."""
+    present = np.asarray(people.person_id) >= 0
+    F = present.shape[0]
+    text = f"  people: {people.num_people} id(s) over {F} frame(s), at most {int(present.sum(axis=1).max())} per frame"
+    flags = [(np.asarray(people.merged).any(axis=1), "two people merged into one"), (np.asarray(people.split).any(axis=1), "a person split in two")]
+    for hit, what in flags:
+        if hit.any():
+            text += f"; warning: {what} in {int(hit.sum())} frame(s) (first: frame {int(np.argmax(hit))})"
+    mixed = int(np.asarray(people.mixed).sum())
+    if mixed:
+        text += f"; warning: {mixed} group(s) hold detections of two people"
+    return text
+
+
+def _write_trc(args, people, tracked) -> str:
+    """Write ``--out`` as ``.trc``: one file per person, else one marker per track. Returns
+    the summary line."""
+    from ..io._trc import save_people_trc, save_trc, track_markers
+
+    options = dict(rate=args.fps, units=args.units, z_up=args.z_up)
+    if people is not None:
+        from ..io._trc import person_markers
+
+        stem = os.path.splitext(args.out)[0]
+        inputs = {"--rig": input_files(args.rig), "--points": _point_files(args.points)}
+        for pid in person_markers(people):
+            check_output(f"{stem}_person{pid}.trc", "--out", (".trc",), inputs)
+        written = []
+        _write(args.out, "--out", lambda: written.extend(save_people_trc(args.out, people, **options)))
+        shown = ", ".join(written[:4]) + (f", … ({len(written)} files)" if len(written) > 4 else "")
+        return f"Wrote {shown or 'no file (no person was found)'}: one .trc file per person, {args.fps:g} frames/s"
+    markers, names = track_markers(tracked)
+    _write(args.out, "--out", lambda: save_trc(args.out, markers, names, **options))
+    return f"Wrote {args.out}: {len(names)} marker(s), one per track, {args.fps:g} frames/s"
 
 
 def _class_summary(classed, det) -> str:

@@ -9,7 +9,9 @@ Detections: JSON and NPZ, one scene or many frames, and converters from the enco
 "missing" (``load_detections``, ``detections_from_lists``, ``detections_from_array``), and
 a writer of the JSON form (``save_detections_json``).
 Classed keypoints: OpenPose folders (``load_openpose``) and tables (``load_keypoint_table``).
-Results: the groups of an :class:`cdog_jax.Association` as JSON, NPZ or CSV.
+Results: the groups of an :class:`cdog_jax.Association` as JSON, NPZ or CSV (with person
+ids when given the result's people); marker trajectories and people's skeletons as ``.trc``
+files for OpenSim and Pose2Sim (``save_trc``, ``save_people_trc``, ``load_trc``).
 Every writer replaces its file atomically (``_atomic.py``); a problem with a file's
 content raises :class:`InputError` (a ``ValueError``) naming the file.
 """
@@ -50,3 +52,7 @@ from ._load_rig import load_rig as load_rig
 from ._rig_easyvis import save_rig_easyvis as save_rig_easyvis
 from ._rig_json import save_rig_json as save_rig_json
 from ._rig_npz import save_rig_npz as save_rig_npz
+from ._trc import Trc as Trc
+from ._trc import load_trc as load_trc
+from ._trc import save_people_trc as save_people_trc
+from ._trc import save_trc as save_trc

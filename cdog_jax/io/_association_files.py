@@ -68,6 +68,9 @@ def association_records(
     classes: Any = None,
     track_id: Any = None,
     recovered: Any = None,
+    person: Any = None,
+    mixed: Any = None,
+    people: Any = None,
 ) -> dict:
     """One scene's association as JSON-ready records.
 
@@ -86,6 +89,11 @@ def association_records(
             lists those of the unassigned rows, in their order.
         track_id, recovered: optional ``(G,)`` track id and "recovered by the temporal
             prior" flag of every group: each group gets ``"track"`` and ``"recovered"``.
+        person, mixed: optional ``(G,)`` person id of every group (-1: none; written
+            ``null``) and "holds detections of two people seen in one view" flag: each group
+            gets ``"person"`` and ``"mixed"``.
+        people: optional list of the scene's people, ``{"person", "merged", "split"}``
+            (:func:`cdog_jax.identify_people`), written as ``"people"``.
 
     Returns:
         ``{"groups": [{"id", "members": [[view, slot, x, y], …], "point3d": [X, Y, Z],
@@ -133,6 +141,10 @@ def association_records(
         if track_id is not None:
             record["track"] = int(np.asarray(track_id)[g])
             record["recovered"] = bool(recovered is not None and np.asarray(recovered)[g])
+        if person is not None:
+            pid = int(np.asarray(person)[g])
+            record["person"] = pid if pid >= 0 else None
+            record["mixed"] = bool(mixed is not None and np.asarray(mixed)[g])
         groups.append(record)
     left = np.argwhere(mask & ~used)
     unassigned = [row(int(m), int(i)) for m, i in left]
@@ -147,6 +159,8 @@ def association_records(
     if classes is not None:
         cls = np.asarray(classes)
         out["unassigned_classes"] = [int(cls[m, i]) for m, i in left]
+    if people is not None:
+        out["people"] = people
     return out
 
 
@@ -173,15 +187,35 @@ def _tracks(result: Any) -> tuple[np.ndarray | None, np.ndarray | None]:
     return np.asarray(result.track_id), np.asarray(result.recovered)
 
 
+def _people(people: Any, F: int | None) -> tuple[Any, Any, Any]:
+    """``(group_person, mixed, people lists)`` of a :class:`cdog_jax.People` (``(F, G)``,
+    ``(F, G)``, one list per frame), or ``(None, None, None)``; ``F`` the result's frames
+    (``None``: one scene)."""
+    if people is None:
+        return None, None, None
+    gp, ids = np.asarray(people.group_person), np.asarray(people.person_id)
+    if gp.ndim != 2 or (F is not None and gp.shape[0] != F) or (F is None and gp.shape[0] != 1):
+        raise ValueError(f"people must be the People of this result ({F or 1} frame(s)); got group_person {gp.shape}")
+    merged, split = np.asarray(people.merged), np.asarray(people.split)
+    lists = [
+        [{"person": int(ids[f, n]), "merged": bool(merged[f, n]), "split": bool(split[f, n])} for n in np.flatnonzero(ids[f] >= 0)]
+        for f in range(ids.shape[0])
+    ]
+    return gp, np.asarray(people.mixed), lists
+
+
 def save_association_json(
-    path: PathLike, assoc: Any, xy: Any, mask: Any, *, confidence: Any = None, rig: Any = None, classes: Any = None
-) -> None:
+    path: PathLike, assoc: Any, xy: Any, mask: Any, *, confidence: Any = None, rig: Any = None, classes: Any = None,
+    people: Any = None,
+) -> None:  # fmt: skip
     """Write :func:`association_records` as JSON: one scene (``labels (M, P)``, ``xy (M, P, 2)``),
     or a batch (``labels (B, M, P)``, ``xy (B, M, P, 2)``, ``mask (B, M, P)``, from
     :func:`cdog_jax.associate_batch`) as ``{"frames": [one object per scene, …]}``.
     ``rig`` is shared by all scenes. ``assoc`` may be a ``ClassAssociation`` (frames;
     ``classes (F, M, P)``, the detections' class ids, optional), or a ``TrackedAssociation``:
-    see the module docstring."""
+    see the module docstring. ``people``: the :class:`cdog_jax.People` of ``assoc``
+    (:func:`cdog_jax.identify_people`): every group gets ``"person"`` and ``"mixed"``, every
+    frame ``"people"``."""
     tracks, recovered = _tracks(assoc)
     assoc, group_class, names = _unpack(assoc)
     expect_args("save_association_json", path=(path, PATH), assoc=(assoc, _ASSOCIATION), xy=(xy, ARRAY), mask=(mask, ARRAY))
@@ -196,11 +230,13 @@ def save_association_json(
         cls = [None] * B if classes is None else np.asarray(classes)
         tid = [None] * B if tracks is None else tracks
         rec = [None] * B if recovered is None else recovered
+        gp, mixed, plist = _people(people, B)
+        gp, mixed, plist = ([None] * B,) * 3 if people is None else (gp, mixed, plist)
         data: dict = {
             "frames": [
                 association_records(
                     _scene(assoc, b), xy[b], mask[b], confidence=conf[b], rig=rig, group_class=gc[b], class_names=names,
-                    classes=cls[b], track_id=tid[b], recovered=rec[b],
+                    classes=cls[b], track_id=tid[b], recovered=rec[b], person=gp[b], mixed=mixed[b], people=plist[b],
                 )  # fmt: skip
                 for b in range(B)
             ]
@@ -208,13 +244,18 @@ def save_association_json(
     else:
         data = association_records(
             assoc, xy, mask, confidence=confidence, rig=rig, group_class=group_class, class_names=names, classes=classes,
-            track_id=tracks, recovered=recovered,
+            track_id=tracks, recovered=recovered, **_one_scene_people(people),
         )
     if names is not None:
         data["class_names"] = list(names)
     with atomic_write(path, "w") as f:
         json.dump(data, f, allow_nan=False)
         f.write("\n")
+
+
+def _one_scene_people(people: Any) -> dict:
+    gp, mixed, plist = _people(people, None)
+    return {} if people is None else {"person": gp[0], "mixed": mixed[0], "people": plist[0]}
 
 
 def load_association_json(path: PathLike) -> dict:
@@ -238,14 +279,19 @@ def load_association_json(path: PathLike) -> dict:
 
 
 def save_association_npz(
-    path: PathLike, assoc: Any, *, xy: Any = None, mask: Any = None, confidence: Any = None, classes: Any = None
-) -> None:
+    path: PathLike, assoc: Any, *, xy: Any = None, mask: Any = None, confidence: Any = None, classes: Any = None,
+    people: Any = None,
+) -> None:  # fmt: skip
     """Write every :class:`cdog_jax.Association` field as an array (``labels``, ``groups``,
     ``valid``, ``points3d``, ``bpe`` (px²), ``err_px``, ``n_views``, ``num_groups``,
     ``sigma_px``, ``tau_px``; with a leading ``B`` for a batch), plus ``xy``, ``mask``,
     ``confidence`` and ``classes`` when given; for a ``ClassAssociation`` also
     ``group_class (F, G)`` and ``class_names`` (strings, when known); for a
-    ``TrackedAssociation`` also ``track_id (F, G)`` and ``recovered (F, G)``. Read it with ``np.load``."""
+    ``TrackedAssociation`` also ``track_id (F, G)`` and ``recovered (F, G)``; with ``people``
+    (:func:`cdog_jax.identify_people`) also ``person_id (F, G)`` of every group (-1: none),
+    ``mixed (F, G)``, and the skeletons ``people_points (F, N, C, 3)`` (NaN: not seen),
+    ``people_id (F, N)`` (-1: padding), ``people_merged``, ``people_split (F, N)``. Read it
+    with ``np.load``."""
     tracks, recovered = _tracks(assoc)
     assoc, group_class, names = _unpack(assoc)
     expect_args("save_association_npz", path=(path, PATH), assoc=(assoc, _ASSOCIATION))
@@ -256,6 +302,12 @@ def save_association_npz(
         arrays["class_names"] = np.asarray(names, dtype=str)
     if tracks is not None:
         arrays["track_id"], arrays["recovered"] = tracks, recovered
+    if people is not None:
+        labels = arrays["labels"]
+        gp, mixed, _ = _people(people, labels.shape[0] if labels.ndim == 3 else None)
+        arrays["person_id"], arrays["mixed"] = (gp, mixed) if labels.ndim == 3 else (gp[0], mixed[0])
+        arrays["people_points"], arrays["people_id"] = np.asarray(people.points), np.asarray(people.person_id)
+        arrays["people_merged"], arrays["people_split"] = np.asarray(people.merged), np.asarray(people.split)
     for name, v in (("xy", xy), ("mask", mask), ("confidence", confidence), ("classes", classes)):
         if v is not None:
             arrays[name] = np.asarray(v)
@@ -263,7 +315,7 @@ def save_association_npz(
         np.savez(f, **arrays)
 
 
-def save_association_csv(path: PathLike, assoc: Any) -> None:
+def save_association_csv(path: PathLike, assoc: Any, *, people: Any = None) -> None:
     """One row per 3D point (valid group): ``frame, group, x, y, z, err_px, bpe_px2, n_views``.
 
     Like anipose's point tables. ``err_px`` is the group's reprojection error, the mean
@@ -271,17 +323,21 @@ def save_association_csv(path: PathLike, assoc: Any) -> None:
     result's ``err_px`` and ``bpe``; ``x, y, z`` are in scene units. ``frame`` is the scene index of a batch (``labels (B, M, P)``), 0 for one
     scene. The file starts with a ``#`` comment line saying so (pandas: ``comment="#"``).
     A ``ClassAssociation`` adds the columns ``class, class_name`` (the name empty when
-    names are not known); a ``TrackedAssociation`` a last column ``track``.
+    names are not known); a ``TrackedAssociation`` a column ``track``; ``people``
+    (:func:`cdog_jax.identify_people`) a last column ``person`` (empty: no person).
     """
     tracks, _ = _tracks(assoc)
     assoc, group_class, names = _unpack(assoc)
     expect_args("save_association_csv", path=(path, PATH), assoc=(assoc, _ASSOCIATION))
     a = _host(assoc)
     batch = a["labels"].ndim == 3
+    person, _, _ = _people(people, a["labels"].shape[0] if batch else None)
+    if person is not None and not batch:
+        person = person[0]
     with atomic_write(path, "w", newline="") as f:
         f.write(CSV_NOTE + "\n")
         writer = csv.writer(f)
-        writer.writerow(CSV_COLUMNS + (("class", "class_name") if group_class is not None else ()) + (("track",) if tracks is not None else ()))
+        writer.writerow(CSV_COLUMNS + (("class", "class_name") if group_class is not None else ()) + (("track",) if tracks is not None else ()) + (("person",) if person is not None else ()))
         for b in range(a["labels"].shape[0] if batch else 1):
             valid = a["valid"][b] if batch else a["valid"]
             for g in np.flatnonzero(valid):
@@ -297,6 +353,7 @@ def save_association_csv(path: PathLike, assoc: Any) -> None:
                         int(a["n_views"][at]),
                         *_class_columns(group_class, at, names),
                         *([] if tracks is None else [int(tracks[at])]),
+                        *([] if person is None else [int(person[at]) if person[at] >= 0 else ""]),
                     ]
                 )
 

@@ -157,11 +157,11 @@ def people_points(people: list[list[np.ndarray]]) -> list[dict[int, np.ndarray]]
 
 def score(result: dict, gt: list[dict[int, np.ndarray]], frames) -> dict:
     """Recall@10cm of an association result (see :func:`points_by_joint`), and PCP and MPJPE
-    when it holds people (``people (F, N, 25, 3)``, NaN where a joint or a person is
-    missing)."""
+    when it holds people (``people_points (F, N, 25, 3)``, NaN where a joint or a person is
+    missing, as ``cdog-jax associate --out result.npz`` writes them for OpenPose folders)."""
     report = {"recall_10cm": round(joint_recall(points_by_joint(result), gt, frames), 4)}
-    if "people" in result:
-        people = [[shelf_from_body25(p) for p in frame if np.any(np.isfinite(p))] for frame in result["people"]]
+    if "people_points" in result:
+        people = [[shelf_from_body25(p) for p in frame if np.any(np.isfinite(p))] for frame in result["people_points"]]
         report.update(pcp(people, gt, frames))
     return report
 

@@ -103,6 +103,26 @@ def test_out_equal_to_plot(files, capsys):
     refused(_associate(rig, points, "--out", folder / "a.json", "--plot", folder / "a.json"), capsys, "--out", "--plot")
 
 
+def test_trc_of_one_scene_without_people_is_refused(files, capsys):
+    folder, rig, _, points = files
+    refused(_associate(rig, points, "--out", folder / "m.trc"), capsys, "m.trc", "sequence of frames or per-view people")
+    refused(_associate(rig, points, "--out", folder / "m.trc", "--units", "m m"), capsys, "--units")
+    assert not (folder / "m.trc").exists()
+
+
+def test_trc_of_a_sequence_has_one_marker_per_track(files, capsys):
+    from cdog_jax.io import load_trc
+
+    folder, rig, _, _ = files
+    seq = folder / "seq.json"
+    seq.write_text(json.dumps({"frames": [{"views": VIEWS}, {"views": VIEWS}]}))
+    assert main(_associate(rig, seq, "--out", folder / "m.trc", "--fps", "50")) == 0
+    assert "4 marker(s), one per track, 50 frames/s" in capsys.readouterr().out
+    trc = load_trc(folder / "m.trc")
+    assert trc.names == ("track0", "track1", "track2", "track3") and trc.rate == 50
+    np.testing.assert_allclose(np.sort(trc.markers[0], axis=0), np.sort(POINTS3D, axis=0), atol=1e-4)
+
+
 def test_out_in_a_missing_folder(files, capsys):
     folder, rig, _, points = files
     refused(_associate(rig, points, "--out", folder / "nope" / "out.json"), capsys, "nope", "does not exist")
