@@ -23,6 +23,7 @@ import numpy as np
 from ._classes import associate_classes_at, given_classes
 from ._expect import expect_args
 from ._method import method_argument
+from ._persons import PersonLinker, PersonVote, people_of_frame
 from ._shapes import ladder_rung, slot_capacity
 from ._tracks import DEFAULT_MAX_STEP_PX, _check_gate, initial_tracks, track_one, tracking_frames
 from ._validate import as_array, check_observations, check_rig
@@ -53,6 +54,11 @@ class LiveFrame(NamedTuple):
         sigma_px: the frame's noise σ (px), given or estimated.
         tau_px: the frame's epipolar gate (px).
         status: int bit flags of :class:`cdog_jax.Status` (0: nothing to report).
+        person_id: ``(G,)`` int32 person of every group (``-1``: none), kept over frames
+            through the tracks (as :func:`cdog_jax.identify_people`); ``None`` unless the
+            frame's ``instances`` were given to an associator with classes.
+        merged_people, split_people: the ids of the frame's people flagged as two merged
+            into one, or as one split in two (:class:`cdog_jax.People`).
     """
 
     frame: int
@@ -67,6 +73,9 @@ class LiveFrame(NamedTuple):
     sigma_px: float
     tau_px: float
     status: int
+    person_id: np.ndarray | None = None
+    merged_people: tuple[int, ...] = ()
+    split_people: tuple[int, ...] = ()
 
 
 class LiveAssociator:
@@ -131,6 +140,7 @@ class LiveAssociator:
         self.lens = None if dist is None else as_lens(dist, rig.K.dtype)
         self.min_views = int(min_views)
         self.person_vote = person_vote
+        self._min_votes = person_vote.min_votes if isinstance(person_vote, PersonVote) else PersonVote().min_votes
         self.temporal_prior = bool(temporal_prior)
         self.max_err_px, self.max_gap = max_err_px, int(max_gap)
         self.dtype = np.dtype(rig.K.dtype)
@@ -153,6 +163,7 @@ class LiveAssociator:
         """Forget every track: the next frame is frame 0 of a new recording."""
         self.frame = 0
         self._carry = None
+        self._people = PersonLinker(self._min_votes)
 
     def update(self, xy: Any, mask: Any = None, *, classes: Any = None, instances: Any = None) -> LiveFrame:
         """Associate, triangulate and track one frame.
@@ -163,7 +174,8 @@ class LiveAssociator:
                 used).
             mask: ``(M, P)`` bool (default: every slot).
             classes: ``(M, P)`` int class ids, needed when the object has classes.
-            instances: ``(M, P)`` int per-view skeleton index (for the person vote).
+            instances: ``(M, P)`` int per-view skeleton index (2D person; -1 unknown): the
+                person vote, and with classes every group's person id.
 
         Returns:
             A :class:`LiveFrame`. Raises ``ValueError`` for a frame of the wrong shape or
@@ -217,6 +229,13 @@ class LiveAssociator:
         self._carry = carry
         self._compiled = True
         answer = _answer(self.frame, out, order, P, self.classed, assoc)
+        if instances is not None and self.classed:
+            G = len(answer.groups)
+            one = people_of_frame(answer.groups, np.ones(G, bool), answer.group_class, np.where(mask, instances, -1),
+                                  answer.points3d, answer.n_views, answer.err_px, self.num_classes, self._people,
+                                  answer.track_id, self._min_votes)  # fmt: skip
+            answer = answer._replace(person_id=one.group_person, merged_people=tuple(int(i) for i in one.ids[one.merged]),
+                                     split_people=tuple(int(i) for i in one.ids[one.split]))  # fmt: skip
         self.frame += 1
         return answer
 

@@ -477,6 +477,53 @@ class PersonLinker:
         return ids, merged, split
 
 
+class FramePersons(NamedTuple):
+    """One frame's people (:func:`people_of_frame`): ``ids (K,)``, ``skeletons (K, C, 3)``
+    (NaN: not seen), ``merged``, ``split (K,)``, and per group ``group_person (G,)`` (id, -1)
+    and ``mixed (G,)``."""
+
+    ids: np.ndarray
+    skeletons: np.ndarray
+    merged: np.ndarray
+    split: np.ndarray
+    group_person: np.ndarray
+    mixed: np.ndarray
+
+
+def people_of_frame(groups, valid, group_class, instances, points3d, n_views, err_px, num_classes: int, linker: PersonLinker,
+                    track_id, min_votes: int | float) -> FramePersons:  # fmt: skip
+    """One frame of :func:`identify_people`: ``groups (G, M)``, ``valid``, ``group_class``,
+    ``points3d (G, 3)``, ``n_views``, ``err_px (G,)`` of the result, ``instances (M, P)``;
+    ``linker`` carries the ids over frames (``track_id (G,)``, or ``None``)."""
+    G, C = len(valid), num_classes
+    fp = frame_people(np.where(valid[:, None], groups, -1), valid, instances, min_votes)
+    if fp is None:
+        if track_id is not None:
+            linker.step(np.full(G, -1), track_id)
+        empty = np.zeros(0, bool)
+        return FramePersons(np.zeros(0, np.int64), np.zeros((0, C, 3)), empty, empty, np.full(G, -1, np.int32), np.zeros(G, bool))
+    gp = np.where(valid, fp.group_person, -1)
+    people, local = np.unique(gp[gp >= 0], return_inverse=True)
+    local_of = np.full(G, -1, np.int64)
+    local_of[gp >= 0] = local
+    ids, temporal_merge, split = linker.step(local_of, track_id)
+    K = len(people)
+    skeleton = np.full((K, C, 3), np.nan)
+    best = np.full((K, C), -1, np.int64)
+    twice = np.zeros(K, bool)
+    for g in np.flatnonzero(local_of >= 0):
+        k, c = local_of[g], group_class[g]
+        h = best[k, c]
+        if h >= 0:
+            twice[k] = True
+            if (n_views[g], -err_px[g]) <= (n_views[h], -err_px[h]):
+                continue
+        best[k, c] = g
+        skeleton[k, c] = points3d[g]
+    group_person = np.where(local_of >= 0, ids[np.maximum(local_of, 0)], -1).astype(np.int32)
+    return FramePersons(ids, skeleton, twice | temporal_merge, split, group_person, fp.foreign.any(axis=1) & valid)
+
+
 def identify_people(result, instances, *, min_votes: int | float = 2.0) -> People:
     """Who is who: the people of every frame of a classed result, as skeletons with ids.
 
@@ -519,36 +566,10 @@ def identify_people(result, instances, *, min_votes: int | float = 2.0) -> Peopl
     mixed = np.zeros((F, G), bool)
     frames = []
     for f in range(F):
-        fp = frame_people(np.where(valid[f][:, None], groups[f], -1), valid[f], instances[f], min_votes)
-        if fp is None:
-            frames.append((np.zeros(0, np.int64), np.zeros((0, C, 3)), np.zeros(0, bool), np.zeros(0, bool)))
-            if track is not None:
-                linker.step(np.full(G, -1), track[f])
-            continue
-        gp = np.where(valid[f], fp.group_person, -1)
-        mixed[f] = fp.foreign.any(axis=1) & valid[f]
-        people, local = np.unique(gp[gp >= 0], return_inverse=True)
-        local_of = np.full(G, -1, np.int64)
-        local_of[gp >= 0] = local
-        if track is None:
-            ids, temporal_merge, split = linker.step(local_of, None)
-        else:
-            ids, temporal_merge, split = linker.step(local_of, track[f])
-        K = len(people)
-        skeleton = np.full((K, C, 3), np.nan)
-        best = np.full((K, C), -1, np.int64)
-        twice = np.zeros(K, bool)
-        for g in np.flatnonzero(local_of >= 0):
-            k, c = local_of[g], group_class[f, g]
-            h = best[k, c]
-            if h >= 0:
-                twice[k] = True
-                if (n_views[f, g], -err[f, g]) <= (n_views[f, h], -err[f, h]):
-                    continue
-            best[k, c] = g
-            skeleton[k, c] = points3d[f, g]
-        group_person[f] = np.where(local_of >= 0, ids[np.maximum(local_of, 0)], -1)
-        frames.append((ids, skeleton, twice | temporal_merge, split))
+        one = people_of_frame(groups[f], valid[f], group_class[f], instances[f], points3d[f], n_views[f], err[f], C, linker,
+                              None if track is None else track[f], min_votes)  # fmt: skip
+        group_person[f], mixed[f] = one.group_person, one.mixed
+        frames.append((one.ids, one.skeletons, one.merged, one.split))
     N = max(1, max(len(ids) for ids, *_ in frames))
     out = People(
         points=np.full((F, N, C, 3), np.nan, points3d.dtype), person_id=np.full((F, N), -1, np.int32),

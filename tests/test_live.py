@@ -133,10 +133,20 @@ def test_person_vote_same_answers_as_offline(walk):
     rig, xy, mask, classes = walk
     sk = generate_skeleton_scenes(jax.random.PRNGKey(1), rig, PEOPLE, 1.0, num_frames=FRAMES)
     person = np.where(mask, np.asarray(sk.frames.instance) // J, -1)
+    # Each view numbers its people in its own order, a new one every frame (a 2D detector's).
+    shift = np.arange(FRAMES)[:, None, None] + np.arange(M)[None, :, None]
+    person = np.where(person >= 0, (person + shift) % PEOPLE, -1)
     offline = associate_sequence(rig, xy[:3], mask[:3], classes=classes[:3], instances=person[:3])
+    people = cdog_jax.identify_people(offline, person[:3])
     live = LiveAssociator(rig, num_classes=J, person_vote=True)
     for f in range(3):
-        _assert_same_frame(live.update(xy[f], mask[f], classes=classes[f], instances=person[f]), offline, f)
+        out = live.update(xy[f], mask[f], classes=classes[f], instances=person[f])
+        _assert_same_frame(out, offline, f)
+        # every group's person id as offline: ids kept over frames through the tracks
+        np.testing.assert_array_equal(out.person_id, people.group_person[f][np.asarray(offline.association.valid[f])])
+        assert sorted(set(out.person_id.tolist())) == [0, 1] and out.merged_people == out.split_people == ()
+    plain = LiveAssociator(rig, num_classes=J).update(xy[0], mask[0], classes=classes[0])
+    assert plain.person_id is None and plain.merged_people == ()  # no instances, no people
 
 
 def test_the_documented_loop_runs(capsys):

@@ -247,3 +247,18 @@ def test_openpose_folders_to_skeletons_in_one_command(standin, tmp_path):
     assert done.returncode == 0, done.stderr
     header = (tmp_path / "r.csv").read_text().splitlines()[1].split(",")
     assert header[-1] == "person"
+
+
+def test_the_table_of_settings(standin, tmp_path):
+    """experiments/real/shelf_table.py: each setting's command run and scored (one run each
+    here), the table in markdown."""
+    folder, *_ = standin
+    table = runpy.run_path(os.path.join(REAL, "shelf_table.py"), run_name="shelf_table")
+    rows = table["main"]([folder, "--work", str(tmp_path / "w"), "--split", "all", "--runs", "1",
+                          "--settings", "defaults (best),--person-vote", "--markdown", str(tmp_path / "t.md")])  # fmt: skip
+    assert [r["setting"] for r in rows] == ["defaults (best)", "--person-vote"]  # no skel.txt: no 4D row
+    assert all(r["pcp_mean"] == 100.0 and r["recall_10cm"] == 1.0 for r in rows)
+    text = (tmp_path / "t.md").read_text().splitlines()
+    assert text[0].startswith("| setting (all frames of 3)") and text[2].startswith("| defaults (best) | 100.0 / 100.0 /")
+    with pytest.raises(SystemExit):
+        table["main"]([folder, "--settings", "no such"])
