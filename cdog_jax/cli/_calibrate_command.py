@@ -40,7 +40,7 @@ _DESCRIPTION = (
     "shrinks every round, then on dense scenes with σ estimated. Prints the rotation, centre "
     "and focal errors against the truth, the BPE and PG-F1 before and after, and writes a "
     "figure of the BPE per round. The level 'none' starts at the truth: its errors are the "
-    "floor. See docs/ALGORITHM.md and the README's 'Differentiating through cameras'."
+    "floor. See docs/ALGORITHM.md and docs/GUIDE.md, 'Differentiating through cameras'."
 )
 
 
