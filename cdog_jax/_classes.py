@@ -349,23 +349,65 @@ def _nearest_samples(rig, xy, mask, dist, robust: bool):
     return jax.vmap(one)(xy, mask)
 
 
+SAMPLE_CHUNK = 4096
+"""Scenes whose σ samples are computed in one call: a long recording's scenes go in chunks of
+this many (the last padded with empty scenes), so that memory stays flat in its length."""
+
+
+def _chunked_samples(rig, scenes: _Scenes, dist, dtype, robust: bool) -> list[np.ndarray]:
+    """:func:`_nearest_samples` of every scene, as host arrays ``(B, …)``: in one call up to
+    :data:`SAMPLE_CHUNK` scenes, else in chunks of that many (one program)."""
+    B = len(scenes.frame)
+    xy, mask = scenes.xy, scenes.mask
+    if B <= SAMPLE_CHUNK:
+        return [np.asarray(a) for a in _nearest_samples(rig, jnp.asarray(xy, dtype), jnp.asarray(mask), dist, robust)]
+    parts = []
+    for start in range(0, B, SAMPLE_CHUNK):
+        x, m = xy[start : start + SAMPLE_CHUNK], mask[start : start + SAMPLE_CHUNK]
+        pad = SAMPLE_CHUNK - len(m)
+        if pad:  # empty scenes: no sample
+            x = np.concatenate([x, np.zeros((pad, *x.shape[1:]), x.dtype)])
+            m = np.concatenate([m, np.zeros((pad, *m.shape[1:]), bool)])
+        out = _nearest_samples(rig, jnp.asarray(x, dtype), jnp.asarray(m), dist, robust)
+        parts.append([np.asarray(a)[: SAMPLE_CHUNK - pad] for a in out])
+    return [np.concatenate(arrays) for arrays in zip(*parts)]
+
+
 def _pooled_sigma(rig, scenes: _Scenes, F: int, dist, dtype, pool: str, estimator: str, min_samples: int = 0) -> np.ndarray:
     """``(F,)`` σ per frame by the estimator of ``sigma_mode=estimator`` (``"auto"`` or
     ``"robust"``) on the nearest-distance samples of all the frame's class scenes
     (``pool="all"``: of all frames, one value); the fit's table at least ``min_samples`` wide."""
     d = None if dist is None else jnp.asarray(dist, dtype)
     robust = estimator == "robust"
-    samples = _nearest_samples(rig, jnp.asarray(scenes.xy, dtype), jnp.asarray(scenes.mask), d, robust)
+    samples = _chunked_samples(rig, scenes, d, dtype, robust)
     group = scenes.frame if pool == "frame" else np.zeros_like(scenes.frame)
     G = F if pool == "frame" else 1
     tables = _sample_tables([np.asarray(a).reshape(len(group), -1) for a in samples], group, G, min_samples)
-    focal = focal_scale(rig.K)
-    if robust:
-        sigma, _ = _pooled_robust_fit(*tables, focal)
-    else:
-        sigma, _ = _pooled_fit(*tables, focal)
-    sigma = np.asarray(sigma)
+    sigma = _chunked_fit(_pooled_robust_fit if robust else _pooled_fit, tables, focal_scale(rig.K))
     return sigma if pool == "frame" else np.full(F, sigma[0])
+
+
+FIT_ELEMENTS = 1 << 20
+"""Entries (rows × samples) of the σ fit's table in one call: a long recording's frames are
+fitted in chunks of rows (the last padded with empty rows), so that the EM's temporaries stay
+the same size whatever its length. Each row's fit is its own (bitwise the same in any chunk)."""
+
+
+def _chunked_fit(fit, tables: list[np.ndarray], focal) -> np.ndarray:
+    """``(G,)`` σ of every row of ``tables`` (``(G, S)`` each) by ``fit``, in chunks of rows
+    of at most :data:`FIT_ELEMENTS` entries (a power of two rows), one program for all."""
+    G, S = tables[0].shape
+    rows = 1 << max(0, (FIT_ELEMENTS // S).bit_length() - 1)
+    if G <= rows:
+        return np.asarray(fit(*(jnp.asarray(t) for t in tables), focal)[0])
+    out = []
+    for start in range(0, G, rows):
+        part = [t[start : start + rows] for t in tables]
+        n = len(part[0])
+        if n < rows:  # empty rows: weight 0, discarded
+            part = [np.concatenate([t, np.zeros((rows - n, S), t.dtype)]) for t in part]
+        out.append(np.asarray(fit(*(jnp.asarray(t) for t in part), focal)[0])[:n])
+    return np.concatenate(out)
 
 
 def _sample_tables(samples: list[np.ndarray], group: np.ndarray, G: int, min_width: int = 0) -> list:
@@ -393,7 +435,7 @@ def _sample_tables(samples: list[np.ndarray], group: np.ndarray, G: int, min_wid
         if k == 2:
             table[:] = largest[:, None]
         table[rows, column] = a[used]
-        tables.append(jnp.asarray(table))
+        tables.append(table)
     return tables
 
 

@@ -99,6 +99,22 @@ def test_pooled_sigma_one_per_frame(scene):
     assert sigma.shape == (F,) and (sigma > 0).all() and (sigma < 5).all()
 
 
+@pytest.mark.parametrize("robust", [False, True], ids=["auto", "robust"])
+def test_long_recordings_fit_sigma_in_chunks_bitwise_as_in_one(scene, monkeypatch, robust):
+    """A long recording's σ samples and fits run in chunks (flat memory); each frame's σ is
+    bitwise the one of a single call. Chunks of 2 scenes and 1 frame row force the path."""
+    import cdog_jax._classes as classes_module
+
+    rig, xy, mask, classes, _ = scene
+    method = cdog_jax.Config.best(sigma_mode="robust") if robust else None
+    one = associate_classes(rig, xy, mask, classes, sigma="auto", method=method).association
+    monkeypatch.setattr(classes_module, "SAMPLE_CHUNK", 2)
+    monkeypatch.setattr(classes_module, "FIT_ELEMENTS", 1)
+    chunked = associate_classes(rig, xy, mask, classes, sigma="auto", method=method).association
+    np.testing.assert_array_equal(np.asarray(chunked.sigma_px), np.asarray(one.sigma_px))
+    np.testing.assert_array_equal(np.asarray(chunked.labels), np.asarray(one.labels))
+
+
 def test_bad_classes_refused(scene):
     rig, xy, mask, classes, _ = scene
     bad = classes.copy()
