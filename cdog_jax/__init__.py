@@ -8,7 +8,7 @@ from ._tracks import TrackedAssociation as TrackedAssociation, track_groups as t
 from ._live import LiveAssociator as LiveAssociator, LiveFrame as LiveFrame
 from ._cdog import Config as Config, STAGES as STAGES, associate_traced as associate_traced
 from ._cdog import Thresholds as Thresholds
-from ._memory import estimate_peak_bytes as estimate_peak_bytes
+from ._runtime.memory import estimate_peak_bytes as estimate_peak_bytes
 from ._table_method import GroupTableMethod as GroupTableMethod
 from ._method import (
     Method as Method,
@@ -25,7 +25,7 @@ from . import baselines as baselines  # registers the baseline methods
 
 from ._version import __version__ as __version__  # noqa: E402
 
-from ._compile_cache import enable_compilation_cache as _enable_compilation_cache  # noqa: E402
+from ._runtime.compile_cache import enable_compilation_cache as _enable_compilation_cache  # noqa: E402
 
 _enable_compilation_cache()  # compiled programs persist across processes (CDOG_JAX_CACHE=0: off)
 
@@ -33,7 +33,7 @@ _enable_compilation_cache()  # compiled programs persist across processes (CDOG_
 
 # The figures load on first use: `import cdog_jax` reads neither the plotting modules nor
 # the file formats they write through.
-from ._lazy_names import load_on_first_use as _load_on_first_use  # noqa: E402
+from ._runtime.lazy_names import load_on_first_use as _load_on_first_use  # noqa: E402
 
 _FIGURES = ("plot_association", "plot_bpe_histogram", "plot_epipolar", "plot_rays", "plot_rig")
 __getattr__, __dir__, __all__ = _load_on_first_use(globals(), dict.fromkeys(_FIGURES, ".viz"))

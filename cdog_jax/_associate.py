@@ -1,7 +1,7 @@
 """The public entry points: :func:`associate` (one scene) and :func:`associate_batch`.
 
 Whatever the method (C-DOG's presets or any registered :class:`~cdog_jax.Method`), they
-check the inputs eagerly, undistort, pad the shapes to a short ladder (``_shapes.py``),
+check the inputs eagerly, undistort, pad the shapes to a short ladder (``_runtime/shapes.py``),
 compile the method's per-scene function once per shape (``jit``; ``vmap`` for batches, in
 chunks so memory stays bounded), and finish with confidence weights, the minimum number of
 views and the validity gate (``_finish.py``).
@@ -18,11 +18,11 @@ import numpy as np
 from ._cdog import Config
 from ._expect import INT, expect, expect_args
 from ._finish import finish_groups
-from ._memory import check_memory
+from ._runtime.memory import check_memory
 from ._method import Method, Observations, method_argument
 from ._result import Association
-from ._shapes import chunk_size, occupied_slots, pad_scenes, pad_slots, slot_capacity, trim
-from ._stored_programs import call_stored
+from ._runtime.shapes import chunk_size, occupied_slots, pad_scenes, pad_slots, slot_capacity, trim
+from ._runtime.stored_programs import call_stored
 from ._types import Array, ArrayLike, Float
 from ._validate import as_array, check_batch_rig, check_observations, check_rig, check_sigma, check_threshold_shapes
 from .geometry._camera import Rig
@@ -158,7 +158,7 @@ def associate(
 
 def _single_scene(rig, xy, mask, th, extras, method):
     """One padded scene through the method's compiled program; its lowered program is
-    stored on disk for later processes (``_stored_programs.py``)."""
+    stored on disk for later processes (``_runtime/stored_programs.py``)."""
     if extras is None:
         return call_stored(_associate_jit, (rig, xy, mask, th), method)
     return call_stored(_associate_extras_jit, (rig, xy, mask, th, *extras), method)

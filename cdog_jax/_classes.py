@@ -24,7 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._associate import associate_batch_at
-from ._shapes import ladder_rung, slot_capacity
+from ._runtime.shapes import ladder_rung, slot_capacity
 from ._persons import check_instances, person_consistent, person_vote_argument
 from ._method import method_argument
 from ._expect import INT, expect, expect_args

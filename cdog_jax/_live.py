@@ -24,7 +24,7 @@ from ._classes import associate_classes_at, given_classes
 from ._expect import expect_args
 from ._method import method_argument
 from ._persons import PersonLinker, PersonVote, people_of_frame
-from ._shapes import ladder_rung, slot_capacity
+from ._runtime.shapes import ladder_rung, slot_capacity
 from ._tracks import DEFAULT_MAX_STEP_PX, _check_gate, initial_tracks, track_one, tracking_frames
 from ._validate import as_array, check_observations, check_rig
 from .geometry._camera import Rig

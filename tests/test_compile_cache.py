@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from cdog_jax._compile_cache import MIN_COMPILE_SECONDS, cache_dir_from_environment, default_cache_dir
+from cdog_jax._runtime.compile_cache import MIN_COMPILE_SECONDS, cache_dir_from_environment, default_cache_dir
 
 
 def test_folder_follows_the_environment(monkeypatch, tmp_path):

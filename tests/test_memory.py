@@ -9,9 +9,9 @@ from helpers import ring_rig
 
 import cdog_jax
 from cdog_jax import Config, associate, associate_batch
-from cdog_jax._memory import ENV_BUDGET, check_memory, estimate_peak_bytes, memory_budget_bytes
+from cdog_jax._runtime.memory import ENV_BUDGET, check_memory, estimate_peak_bytes, memory_budget_bytes
 from cdog_jax._associate import _associate_jit, _prepare
-from cdog_jax._stored_programs import loaded_programs
+from cdog_jax._runtime.stored_programs import loaded_programs
 
 
 def test_ten_thousand_detections_per_view_are_refused_before_compiling(monkeypatch):

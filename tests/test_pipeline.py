@@ -9,7 +9,7 @@ from helpers import purity, random_scene, ring_rig, x64
 
 import cdog_jax
 from cdog_jax import Config, Status, associate, associate_batch, associate_traced
-from cdog_jax._stored_programs import loaded_programs
+from cdog_jax._runtime.stored_programs import loaded_programs
 
 PRESETS = {"paper": Config.paper(), "reference": Config.reference(), "extended": Config.extended()}
 RIG = ring_rig(5)

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from cdog_jax import _progress
+from cdog_jax._runtime import progress as _progress
 from cdog_jax.cli._associate_command import _associate_frames
 from cdog_jax.benchmark import SweepProgress
 

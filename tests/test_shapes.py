@@ -9,7 +9,7 @@ from helpers import random_scene, ring_rig, run_with_xla_defaults
 
 from cdog_jax import Config, associate, associate_batch
 from cdog_jax._associate import _associate_extras_jit, _associate_jit, _check_extras, _prepare
-from cdog_jax._shapes import chunk_size, ladder_rung, slot_capacity
+from cdog_jax._runtime.shapes import chunk_size, ladder_rung, slot_capacity
 
 RIG = ring_rig(5)
 P = 13  # not on the ladder: associate runs at 16
@@ -104,7 +104,7 @@ def test_one_scene_batch_runs_the_single_scene_program():
 
 
 def test_capacity_falls_back_to_the_unpadded_shape_only_where_the_budget_needs_it():
-    from cdog_jax._memory import estimate_peak_bytes
+    from cdog_jax._runtime.memory import estimate_peak_bytes
     from cdog_jax._associate import _capacity
 
     config = Config.extended()

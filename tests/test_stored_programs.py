@@ -1,4 +1,4 @@
-"""Programs stored with ``jax.export`` (``cdog_jax/_stored_programs.py``): a later process
+"""Programs stored with ``jax.export`` (``cdog_jax/_runtime/stored_programs.py``): a later process
 loads the lowered program instead of tracing, with bitwise the same results; stale,
 corrupt or foreign entries are never used."""
 
@@ -14,7 +14,7 @@ from helpers import random_scene, ring_rig
 
 import cdog_jax
 from cdog_jax import Config
-from cdog_jax import _stored_programs as stored
+from cdog_jax._runtime import stored_programs as stored
 from cdog_jax._associate import _associate_jit, _prepare
 
 RIG = ring_rig(4)
@@ -46,7 +46,7 @@ def _direct(xy, mask, sigma, method):
     static, th = _prepare(method, sigma, None, np.float32)
     padded_xy = np.pad(xy, ((0, 0), (0, 32 - P), (0, 0)))
     padded_mask = np.pad(mask, ((0, 0), (0, 32 - P)))
-    return cdog_jax._shapes.trim(_associate_jit(RIG, padded_xy, padded_mask, th, method=static), P)
+    return cdog_jax._runtime.shapes.trim(_associate_jit(RIG, padded_xy, padded_mask, th, method=static), P)
 
 
 def test_stored_program_is_written_then_loaded_without_tracing(fresh_store):

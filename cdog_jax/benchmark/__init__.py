@@ -5,7 +5,7 @@ configurations it compares. Its figures are in :mod:`cdog_jax.viz`."""
 from ._methods import DEFAULT_METHODS as DEFAULT_METHODS
 from ._methods import METHODS as METHODS
 from ._methods import ablation_stages as ablation_stages
-from .._lazy_names import load_on_first_use as _load_on_first_use
+from .._runtime.lazy_names import load_on_first_use as _load_on_first_use
 
 # The rest loads on first use: the command line lists the named methods in its help (above)
 # without loading the sweep, the grid and the file writers for every command.

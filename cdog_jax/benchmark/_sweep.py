@@ -48,12 +48,12 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from .._expect import expect_args
 from .._cdog import Config
 from .._method import Method, Observations, method_from
-from .._memory import check_memory
+from .._runtime.memory import check_memory
 from ..geometry._camera import Rig
 from ..metrics._scores import Metrics, scene_metrics
 from ..synthetic._rig import DEFAULT_BOX, IMAGE_SIZE
 from ..synthetic._scene import generate_scene
-from .._progress import compiling, interactive, sweep_bar
+from .._runtime.progress import compiling, interactive, sweep_bar
 from ._grid import Grid, bucket_of, compact_scene
 
 AXIS = "scenes"
@@ -343,7 +343,7 @@ def _layout(grid: Grid, buckets, batch_size, num_devices: int, dtype) -> _Layout
 def _check_memory(num_views: int, layout: _Layout, groups: dict, dtype) -> None:
     """Refuse before compiling when a bucket's step (``batch`` scenes, each with the configs
     of one structure vmapped when ``batch > 1``) would exceed the memory budget
-    (:func:`cdog_jax._memory.check_memory`; buckets and structures run one after another)."""
+    (:func:`cdog_jax._runtime.memory.check_memory`; buckets and structures run one after another)."""
     for capacity, batch in zip(layout.capacities, layout.batch_sizes):
         for structure, members in groups.items():
             at_once = batch * (len(members) if batch > 1 else 1)

@@ -32,7 +32,7 @@ import numpy as np
 
 from .._cdog import Config
 from .._cdog import associate_traced
-from .._progress import bar, compiling
+from .._runtime.progress import bar, compiling
 from ..geometry._camera import Rig
 from ..geometry._parameters import so3_exp
 from ..metrics._scores import scene_metrics

@@ -185,7 +185,7 @@ def _associate_frames(call, xy, mask, weights, batch_size: int):
     import jax
     import jax.numpy as jnp
 
-    from .._progress import bar, compiling
+    from .._runtime.progress import bar, compiling
 
     F = xy.shape[0]
     chunk = batch_size * max(1, math.ceil(F / (batch_size * _PROGRESS_STEPS)))

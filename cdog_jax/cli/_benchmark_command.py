@@ -156,7 +156,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the benchmark; returns the exit code."""
     from .. import viz as figures
     from ..benchmark._io import save_results, summary_table
-    from .._progress import interactive, sweep_bar
+    from .._runtime.progress import interactive, sweep_bar
     from ..benchmark._cpu_cores import use_cpu_cores
     from ..benchmark._sweep import print_progress, sweep
 

@@ -69,7 +69,7 @@ def main(argv: Sequence[str | os.PathLike[str]] | None = None) -> int:
     ``os.PathLike``); returns the exit code: 0, or 2 for a user error (one line on stderr)."""
     args = build_parser().parse_args(None if argv is None else [str(a) for a in argv])
     if args.no_cache:
-        from .._compile_cache import disable_compilation_cache
+        from .._runtime.compile_cache import disable_compilation_cache
 
         disable_compilation_cache()
     try:

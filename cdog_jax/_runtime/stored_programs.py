@@ -1,7 +1,7 @@
 """Single-scene programs stored with ``jax.export``, so that a later process neither traces
 nor lowers them again.
 
-The persistent compilation cache (``_compile_cache.py``) skips XLA's compilation, but its
+The persistent compilation cache (``compile_cache.py``) skips XLA's compilation, but its
 key is the lowered program: every process still traces the pipeline and lowers it to
 StableHLO first (about 1 s for ``best()`` on a CPU, half of a whole ``cdog-jax associate``
 run once the cache is warm). Here the lowered program itself is stored, serialised by
@@ -36,9 +36,9 @@ from typing import Any
 import jax
 import numpy as np
 
-from ._compile_cache import cache_dir_from_environment
+from .compile_cache import cache_dir_from_environment
 
-_PACKAGE_ROOT = Path(__file__).resolve().parent
+_PACKAGE_ROOT = Path(__file__).resolve().parents[1]  # the package (this file is in its _runtime folder)
 _TRACING_OPTIONS = ("jax_enable_x64", "jax_default_matmul_precision", "jax_numpy_dtype_promotion",
                     "jax_numpy_rank_promotion", "jax_default_prng_impl")
 _source_hash: str | None = None
@@ -72,7 +72,7 @@ def call_stored(jitted: Callable, args: tuple, method, **static) -> Any:
     serialise (its ``flatbuffers`` dependency missing, or custom calls it does not store).
     """
     folder = stored_programs_dir()
-    if folder is None or not type(method).__module__.startswith(f"{__package__}."):
+    if folder is None or not type(method).__module__.startswith(f"{_PACKAGE_ROOT.name}."):
         return jitted(*args, method=method, **static)
     fun = jitted.__wrapped__
     leaves, treedef = jax.tree.flatten(args)

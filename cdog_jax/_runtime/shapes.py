@@ -21,7 +21,7 @@ import dataclasses
 import jax
 import numpy as np
 
-from ._result import Association
+from .._result import Association
 
 MIN_CAPACITY = 4  # slots per view of the smallest program
 

@@ -18,7 +18,7 @@ import os
 
 import numpy as np
 
-from ._method import Method
+from .._method import Method
 
 ENV_BUDGET = "CDOG_JAX_MEMORY_BUDGET"
 """Environment variable: the memory budget in GB (10⁹ bytes), e.g. ``"8"``."""
