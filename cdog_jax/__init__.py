@@ -1,11 +1,11 @@
 """cdog_jax: multi-view, multi-instance point association with connected δ-overlap graphs."""
 
-from ._classes import ClassAssociation as ClassAssociation, associate_classes as associate_classes, class_sigmas as class_sigmas
-from ._persons import People as People, PersonVote as PersonVote, identify_people as identify_people
+from .people._classes import ClassAssociation as ClassAssociation, associate_classes as associate_classes, class_sigmas as class_sigmas
+from .people._persons import People as People, PersonVote as PersonVote, identify_people as identify_people
 from ._associate import associate as associate, associate_batch as associate_batch
-from ._sequence import associate_sequence as associate_sequence
-from ._tracks import TrackedAssociation as TrackedAssociation, track_groups as track_groups
-from ._live import LiveAssociator as LiveAssociator, LiveFrame as LiveFrame
+from .tracking._sequence import associate_sequence as associate_sequence
+from .tracking._tracks import TrackedAssociation as TrackedAssociation, track_groups as track_groups
+from .tracking._live import LiveAssociator as LiveAssociator, LiveFrame as LiveFrame
 from ._cdog import Config as Config, STAGES as STAGES, associate_traced as associate_traced
 from ._cdog import Thresholds as Thresholds
 from ._runtime.memory import estimate_peak_bytes as estimate_peak_bytes

@@ -36,7 +36,7 @@ import time
 import numpy as np
 
 from cdog_jax import PersonVote, associate_classes
-from cdog_jax._persons import person_consistent
+from cdog_jax.people._persons import person_consistent
 from cdog_jax.synthetic import SKELETON_JOINTS, Realism
 
 PRESETS = ("paper", "extended", "reference", "best")

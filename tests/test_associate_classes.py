@@ -103,7 +103,7 @@ def test_pooled_sigma_one_per_frame(scene):
 def test_long_recordings_fit_sigma_in_chunks_bitwise_as_in_one(scene, monkeypatch, robust):
     """A long recording's σ samples and fits run in chunks (flat memory); each frame's σ is
     bitwise the one of a single call. Chunks of 2 scenes and 1 frame row force the path."""
-    import cdog_jax._classes as classes_module
+    import cdog_jax.people._classes as classes_module
 
     rig, xy, mask, classes, _ = scene
     method = cdog_jax.Config.best(sigma_mode="robust") if robust else None

@@ -26,7 +26,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("stage", ("_stage",)),
     ("stages", ("graph.", "refine.")),
     ("core", ("_result", "_runtime.", "_validate", "_finish", "_cdog", "_table_method", "_host_method", "_associate",
-              "_persons", "_classes", "_matching", "_temporal_prior", "_tracks", "_sequence", "_live")),
+              "people.", "tracking.")),
     ("methods", ("baselines.",)),
     ("data", ("io.", "synthetic.", "metrics.")),
     ("harness", ("benchmark.", "calibration.")),

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from cdog_jax import associate_sequence, identify_people
-from cdog_jax._persons import PersonLinker
+from cdog_jax.people._persons import PersonLinker
 from cdog_jax.synthetic import SKELETON_JOINTS, generate_skeleton_scenes, ring_rig
 
 M, F, K = 4, 6, 3  # views, frames, people

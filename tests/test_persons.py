@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 import cdog_jax
 from cdog_jax import PersonVote, associate_classes
-from cdog_jax._persons import cluster_people, consistent_groups, person_nodes, vote_matrix
+from cdog_jax.people._persons import cluster_people, consistent_groups, person_nodes, vote_matrix
 from cdog_jax.synthetic import default_rig
 
 M, J = 3, 3  # views, joint classes

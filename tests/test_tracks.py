@@ -116,7 +116,7 @@ def test_the_prior_respects_its_gates(seq):
 
 def test_sequences_vmap_as_a_loop(seq):
     """The scan is a pure function of one sequence: vmapped over two, it equals two calls."""
-    from cdog_jax._tracks import _Frame, track_sequence
+    from cdog_jax.tracking._tracks import _Frame, track_sequence
 
     G, P = seq.result.valid.shape[1], seq.mask.shape[2]
     tau = np.asarray(seq.result.tau_px)

@@ -20,15 +20,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._classes import associate_classes_at, given_classes
-from ._expect import expect_args
-from ._method import method_argument
-from ._persons import PersonLinker, PersonVote, people_of_frame
-from ._runtime.shapes import ladder_rung, slot_capacity
+from ..people._classes import associate_classes_at, given_classes
+from .._expect import expect_args
+from .._method import method_argument
+from ..people._persons import PersonLinker, PersonVote, people_of_frame
+from .._runtime.shapes import ladder_rung, slot_capacity
 from ._tracks import DEFAULT_MAX_STEP_PX, _check_gate, initial_tracks, track_one, tracking_frames
-from ._validate import as_array, check_observations, check_rig
-from .geometry._camera import Rig
-from .geometry._distortion import as_lens, undistorted_frames
+from .._validate import as_array, check_observations, check_rig
+from ..geometry._camera import Rig
+from ..geometry._distortion import as_lens, undistorted_frames
 
 DEFAULT_SLOTS = 8
 """Detections of one class in one view that the first compiled programs hold (a person

@@ -21,10 +21,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .geometry._camera import Rig
-from .geometry._distortion import as_lens, undistorted_frames
-from .geometry._projection import group_errors
-from .geometry._triangulate import triangulate_views_last
+from ..geometry._camera import Rig
+from ..geometry._distortion import as_lens, undistorted_frames
+from ..geometry._projection import group_errors
+from ..geometry._triangulate import triangulate_views_last
 
 
 @dataclasses.dataclass(frozen=True)

@@ -5,7 +5,7 @@ A frame's groups are matched one to one with the groups alive in the frame befor
 class only), greedily, cheapest pair first, under a gate on the distance a point may move
 between two frames. A matched group inherits the track id; an unmatched one starts a new
 id; ids are never reused. With ``temporal_prior=True`` the tracks left unmatched are first
-looked for among the frame's unassigned detections (:mod:`cdog_jax._temporal_prior`).
+looked for among the frame's unassigned detections (:mod:`cdog_jax.tracking._temporal_prior`).
 
 The association of all frames runs first, in one batched call (it does not depend on the
 tracks: the prior only adds groups made of detections the association left unassigned);
@@ -24,14 +24,14 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
-from ._expect import expect_args
+from .._expect import expect_args
 from ._matching import greedy_match
-from ._result import Association
+from .._result import Association
 from ._temporal_prior import recover_tracks
-from ._types import Array, Bool, Float, Int
-from ._validate import as_array
-from .geometry._camera import Rig
-from .geometry._distortion import as_lens, undistorted_frames
+from .._types import Array, Bool, Float, Int
+from .._validate import as_array
+from ..geometry._camera import Rig
+from ..geometry._distortion import as_lens, undistorted_frames
 
 DEFAULT_MAX_STEP_PX = 60.0
 """Default gate of a track's step between frames (pixels at the point's depth): a wrist

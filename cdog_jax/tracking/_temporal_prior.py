@@ -21,10 +21,10 @@ import jax.numpy as jnp
 from jax import lax
 
 from ._matching import greedy_match
-from ._types import Array, Bool, Float, Int
-from .geometry._camera import Rig
-from .geometry._projection import project_views_last, reprojection_errors_views_last
-from .geometry._triangulate import triangulate_views_last
+from .._types import Array, Bool, Float, Int
+from ..geometry._camera import Rig
+from ..geometry._projection import project_views_last, reprojection_errors_views_last
+from ..geometry._triangulate import triangulate_views_last
 
 
 def recover_tracks(

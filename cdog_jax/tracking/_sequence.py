@@ -8,12 +8,12 @@ from typing import Any
 
 import numpy as np
 
-from ._associate import associate_batch
-from ._classes import associate_classes
-from ._expect import expect_args
+from .._associate import associate_batch
+from ..people._classes import associate_classes
+from .._expect import expect_args
 from ._tracks import DEFAULT_MAX_STEP_PX, TrackedAssociation, track_groups
-from ._validate import as_array
-from .geometry._camera import Rig
+from .._validate import as_array
+from ..geometry._camera import Rig
 
 
 def associate_sequence(

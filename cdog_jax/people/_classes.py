@@ -23,19 +23,19 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._associate import associate_batch_at
-from ._runtime.shapes import ladder_rung, slot_capacity
+from .._associate import associate_batch_at
+from .._runtime.shapes import ladder_rung, slot_capacity
 from ._persons import check_instances, person_consistent, person_vote_argument
-from ._method import method_argument
-from ._expect import INT, expect, expect_args
-from ._result import Association
-from ._validate import as_array, check_observations, check_rig
-from .geometry._camera import Rig
-from .geometry._distortion import undistorted
-from .geometry._epipolar import epipolar_distances
-from ._config import REFERENCE_FOCAL_PX
-from .graph._sigma import FALLBACK_SIGMA_PX, focal_scale, nearest_samples, sigma_from_samples
-from .graph._sigma_robust import nearest_two_samples, robust_sigma_from_samples
+from .._method import method_argument
+from .._expect import INT, expect, expect_args
+from .._result import Association
+from .._validate import as_array, check_observations, check_rig
+from ..geometry._camera import Rig
+from ..geometry._distortion import undistorted
+from ..geometry._epipolar import epipolar_distances
+from .._config import REFERENCE_FOCAL_PX
+from ..graph._sigma import FALLBACK_SIGMA_PX, focal_scale, nearest_samples, sigma_from_samples
+from ..graph._sigma_robust import nearest_two_samples, robust_sigma_from_samples
 
 SIGMA_POOLS = ("frame", "all", "scene")
 

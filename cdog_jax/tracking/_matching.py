@@ -5,7 +5,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jax import lax
 
-from ._types import Array, Float, Int
+from .._types import Array, Float, Int
 
 
 def greedy_match(cost: Float[Array, "A B"]) -> Int[Array, " A"]:

@@ -1,0 +1,1 @@
+"""Frames over time: track ids (track_groups), the temporal prior, associate_sequence, greedy one-to-one matching, and the live associator (one frame at a time). The public names are exported by the package root."""
