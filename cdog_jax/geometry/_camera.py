@@ -54,8 +54,16 @@ class Rig(eqx.Module):
         return -np.einsum("...ji,...j->...i", R, t), R[..., 2, :]
 
     def select(self, views) -> "Rig":
-        """The sub-rig of the given view indices (a sequence or an int array)."""
+        """The sub-rig of the given view indices (a sequence or an int array; negative
+        indices count from the end). Raises ``ValueError`` for an index out of range (JAX
+        would clamp it to the last view)."""
         views = np.asarray(views)
+        M = int(np.shape(self.K)[-3])
+        if views.dtype == bool or not np.issubdtype(views.dtype, np.integer):
+            raise ValueError(f"Rig.select: view indices must be integers; got dtype {views.dtype}")
+        out = (views < -M) | (views >= M)
+        if out.any():
+            raise ValueError(f"Rig.select: view index {int(views[out].flat[0])} is out of range for a rig of {M} views")
         return Rig(self.K[..., views, :, :], self.R[..., views, :, :], self.t[..., views, :])
 
 
@@ -63,11 +71,15 @@ def rig_from_arrays(K, R, t, *, dtype=None) -> Rig:
     """Build a :class:`Rig` from array-likes, with eager shape and value checks.
 
     ``K (M, 3, 3)``, ``R (M, 3, 3)``, ``t (M, 3)``. Raises ``ValueError`` naming the
-    offending view for wrong shapes, non-finite values,
-    a singular ``K`` or a rotation that is not orthonormal (tolerance 1e-3).
+    offending view for wrong shapes, non-finite values, a singular ``K``, a ``K`` that is not
+    upper-triangular or whose focal lengths are not positive (relative to ``K[2, 2]``: a
+    transposed or mirrored ``K``), a rotation that is not orthonormal (tolerance 1e-3), or a
+    ``dtype`` other than float32 and float64 (integer arrays are converted).
     """
     expect_args("rig_from_arrays", K=(K, ARRAY), R=(R, ARRAY), t=(t, ARRAY))
-    dtype = dtype or jnp.asarray(0.0).dtype
+    dtype = np.dtype(dtype or jnp.asarray(0.0).dtype)
+    if dtype not in (np.dtype(np.float32), np.dtype(np.float64)):
+        raise ValueError(f"rig_from_arrays: dtype must be float32 or float64; got {dtype} (too few digits for pixels at a distance)")
     K, R, t = (np.asarray(a, dtype=np.float64) for a in (K, R, t))
     if K.ndim != 3 or K.shape[1:] != (3, 3):
         raise ValueError(f"K must have shape (M, 3, 3); got {K.shape}")
@@ -92,6 +104,18 @@ def check_rig_values(K: np.ndarray, R: np.ndarray, t: np.ndarray) -> None:
     if singular.any():
         m = int(np.argmax(singular))
         raise ValueError(f"K of view {m} is singular (det = {det_K[m]:.3g})")
+    size = np.abs(K).max(axis=(1, 2))
+    below = np.abs(K[:, [1, 2, 2], [0, 0, 1]]).max(axis=1)
+    lower = below > 1e-9 * size
+    if lower.any():
+        m = int(np.argmax(lower))
+        raise ValueError(f"K of view {m} is not upper-triangular (below the diagonal: {K[m][1, 0]:.6g}, {K[m][2, 0]:.6g}, "
+                         f"{K[m][2, 1]:.6g}); a transposed K? (MATLAB's IntrinsicMatrix is Kᵀ)")  # fmt: skip
+    mirrored = (K[:, 0, 0] * K[:, 2, 2] <= 0) | (K[:, 1, 1] * K[:, 2, 2] <= 0)
+    if mirrored.any():
+        m = int(np.argmax(mirrored))
+        raise ValueError(f"K of view {m} has a focal length that is not positive (fx = {K[m][0, 0]:.6g}, fy = {K[m][1, 1]:.6g}, "
+                         f"K[2, 2] = {K[m][2, 2]:.6g}); a mirrored camera cannot be right")  # fmt: skip
     ortho_err = np.abs(np.einsum("mji,mjk->mik", R, R) - np.eye(3)).max(axis=(1, 2))
     det_R = np.linalg.det(R)
     bad = (ortho_err > 1e-3) | (det_R < 0)

@@ -6,6 +6,7 @@ Per-view arrays put the view axis first: ``project`` returns ``(M, *S, 2)``, as 
 """
 
 import jax.numpy as jnp
+import numpy as np
 
 from .._expect import ARRAY, expect_args
 from .._types import Array, Bool, Float
@@ -24,6 +25,8 @@ def project(
     records them. ``None``: ideal pinhole pixels.
     """
     expect_args("project", rig=(rig, Rig), X_world=(X_world, ARRAY))
+    if np.ndim(X_world) < 1 or np.shape(X_world)[-1] != 3:
+        raise ValueError(f"project: X_world must have shape (..., 3), world points; got {np.shape(X_world)}")
     xy, ok = project_views_last(rig, X_world)
     xy, ok = jnp.moveaxis(xy, -2, 0), jnp.moveaxis(ok, -1, 0)
     if dist is not None:

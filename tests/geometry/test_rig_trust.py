@@ -1,0 +1,65 @@
+"""Cameras that cannot be right are refused with the view and the reason: a transposed K
+(MATLAB's IntrinsicMatrix layout), a mirrored K (a focal length of the wrong sign), a rig of
+float16; a view index out of range in Rig.select; points that are not (..., 3) in project."""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import cdog_jax
+from cdog_jax import rig_from_arrays
+from cdog_jax.synthetic import default_rig
+
+RIG = default_rig(num_views=3)
+K, R, t = (np.asarray(a, np.float64) for a in (RIG.K, RIG.R, RIG.t))
+
+
+def test_a_transposed_K_is_refused_naming_the_view():
+    bad = K.copy()
+    bad[1] = bad[1].T
+    with pytest.raises(ValueError, match=r"K of view 1 is not upper-triangular.*transposed"):
+        rig_from_arrays(bad, R, t)
+    with pytest.raises(ValueError, match="not upper-triangular"):  # and wherever a rig is checked
+        cdog_jax.associate(cdog_jax.Rig(jnp.asarray(bad, jnp.float32), RIG.R, RIG.t), np.zeros((3, 4, 2), np.float32),
+                           np.zeros((3, 4), bool), sigma=1.0)  # fmt: skip
+
+
+@pytest.mark.parametrize("entry", [(0, 0), (1, 1)], ids=["fx", "fy"])
+def test_a_mirrored_K_is_refused(entry):
+    bad = K.copy()
+    bad[2][entry] *= -1
+    with pytest.raises(ValueError, match="K of view 2 has a focal length that is not positive"):
+        rig_from_arrays(bad, R, t)
+
+
+def test_K22_of_minus_one_is_still_a_camera():
+    flipped = -K  # K / K[2, 2] is the same camera
+    rig = rig_from_arrays(flipped, R, t)
+    X = jnp.asarray([[0.1, 0.2, 0.3]], jnp.float32)
+    np.testing.assert_allclose(np.asarray(cdog_jax.project(rig, X)[0]), np.asarray(cdog_jax.project(RIG, X)[0]), atol=1e-3)
+
+
+def test_half_precision_rigs_are_refused():
+    with pytest.raises(ValueError, match="dtype must be float32 or float64"):
+        rig_from_arrays(K, R, t, dtype=jnp.float16)
+    rig = rig_from_arrays(K.round().astype(np.int64), R, t)  # integers are converted
+    assert rig.K.dtype == jnp.float32
+
+
+def test_select_refuses_an_index_out_of_range():
+    assert RIG.select([2, 0]).num_views == 2 and RIG.select([-1]).num_views == 1
+    with pytest.raises(ValueError, match="view index 3 is out of range for a rig of 3 views"):
+        RIG.select([0, 3])
+    with pytest.raises(ValueError, match="view index -4"):
+        RIG.select(np.array([-4]))
+    with pytest.raises(ValueError, match="must be integers"):
+        RIG.select([0.0, 1.0])
+
+
+def test_project_refuses_points_that_are_not_3d():
+    # The function itself, without the shape checker this test run wraps around it.
+    project = getattr(cdog_jax.project, "__wrapped__", cdog_jax.project)
+    with pytest.raises(ValueError, match=r"X_world must have shape \(..., 3\)"):
+        project(RIG, jnp.zeros((5, 2)))
+    with pytest.raises(ValueError, match=r"\(\.\.\., 3\)"):
+        project(RIG, jnp.zeros(()))
