@@ -21,6 +21,10 @@ def _read_json(path: str) -> tuple[list, bool, list, Any]:
     data = read_json(path)
     names = data.get("class_names") if isinstance(data, dict) else None
     if isinstance(data, dict) and "frames" in data:
+        beside = [k for k in ("views", "by_class", "classes") if k in data]
+        if beside:
+            raise ValueError(f'{path}: "{beside[0]}" beside "frames": a file holds one scene ({{"views": …}}) or '
+                             'frames ({"frames": [{"views": …}, …]}), not both')  # fmt: skip
         frames = data["frames"]
         if not isinstance(frames, list) or not frames:
             raise ValueError(f'{path}: "frames" must be a non-empty list of {{"views": …}} objects')

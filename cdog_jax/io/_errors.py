@@ -37,12 +37,14 @@ class _Where(NamedTuple):
 
 
 def read_text(path: str | os.PathLike) -> str:
-    """The UTF-8 text of ``path``; a byte that is not UTF-8 raises :class:`InputError` with
-    the file and the byte's offset (from 0)."""
+    """The UTF-8 text of ``path``, without the byte-order mark that spreadsheets and some
+    Windows editors put first; a byte that is not UTF-8 raises :class:`InputError` with the
+    file and the byte's offset (from 0)."""
     with open(path, "rb") as f:
         data = f.read()
     try:
-        return data.decode("utf-8")
+        text = data.decode("utf-8")
+        return text[1:] if text.startswith("\ufeff") else text
     except UnicodeDecodeError as e:
         raise InputError(
             f"{os.fspath(path)}: not UTF-8 text: byte {e.start} (0x{data[e.start]:02x}) cannot be decoded ({e.reason}); "

@@ -334,3 +334,16 @@ def test_result_type():
     det = detections_from_lists(_scene_views())
     assert isinstance(det, Detections)
     assert det.xy.dtype == np.float64 and det.mask.dtype == np.bool_ and det.counts.dtype == np.int64
+
+
+def test_json_with_a_byte_order_mark_reads(tmp_path):
+    path = tmp_path / "bom.json"
+    path.write_text(json.dumps({"views": _scene_views()}), encoding="utf-8-sig")
+    assert load_detections(str(path), num_views=3).xy.shape == (1, 3, 3, 2)
+
+
+@pytest.mark.parametrize("key", ["views", "by_class", "classes"])
+def test_views_beside_frames_are_refused(tmp_path, key):
+    data = {"frames": [{"views": _scene_views()}], key: _scene_views() if key != "by_class" else {}}
+    with pytest.raises(ValueError, match=f'"{key}" beside "frames"'):
+        load_detections(_write_json(tmp_path, data), num_views=3)

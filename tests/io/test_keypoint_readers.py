@@ -175,3 +175,15 @@ def test_detections_json_classes_per_detection_and_by_class(tmp_path):
     p.write_text(json.dumps({"views": [[[1, 2]], [[3, 4]]], "classes": [[0], ["a"]]}))
     with pytest.raises(InputError, match="mixes class ids and class names"):
         load_detections(p)
+
+
+def test_a_table_saved_with_a_byte_order_mark_reads(tmp_path):
+    """A spreadsheet's "CSV UTF-8" starts with a byte-order mark; the header still reads."""
+    text = "frame,view,class,x,y\n0,0,nose,1,2\n0,1,nose,3,4\n"
+    plain, marked = tmp_path / "plain.csv", tmp_path / "marked.csv"
+    plain.write_text(text, encoding="utf-8")
+    marked.write_text(text, encoding="utf-8-sig")
+    assert marked.read_bytes()[:3] == b"\xef\xbb\xbf"
+    a, b = load_keypoint_table(plain), load_keypoint_table(marked)
+    np.testing.assert_array_equal(a.xy, b.xy)
+    assert a.class_names == b.class_names == ("nose",)
