@@ -140,3 +140,35 @@ def test_a_stored_batch_program_agrees_with_its_first_run(fresh_store):
         again = cdog_jax.associate_batch(RIG, xy, mask, sigma=1.0, method=Config.paper(), batch_size=2)
     _assert_bitwise(first, again)
     assert first.labels.shape == (3, RIG.num_views, P)
+
+
+@pytest.mark.parametrize("sigma_mode", ["auto", "robust"])
+def test_the_sigma_programs_are_stored_and_agree_bitwise(fresh_store, sigma_mode):
+    # The class association's σ samples and fit (tuple outputs, no method) go through the
+    # store too: a later process loads them instead of tracing the EM again.
+    from cdog_jax.people import _classes
+
+    rng = np.random.default_rng(8)
+    F, M, Pv = 3, RIG.num_views, 12
+    xy = rng.uniform(0, 640, (F, M, Pv, 2)).astype(np.float32)
+    mask = rng.random((F, M, Pv)) < 0.8
+    classes = rng.integers(0, 3, (F, M, Pv))
+
+    def run():
+        return cdog_jax.associate_classes(RIG, xy, mask, classes, method=Config.best(sigma_mode=sigma_mode))
+
+    first = run()
+    assert len(list(fresh_store.glob("*.jaxexport"))) == 3  # samples, fit, association
+    stored._loaded.clear()
+    with (
+        mock.patch.object(_classes, "sigma_from_samples", side_effect=AssertionError("traced again")),
+        mock.patch.object(_classes, "robust_sigma_from_samples", side_effect=AssertionError("traced again")),
+        mock.patch.object(_classes, "nearest_samples", side_effect=AssertionError("traced again")),
+        mock.patch.object(_classes, "nearest_two_samples", side_effect=AssertionError("traced again")),
+    ):
+        again = run()
+    _assert_bitwise(first.association, again.association)
+    stored._loaded.clear()
+    with mock.patch.object(stored, "stored_programs_dir", return_value=None):  # plain jit
+        direct = run()
+    _assert_bitwise(first.association, direct.association)

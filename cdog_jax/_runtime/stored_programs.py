@@ -60,24 +60,27 @@ def stored_programs_dir() -> Path | None:
     return None if folder is None else folder / "exported"
 
 
-def call_stored(jitted: Callable, args: tuple, method, **static) -> Any:
+def call_stored(jitted: Callable, args: tuple, method=None, **static) -> Any:
     """``jitted(*args, method=method, **static)`` (a ``jax.jit`` whose static arguments
-    are ``method`` and ``static``'s, hashable values with a deterministic ``repr``), its
-    lowered program loaded from disk where an earlier process stored it (and stored here
-    otherwise).
+    are ``method`` and ``static``'s, hashable values with a deterministic ``repr``; without
+    a ``method``, ``jitted(*args, **static)``), its lowered program loaded from disk where
+    an earlier process stored it (and stored here otherwise).
 
-    The function returns a dataclass pytree of arrays (e.g. an ``Association``); ``args``
-    may hold pytrees and None. Falls back to ``jitted`` itself where nothing can be stored:
-    the cache is off, the method is defined outside this package, or ``jax.export`` cannot
-    serialise (its ``flatbuffers`` dependency missing, or custom calls it does not store).
+    The function returns a dataclass pytree of arrays (e.g. an ``Association``) or a tuple
+    of arrays; ``args`` may hold pytrees and None. Falls back to ``jitted`` itself where
+    nothing can be stored: the cache is off, the method is defined outside this package, or
+    ``jax.export`` cannot serialise (its ``flatbuffers`` dependency missing, or custom calls
+    it does not store).
     """
+    if method is not None:
+        static = dict(static, method=method)
     folder = stored_programs_dir()
-    if folder is None or not type(method).__module__.startswith(f"{_PACKAGE_ROOT.name}."):
-        return jitted(*args, method=method, **static)
+    if folder is None or (method is not None and not type(method).__module__.startswith(f"{_PACKAGE_ROOT.name}.")):
+        return jitted(*args, **static)
     fun = jitted.__wrapped__
     leaves, treedef = jax.tree.flatten(args)
     avals = tuple((np.shape(leaf), _dtype(leaf)) for leaf in leaves)
-    static = dict(sorted(static.items()), method=method)
+    static = dict(sorted(static.items()))
     options = tuple(str(getattr(jax.config, name, None)) for name in _TRACING_OPTIONS)
     # Hashing the key takes ~0.1 ms: computed once per process for each call signature.
     signature = (fun, tuple(static.items()), treedef, avals, options)
@@ -151,6 +154,9 @@ def _load_or_export(path: Path, fun: Callable, static: dict, treedef, specs):
     def flat(*leaves):
         result = fun(*jax.tree.unflatten(treedef, leaves), **static)
         traced["type"] = type(result)
+        if isinstance(result, tuple):
+            traced["fields"] = len(result)
+            return result
         traced["fields"] = tuple(field.name for field in dataclasses.fields(result))
         return tuple(getattr(result, name) for name in traced["fields"])
 
@@ -175,6 +181,8 @@ def _output_tree(kind: type, names) -> Any:
     """The pytree structure of a ``kind`` dataclass whose fields ``names`` are arrays, built
     without its ``__init__`` (whose shape checks a batched result would fail), as
     ``jax.tree.unflatten`` builds one."""
+    if kind is tuple:  # a tuple of ``names`` (a count) arrays
+        return jax.tree.structure((0,) * names)
     template = object.__new__(kind)
     for name in names:
         object.__setattr__(template, name, 0)

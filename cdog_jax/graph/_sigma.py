@@ -23,6 +23,7 @@ of the focal length; then ``σ = FALLBACK_SIGMA_PX``.
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax.scipy.special import erfinv, log_ndtr
 
 from .._types import Array, Bool, Float
@@ -161,7 +162,10 @@ def sigma_from_samples(
     return jnp.where(fallback, FALLBACK_SIGMA_PX, sigma).astype(dtype), fallback
 
 
-def focal_scale(K: Float[Array, "M 3 3"]) -> Float[Array, ""]:
+def focal_scale(K: Float[Array, "M 3 3"] | Float[np.ndarray, "M 3 3"]) -> Float[Array, ""] | Float[np.ndarray, ""]:
     """The rig's focal length ``()`` (pixels) from ``K (M, 3, 3)``: the median over views of
-    ``(|f_x| + |f_y|) / 2``."""
-    return jnp.median(0.5 * (jnp.abs(K[..., 0, 0]) + jnp.abs(K[..., 1, 1])))
+    ``(|f_x| + |f_y|) / 2``. A NumPy ``K`` gives a NumPy scalar, bitwise the same: outside
+    ``jit`` the host computes it (as eager JAX operations, each a program compiled in every
+    process)."""
+    xp = np if isinstance(K, np.ndarray) else jnp
+    return xp.asarray(xp.median(xp.asarray(0.5, K.dtype) * (xp.abs(K[..., 0, 0]) + xp.abs(K[..., 1, 1]))))

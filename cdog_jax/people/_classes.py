@@ -14,8 +14,6 @@ one class by construction, and the graph of a class costs ``(M · P_c)²`` inste
 
 from __future__ import annotations
 
-import dataclasses
-import functools
 from functools import partial
 from typing import NamedTuple
 
@@ -25,10 +23,11 @@ import numpy as np
 
 from .._associate import associate_batch_at
 from .._runtime.shapes import ladder_rung, slot_capacity
+from .._runtime.stored_programs import call_stored
 from ._persons import check_instances, person_consistent, person_vote_argument
 from .._method import method_argument
 from .._expect import INT, expect, expect_args
-from .._result import Association
+from .._result import Association, batched_association
 from .._validate import as_array, check_observations, check_rig
 from ..geometry._camera import Rig
 from ..geometry._distortion import undistorted
@@ -195,7 +194,7 @@ def associate_classes_at(
         frame_sigma = _pooled_sigma(rig, scenes, F, dist, dtype, sigma_pool, estimator, min_samples)
         sigma_arg = np.asarray(frame_sigma[scenes.frame], dtype)
         if getattr(method, "threshold_unit", "px") == "focal":  # the pipeline reads a given σ in focal lengths
-            sigma_arg = np.asarray(sigma_arg * (REFERENCE_FOCAL_PX / np.asarray(focal_scale(rig.K), dtype)), dtype)
+            sigma_arg = np.asarray(sigma_arg * (REFERENCE_FOCAL_PX / np.asarray(focal_scale(np.asarray(rig.K)), dtype)), dtype)
         method = method.replace(sigma_mode="given")
     else:
         sigma_arg = "auto" if auto else sigma
@@ -212,7 +211,7 @@ def associate_classes_at(
         fixed = person_consistent(rig, out.association, out.group_class, xy, mask, classes, instances, vote,
                                   dist=dist, weights=weights, min_views=min_views)  # fmt: skip
         a = out.association
-        assoc = _batched(**{k: v for k, v in fixed._asdict().items() if k != "group_class"},
+        assoc = batched_association(**{k: v for k, v in fixed._asdict().items() if k != "group_class"},
                          sigma_px=a.sigma_px, tau_px=a.tau_px, status=a.status)  # fmt: skip
         out = out._replace(association=assoc, group_class=fixed.group_class)
     return out
@@ -360,7 +359,7 @@ def _chunked_samples(rig, scenes: _Scenes, dist, dtype, robust: bool) -> list[np
     B = len(scenes.frame)
     xy, mask = scenes.xy, scenes.mask
     if B <= SAMPLE_CHUNK:
-        return [np.asarray(a) for a in _nearest_samples(rig, jnp.asarray(xy, dtype), jnp.asarray(mask), dist, robust)]
+        return [np.asarray(a) for a in call_stored(_nearest_samples, (rig, np.asarray(xy, dtype), mask, dist), robust=robust)]
     parts = []
     for start in range(0, B, SAMPLE_CHUNK):
         x, m = xy[start : start + SAMPLE_CHUNK], mask[start : start + SAMPLE_CHUNK]
@@ -368,7 +367,7 @@ def _chunked_samples(rig, scenes: _Scenes, dist, dtype, robust: bool) -> list[np
         if pad:  # empty scenes: no sample
             x = np.concatenate([x, np.zeros((pad, *x.shape[1:]), x.dtype)])
             m = np.concatenate([m, np.zeros((pad, *m.shape[1:]), bool)])
-        out = _nearest_samples(rig, jnp.asarray(x, dtype), jnp.asarray(m), dist, robust)
+        out = call_stored(_nearest_samples, (rig, np.asarray(x, dtype), m, dist), robust=robust)
         parts.append([np.asarray(a)[: SAMPLE_CHUNK - pad] for a in out])
     return [np.concatenate(arrays) for arrays in zip(*parts)]
 
@@ -377,13 +376,13 @@ def _pooled_sigma(rig, scenes: _Scenes, F: int, dist, dtype, pool: str, estimato
     """``(F,)`` σ per frame by the estimator of ``sigma_mode=estimator`` (``"auto"`` or
     ``"robust"``) on the nearest-distance samples of all the frame's class scenes
     (``pool="all"``: of all frames, one value); the fit's table at least ``min_samples`` wide."""
-    d = None if dist is None else jnp.asarray(dist, dtype)
+    d = None if dist is None else np.asarray(dist, dtype)
     robust = estimator == "robust"
     samples = _chunked_samples(rig, scenes, d, dtype, robust)
     group = scenes.frame if pool == "frame" else np.zeros_like(scenes.frame)
     G = F if pool == "frame" else 1
     tables = _sample_tables([np.asarray(a).reshape(len(group), -1) for a in samples], group, G, min_samples)
-    sigma = _chunked_fit(_pooled_robust_fit if robust else _pooled_fit, tables, focal_scale(rig.K))
+    sigma = _chunked_fit(_pooled_robust_fit if robust else _pooled_fit, tables, focal_scale(np.asarray(rig.K)))
     return sigma if pool == "frame" else np.full(F, sigma[0])
 
 
@@ -399,14 +398,14 @@ def _chunked_fit(fit, tables: list[np.ndarray], focal) -> np.ndarray:
     G, S = tables[0].shape
     rows = 1 << max(0, (FIT_ELEMENTS // S).bit_length() - 1)
     if G <= rows:
-        return np.asarray(fit(*(jnp.asarray(t) for t in tables), focal)[0])
+        return np.asarray(call_stored(fit, (*tables, focal))[0])
     out = []
     for start in range(0, G, rows):
         part = [t[start : start + rows] for t in tables]
         n = len(part[0])
         if n < rows:  # empty rows: weight 0, discarded
             part = [np.concatenate([t, np.zeros((rows - n, S), t.dtype)]) for t in part]
-        out.append(np.asarray(fit(*(jnp.asarray(t) for t in part), focal)[0])[:n])
+        out.append(np.asarray(call_stored(fit, (*part, focal))[0])[:n])
     return np.concatenate(out)
 
 
@@ -443,8 +442,15 @@ def _sample_tables(samples: list[np.ndarray], group: np.ndarray, G: int, min_wid
 # again on every call (each call then leaves its programs' code mapped in memory, until
 # the process runs out of memory maps), and the robust estimator's twelve fits take
 # seconds more than compiling them.
-_pooled_fit = jax.jit(jax.vmap(sigma_from_samples, in_axes=(0, 0, 0, None)))
-_pooled_robust_fit = jax.jit(jax.vmap(robust_sigma_from_samples, in_axes=(0, 0, 0, 0, None)))
+# Called through call_stored: a later process loads the lowered fit instead of tracing it.
+@jax.jit
+def _pooled_fit(x, w, count, focal):
+    return jax.vmap(sigma_from_samples, in_axes=(0, 0, 0, None))(x, w, count, focal)
+
+
+@jax.jit
+def _pooled_robust_fit(x, w, count, second, focal):
+    return jax.vmap(robust_sigma_from_samples, in_axes=(0, 0, 0, 0, None))(x, w, count, second, focal)
 
 
 def _map_back(r, scenes: _Scenes, F, M, P, C, names) -> ClassAssociation:
@@ -478,7 +484,7 @@ def _map_back(r, scenes: _Scenes, F, M, P, C, names) -> ClassAssociation:
     np.bitwise_or.at(status, scenes.frame, r.status.astype(np.int32))
     sigma = _per_frame(r.sigma_px, scenes.frame, F)
     tau = _per_frame(r.tau_px, scenes.frame, F)
-    assoc = _batched(
+    assoc = batched_association(
         labels=labels,
         groups=groups,
         valid=valid,
@@ -494,25 +500,6 @@ def _map_back(r, scenes: _Scenes, F, M, P, C, names) -> ClassAssociation:
     return ClassAssociation(assoc, group_class, None if names is None else tuple(names), C)
 
 
-def _batched(**fields) -> Association:
-    """An :class:`Association` with a leading frame axis from its fields (host or device
-    arrays). Built from the pytree's leaves, so that nothing runs eagerly: a ``vmap`` of the
-    constructor traced new operations for every new group count."""
-    names = [field.name for field in dataclasses.fields(Association)]  # the pytree's leaf order
-    return jax.tree.unflatten(_association_structure(), [jax.device_put(np.asarray(fields[name])) for name in names])
-
-
-@functools.cache
-def _association_structure():
-    """The pytree structure of an :class:`Association` (a batched one has the same)."""
-    one, z = jnp.zeros(1, jnp.int32), jnp.zeros((), jnp.int32)
-    f = jnp.zeros(1, jnp.float32)
-    return jax.tree.structure(Association(
-        labels=one[:, None], groups=one[:, None], valid=one > 0, points3d=jnp.zeros((1, 3), jnp.float32), bpe=f, err_px=f,
-        n_views=one, num_groups=z, sigma_px=f[0], tau_px=f[0], status=z,
-    ))  # fmt: skip
-
-
 def _per_frame(values: np.ndarray, frame: np.ndarray, F: int) -> np.ndarray:
     """The median over each frame's scenes (one value when σ was pooled); 0 without scenes."""
     out = np.zeros(F, values.dtype)
@@ -525,7 +512,7 @@ def _per_frame(values: np.ndarray, frame: np.ndarray, F: int) -> np.ndarray:
 def _empty(rig, F, M, P, dtype, C, names) -> ClassAssociation:
     dtype = dtype if np.issubdtype(dtype, np.floating) else np.float64
     z = lambda *shape, dt=dtype: np.zeros(shape, dt)  # noqa: E731
-    assoc = _batched(
+    assoc = batched_association(
         labels=np.full((F, M, P), -1, np.int32), groups=np.full((F, 1, M), -1, np.int32),
         valid=np.zeros((F, 1), bool), points3d=z(F, 1, 3), bpe=z(F, 1), err_px=z(F, 1),
         n_views=z(F, 1, dt=np.int32), num_groups=z(F, dt=np.int32), sigma_px=z(F), tau_px=z(F),

@@ -26,7 +26,7 @@ from jax import lax
 
 from .._expect import expect_args
 from ._matching import greedy_match
-from .._result import Association
+from .._result import Association, batched_association
 from ._temporal_prior import recover_tracks
 from .._types import Array, Bool, Float, Int
 from .._validate import as_array
@@ -326,19 +326,19 @@ def _tracked(assoc, out: _Out, classed: bool, names, C) -> TrackedAssociation:
     labels = np.where(labels >= 0, np.take_along_axis(rank, np.maximum(labels, 0).reshape(F, -1), axis=1).reshape(labels.shape), -1)
     groups, valid = take(groups), take(valid)
     fields = dict(
-        labels=jnp.asarray(labels.astype(np.int32)),
-        groups=jnp.asarray(groups),
-        valid=jnp.asarray(valid),
-        points3d=jnp.asarray(take(out.X)),
-        bpe=jnp.asarray(take(out.bpe)),
-        err_px=jnp.asarray(take(out.err_px)),
-        n_views=jnp.asarray(np.sum(groups >= 0, axis=2, dtype=np.int32)),
-        num_groups=jnp.asarray(np.sum(valid, axis=1, dtype=np.int32)),
-        sigma_px=jnp.asarray(assoc.sigma_px),
-        tau_px=jnp.asarray(assoc.tau_px),
-        status=jnp.asarray(assoc.status),
+        labels=np.asarray(labels.astype(np.int32)),
+        groups=np.asarray(groups),
+        valid=np.asarray(valid),
+        points3d=np.asarray(take(out.X)),
+        bpe=np.asarray(take(out.bpe)),
+        err_px=np.asarray(take(out.err_px)),
+        n_views=np.asarray(np.sum(groups >= 0, axis=2, dtype=np.int32)),
+        num_groups=np.asarray(np.sum(valid, axis=1, dtype=np.int32)),
+        sigma_px=np.asarray(assoc.sigma_px),
+        tau_px=np.asarray(assoc.tau_px),
+        status=np.asarray(assoc.status),
     )
-    association = jax.vmap(lambda *v: Association(**dict(zip(fields, v))))(*fields.values())
+    association = batched_association(**fields)
     track = take(out.track)
     return TrackedAssociation(
         association=association,
