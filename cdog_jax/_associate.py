@@ -22,6 +22,7 @@ from ._runtime.memory import check_memory
 from ._method import Method, Observations, method_argument
 from ._result import Association
 from ._runtime.shapes import chunk_size, occupied_slots, pad_scenes, pad_slots, slot_capacity, trim
+from ._runtime.devices import chunk_devices
 from ._runtime.stored_programs import call_stored
 from ._types import Array, ArrayLike, Float
 from ._validate import as_array, check_batch_rig, check_observations, check_rig, check_sigma, check_threshold_shapes
@@ -364,14 +365,17 @@ def associate_batch_at(
             one = _single_scene(rig_b, xy[b], mask[b], th_b, extras_b, static)
             results.append(jax.tree.map(lambda a: np.asarray(a)[None], one))
         padded = 0
-    for start in range(0, padded, chunk):
+    # Chunks go round-robin over the devices (several run at once where there are several);
+    # each is dispatched without waiting for the previous one.
+    devices = chunk_devices(padded // chunk)
+    for start, device in zip(range(0, padded, chunk), devices):
         part = slice(start, start + chunk)
         rig_part = rig if shared else Rig(*(jnp.asarray(a[part]) for a in rig_arrays))
         extras_part = None if extras is None else (extras[0], None if extras[1] is None else extras[1][part], extras[2])
-        results.append(call_stored(
-            _associate_batch_jit, (rig_part, xy[part], mask[part], type(th)(*(v[part] for v in th)), extras_part),
-            static, shared_rig=shared,
-        ))
+        args = (rig_part, xy[part], mask[part], type(th)(*(v[part] for v in th)), extras_part)
+        if device is not None:
+            args = jax.device_put(args, device)
+        results.append(call_stored(_associate_batch_jit, args, static, shared_rig=shared))
     if len(results) > 1:
         results = [jax.tree.map(lambda *parts: np.concatenate([np.asarray(p) for p in parts]), *results)]
     return trim(results[0], P, num_scenes=B)

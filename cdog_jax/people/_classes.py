@@ -23,6 +23,7 @@ import numpy as np
 
 from .._associate import associate_batch_at
 from .._runtime.shapes import ladder_rung, slot_capacity
+from .._runtime.devices import chunk_devices
 from .._runtime.stored_programs import call_stored
 from ._persons import check_instances, person_consistent, person_vote_argument
 from .._method import method_argument
@@ -394,19 +395,26 @@ the same size whatever its length. Each row's fit is its own (bitwise the same i
 
 def _chunked_fit(fit, tables: list[np.ndarray], focal) -> np.ndarray:
     """``(G,)`` σ of every row of ``tables`` (``(G, S)`` each) by ``fit``, in chunks of rows
-    of at most :data:`FIT_ELEMENTS` entries (a power of two rows), one program for all."""
+    of at most :data:`FIT_ELEMENTS` entries (a power of two rows), one program for all; with
+    several devices, in at least one chunk per device (a ladder rung of rows), run side by
+    side."""
     G, S = tables[0].shape
     rows = 1 << max(0, (FIT_ELEMENTS // S).bit_length() - 1)
+    devices = len(jax.local_devices())
+    if devices > 1 and G > 1:
+        rows = min(rows, ladder_rung(-(-G // devices)))
     if G <= rows:
         return np.asarray(call_stored(fit, (*tables, focal))[0])
+    starts = range(0, G, rows)
     out = []
-    for start in range(0, G, rows):
+    for start, device in zip(starts, chunk_devices(len(starts))):
         part = [t[start : start + rows] for t in tables]
         n = len(part[0])
         if n < rows:  # empty rows: weight 0, discarded
             part = [np.concatenate([t, np.zeros((rows - n, S), t.dtype)]) for t in part]
-        out.append(np.asarray(call_stored(fit, (*part, focal))[0])[:n])
-    return np.concatenate(out)
+        args = (*part, focal) if device is None else jax.device_put((*part, focal), device)
+        out.append((call_stored(fit, args)[0], n))  # dispatched; the host waits below
+    return np.concatenate([np.asarray(sigma)[:n] for sigma, n in out])
 
 
 def _sample_tables(samples: list[np.ndarray], group: np.ndarray, G: int, min_width: int = 0) -> list:

@@ -1,0 +1,70 @@
+"""Chunks of a batch spread over several devices (``cdog_jax/_runtime/devices.py``): the
+same results bitwise as on one device; the setting is made only before JAX's first
+computation and never by importing the package."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+from helpers import random_scene, ring_rig
+
+import cdog_jax
+from cdog_jax._runtime import devices
+
+SCRIPT = """
+import sys
+import numpy as np
+import jax
+from cdog_jax._runtime.devices import use_cpu_cores
+assert use_cpu_cores(count=2), "the setting could not be made"
+import cdog_jax
+sys.path.insert(0, sys.argv[2])
+from test_devices import scenes
+assert len(jax.local_devices()) == 2
+rig, xy, mask, classes = scenes()
+batch = cdog_jax.associate_batch(rig, xy, mask, sigma=1.0, batch_size=2)
+classed = cdog_jax.associate_classes(rig, xy, mask, classes)
+np.savez(sys.argv[1], **{f"batch_{k}": np.asarray(v) for k, v in vars(batch).items()},
+         **{f"classes_{k}": np.asarray(v) for k, v in vars(classed.association).items()})
+"""
+
+
+def scenes():
+    """Five scenes: a batch in chunks of 2 (3 chunks, on alternate devices), and as 5 frames
+    × 3 classes, whose σ fit has a row per frame (split over the devices)."""
+    rig = ring_rig(4)
+    parts = [random_scene(rig, 6, 8, sigma=1.0, seed=s) for s in range(5)]
+    xy = np.stack([p[0] for p in parts]).astype(np.float32)  # (5, M, 8, 2)
+    mask = np.stack([p[1] for p in parts])
+    classes = np.broadcast_to(np.arange(8) % 3, mask.shape).copy()
+    return rig, xy, mask, classes
+
+
+def test_two_devices_give_the_same_bits_as_one(tmp_path):
+    rig, xy, mask, classes = scenes()
+    out = tmp_path / "two.npz"
+    # The child inherits this process's XLA flags: the same code generator, the same bits.
+    subprocess.run([sys.executable, "-c", SCRIPT, str(out), os.path.dirname(__file__)], check=True)
+    two = np.load(out)
+    batch = cdog_jax.associate_batch(rig, xy, mask, sigma=1.0, batch_size=2)
+    classed = cdog_jax.associate_classes(rig, xy, mask, classes)
+    for prefix, result in (("batch_", batch), ("classes_", classed.association)):
+        for name, value in vars(result).items():
+            value = np.asarray(value)
+            assert two[prefix + name].dtype == value.dtype and np.array_equal(two[prefix + name], value), prefix + name
+
+
+def test_too_late_in_a_process_nothing_changes():
+    import jax
+
+    before = len(jax.local_devices())  # JAX has computed: the count is fixed
+    assert devices.use_cpu_cores(count=2) is False
+    assert len(jax.local_devices()) == before
+    assert devices.chunk_devices(3) == [None] * 3 or len(set(devices.chunk_devices(3))) == min(3, before)
+
+
+def test_importing_the_package_exposes_no_cores():
+    code = "import cdog_jax, cdog_jax.cli, jax; print(len(jax.local_devices()))"
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True)
+    assert out.stdout.strip() == "1"
