@@ -9,7 +9,6 @@ from .tracking._live import LiveAssociator as LiveAssociator, LiveFrame as LiveF
 from ._cdog import Config as Config, STAGES as STAGES, associate_traced as associate_traced
 from ._cdog import Thresholds as Thresholds
 from ._runtime.memory import estimate_peak_bytes as estimate_peak_bytes
-from ._runtime.devices import use_cpu_cores as use_cpu_cores
 from ._table_method import GroupTableMethod as GroupTableMethod
 from ._method import (
     Method as Method,

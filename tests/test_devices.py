@@ -16,8 +16,8 @@ SCRIPT = """
 import sys
 import numpy as np
 import jax
-from cdog_jax._runtime.devices import use_cpu_cores
-assert use_cpu_cores(count=2), "the setting could not be made"
+from cdog_jax.benchmark import use_cpu_cores
+assert use_cpu_cores(count=2) == 2
 import cdog_jax
 sys.path.insert(0, sys.argv[2])
 from test_devices import scenes
@@ -55,13 +55,13 @@ def test_two_devices_give_the_same_bits_as_one(tmp_path):
             assert two[prefix + name].dtype == value.dtype and np.array_equal(two[prefix + name], value), prefix + name
 
 
-def test_too_late_in_a_process_nothing_changes():
+def test_chunks_take_the_devices_in_turn():
     import jax
 
-    before = len(jax.local_devices())  # JAX has computed: the count is fixed
-    assert devices.use_cpu_cores(count=2) is False
-    assert len(jax.local_devices()) == before
-    assert devices.chunk_devices(3) == [None] * 3 or len(set(devices.chunk_devices(3))) == min(3, before)
+    count = len(jax.local_devices())
+    assert devices.chunk_devices(1) == [None]
+    expected = [None] * 3 if count < 2 else [jax.local_devices()[k % count] for k in range(3)]
+    assert devices.chunk_devices(3) == expected
 
 
 def test_importing_the_package_exposes_no_cores():

@@ -69,7 +69,7 @@ def main(argv: Sequence[str | os.PathLike[str]] | None = None) -> int:
     ``os.PathLike``); returns the exit code: 0, or 2 for a user error (one line on stderr)."""
     args = build_parser().parse_args(None if argv is None else [str(a) for a in argv])
     if argv is None:  # the process's own command line: batches may use every core
-        from .._runtime.devices import use_cpu_cores
+        from ..benchmark._cpu_cores import use_cpu_cores
 
         use_cpu_cores(count=_cpu_devices_from_environment())
     if args.no_cache:
@@ -90,7 +90,7 @@ def _cpu_devices_from_environment() -> int | None:
     """``CDOG_JAX_CPU_DEVICES`` (a count; 1: one device, as a library call runs), or None:
     the usable cores."""
     text = os.environ.get("CDOG_JAX_CPU_DEVICES", "").strip()
-    return int(text) if text.isdigit() else None
+    return int(text) if text.isdigit() and int(text) > 0 else None
 
 
 def _one_line(error: Exception) -> str:
