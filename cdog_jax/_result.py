@@ -1,13 +1,13 @@
 """The association result pytree (docs/ALGORITHM.md §11)."""
 
 import dataclasses
-import functools
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._runtime.stored_programs import dataclass_tree
 from ._types import Array, Bool, Float, Int
 from .graph._groups import compact_groups, labels_from_groups
 
@@ -84,15 +84,5 @@ def batched_association(**fields) -> Association:
     """An :class:`Association` with a leading axis (frames or scenes) from its fields (host
     or device arrays). Built from the pytree's leaves, so that nothing runs eagerly: a
     ``vmap`` of the constructor traced new operations for every new group count."""
-    names = [field.name for field in dataclasses.fields(Association)]  # the pytree's leaf order
-    return jax.tree.unflatten(_association_structure(), [jax.device_put(np.asarray(fields[name])) for name in names])
-
-
-@functools.cache
-def _association_structure():
-    """The pytree structure of an :class:`Association` (a batched one has the same), from a
-    template built without ``__init__``: its checks would run eager JAX operations."""
-    template = object.__new__(Association)
-    for field in dataclasses.fields(Association):
-        object.__setattr__(template, field.name, 0)
-    return jax.tree.structure(template)
+    names = tuple(field.name for field in dataclasses.fields(Association))  # the pytree's leaf order
+    return jax.tree.unflatten(dataclass_tree(Association, names), [jax.device_put(np.asarray(fields[name])) for name in names])

@@ -145,7 +145,7 @@ def _load_or_export(path: Path, fun: Callable, static: dict, treedef, specs):
     try:
         header, blob = path.read_bytes().split(b"\n", 1)
         meta = json.loads(header)
-        out_tree = _output_tree(_import_name(meta["output"]), meta["fields"])
+        out_tree = dataclass_tree(_import_name(meta["output"]), meta["fields"])
         return out_tree, jax.jit(export.deserialize(bytearray(blob)).call)
     except Exception:  # missing, or from an interrupted or foreign writer: export it (again)
         pass
@@ -174,10 +174,10 @@ def _load_or_export(path: Path, fun: Callable, static: dict, treedef, specs):
     out_type, names = traced["type"], traced["fields"]
     header = json.dumps({"output": f"{out_type.__module__}:{out_type.__qualname__}", "fields": names})
     _write_whole(path, header.encode() + b"\n" + bytes(blob))
-    return _output_tree(out_type, names), jax.jit(exported.call)
+    return dataclass_tree(out_type, names), jax.jit(exported.call)
 
 
-def _output_tree(kind: type, names) -> Any:
+def dataclass_tree(kind: type, names) -> Any:
     """The pytree structure of a ``kind`` dataclass whose fields ``names`` are arrays, built
     without its ``__init__`` (whose shape checks a batched result would fail), as
     ``jax.tree.unflatten`` builds one."""

@@ -325,20 +325,19 @@ def _tracked(assoc, out: _Out, classed: bool, names, C) -> TrackedAssociation:
     labels = np.asarray(out.labels)
     labels = np.where(labels >= 0, np.take_along_axis(rank, np.maximum(labels, 0).reshape(F, -1), axis=1).reshape(labels.shape), -1)
     groups, valid = take(groups), take(valid)
-    fields = dict(
-        labels=np.asarray(labels.astype(np.int32)),
-        groups=np.asarray(groups),
-        valid=np.asarray(valid),
-        points3d=np.asarray(take(out.X)),
-        bpe=np.asarray(take(out.bpe)),
-        err_px=np.asarray(take(out.err_px)),
-        n_views=np.asarray(np.sum(groups >= 0, axis=2, dtype=np.int32)),
-        num_groups=np.asarray(np.sum(valid, axis=1, dtype=np.int32)),
-        sigma_px=np.asarray(assoc.sigma_px),
-        tau_px=np.asarray(assoc.tau_px),
-        status=np.asarray(assoc.status),
+    association = batched_association(  # host arrays; placed on the device there
+        labels=labels.astype(np.int32),
+        groups=groups,
+        valid=valid,
+        points3d=take(out.X),
+        bpe=take(out.bpe),
+        err_px=take(out.err_px),
+        n_views=np.sum(groups >= 0, axis=2, dtype=np.int32),
+        num_groups=np.sum(valid, axis=1, dtype=np.int32),
+        sigma_px=assoc.sigma_px,
+        tau_px=assoc.tau_px,
+        status=assoc.status,
     )
-    association = batched_association(**fields)
     track = take(out.track)
     return TrackedAssociation(
         association=association,
