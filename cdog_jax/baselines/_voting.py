@@ -20,7 +20,7 @@ from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..geometry._triangulate import dlt_blocks
 from ..graph._groups import groups_from_labels
-from ..refine._hypotheses import score_hypotheses
+from ..refine._hypotheses import score_hypotheses, voter_distances
 from ._candidates import nearest_candidates, symmetric_cost
 
 
@@ -82,12 +82,12 @@ def voting_groups(
 
     src, dst, cost, ok = nearest_candidates(symmetric_cost(d, mask), tau, 1)  # (H,)
     scored = score_hypotheses(rig, xy, mask, dlt_blocks(rig, xy), src, dst, ok, gate)
-    ok, reproj, count, err = scored.ok, scored.reproj, scored.count, scored.err
+    ok, count, err = scored.ok, scored.count, scored.err
     hyp = jnp.arange(src.shape[0], dtype=jnp.int32)
     order = jnp.lexsort((hyp, err, -count))
 
     src, dst = src[order], dst[order]  # ranked; the unusable ones last
-    reproj = reproj[order]
+    xy_hat, vote_views = scored.xy_hat[order], scored.vote_views[order]
     num_ranked = jnp.sum(ok, dtype=jnp.int32)
     rank = jnp.arange(src.shape[0], dtype=jnp.int32)
 
@@ -107,7 +107,7 @@ def voting_groups(
         found = k < num_ranked
         h = jnp.minimum(k, src.shape[0] - 1)
         a, b = src[h], dst[h]
-        dist = jnp.where(used, jnp.inf, reproj[h])  # (M, P)
+        dist = jnp.where(used, jnp.inf, voter_distances(xy, mask, xy_hat[h], vote_views[h]))  # (M, P)
         slot = jnp.argmin(dist, axis=-1).astype(jnp.int32)  # first of equals: smallest slot
         row = jnp.where(jnp.min(dist, axis=-1) < gate, slot, -1)
         row = row.at[a // P].set(a % P).at[b // P].set(b % P)

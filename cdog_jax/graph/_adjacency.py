@@ -24,6 +24,19 @@ class EdgeTable(NamedTuple):
     ok: Bool[Array, " E"]
 
 
+def min_and_first_index(x: Float[Array, "..."], axis: int) -> tuple[Float[Array, "..."], Int[Array, "..."]]:
+    """The smallest entry of ``x`` along ``axis`` and the first index attaining it, as
+    ``jnp.min`` and ``jnp.argmin`` give them (a row of +inf gives index 0), from two plain
+    reductions, which XLA vectorises: argmin's variadic reduce is several times slower on a
+    CPU. (Where a row holds NaN, the index is the last one; argmin's would be the NaN's.)"""
+    axis = axis % x.ndim
+    n = x.shape[axis]
+    low = jnp.min(x, axis=axis)
+    index = jnp.arange(n, dtype=jnp.int32).reshape([n if a == axis else 1 for a in range(x.ndim)])
+    first = jnp.min(jnp.where(x == jnp.expand_dims(low, axis), index, n), axis=axis)
+    return low, jnp.minimum(first, n - 1)
+
+
 def nearest_neighbour_edges(d: Float[Array, "M P M P"], tau_px: Float[Array, ""]) -> EdgeTable:
     """For every node and other view, the edge to the nearest valid point if ``d < τ``;
     ``d (M, P, M, P)`` is the epipolar distance table, the result has ``E = M·P·M`` entries.
@@ -31,11 +44,7 @@ def nearest_neighbour_edges(d: Float[Array, "M P M P"], tau_px: Float[Array, ""]
     Ties go to the smallest slot; padded nodes and views propose nothing (``d = +inf``).
     """
     M, P = d.shape[:2]
-    # min, then the first slot attaining it: two plain reductions, which XLA vectorises
-    # (argmin's variadic reduce is ~4x slower on CPU). A row of +inf gives slot 0.
-    d_star = jnp.min(d, axis=-1)  # (M, P, M)
-    slots = jnp.arange(P, dtype=jnp.int32)
-    j_star = jnp.minimum(jnp.min(jnp.where(d == d_star[..., None], slots, P), axis=-1), P - 1)
+    d_star, j_star = min_and_first_index(d, axis=-1)  # (M, P, M)
     ok = (d_star < tau_px).reshape(-1)  # (E,)
     src = jnp.repeat(jnp.arange(M * P, dtype=jnp.int32), M)
     dst = (jnp.arange(M, dtype=jnp.int32)[None, None, :] * P + j_star).reshape(-1)

@@ -5,6 +5,7 @@ view compete for a group the cheapest wins (ties: smallest node index)."""
 import jax.numpy as jnp
 
 from .._types import Array, Bool, Float, Int
+from ..graph._adjacency import min_and_first_index
 
 
 def attach_cheapest(groups: Int[Array, "G M"], cost: Float[Array, "G N"], gate: Float[Array, ""]) -> Int[Array, "G M"]:
@@ -16,8 +17,7 @@ def attach_cheapest(groups: Int[Array, "G M"], cost: Float[Array, "G N"], gate: 
     P = N // M
     node = jnp.arange(N, dtype=jnp.int32)
     node_view = node // P
-    best_group = jnp.argmin(cost, axis=0).astype(jnp.int32)  # (N,)
-    best_cost = jnp.min(cost, axis=0)
+    best_cost, best_group = min_and_first_index(cost, axis=0)  # (N,)
     target = jnp.where(best_cost < gate, best_group, G)  # G: attaches nowhere
     safe = jnp.minimum(target, G - 1)
     lowest = jnp.full((G, M), jnp.inf, cost.dtype).at[target, node_view].min(best_cost, mode="drop")

@@ -14,16 +14,35 @@ from ..geometry._triangulate import solve_normal_3x3
 
 class ScoredHypotheses(NamedTuple):
     """``ok (H,)``: usable (gated pair, well-conditioned point in front of both cameras);
-    ``reproj (H, M, P)``: pixel distance of every eligible detection of a third view to the
-    hypothesis' point (``inf`` elsewhere); ``count (H,)``: its members, the pair and the
-    voters (0 when not ``ok``); ``err (H,)``: their mean reprojection error (px, ``inf`` when
-    not ``ok``)."""
+    ``count (H,)``: its members, the pair and the voters (0 when not ``ok``); ``err (H,)``:
+    their mean reprojection error (px, ``inf`` when not ``ok``); ``X (H, 3)`` the point;
+    ``xy_hat (H, M, 2)`` its pixel in every view and ``vote_views (H, M)`` the views where a
+    detection may vote (in front of the camera, not the pair's). :func:`voter_distances`
+    of one row gives that hypothesis' ``(M, P)`` distances again: the ``(H, M, P)`` table is
+    never stored (at 10 views × 130 slots it would hold 17 million entries)."""
 
     ok: Bool[Array, " H"]
-    reproj: Float[Array, "H M P"]
     count: Int[Array, " H"]
     err: Float[Array, " H"]
     X: Float[Array, "H 3"]
+    xy_hat: Float[Array, "H M 2"]
+    vote_views: Bool[Array, "H M"]
+
+
+def voter_distances(
+    xy: Float[Array, "M P 2"],
+    eligible: Bool[Array, "M P"],
+    xy_hat: Float[Array, "*S M 2"],
+    vote_views: Bool[Array, "*S M"],
+) -> Float[Array, "*S M P"]:
+    """Pixel distance ``(*S, M, P)`` from each hypothesis' point ``xy_hat (*S, M, 2)`` to every
+    eligible detection of a view where it may vote (``vote_views (*S, M)``); ``inf`` elsewhere."""
+    lead = (None,) * (vote_views.ndim - 1)  # the axes of S
+    votes = eligible[lead] & vote_views[..., None]  # (*S, M, P)
+    # x and y apart: a trailing axis of length 2 would keep XLA from vectorising the table.
+    dx = jnp.where(votes, xy_hat[..., None, 0] - xy[lead + (..., 0)], 0.0)
+    dy = jnp.where(votes, xy_hat[..., None, 1] - xy[lead + (..., 1)], 0.0)
+    return jnp.where(votes, jnp.sqrt(dx * dx + dy * dy), jnp.inf)
 
 
 def score_hypotheses(
@@ -52,11 +71,8 @@ def score_hypotheses(
     ok = ok & ok_dlt & front[hyp, view_a] & front[hyp, view_b]
 
     base = (views[None, :] == view_a[:, None]) | (views[None, :] == view_b[:, None])  # (H, M)
-    votes = eligible[None] & (front & ~base)[:, :, None]  # (H, M, P)
-    # x and y apart: a trailing axis of length 2 would keep XLA from vectorising the table.
-    dx = jnp.where(votes, xy_hat[:, :, None, 0] - xy[None, :, :, 0], 0.0)
-    dy = jnp.where(votes, xy_hat[:, :, None, 1] - xy[None, :, :, 1], 0.0)
-    reproj = jnp.where(votes, jnp.sqrt(dx * dx + dy * dy), jnp.inf)  # (H, M, P) px
+    vote_views = front & ~base
+    reproj = voter_distances(xy, eligible, xy_hat, vote_views)  # (H, M, P) px, reduced at once
 
     flat_xy = xy.reshape(N, 2)
 
@@ -69,4 +85,4 @@ def score_hypotheses(
     count = jnp.where(ok, 2 + jnp.sum(voter, axis=-1, dtype=jnp.int32), 0)
     total = pair_error(src, view_a) + pair_error(dst, view_b) + jnp.sum(jnp.where(voter, nearest, 0.0), axis=-1)
     err = jnp.where(ok, total / jnp.maximum(count, 1).astype(total.dtype), jnp.inf)
-    return ScoredHypotheses(ok, reproj, count, err, X)
+    return ScoredHypotheses(ok, count, err, X, xy_hat, vote_views)

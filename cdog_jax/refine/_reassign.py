@@ -32,6 +32,7 @@ from .._config import Number, Range, Switch
 from .._stage import GroupTable, Scene, Stage, State
 from .._types import Array, Bool, Float, Int
 from ..geometry._projection import project_views_last
+from ..graph._adjacency import min_and_first_index
 from ..graph._groups import compact_groups
 from ._attach import attach_cheapest
 from ._fit import fit_groups
@@ -50,14 +51,14 @@ def _node_errors(scene: Scene, X: Float[Array, "G 3"], usable: Bool[Array, " G"]
     """Pixel distance between every detection and every usable group's point projected into
     the detection's view; ``+inf`` where the group is not usable, the point is behind that
     camera or the slot is padding."""
-    M, P = scene.mask.shape
-    N = M * P
+    G, (M, P) = X.shape[0], scene.mask.shape
     pix, in_front = project_views_last(scene.rig, X)  # (G, M, 2), (G, M)
-    node_view = jnp.arange(N, dtype=jnp.int32) // P
-    diff = pix[:, node_view, :] - scene.xy.reshape(N, 2)[None, :, :]  # (G, N, 2)
-    err = jnp.sqrt(jnp.sum(diff * diff, axis=-1))
-    allowed = usable[:, None] & in_front[:, node_view] & scene.mask.reshape(N)[None, :]
-    return jnp.where(allowed, err, jnp.inf)
+    # (G, M, P) with x and y apart, no gather: XLA vectorises it (a node is view · P + slot).
+    dx = pix[:, :, None, 0] - scene.xy[None, :, :, 0]
+    dy = pix[:, :, None, 1] - scene.xy[None, :, :, 1]
+    err = jnp.sqrt(dx * dx + dy * dy)
+    allowed = usable[:, None, None] & in_front[:, :, None] & scene.mask[None]
+    return jnp.where(allowed, err, jnp.inf).reshape(G, M * P)
 
 
 def _usable(table: GroupTable, X: Float[Array, "G 3"]) -> Bool[Array, " G"]:
@@ -73,14 +74,14 @@ def reassign_nearest(
     one per (group, view), losers retrying the open slots; groups of < 2 members dissolve."""
     G, M = table.groups.shape
     N = err.shape[1]
-    node_view = jnp.arange(N, dtype=jnp.int32) // num_slots
     groups = jnp.full((G, M), -1, jnp.int32)
     for _ in range(REASSIGN_ROUNDS):
         taken = groups >= 0  # (G, M)
         views = jnp.arange(M, dtype=jnp.int32)[None, :]
         placed = jnp.zeros((M, num_slots + 1), bool).at[views, jnp.where(taken, groups, num_slots)].set(True)
         placed = placed[:, :num_slots].reshape(N)
-        open_cost = jnp.where(~taken[:, node_view] & ~placed[None, :], err, jnp.inf)
+        open_slot = jnp.broadcast_to(~taken[:, :, None], (G, M, num_slots)).reshape(G, N)  # taken[:, node_view]
+        open_cost = jnp.where(open_slot & ~placed[None, :], err, jnp.inf)
         groups = attach_cheapest(groups, open_cost, gate)
     valid = jnp.sum(groups >= 0, axis=1) >= 2
     return GroupTable(groups, valid).keep(valid)
@@ -102,11 +103,11 @@ def merge_split_groups(
     larger = (size[:, None] > size[None, :]) | ((size[:, None] == size[None, :]) & (index[:, None] < index[None, :]))
     allowed = disjoint & larger & (size[None, :] >= 2) & (size[:, None] >= 2) & (worst < gate)
     cost = jnp.where(allowed, worst, jnp.inf)  # (K, H)
-    target = jnp.argmin(cost, axis=0).astype(jnp.int32)  # (H,)
-    moves = jnp.isfinite(jnp.min(cost, axis=0))
+    nearest, target = min_and_first_index(cost, axis=0)  # (H,)
+    moves = jnp.isfinite(nearest)
     # One group per target, the nearest (ties: the smallest h); a moving group takes none.
-    best = jnp.full((G,), jnp.inf, cost.dtype).at[jnp.where(moves, target, G)].min(jnp.min(cost, axis=0), mode="drop")
-    win = moves & (jnp.min(cost, axis=0) == best[target])
+    best = jnp.full((G,), jnp.inf, cost.dtype).at[jnp.where(moves, target, G)].min(nearest, mode="drop")
+    win = moves & (nearest == best[target])
     first = jnp.full((G,), G, jnp.int32).at[jnp.where(win, target, G)].min(index, mode="drop")
     win = win & (first[target] == index) & ~moves[target]
     incoming = jnp.full((G,), G, jnp.int32).at[jnp.where(win, target, G)].set(index, mode="drop")  # (K,)

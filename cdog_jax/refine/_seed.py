@@ -23,8 +23,9 @@ from .._config import AtLeast, Number, Range, Switch
 from .._stage import GroupTable, Scene, Stage, State
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
+from ..graph._adjacency import min_and_first_index
 from ..graph._groups import compact_groups
-from ._hypotheses import score_hypotheses
+from ._hypotheses import score_hypotheses, voter_distances
 from ._attach import leftover_nodes
 from ._support import missing_views
 
@@ -33,6 +34,54 @@ class SeedOptions(NamedTuple):
     """``seed_min_views``: the fewest members (pair + voters) a seeded group needs."""
 
     seed_min_views: Annotated[int, AtLeast(2)] = 2
+
+
+HYPOTHESIS_CHUNK = 256
+"""Two-view hypotheses scored at a time. Only pairs that pass the epipolar gate are scored,
+a chunk at a time until none is left: a scene's leftovers are few (11–18 gated pairs of
+19,200 hypotheses at 10 views × 192 slots), and each hypothesis is checked against every
+detection of every view."""
+
+
+def _score_gated(rig, xy, mask, free, blocks, src, dst, gated, gate_px, support_px, min_views):
+    """The hypotheses ``(src, dst)`` (``H``) that pass the pair gate ``gated (H,)``, scored
+    and checked for missing views: ``ok``, ``err`` (px, ``inf`` where not ok), ``count``,
+    ``xy_hat (H', M, 2)``, ``vote_views (H', M)`` and ``hyp (H',)`` the hypothesis each row
+    scores. Above one chunk, the gated hypotheses come first (in order) and the rows after
+    them are not scored (not ok); at most one chunk, every row is row ``hyp``."""
+    M, P = free.shape
+    views = jnp.arange(M, dtype=jnp.int32)
+
+    def score(a, b, g):
+        scored = score_hypotheses(rig, xy, free, blocks, a, b, g, gate_px)
+        pair = (views[None, :] == (a // P)[:, None]) | (views[None, :] == (b // P)[:, None])  # (K, M)
+        missing, _ = missing_views(rig, xy, mask, scored.X, pair, support_px)
+        ok = scored.ok & (scored.count >= min_views) & ~jnp.any(missing, axis=1)
+        return ok, jnp.where(ok, scored.err, jnp.inf), scored.count, scored.xy_hat, scored.vote_views
+
+    H = src.shape[0]
+    if H <= HYPOTHESIS_CHUNK:
+        return score(src, dst, gated) + (jnp.arange(H, dtype=jnp.int32),)
+    K = HYPOTHESIS_CHUNK
+    rows = -(-H // K) * K
+    hyp = jnp.argsort(~gated, stable=True).astype(jnp.int32)  # the gated first, in order
+    hyp = jnp.concatenate([hyp, jnp.zeros((rows - H,), jnp.int32)])
+    num_gated = jnp.sum(gated, dtype=jnp.int32)
+    is_gated = jnp.arange(rows, dtype=jnp.int32) < num_gated
+    src, dst = src[hyp], dst[hyp]
+
+    def body(carry):
+        start, tables = carry
+        chunk = [jax.lax.dynamic_slice_in_dim(v, start, K) for v in (src, dst, is_gated)]
+        tables = tuple(jax.lax.dynamic_update_slice_in_dim(t, c, start, 0) for t, c in zip(tables, score(*chunk)))
+        return start + K, tables
+
+    tables = (
+        jnp.zeros((rows,), bool), jnp.full((rows,), jnp.inf, xy.dtype), jnp.zeros((rows,), jnp.int32),
+        jnp.zeros((rows, M, 2), xy.dtype), jnp.zeros((rows, M), bool),
+    )
+    _, tables = jax.lax.while_loop(lambda c: c[0] < num_gated, body, (jnp.int32(0), tables))
+    return tables + (hyp,)
 
 
 def seed_groups(
@@ -58,20 +107,14 @@ def seed_groups(
     ok_pair = free[:, :, None, None] & free[None, None, :, :] & (views[:, None, None, None] != views[None, None, :, None])
     d = jnp.where(ok_pair & ~jnp.isnan(d), d, jnp.inf)
     cost = 0.5 * (d + jnp.transpose(d, (2, 3, 0, 1)))  # (M, P, M, P) px, symmetric
-    best = jnp.argmin(cost, axis=-1).astype(jnp.int32)  # (M, P, M): first of equals
-    best_cost = jnp.min(cost, axis=-1)
+    best_cost, best = min_and_first_index(cost, axis=-1)  # (M, P, M): first of equals
     src = jnp.broadcast_to((views[:, None, None] * P + slots[None, :, None]), (M, P, M)).reshape(-1)  # (H,)
     dst = (views[None, None, :] * P + best).reshape(-1)
-    ok = (best_cost < tau_px).reshape(-1)
-    scored = score_hypotheses(rig, xy, free, blocks, src, dst, ok, gate_px)
-    pair = (views[None, :] == (src // P)[:, None]) | (views[None, :] == (dst // P)[:, None])  # (H, M)
-    missing, _ = missing_views(rig, xy, mask, scored.X, pair, support_px)
-    ok = scored.ok & (scored.count >= min_views) & ~jnp.any(missing, axis=1)
-    err = jnp.where(ok, scored.err, jnp.inf)
-    reproj, count = scored.reproj, scored.count
-    hyp = jnp.arange(src.shape[0], dtype=jnp.int32)
+    ok, err, count, xy_hat, vote_views, hyp = _score_gated(
+        rig, xy, mask, free, blocks, src, dst, (best_cost < tau_px).reshape(-1), gate_px, support_px, min_views
+    )
     order = jnp.lexsort((hyp, err, jnp.where(ok, -count, 0)))
-    src, dst, reproj = src[order], dst[order], reproj[order]
+    src, dst, xy_hat, vote_views = src[hyp][order], dst[hyp][order], xy_hat[order], vote_views[order]
     num_ranked = jnp.sum(ok, dtype=jnp.int32)
     rank = jnp.arange(src.shape[0], dtype=jnp.int32)
 
@@ -87,7 +130,7 @@ def seed_groups(
         found = k < num_ranked
         h = jnp.minimum(k, src.shape[0] - 1)
         a, b = src[h], dst[h]
-        dist = jnp.where(used, jnp.inf, reproj[h])  # (M, P)
+        dist = jnp.where(used, jnp.inf, voter_distances(xy, free, xy_hat[h], vote_views[h]))  # (M, P)
         slot = jnp.argmin(dist, axis=-1).astype(jnp.int32)
         row = jnp.where(jnp.min(dist, axis=-1) < gate_px, slot, -1)
         row = row.at[a // P].set(a % P).at[b // P].set(b % P)
