@@ -10,8 +10,11 @@ into the other views, where the nearest leftover detection within ``seed_frac ·
 votes for it. Hypotheses are ranked by votes (more first), then mean reprojection error
 over all their members (smaller first), then index; in that order each one whose two
 detections are both still free becomes a group of its pair and its voters that are still
-free (one per view). The loop jumps from one accepted hypothesis to the next, so it runs
-at most once per new group (at most ``N // 2 + 1`` steps) and has no bound to reach.
+free (one per view). Each step of the loop takes the next hypothesis in that order whose
+two detections are free (two reductions over the hypotheses, no sort), so it runs once per
+hypothesis it accepts or refuses, never more than there are usable ones, and has no bound
+to reach. Only the free detections' hypotheses are formed, :data:`SOURCE_CHUNK` detections
+at a time.
 """
 
 from typing import Annotated, NamedTuple
@@ -36,52 +39,82 @@ class SeedOptions(NamedTuple):
     seed_min_views: Annotated[int, AtLeast(2)] = 2
 
 
-HYPOTHESIS_CHUNK = 256
-"""Two-view hypotheses scored at a time. Only pairs that pass the epipolar gate are scored,
-a chunk at a time until none is left: a scene's leftovers are few (11–18 gated pairs of
-19,200 hypotheses at 10 views × 192 slots), and each hypothesis is checked against every
-detection of every view."""
+SOURCE_CHUNK = 64
+"""Free detections whose hypotheses are made and scored at a time, a chunk after another
+until none is left (all at once in a scene of at most this many slots). A scene's leftovers
+are few (13 of 1,920 detections at 10 views × 192 slots): no table of all pairs of the
+scene's detections is formed, and each hypothesis is checked against every detection."""
 
 
-def _score_gated(rig, xy, mask, free, blocks, src, dst, gated, gate_px, support_px, min_views):
-    """The hypotheses ``(src, dst)`` (``H``) that pass the pair gate ``gated (H,)``, scored
-    and checked for missing views: ``ok``, ``err`` (px, ``inf`` where not ok), ``count``,
-    ``xy_hat (H', M, 2)``, ``vote_views (H', M)`` and ``hyp (H',)`` the hypothesis each row
-    scores. Above one chunk, the gated hypotheses come first (in order) and the rows after
-    them are not scored (not ok); at most one chunk, every row is row ``hyp``."""
+class _Hypotheses(NamedTuple):
+    """Two-view hypotheses, one row each (``R``): ``src``/``dst`` flat nodes ``view · P +
+    slot``, ``ok`` usable (gated, well placed, ``count ≥ min_views``, no view missing it),
+    ``err`` mean reprojection error (px; ``inf`` where not ok), ``count`` members,
+    ``xy_hat (R, M, 2)`` and ``vote_views (R, M)`` as in :class:`ScoredHypotheses`."""
+
+    ok: Bool[Array, " R"]
+    err: Float[Array, " R"]
+    count: Int[Array, " R"]
+    src: Int[Array, " R"]
+    dst: Int[Array, " R"]
+    xy_hat: Float[Array, "R M 2"]
+    vote_views: Bool[Array, "R M"]
+
+
+def _hypotheses_of(rig, xy, mask, free, d, blocks, sources, tau_px, gate_px, support_px, min_views) -> _Hypotheses:
+    """The hypotheses of the detections ``sources (C,)`` (flat nodes; ``N`` or a detection
+    that is not free: none), ``C · M`` rows, source by source, view by view: each source
+    paired with its cheapest free detection in every other view, at the symmetric epipolar
+    cost ``½ (d[u, v] + d[v, u])`` (``d (N, N)`` px), gated below ``tau_px``."""
     M, P = free.shape
+    N, C = M * P, sources.shape[0]
     views = jnp.arange(M, dtype=jnp.int32)
+    node_view = jnp.arange(N, dtype=jnp.int32) // P
+    flat_free = free.reshape(N)
+    s = jnp.minimum(sources, N - 1)
+    pair_ok = ((sources < N) & flat_free[s])[:, None] & flat_free[None, :] & (node_view[None, :] != node_view[s][:, None])
+    out_d, in_d = d[s], d[:, s].T  # (C, N): from each source, and to it
+    out_d = jnp.where(pair_ok & ~jnp.isnan(out_d), out_d, jnp.inf)
+    in_d = jnp.where(pair_ok & ~jnp.isnan(in_d), in_d, jnp.inf)
+    best_cost, best = min_and_first_index((0.5 * (out_d + in_d)).reshape(C, M, P), axis=-1)  # (C, M): first of equals
+    src = jnp.broadcast_to(s[:, None], (C, M)).reshape(-1)
+    dst = (views[None, :] * P + best).reshape(-1)
+    scored = score_hypotheses(rig, xy, free, blocks, src, dst, (best_cost < tau_px).reshape(-1), gate_px)
+    pair = (views[None, :] == (src // P)[:, None]) | (views[None, :] == (dst // P)[:, None])  # (C·M, M)
+    missing, _ = missing_views(rig, xy, mask, scored.X, pair, support_px)
+    ok = scored.ok & (scored.count >= min_views) & ~jnp.any(missing, axis=1)
+    return _Hypotheses(ok, jnp.where(ok, scored.err, jnp.inf), scored.count, src, dst, scored.xy_hat, scored.vote_views)
 
-    def score(a, b, g):
-        scored = score_hypotheses(rig, xy, free, blocks, a, b, g, gate_px)
-        pair = (views[None, :] == (a // P)[:, None]) | (views[None, :] == (b // P)[:, None])  # (K, M)
-        missing, _ = missing_views(rig, xy, mask, scored.X, pair, support_px)
-        ok = scored.ok & (scored.count >= min_views) & ~jnp.any(missing, axis=1)
-        return ok, jnp.where(ok, scored.err, jnp.inf), scored.count, scored.xy_hat, scored.vote_views
 
-    H = src.shape[0]
-    if H <= HYPOTHESIS_CHUNK:
-        return score(src, dst, gated) + (jnp.arange(H, dtype=jnp.int32),)
-    K = HYPOTHESIS_CHUNK
-    rows = -(-H // K) * K
-    hyp = jnp.argsort(~gated, stable=True).astype(jnp.int32)  # the gated first, in order
-    hyp = jnp.concatenate([hyp, jnp.zeros((rows - H,), jnp.int32)])
-    num_gated = jnp.sum(gated, dtype=jnp.int32)
-    is_gated = jnp.arange(rows, dtype=jnp.int32) < num_gated
-    src, dst = src[hyp], dst[hyp]
+def _all_hypotheses(rig, xy, mask, free, d, blocks, tau_px, gate_px, support_px, min_views) -> _Hypotheses:
+    """Every free detection's hypotheses (:func:`_hypotheses_of`), the free detections in
+    node order, :data:`SOURCE_CHUNK` at a time; rows past the last free detection are not ok."""
+    M, P = free.shape
+    N = M * P
+    d = d.reshape(N, N)
+    make = lambda sources: _hypotheses_of(rig, xy, mask, free, d, blocks, sources, tau_px, gate_px, support_px, min_views)
+    if N <= SOURCE_CHUNK:
+        return make(jnp.arange(N, dtype=jnp.int32))
+    C = SOURCE_CHUNK
+    width = -(-N // C) * C
+    flat_free = free.reshape(N)
+    num_free = jnp.sum(flat_free, dtype=jnp.int32)
+    position = jnp.where(flat_free, jnp.cumsum(flat_free, dtype=jnp.int32) - 1, width)
+    sources = jnp.full((width,), N, jnp.int32).at[position].set(jnp.arange(N, dtype=jnp.int32), mode="drop")
 
     def body(carry):
-        start, tables = carry
-        chunk = [jax.lax.dynamic_slice_in_dim(v, start, K) for v in (src, dst, is_gated)]
-        tables = tuple(jax.lax.dynamic_update_slice_in_dim(t, c, start, 0) for t, c in zip(tables, score(*chunk)))
-        return start + K, tables
+        start, table = carry
+        chunk = make(jax.lax.dynamic_slice_in_dim(sources, start, C))
+        table = jax.tree.map(lambda t, c: jax.lax.dynamic_update_slice_in_dim(t, c, start * M, 0), table, chunk)
+        return start + C, table
 
-    tables = (
-        jnp.zeros((rows,), bool), jnp.full((rows,), jnp.inf, xy.dtype), jnp.zeros((rows,), jnp.int32),
-        jnp.zeros((rows, M, 2), xy.dtype), jnp.zeros((rows, M), bool),
+    R = width * M
+    empty = _Hypotheses(
+        jnp.zeros((R,), bool), jnp.full((R,), jnp.inf, xy.dtype), jnp.zeros((R,), jnp.int32), jnp.zeros((R,), jnp.int32),
+        jnp.zeros((R,), jnp.int32), jnp.zeros((R, M, 2), xy.dtype), jnp.zeros((R, M), bool),
     )
-    _, tables = jax.lax.while_loop(lambda c: c[0] < num_gated, body, (jnp.int32(0), tables))
-    return tables + (hyp,)
+    _, table = jax.lax.while_loop(lambda c: c[0] < num_free, body, (jnp.int32(0), empty))
+    return table
 
 
 def seed_groups(
@@ -102,46 +135,39 @@ def seed_groups(
     ``gate_px`` the vote gate (px)."""
     M, P = free.shape
     N, G = M * P, max(M * P // 2, 1)
-    views = jnp.arange(M, dtype=jnp.int32)
     slots = jnp.arange(P, dtype=jnp.int32)
-    ok_pair = free[:, :, None, None] & free[None, None, :, :] & (views[:, None, None, None] != views[None, None, :, None])
-    d = jnp.where(ok_pair & ~jnp.isnan(d), d, jnp.inf)
-    cost = 0.5 * (d + jnp.transpose(d, (2, 3, 0, 1)))  # (M, P, M, P) px, symmetric
-    best_cost, best = min_and_first_index(cost, axis=-1)  # (M, P, M): first of equals
-    src = jnp.broadcast_to((views[:, None, None] * P + slots[None, :, None]), (M, P, M)).reshape(-1)  # (H,)
-    dst = (views[None, None, :] * P + best).reshape(-1)
-    ok, err, count, xy_hat, vote_views, hyp = _score_gated(
-        rig, xy, mask, free, blocks, src, dst, (best_cost < tau_px).reshape(-1), gate_px, support_px, min_views
-    )
-    order = jnp.lexsort((hyp, err, jnp.where(ok, -count, 0)))
-    src, dst, xy_hat, vote_views = src[hyp][order], dst[hyp][order], xy_hat[order], vote_views[order]
-    num_ranked = jnp.sum(ok, dtype=jnp.int32)
-    rank = jnp.arange(src.shape[0], dtype=jnp.int32)
+    hyp = _all_hypotheses(rig, xy, mask, free, d, blocks, tau_px, gate_px, support_px, min_views)
+    R = hyp.ok.shape[0]
+    row_index = jnp.arange(R, dtype=jnp.int32)
 
     def cond(carry):
-        _, _, num_groups, k = carry
-        return (k < num_ranked) & (num_groups < G)
+        _, _, num_groups, _, more = carry
+        return more & (num_groups < G)
 
     def body(carry):
-        used, groups, num_groups, k = carry
+        used, groups, num_groups, tried, _ = carry
+        # The next hypothesis in rank order (more votes, then a smaller error, then the
+        # first row) among those not tried whose two detections are both still free.
         flat = used.reshape(N)
-        alive = (rank >= k) & (rank < num_ranked) & ~flat[src] & ~flat[dst]
-        k = jnp.min(jnp.where(alive, rank, num_ranked))
-        found = k < num_ranked
-        h = jnp.minimum(k, src.shape[0] - 1)
-        a, b = src[h], dst[h]
-        dist = jnp.where(used, jnp.inf, voter_distances(xy, free, xy_hat[h], vote_views[h]))  # (M, P)
+        alive = hyp.ok & ~tried & ~flat[hyp.src] & ~flat[hyp.dst]
+        alive = alive & (hyp.count == jnp.max(jnp.where(alive, hyp.count, -1)))
+        alive = alive & (hyp.err == jnp.min(jnp.where(alive, hyp.err, jnp.inf)))
+        h = jnp.min(jnp.where(alive, row_index, R))
+        found = h < R
+        h = jnp.minimum(h, R - 1)
+        a, b = hyp.src[h], hyp.dst[h]
+        dist = jnp.where(used, jnp.inf, voter_distances(xy, free, hyp.xy_hat[h], hyp.vote_views[h]))  # (M, P)
         slot = jnp.argmin(dist, axis=-1).astype(jnp.int32)
         row = jnp.where(jnp.min(dist, axis=-1) < gate_px, slot, -1)
         row = row.at[a // P].set(a % P).at[b // P].set(b % P)
         # Voters taken by earlier groups may leave fewer than min_views members: skip it.
-        found = found & (jnp.sum(row >= 0, dtype=jnp.int32) >= min_views)
-        groups = groups.at[num_groups].set(jnp.where(found, row, groups[num_groups]), mode="drop")
-        used = used | (found & (slots[None, :] == row[:, None]))
-        return used, groups, num_groups + found.astype(jnp.int32), k + 1
+        accept = found & (jnp.sum(row >= 0, dtype=jnp.int32) >= min_views)
+        groups = groups.at[num_groups].set(jnp.where(accept, row, groups[num_groups]), mode="drop")
+        used = used | (accept & (slots[None, :] == row[:, None]))
+        return used, groups, num_groups + accept.astype(jnp.int32), tried.at[h].set(True), found
 
-    init = (~free, jnp.full((G, M), -1, jnp.int32), jnp.int32(0), jnp.int32(0))
-    _, groups, _, _ = jax.lax.while_loop(cond, body, init)
+    init = (~free, jnp.full((G, M), -1, jnp.int32), jnp.int32(0), jnp.zeros((R,), bool), jnp.any(hyp.ok))
+    _, groups, _, _, _ = jax.lax.while_loop(cond, body, init)
     return groups
 
 

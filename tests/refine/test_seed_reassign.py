@@ -127,9 +127,10 @@ def test_reassignment_detaches_wrong_members_and_seeding_again_restores_them():
     assert _partition(again.table, 4) == truth
 
 
-def test_seeding_in_chunks_of_gated_pairs_is_seeding_at_once(monkeypatch):
-    # Above one chunk, only the pairs that pass the gate are scored, a chunk at a time; with
-    # chunks of 8 (about 15 of them here) the seeded groups are those of one pass over all.
+def test_seeding_a_chunk_of_free_detections_at_a_time_is_seeding_at_once(monkeypatch):
+    # Above one chunk, the free detections' hypotheses are made and scored a chunk at a
+    # time; with chunks of 8 detections (3 of them here) the seeded groups are those of one
+    # pass over all.
     import cdog_jax.refine._seed as seed_module
 
     scene, inst = _scene(sigma=1.0, seed=5, two_view=(7,))
@@ -138,8 +139,8 @@ def test_seeding_in_chunks_of_gated_pairs_is_seeding_at_once(monkeypatch):
     given = GroupTable(jnp.asarray(np.where((valid & kept)[:, None], groups, -1)), jnp.asarray(valid & kept))
     start = State(given, None, jnp.int32(0))
     whole = seed_stage(scene, start, SeedOptions(2))
-    assert 4 * P * 4 <= seed_module.HYPOTHESIS_CHUNK  # one chunk: every hypothesis row scored
-    monkeypatch.setattr(seed_module, "HYPOTHESIS_CHUNK", 8)
+    assert 4 * P <= seed_module.SOURCE_CHUNK  # one chunk: every detection's hypotheses at once
+    monkeypatch.setattr(seed_module, "SOURCE_CHUNK", 8)
     chunked = seed_stage(scene, start, SeedOptions(2))
     np.testing.assert_array_equal(np.asarray(chunked.table.groups), np.asarray(whole.table.groups))
     np.testing.assert_array_equal(np.asarray(chunked.table.valid), np.asarray(whole.table.valid))
