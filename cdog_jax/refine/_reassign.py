@@ -30,8 +30,8 @@ import jax.numpy as jnp
 
 from .._config import Number, Range, Switch
 from .._stage import GroupTable, Scene, Stage, State
-from .._types import Array, Bool, Float, Int
-from ..geometry._projection import project_views_last
+from .._types import Array, Bool, Float
+from ..geometry._projection import distances_to_detections, project_views_last
 from ..graph._adjacency import min_and_first_index
 from ..graph._groups import compact_groups
 from ._attach import attach_cheapest
@@ -52,11 +52,7 @@ def _node_errors(scene: Scene, X: Float[Array, "G 3"], usable: Bool[Array, " G"]
     the detection's view; ``+inf`` where the group is not usable, the point is behind that
     camera or the slot is padding."""
     G, (M, P) = X.shape[0], scene.mask.shape
-    pix, in_front = project_views_last(scene.rig, X)  # (G, M, 2), (G, M)
-    # (G, M, P) with x and y apart, no gather: XLA vectorises it (a node is view · P + slot).
-    dx = pix[:, :, None, 0] - scene.xy[None, :, :, 0]
-    dy = pix[:, :, None, 1] - scene.xy[None, :, :, 1]
-    err = jnp.sqrt(dx * dx + dy * dy)
+    err, in_front = distances_to_detections(scene.rig, X, scene.xy)  # (G, M, P): node view · P + slot
     allowed = usable[:, None, None] & in_front[:, :, None] & scene.mask[None]
     return jnp.where(allowed, err, jnp.inf).reshape(G, M * P)
 
@@ -87,17 +83,25 @@ def reassign_nearest(
     return GroupTable(groups, valid).keep(valid)
 
 
-def merge_split_groups(
-    table: GroupTable, err: Float[Array, "G N"], gate: Float[Array, ""], num_slots: int
-) -> GroupTable:
+def merge_split_groups(scene: Scene, table: GroupTable, X: Float[Array, "G 3"], gate: Float[Array, ""]) -> GroupTable:
     """Groups moved into a larger group with disjoint views whose point lies within
-    ``gate`` of all their members (``err (G, N)`` px, rows the points, columns the nodes)."""
+    ``gate`` px of all their members (``X (G, 3)`` the groups' points)."""
     G, M = table.groups.shape
     member = table.valid[:, None] & (table.groups >= 0)  # (G, M)
     size = jnp.sum(member, axis=1, dtype=jnp.int32)
-    node = jnp.where(member, jnp.arange(M, dtype=jnp.int32)[None, :] * num_slots + table.groups, 0)  # (G, M)
-    to_point = err[:, node]  # (K, H, M): member m of group h to the point of group k
-    worst = jnp.max(jnp.where(member[None, :, :], to_point, -jnp.inf), axis=-1)  # (K, H)
+    # The largest distance from the point of group k to a member of group h, a view at a
+    # time: one (K, H) table, no gather and no (K, H, M) table (+inf where k's point is not
+    # usable or behind the member's camera; -inf for a group without members).
+    pix, in_front = project_views_last(scene.rig, X)  # (K, M, 2)
+    seen = _usable(table, X)[:, None] & in_front  # (K, M)
+    member_xy = scene.xy[jnp.arange(M, dtype=jnp.int32)[None, :], jnp.where(member, table.groups, 0)]  # (H, M, 2)
+    worst_sq = jnp.full((G, G), -jnp.inf, X.dtype)
+    for m in range(M):
+        dx = pix[:, m, None, 0] - member_xy[None, :, m, 0]
+        dy = pix[:, m, None, 1] - member_xy[None, :, m, 1]
+        sq = jnp.where(member[None, :, m], jnp.where(seen[:, m, None], dx * dx + dy * dy, jnp.inf), -jnp.inf)
+        worst_sq = jnp.maximum(worst_sq, sq)
+    worst = jnp.sqrt(jnp.maximum(worst_sq, 0.0))  # (K, H) px: the root of the largest, the largest root
     index = jnp.arange(G, dtype=jnp.int32)
     disjoint = ~jnp.any(member[:, None, :] & member[None, :, :], axis=-1)
     larger = (size[:, None] > size[None, :]) | ((size[:, None] == size[None, :]) & (index[:, None] < index[None, :]))
@@ -126,8 +130,7 @@ def reassign_stage(scene: Scene, state: State, options: ReassignOptions) -> Stat
     def one_round(_, table):
         fit = fit_groups(scene, table)
         table = reassign_nearest(table, _node_errors(scene, fit.X, _usable(table, fit.X)), gate, P)
-        fit = fit_groups(scene, table)
-        return merge_split_groups(table, _node_errors(scene, fit.X, _usable(table, fit.X)), gate, P)
+        return merge_split_groups(scene, table, fit_groups(scene, table).X, gate)
 
     table = jax.lax.fori_loop(0, options.reassign_iters, one_round, state.table)
     groups, valid, _ = compact_groups(table.groups, table.valid)

@@ -13,7 +13,7 @@ from .._config import Number, Numbers, Switch
 from .._stage import Scene, Stage, State
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
-from ..geometry._projection import project_views_last
+from ..geometry._projection import distances_to_detections
 from ._attach import attach_cheapest, leftover_nodes
 
 
@@ -35,13 +35,10 @@ def recover_leftovers(
     member = valid[:, None] & (groups >= 0)
     leftover = leftover_nodes(groups, valid, mask)  # (N,)
 
-    pix, in_front = project_views_last(rig, X)  # (G, M, 2), (G, M)
-    node_view = jnp.arange(N, dtype=jnp.int32) // P
-    diff = pix[:, node_view, :] - xy.reshape(N, 2)[None, :, :]  # (G, N, 2)
-    err = jnp.sqrt(jnp.sum(diff * diff, axis=-1))
+    err, in_front = distances_to_detections(rig, X, xy)  # (G, M, P)
     enough = jnp.sum(member, axis=1, dtype=jnp.int32) >= 2
-    allowed = (valid & enough)[:, None] & ~member[:, node_view] & in_front[:, node_view] & leftover[None, :]
-    err = jnp.where(allowed, err, jnp.inf)
+    allowed = (valid & enough)[:, None, None] & (~member & in_front)[:, :, None] & leftover.reshape(M, P)[None]
+    err = jnp.where(allowed, err, jnp.inf).reshape(G, N)
 
     return attach_cheapest(groups, err, th.recover_frac * tau_px)
 

@@ -10,7 +10,7 @@ from cdog_jax._stage import GroupTable, Scene, State
 from cdog_jax.geometry._epipolar import epipolar_distances
 from cdog_jax.geometry._triangulate import dlt_blocks
 from cdog_jax.refine._fit import fit_groups
-from cdog_jax.refine._reassign import ReassignOptions, _node_errors, _usable, merge_split_groups, reassign_stage
+from cdog_jax.refine._reassign import ReassignOptions, merge_split_groups, reassign_stage
 from cdog_jax.refine._seed import SeedOptions, seed_stage
 
 RIG = ring_rig(4)
@@ -103,15 +103,14 @@ def test_merging_joins_a_point_split_over_disjoint_views():
     scene, inst = _scene()
     groups, valid = _truth(inst, scene.mask)
     table, c, free = _split_and_swap(groups, valid, swap=False)
-    fit = fit_groups(scene, table)
-    errors = _node_errors(scene, fit.X, _usable(table, fit.X))
-    merged = merge_split_groups(table, errors, 2.0 * scene.tau, P)
+    X = fit_groups(scene, table).X
+    merged = merge_split_groups(scene, table, X, 2.0 * scene.tau)
     np.testing.assert_array_equal(np.asarray(merged.groups)[c], groups[c])  # the equal-sized later row moves
     assert not bool(merged.valid[free]) and (np.asarray(merged.groups)[free] == -1).all()
     truth = _partition(GroupTable(jnp.asarray(groups), jnp.asarray(valid)), 4)
     assert _partition(merged, 4) == truth
     # A narrower gate than the points' distances to the members: nothing moves.
-    assert _partition(merge_split_groups(table, errors, jnp.float32(0.0), P), 4) == _partition(table, 4)
+    assert _partition(merge_split_groups(scene, table, X, jnp.float32(0.0)), 4) == _partition(table, 4)
 
 
 def test_reassignment_detaches_wrong_members_and_seeding_again_restores_them():
