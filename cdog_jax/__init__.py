@@ -6,8 +6,8 @@ from ._associate import associate as associate, associate_batch as associate_bat
 from .tracking._sequence import associate_sequence as associate_sequence
 from .tracking._tracks import TrackedAssociation as TrackedAssociation, track_groups as track_groups
 from .tracking._live import LiveAssociator as LiveAssociator, LiveFrame as LiveFrame
-from ._cdog import Config as Config, STAGES as STAGES, associate_traced as associate_traced
-from ._cdog import Thresholds as Thresholds
+from .cdog._pipeline import Config as Config, STAGES as STAGES, associate_traced as associate_traced
+from .cdog._pipeline import Thresholds as Thresholds
 from ._runtime.memory import estimate_peak_bytes as estimate_peak_bytes
 from ._table_method import GroupTableMethod as GroupTableMethod
 from ._method import (

@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._cdog import Config
+from .cdog._pipeline import Config
 from ._expect import INT, expect, expect_args
 from ._finish import finish_groups
 from ._runtime.memory import check_memory

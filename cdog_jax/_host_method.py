@@ -18,7 +18,7 @@ import numpy as np
 
 from ._method import Observations
 from ._result import Association
-from ._stage import raise_flag
+from .cdog._stage import raise_flag
 from ._status import Status
 from ._table_method import GroupTableMethod, finish_table, scene_gate
 from .geometry._camera import Rig

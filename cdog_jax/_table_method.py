@@ -22,7 +22,7 @@ import numpy as np
 
 from ._method import Method, Observations
 from ._result import Association, association_from_groups
-from ._stage import raise_flag
+from .cdog._stage import raise_flag
 from ._status import Status
 from ._types import Array, Bool, Float, Int
 from .geometry._camera import Rig

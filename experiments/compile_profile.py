@@ -38,8 +38,8 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 from cdog_jax import Config  # noqa: E402
-from cdog_jax._cdog import associate_traced, plan, scene_tables  # noqa: E402
-from cdog_jax._stage import GroupTable, State, raise_flag  # noqa: E402
+from cdog_jax.cdog._pipeline import associate_traced, plan, scene_tables  # noqa: E402
+from cdog_jax.cdog._stage import GroupTable, State, raise_flag  # noqa: E402
 from cdog_jax._status import Status  # noqa: E402
 from cdog_jax.synthetic import default_rig, generate_scene  # noqa: E402
 

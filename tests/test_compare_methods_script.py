@@ -22,7 +22,7 @@ def _load():
 def test_cache_key_hashes_the_stage_files(monkeypatch, tmp_path):
     script = _load()
     names = {m.__name__ for m in script._rule_modules(Config.best())}
-    # the stages' own files and what they use (seeding's hypotheses), not only _cdog.py
+    # the stages' own files and what they use (seeding's hypotheses), not only cdog/_pipeline.py
     assert {"cdog_jax.refine._seed", "cdog_jax.refine._hypotheses", "cdog_jax.refine._ambiguity",
             "cdog_jax.refine._reassign", "cdog_jax.graph._graph_stage"} <= names
     assert "cdog_jax.refine._seed" not in {m.__name__ for m in script._rule_modules(Config.paper())}

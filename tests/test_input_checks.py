@@ -147,7 +147,7 @@ def test_config_field_types_are_checked():
 
 
 def test_every_numeric_field_has_a_range():
-    from cdog_jax._cdog import RANGES
+    from cdog_jax.cdog._pipeline import RANGES
 
     assert set(Config().thresholds()._fields) == set(RANGES)
 

@@ -7,9 +7,9 @@ import numpy as np
 from helpers import random_scene, ring_rig
 
 from cdog_jax import Config, associate_traced
-from cdog_jax import _cdog
-from cdog_jax._cdog import STAGES, make_config
-from cdog_jax._stage import Stage, always
+from cdog_jax.cdog import _pipeline as _cdog
+from cdog_jax.cdog._pipeline import STAGES, make_config
+from cdog_jax.cdog._stage import Stage, always
 
 RIG = ring_rig(5)
 P = 12

@@ -11,9 +11,9 @@ import pytest
 from helpers import random_scene, ring_rig
 
 from cdog_jax import STAGES, Config, associate
-from cdog_jax._cdog import make_config
-from cdog_jax._config import Number, Range, Switch
-from cdog_jax._stage import Stage
+from cdog_jax.cdog._pipeline import make_config
+from cdog_jax.cdog._config import Number, Range, Switch
+from cdog_jax.cdog._stage import Stage
 
 TRACES = []
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 
 from cdog_jax import STAGES, Config
-from cdog_jax._cdog import SCENE, plan
+from cdog_jax.cdog._pipeline import SCENE, plan
 
 SWITCHES = {"iqr", "second_association", "bpe_filter", "support_filter", "recover", "regroup", "refine", "seed", "reassign", "detach_ambiguous"}
 METHOD_LEVEL = {"sigma_mode", "tau_mode", "threshold_unit"}  # read by associate_traced itself (σ, τ, units)

@@ -8,7 +8,7 @@ from helpers import random_scene, ring_rig
 from oracle import epipolar_distance_table, estimate_sigma_robust as oracle_robust, focal_scale as oracle_focal
 
 from cdog_jax import Config, associate, associate_classes
-from cdog_jax._config import tau_px, thresholds_in_pixels
+from cdog_jax.cdog._config import tau_px, thresholds_in_pixels
 from cdog_jax.geometry import Rig
 
 RIG = ring_rig(4)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
 
-from .._cdog import Config
+from ..cdog._pipeline import Config
 from .._method import Method, method_from, method_names
 
 ABLATIONS: dict[str, Callable[[], Method]] = {"no_iqr": lambda: Config.paper(iqr=False)}

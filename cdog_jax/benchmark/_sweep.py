@@ -46,7 +46,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from .._expect import expect_args
-from .._cdog import Config
+from ..cdog._pipeline import Config
 from .._method import Method, Observations, method_from
 from .._runtime.memory import check_memory
 from ..geometry._camera import Rig

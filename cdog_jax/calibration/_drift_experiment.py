@@ -30,8 +30,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._cdog import Config
-from .._cdog import associate_traced
+from ..cdog._pipeline import Config
+from ..cdog._pipeline import associate_traced
 from .._runtime.progress import bar, compiling
 from ..geometry._camera import Rig
 from ..geometry._parameters import so3_exp

@@ -18,7 +18,7 @@ import dataclasses
 import jax.numpy as jnp
 import numpy as np
 
-from .._config import DEFAULT_MIN_PARALLAX_DEG
+from ..cdog._config import DEFAULT_MIN_PARALLAX_DEG
 from .._expect import expect_args
 from ._camera import Rig
 from ._distortion import Fisheye, undistort_pixels

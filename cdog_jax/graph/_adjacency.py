@@ -11,7 +11,7 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from .._config import Adjacency
+from ..cdog._config import Adjacency
 from .._types import Array, Bool, Float, Int
 
 

@@ -9,8 +9,8 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .._config import Adjacency, Number, Numbers, PruneScope, Range
-from .._stage import GroupTable, Scene, Stage, State, always, raise_flag
+from ..cdog._config import Adjacency, Number, Numbers, PruneScope, Range
+from ..cdog._stage import GroupTable, Scene, Stage, State, always, raise_flag
 from .._status import Status
 from .._types import Array, Bool, Float, Int
 from ._adjacency import adjacency_from_edges, alive_edges, nearest_neighbour_edges

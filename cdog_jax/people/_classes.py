@@ -33,7 +33,7 @@ from .._validate import as_array, check_observations, check_rig
 from ..geometry._camera import Rig
 from ..geometry._distortion import undistorted
 from ..geometry._epipolar import epipolar_distances
-from .._config import REFERENCE_FOCAL_PX
+from ..cdog._config import REFERENCE_FOCAL_PX
 from ..graph._sigma import FALLBACK_SIGMA_PX, focal_scale, nearest_samples, sigma_from_samples
 from ..graph._sigma_robust import nearest_two_samples, robust_sigma_from_samples
 

@@ -13,8 +13,8 @@ a second round would mostly cost correct members.
 
 import jax.numpy as jnp
 
-from .._config import Number, Range, Switch
-from .._stage import GroupTable, Scene, Stage, State
+from ..cdog._config import Number, Range, Switch
+from ..cdog._stage import GroupTable, Scene, Stage, State
 from .._types import Array, Bool, Float, Int
 from ._fit import fit_groups
 from ._reassign import _node_errors, _usable

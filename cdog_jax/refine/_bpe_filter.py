@@ -12,8 +12,8 @@ import jax
 import jax.numpy as jnp
 
 from .._expect import ARRAY, INT, expect_args
-from .._config import Number, Numbers, Switch
-from .._stage import Scene, Stage, State
+from ..cdog._config import Number, Numbers, Switch
+from ..cdog._stage import Scene, Stage, State
 from .._types import Array, Bool, Float, Int
 
 

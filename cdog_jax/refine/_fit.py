@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from .._stage import Fit, GroupTable, Scene, Stage, State, always
+from ..cdog._stage import Fit, GroupTable, Scene, Stage, State, always
 from ..geometry._projection import group_errors
 from ..geometry._triangulate import solve_normal_3x3
 from ..graph._groups import gather_groups

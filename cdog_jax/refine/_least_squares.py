@@ -12,8 +12,8 @@ import jax
 import jax.numpy as jnp
 
 from .._expect import ARRAY, INT, expect_args
-from .._config import Switch
-from .._stage import Scene, Stage, State
+from ..cdog._config import Switch
+from ..cdog._stage import Scene, Stage, State
 from .._status import Status
 from .._types import Array, Bool, Float
 from ..geometry._camera import Rig

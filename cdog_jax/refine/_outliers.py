@@ -17,8 +17,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._expect import ARRAY, expect_args
-from .._config import IqrQuartiles, IqrScore, Number, Numbers, Switch
-from .._stage import GroupTable, Scene, Stage, State
+from ..cdog._config import IqrQuartiles, IqrScore, Number, Numbers, Switch
+from ..cdog._stage import GroupTable, Scene, Stage, State
 from .._status import Status
 from .._types import Array, Bool, Float
 from ..graph._groups import gather_groups

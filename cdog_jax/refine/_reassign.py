@@ -28,8 +28,8 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .._config import Number, Range, Switch
-from .._stage import GroupTable, Scene, Stage, State
+from ..cdog._config import Number, Range, Switch
+from ..cdog._stage import GroupTable, Scene, Stage, State
 from .._types import Array, Bool, Float
 from ..geometry._projection import distances_to_detections, project_views_last
 from ..graph._adjacency import min_and_first_index

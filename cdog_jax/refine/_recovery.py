@@ -9,8 +9,8 @@ one view compete for a group, the closest wins (ties: smallest node index).
 
 import jax.numpy as jnp
 
-from .._config import Number, Numbers, Switch
-from .._stage import Scene, Stage, State
+from ..cdog._config import Number, Numbers, Switch
+from ..cdog._stage import Scene, Stage, State
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..geometry._projection import distances_to_detections

@@ -8,8 +8,8 @@ pass closest to it on average, distances ≥ τ counted three times, if that mea
 import jax.numpy as jnp
 
 from .._expect import ARRAY, expect_args
-from .._config import Number, Numbers, Switch
-from .._stage import Scene, Stage, State
+from ..cdog._config import Number, Numbers, Switch
+from ..cdog._stage import Scene, Stage, State
 from .._types import Array, Bool, Float, Int
 from ._attach import attach_cheapest, leftover_nodes
 

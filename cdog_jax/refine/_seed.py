@@ -22,8 +22,8 @@ from typing import Annotated, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .._config import AtLeast, Number, Range, Switch
-from .._stage import GroupTable, Scene, Stage, State
+from ..cdog._config import AtLeast, Number, Range, Switch
+from ..cdog._stage import GroupTable, Scene, Stage, State
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..graph._adjacency import min_and_first_index

@@ -22,8 +22,8 @@ where points are seen). Views without a detection never count as missing.
 import jax
 import jax.numpy as jnp
 
-from .._config import Number, Numbers, Range, Switch
-from .._stage import Scene, Stage, State
+from ..cdog._config import Number, Numbers, Range, Switch
+from ..cdog._stage import Scene, Stage, State
 from .._types import Array, Bool, Float
 from ..geometry._camera import Rig
 from ..geometry._projection import project_views_last

@@ -21,8 +21,8 @@ groups, vmappable like the rest of the pipeline.
 import jax
 import jax.numpy as jnp
 
-from .._config import DEFAULT_MIN_PARALLAX_DEG, Number, Range
-from .._stage import GroupTable, Scene, Stage, State, always
+from ..cdog._config import DEFAULT_MIN_PARALLAX_DEG, Number, Range
+from ..cdog._stage import GroupTable, Scene, Stage, State, always
 
 from .._types import Array, Bool, Float
 from ..geometry._camera import Rig, affine_per_view

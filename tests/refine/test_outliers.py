@@ -17,7 +17,7 @@ def test_percentile_matches_numpy(seed):
     for q in (25.0, 75.0):
         got = float(percentile_linear(padded, jnp.int32(k), q))
         assert got == pytest.approx(np.percentile(vals, q), rel=1e-5)
-from cdog_jax._cdog import stage_options
+from cdog_jax.cdog._pipeline import stage_options
 from cdog_jax.refine._outliers import IQR
 
 

@@ -7,7 +7,7 @@ import numpy as np
 from helpers import project_np, ring_rig
 
 from cdog_jax import Config
-from cdog_jax._stage import GroupTable, Scene, State
+from cdog_jax.cdog._stage import GroupTable, Scene, State
 from cdog_jax.geometry._epipolar import epipolar_distances
 from cdog_jax.geometry._triangulate import dlt_blocks
 from cdog_jax.refine._ambiguity import AMBIGUITY, ambiguity_stage

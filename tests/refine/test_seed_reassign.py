@@ -6,7 +6,7 @@ import numpy as np
 from helpers import random_scene, ring_rig
 
 from cdog_jax import Config
-from cdog_jax._stage import GroupTable, Scene, State
+from cdog_jax.cdog._stage import GroupTable, Scene, State
 from cdog_jax.geometry._epipolar import epipolar_distances
 from cdog_jax.geometry._triangulate import dlt_blocks
 from cdog_jax.refine._fit import fit_groups

@@ -4,7 +4,7 @@ stage"), and the epipolar gate τ.
 A stage's options are declared once, in the file of its rule: its structural options are the
 fields (with defaults) of its options ``NamedTuple`` (static: part of the jit key), its
 numbers are :class:`Number` entries (traced: a sweep over them compiles once), and the
-switch that turns it on is a :class:`Switch`. ``cdog_jax/_cdog.py`` derives from those
+switch that turns it on is a :class:`Switch`. ``cdog_jax/cdog/_pipeline.py`` derives from those
 declarations :class:`cdog_jax.Config` (hashable, a static argument of ``jax.jit``), the
 traced :class:`cdog_jax.Thresholds` and the ranges of the numbers.
 """
@@ -17,7 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.scipy.special import erf
 
-from ._types import Array, Float
+from .._types import Array, Float
 
 Adjacency = Literal["mutual", "union"]
 PruneScope = Literal["all", "conflicts", "none"]
@@ -96,7 +96,7 @@ class OptionGroup(NamedTuple):
 class Numbers(tuple):
     """The base of :class:`cdog_jax.Thresholds`: a ``NamedTuple`` of traced scalars that a
     stage reads by name (``th.delta``). The stages name this base, not the concrete type,
-    which ``_cdog.py`` derives from their declarations."""
+    which ``_pipeline.py`` derives from their declarations."""
 
     __slots__ = ()
 

@@ -7,9 +7,9 @@ traced thresholds), ``state`` the group table and the latest fit, ``options`` th
 static options (a small ``NamedTuple``). A stage reads its numbers from ``scene.th`` (traced).
 
 A stage declares its options once, in its :class:`Stage` entry: the fields (with defaults)
-of its options ``NamedTuple``, its :class:`~cdog_jax._config.Number` entries and its
-:class:`~cdog_jax._config.Switch`; :class:`cdog_jax.Config` and :class:`cdog_jax.Thresholds`
-are derived from them (``cdog_jax/_options.py``).
+of its options ``NamedTuple``, its :class:`~cdog_jax.cdog._config.Number` entries and its
+:class:`~cdog_jax.cdog._config.Switch`; :class:`cdog_jax.Config` and :class:`cdog_jax.Thresholds`
+are derived from them (``cdog_jax/cdog/_options.py``).
 """
 
 from __future__ import annotations
@@ -20,9 +20,9 @@ from typing import NamedTuple
 import jax.numpy as jnp
 
 from ._config import Number, Numbers
-from ._status import Status
-from ._types import Array, Bool, Float, Int
-from .geometry._camera import Rig
+from .._status import Status
+from .._types import Array, Bool, Float, Int
+from ..geometry._camera import Rig
 
 
 class Scene(NamedTuple):
@@ -92,7 +92,7 @@ class Stage(NamedTuple):
     ``name``; ``run(scene, state, options) -> state``; ``options``: the ``NamedTuple`` class
     of its structural options, each field with its default (``Literal[...]``, ``bool`` or a
     positive ``int``; each field becomes a field of :class:`cdog_jax.Config`; ``None``: no
-    options); ``when``: a predicate of the config, or a :class:`~cdog_jax._config.Switch`
+    options); ``when``: a predicate of the config, or a :class:`~cdog_jax.cdog._config.Switch`
     (a ``bool`` field of the config); ``numbers``: its traced numbers (fields of the config
     and of :class:`cdog_jax.Thresholds`); ``options_from``: for options made from the config
     rather than read from it by name (regrouping's resolved stages), ``config -> options``.

@@ -3,8 +3,8 @@ a stage"): every option's name, owner, default, kind and check, read once from t
 list, so that ``Config``'s fields, the ``Thresholds`` type and the ranges of the numbers
 are derived and never listed by hand.
 
-A declaration is a stage (``cdog_jax/_stage.py``) or an :class:`~cdog_jax._config.OptionGroup`:
-its ``when`` may be a :class:`~cdog_jax._config.Switch` (a ``bool`` option), the fields of
+A declaration is a stage (``cdog_jax/cdog/_stage.py``) or an :class:`~cdog_jax.cdog._config.OptionGroup`:
+its ``when`` may be a :class:`~cdog_jax.cdog._config.Switch` (a ``bool`` option), the fields of
 its ``options`` ``NamedTuple`` are structural options (``Literal[...]``: one of the listed
 strings; ``bool``; ``int``: a positive int), and its ``numbers`` are traced. A stage whose
 options are made from the config (``options_from``) declares no fields through them.
@@ -20,7 +20,7 @@ import jax
 import numpy as np
 
 from ._config import AtLeast, Number, Numbers, Range, Switch, check_number
-from ._types import Array, Float
+from .._types import Array, Float
 
 STRUCTURAL, NUMERIC = "structural", "numeric"
 
@@ -132,7 +132,7 @@ SIGMA = OptionSpec("sigma_px", "scene", 0.0, NUMERIC, float, _check_range("sigma
 
 def thresholds_type(specs: dict[str, OptionSpec], module: str, name: str = "Thresholds") -> type:
     """The traced ``NamedTuple`` of the numbers of ``specs``, ``sigma_px`` first, a subclass
-    of :class:`~cdog_jax._config.Numbers`, documented field by field; ``module`` is where it
+    of :class:`~cdog_jax.cdog._config.Numbers`, documented field by field; ``module`` is where it
     is published (for pickling)."""
     numbers = [SIGMA] + [s for s in specs.values() if s.kind == NUMERIC]
     fields = typing.NamedTuple(f"_{name}Fields", [(s.name, Float[Array, ""]) for s in numbers])

@@ -3,10 +3,10 @@ options and presets (:class:`Config`), and :func:`associate_traced`, the pure fu
 one scene that runs them.
 
 Every stage has one signature, ``stage(scene, state, options) -> state``
-(``cdog_jax/_stage.py``), lives in the file of its rule (``graph/``, ``refine/``) with the
+(``cdog_jax/cdog/_stage.py``), lives in the file of its rule (``graph/``, ``refine/``) with the
 declaration of its own options, and appears once below. :class:`Config`'s fields, their
 defaults and checks, the traced :class:`Thresholds` and :data:`RANGES` are derived from
-those declarations (``cdog_jax/_options.py``); a preset is a :class:`Config`, whose switches
+those declarations (``cdog_jax/cdog/_options.py``); a preset is a :class:`Config`, whose switches
 decide which stages run.
 """
 
@@ -20,32 +20,32 @@ import numpy as np
 import jax
 
 from ._config import Number, Numbers, OptionGroup, SigmaMode, Switch, TauMode, ThresholdUnit, gauss_coverage, tau_px, thresholds_in_pixels
-from ._expect import expect_args
-from ._method import Method, Observations, register_method
+from .._expect import expect_args
+from .._method import Method, Observations, register_method
 from ._options import NUMERIC, check_thresholds, declared_options, describe, ranges, thresholds_type, units
-from ._result import Association, association_from_groups
+from .._result import Association, association_from_groups
 from ._stage import GroupTable, Scene, Stage, State, raise_flag
-from ._status import Status
-from ._types import Array, Bool, Float, Int
-from .geometry._camera import Rig
-from .geometry._epipolar import epipolar_distances
-from .geometry._triangulate import dlt_blocks
-from .graph._graph_stage import GRAPH
-from .graph._groups import compact_groups
-from .graph._sigma import estimate_sigma, focal_scale
-from .graph._sigma_robust import estimate_noise
-from .refine._ambiguity import AMBIGUITY
-from .refine._attach import leftover_nodes
-from .refine._bpe_filter import BPE_FILTER
-from .refine._fit import FIT, fit_groups
-from .refine._least_squares import REFINE
-from .refine._outliers import IQR
-from .refine._reassign import REASSIGN
-from .refine._recovery import RECOVER
-from .refine._second_association import SECOND_ASSOCIATION
-from .refine._seed import SEED
-from .refine._support import SUPPORT
-from .refine._validity import VALIDITY
+from .._status import Status
+from .._types import Array, Bool, Float, Int
+from ..geometry._camera import Rig
+from ..geometry._epipolar import epipolar_distances
+from ..geometry._triangulate import dlt_blocks
+from ..graph._graph_stage import GRAPH
+from ..graph._groups import compact_groups
+from ..graph._sigma import estimate_sigma, focal_scale
+from ..graph._sigma_robust import estimate_noise
+from ..refine._ambiguity import AMBIGUITY
+from ..refine._attach import leftover_nodes
+from ..refine._bpe_filter import BPE_FILTER
+from ..refine._fit import FIT, fit_groups
+from ..refine._least_squares import REFINE
+from ..refine._outliers import IQR
+from ..refine._reassign import REASSIGN
+from ..refine._recovery import RECOVER
+from ..refine._second_association import SECOND_ASSOCIATION
+from ..refine._seed import SEED
+from ..refine._support import SUPPORT
+from ..refine._validity import VALIDITY
 
 
 # --------------------------------------------------------------------------- the stages
