@@ -9,7 +9,7 @@ from .tracking._live import LiveAssociator as LiveAssociator, LiveFrame as LiveF
 from .cdog._pipeline import Config as Config, STAGES as STAGES, associate_traced as associate_traced
 from .cdog._pipeline import Thresholds as Thresholds
 from ._runtime.memory import estimate_peak_bytes as estimate_peak_bytes
-from ._table_method import GroupTableMethod as GroupTableMethod
+from ._method import GroupTableMethod as GroupTableMethod
 from ._method import (
     Method as Method,
     Observations as Observations,

@@ -16,6 +16,25 @@ that every group passes again after confidence weighting (ALGORITHM.md §12).
 
 C-DOG's presets (:class:`cdog_jax.Config`) are methods; so is anything registered with
 :func:`register_method`.
+
+**Methods that only decide the groups** (:class:`GroupTableMethod`): the shared σ, gate,
+triangulation and validity gate around a group-table function (docs/ARCHITECTURE.md, "How
+to add a method").
+
+A subclass of :class:`GroupTableMethod` is a frozen dataclass whose ``float`` fields are its
+numbers (traced) and whose other fields are its structure (static), and which implements
+:meth:`GroupTableMethod.group_table`. Everything else is shared, so that every such method
+is compared on equal terms with C-DOG: the noise σ (given, or estimated from the epipolar
+distances as C-DOG does), the σ-matched epipolar gate ``τ = max(alpha_tau·√2·σ,
+tau_min_px)``, the multi-view DLT point of each group, and the validity gate
+(ALGORITHM.md §12) before the :class:`~cdog_jax.Association` is built.
+
+**Group-table methods on the host** (:class:`HostGroupTableMethod`): NumPy or SciPy per
+scene, never jitted. A :class:`HostGroupTableMethod` implements :meth:`HostGroupTableMethod.host_groups` on
+NumPy arrays; everything around it is shared with every :class:`GroupTableMethod` (σ, the
+σ-matched gate, the DLT point and the validity gate, each jitted once), so that a host
+method is compared on the same terms as a jitted one. :func:`cdog_jax.associate` runs such
+a method scene by scene; :func:`cdog_jax.benchmark.sweep_host` scores it on the benchmark.
 """
 
 from __future__ import annotations
@@ -23,13 +42,25 @@ from __future__ import annotations
 import abc
 import dataclasses
 from collections.abc import Callable
+from functools import partial
 from typing import ClassVar, NamedTuple
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
-from ._types import Array, Bool, Float
-
+from ._result import Association, association_from_groups
+from ._status import Status
+from ._types import Array, Bool, Float, Int
+from .cdog._stage import raise_flag
+from .geometry._camera import Rig
+from .geometry._epipolar import epipolar_distances
+from .geometry._projection import group_errors
+from .geometry._triangulate import triangulate_views_last
+from .graph._groups import gather_groups
+from .graph._sigma import estimate_sigma, focal_scale
+from .graph._sigma_robust import estimate_sigma_robust
+from .refine._validity import validity_gate
 
 class Observations(NamedTuple):
     """One scene's detections, a pytree: ``xy (M, P, 2)`` pixels, ``mask (M, P)`` bool (the
@@ -166,3 +197,188 @@ def method_argument(method, config, where: str, default: str | None = "best") ->
             raise TypeError(f"{where}: method= is required (a Method or a registered name)")
         method = default
     return method_from(method, where)
+
+
+# --------------------------------------------------------------------------- group-table methods
+
+SIGMA_MODES = ("given", "auto", "robust")
+"""Where a group-table method's σ comes from: the caller, or C-DOG's two estimators."""
+
+_NUMBER_TYPES: dict[type, type] = {}
+
+
+def _numeric_fields(cls: type) -> tuple[str, ...]:
+    return tuple(f.name for f in dataclasses.fields(cls) if f.type in ("float", float))
+
+
+def numbers_type(cls: type) -> type:
+    """The ``NamedTuple`` of ``cls``'s numbers: ``sigma_px`` then its ``float`` fields (one
+    type per class, made once)."""
+    if cls not in _NUMBER_TYPES:
+        fields = [("sigma_px", Float[Array, ""])] + [(name, Float[Array, ""]) for name in _numeric_fields(cls)]
+        _NUMBER_TYPES[cls] = NamedTuple(f"{cls.__name__}Thresholds", fields)
+    return _NUMBER_TYPES[cls]
+
+
+@dataclasses.dataclass(frozen=True)
+class GroupTableMethod(Method):
+    """A method that makes the group table from the scene's epipolar distances.
+
+    Shared fields: ``sigma_mode`` (``"given"``, ``"auto"`` or ``"robust"``: σ from the
+    scene's epipolar distances by C-DOG's estimators, ALGORITHM.md §0.1–0.2), the gate ``alpha_tau`` and
+    ``tau_min_px`` (px), and the validity gate's ``min_parallax_deg`` and ``max_err_frac``
+    (as in :class:`cdog_jax.Config`).
+    """
+
+    sigma_mode: str = "given"
+    alpha_tau: float = 2.0
+    tau_min_px: float = 1.0
+    min_parallax_deg: float = 1.0
+    max_err_frac: float = 3.0
+
+    def __post_init__(self):
+        if self.sigma_mode not in SIGMA_MODES:
+            raise ValueError(f"{type(self).__name__}.sigma_mode must be one of {SIGMA_MODES}; got {self.sigma_mode!r}")
+        for name in _numeric_fields(type(self)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
+                raise ValueError(f"{type(self).__name__}.{name} must be a finite number >= 0; got {value!r}")
+        later = getattr(super(), "__post_init__", None)  # an options base class's own checks
+        if later is not None:
+            later()
+
+    #: A baseline written as a plain function ``f(rig, xy, mask, d, tau, sigma, numbers, options)``
+    #: (``numbers``: ``{name: traced value}`` for the names in its ``NUMBERS``; ``options``: this
+    #: method) sets it instead of overriding :meth:`group_table`.
+    GROUPS: ClassVar[Callable | None] = None
+
+    def group_table(
+        self,
+        rig: Rig,
+        xy: Float[Array, "M P 2"],
+        mask: Bool[Array, "M P"],
+        d: Float[Array, "M P M P"],
+        sigma: Float[Array, ""],
+        tau: Float[Array, ""],
+        thresholds: tuple,
+    ) -> tuple[Int[Array, "G M"], Bool[Array, " G"], Int[Array, ""]]:
+        """``groups (G, M)`` (slot per view or -1; ``G = M·P // 2``), ``valid (G,)`` and an
+        int32 status. ``xy`` has its padding zeroed; ``d[m, i, n, j]`` is the distance (px)
+        in image n from detection ``(n, j)`` to the epipolar line of ``(m, i)`` (``+inf``
+        within a view and for padding); ``tau`` is the σ-matched gate (px). A valid group
+        has ≥ 2 members, at most one per view, and groups are disjoint."""
+        if self.GROUPS is None:
+            raise NotImplementedError(f"{type(self).__name__} must override group_table or set GROUPS")
+        numbers = {name: getattr(thresholds, name) for name in getattr(self, "NUMBERS", ())}
+        return type(self).GROUPS(rig, xy, mask, d, tau, sigma, numbers, self)
+
+    def structure(self) -> "GroupTableMethod":
+        defaults = type(self)()
+        return dataclasses.replace(self, **{name: getattr(defaults, name) for name in _numeric_fields(type(self))})
+
+    def thresholds(self, sigma_px=0.0, *, dtype=None) -> tuple:
+        dtype = np.dtype(jax.dtypes.canonicalize_dtype(dtype or jnp.float32))
+        sigma = jnp.asarray(sigma_px, dtype) if isinstance(sigma_px, jax.Array) else np.asarray(sigma_px, dtype)
+        values = {name: np.asarray(getattr(self, name), dtype) for name in _numeric_fields(type(self))}
+        return numbers_type(type(self))(sigma_px=sigma, **values)
+
+    def associate_scene(self, rig: Rig, observations: Observations, thresholds: tuple) -> Association:
+        th = type(thresholds)(*(jnp.asarray(v) for v in thresholds))
+        xy, d, sigma, tau, fallback = scene_gate(rig, observations, th, self.sigma_mode)
+        groups, valid, status = self.group_table(rig, xy, observations.mask, d, sigma, tau, th)
+        return finish_table(rig, xy, groups, valid, status | raise_flag(fallback, Status.SIGMA_FALLBACK), sigma, tau, th)
+
+
+def scene_gate(
+    rig: Rig, observations: Observations, th: tuple, sigma_mode: str
+) -> tuple[Float[Array, "M P 2"], Float[Array, "M P M P"], Float[Array, ""], Float[Array, ""], Bool[Array, ""]]:
+    """What every group-table method starts from: ``xy (M, P, 2)`` with padding zeroed, the
+    epipolar distances ``d (M, P, M, P)`` (px), σ (given, or estimated when ``sigma_mode``
+    is ``"auto"`` or ``"robust"``), the σ-matched gate τ (px) and whether the estimate fell back."""
+    mask = observations.mask
+    xy = jnp.where(mask[..., None], observations.xy, 0.0)
+    d = epipolar_distances(rig, xy, mask)
+    if sigma_mode == "auto":
+        sigma, fallback = estimate_sigma(d, mask, focal_scale(rig.K))
+    elif sigma_mode == "robust":
+        sigma, fallback = estimate_sigma_robust(d, mask, focal_scale(rig.K))
+    else:
+        sigma, fallback = th.sigma_px, jnp.asarray(False)
+    tau = jnp.maximum(th.alpha_tau * jnp.sqrt(2.0) * sigma, th.tau_min_px)
+    return xy, d, sigma, tau, fallback
+
+
+def finish_table(
+    rig: Rig,
+    xy: Float[Array, "M P 2"],
+    groups: Int[Array, "G M"],
+    valid: Bool[Array, " G"],
+    status: Int[Array, ""],
+    sigma: Float[Array, ""],
+    tau: Float[Array, ""],
+    th: tuple,
+) -> Association:
+    """The :class:`~cdog_jax.Association` of a group table ``(G, M)``: every valid group's
+    multi-view DLT point, the validity gate (with ``th.max_err_frac`` and
+    ``th.min_parallax_deg``), its errors; ``xy (M, P, 2)`` pixels (padding zeroed)."""
+    P = xy.shape[1]
+    member = valid[:, None] & (groups >= 0)
+    xy_g = gather_groups(groups, xy)
+    X, _ = triangulate_views_last(rig, xy_g, member)
+    member, valid, X = validity_gate(rig, xy_g, member, X, tau, th.max_err_frac, th.min_parallax_deg)
+    bpe, err_px = group_errors(rig, X, xy_g, member)
+    return association_from_groups(
+        groups, valid, member, X, bpe, err_px, P, jnp.asarray(sigma, xy.dtype), jnp.asarray(tau, xy.dtype), status
+    )
+
+
+# --------------------------------------------------------------------------- on the host
+
+@partial(jax.jit, static_argnames=("sigma_mode",))
+def _gate(rig, observations, th, sigma_mode):
+    return scene_gate(rig, observations, th, sigma_mode)
+
+
+_finish = jax.jit(finish_table)
+
+
+@dataclasses.dataclass(frozen=True)
+class HostGroupTableMethod(GroupTableMethod):
+    """A group-table method whose grouping runs on the host (``jittable = False``).
+
+    Subclasses set ``HOST_NAME`` (its registered name, for messages) and ``HOST_TOOLS`` (what
+    it runs on, e.g. ``"NumPy, scipy.optimize.milp"``), implement :meth:`host_groups`, and may
+    override :meth:`check_scene` to refuse scenes they cannot handle."""
+
+    jittable: ClassVar[bool] = False
+    HOST_NAME: ClassVar[str] = "host method"
+    HOST_TOOLS: ClassVar[str] = "NumPy"
+
+    def check_scene(self, mask, where: str) -> None:
+        """Raise ``ValueError`` naming ``where`` for a scene this method does not take
+        (``mask (M, P)`` bool, host array). Every scene by default."""
+
+    def host_groups(
+        self, rig: Rig, xy: np.ndarray, mask: np.ndarray, d: np.ndarray, tau: float, thresholds: tuple
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``groups (G, M)`` int (slot per view or -1; ``G = M·P // 2``) and ``valid (G,)``
+        bool from host arrays: ``xy (M, P, 2)`` px (padding zeroed), ``mask (M, P)``, the
+        epipolar distances ``d (M, P, M, P)`` px, the gate ``tau`` px and the method's
+        numbers ``thresholds`` (host scalars)."""
+        raise NotImplementedError(f"{type(self).__name__} must implement host_groups")
+
+    def group_table(self, rig, xy, mask, d, sigma, tau, thresholds):
+        raise TypeError(
+            f"{self.HOST_NAME}: a host method; it has no traced group table (call associate_scene on host arrays)"
+        )
+
+    def associate_scene(self, rig: Rig, observations: Observations, thresholds: tuple) -> Association:
+        if any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree.leaves((rig, observations, thresholds))):
+            raise TypeError(f"{self.HOST_NAME}: a host method ({self.HOST_TOOLS}); it cannot run under jit or vmap")
+        mask = np.asarray(observations.mask, bool)
+        self.check_scene(mask, self.HOST_NAME)
+        observations = Observations(observations.xy, observations.mask)
+        xy, d, sigma, tau, fallback = _gate(rig, observations, thresholds, self.sigma_mode)
+        groups, valid = self.host_groups(rig, np.asarray(xy), mask, np.asarray(d), float(tau), thresholds)
+        status = raise_flag(fallback, Status.SIGMA_FALLBACK)
+        return _finish(rig, xy, groups, valid, status, sigma, tau, thresholds)

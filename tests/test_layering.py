@@ -21,11 +21,11 @@ ROOT = Path(__file__).resolve().parents[1] / PACKAGE
 # "." is a subpackage (all its modules); any other entry is one module. Entries that do not
 # exist (yet) are tolerated. Keep in step with docs/ARCHITECTURE.md.
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
-    ("base", ("_types", "_expect", "_status", "_version", "cdog", "cdog._config", "cdog._options", "_method")),
+    ("base", ("_types", "_expect", "_status", "_version", "cdog", "cdog._config", "cdog._options")),
     ("geometry", ("geometry.",)),
     ("stage", ("cdog._stage",)),
     ("stages", ("graph.", "refine.")),
-    ("core", ("_result", "_runtime.", "_validate", "_finish", "cdog.", "_table_method", "_host_method", "_associate",
+    ("core", ("_result", "_runtime.", "_validate", "_finish", "cdog.", "_method", "_associate",
               "people.", "tracking.")),
     ("methods", ("baselines.",)),
     ("data", ("io.", "synthetic.", "metrics.")),

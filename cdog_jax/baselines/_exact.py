@@ -15,7 +15,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from .._host_method import HostGroupTableMethod
+from .._method import HostGroupTableMethod
 from .._method import register_method
 
 MAX_POINTS = 15

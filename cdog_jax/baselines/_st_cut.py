@@ -21,7 +21,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from .._host_method import HostGroupTableMethod
+from .._method import HostGroupTableMethod
 from .._method import register_method
 from ..geometry._camera import Rig
 from ._exact import gated_cost

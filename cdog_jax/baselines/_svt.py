@@ -41,7 +41,7 @@ import jax
 import jax.numpy as jnp
 
 from .._method import register_method
-from .._table_method import GroupTableMethod
+from .._method import GroupTableMethod
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ._epipolar_affinity import epipolar_affinity
