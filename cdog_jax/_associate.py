@@ -4,7 +4,7 @@ Whatever the method (C-DOG's presets or any registered :class:`~cdog_jax.Method`
 check the inputs eagerly, undistort, pad the shapes to a short ladder (``_runtime/shapes.py``),
 compile the method's per-scene function once per shape (``jit``; ``vmap`` for batches, in
 chunks so memory stays bounded), and finish with confidence weights, the minimum number of
-views and the validity gate (``_finish.py``).
+views and the validity gate (:func:`finish_groups`, here too).
 """
 
 from __future__ import annotations
@@ -17,17 +17,20 @@ import numpy as np
 
 from .cdog._pipeline import Config
 from ._expect import INT, expect, expect_args
-from ._finish import finish_groups
 from ._runtime.memory import check_memory
 from ._method import Method, Observations, method_argument
-from ._result import Association
+from ._result import Association, association_from_groups
 from ._runtime.shapes import chunk_size, occupied_slots, pad_scenes, pad_slots, slot_capacity, trim
 from ._runtime.devices import chunk_devices
 from ._runtime.stored_programs import call_stored
-from ._types import Array, ArrayLike, Float
+from ._types import Array, ArrayLike, Float, Int
 from ._validate import as_array, check_batch_rig, check_observations, check_rig, check_sigma, check_threshold_shapes
 from .geometry._camera import Rig
 from .geometry._distortion import Fisheye, undistorted
+from .geometry._projection import group_errors
+from .geometry._triangulate import triangulate_views_last
+from .graph._groups import gather_groups
+from .refine._validity import validity_gate
 
 
 def check_thresholds_type(thresholds, method: Method, where: str) -> None:
@@ -210,6 +213,47 @@ def _check_extras(dist, weights, min_views, mask_shape, dtype):
             raise ValueError(f"weights must be finite and >= 0; got {float(w_h[bad][0])!r} at index ({where})")
         weights = np.asarray(weights, dtype)
     return dist, weights, np.asarray(min_views, np.int32)
+
+
+# What happens after any method has associated one scene of real data: a pure, traced
+# function (jit/vmap it), used by associate and associate_batch.
+def finish_groups(
+    rig: Rig,
+    xy: Float[Array, "M P 2"],
+    result: Association,
+    weights: Float[Array, "M P"] | None,
+    min_views: Int[Array, ""],
+    th: tuple,
+) -> Association:
+    """``result`` with groups of fewer than ``min_views`` views dropped (their detections
+    become unassigned) and, when ``weights (M, P)`` is given (e.g. detector confidence, ≥ 0),
+    every point re-triangulated by DLT with each member's equation scaled by its weight.
+
+    BPE and the mean error stay the plain (unweighted) means over members;
+    ``xy`` are the pixels the association used (undistorted). The groups then pass the
+    validity gate again (:func:`cdog_jax.refine.validity_gate`, with ``th.max_err_frac``,
+    ``th.min_parallax_deg`` and the result's τ): a member of weight 0 does not count as a
+    view, and a re-weighted point must still lie in front of its cameras with parallax and
+    bounded errors. Groups are compacted to the front again and the labels rebuilt, as
+    :func:`cdog_jax.associate` returns them.
+    """
+    P = xy.shape[1]
+    keep = result.valid & (result.n_views >= min_views)
+    groups = jnp.where(keep[:, None], result.groups, -1)
+    member = keep[:, None] & (groups >= 0)  # (G, M)
+    xy_g = gather_groups(groups, xy)  # (G, M, 2)
+    X = result.points3d
+    w_g = None
+    if weights is not None:
+        w_g = jnp.where(member, gather_groups(groups, weights), 0.0)
+        X_w, ok = triangulate_views_last(rig, xy_g, member, weights=w_g)
+        X = jnp.where(ok[:, None], X_w, X)  # fewer than 2 weighted views: the gate dissolves it
+    member, keep, X = validity_gate(rig, xy_g, member, X, result.tau_px, th.max_err_frac, th.min_parallax_deg, weights=w_g)
+    keep = keep & (jnp.sum(member, axis=1, dtype=jnp.int32) >= min_views)  # detaching may leave fewer
+    member = member & keep[:, None]
+    groups = jnp.where(member, groups, -1)
+    bpe, err_px = group_errors(rig, X, xy_g, member)
+    return association_from_groups(groups, keep, member, X, bpe, err_px, P, result.sigma_px, result.tau_px, result.status)
 
 
 def _associate_one(rig, xy, mask, th, dist, weights, min_views, method):

@@ -25,7 +25,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("geometry", ("geometry.",)),
     ("stage", ("cdog._stage",)),
     ("stages", ("graph.", "refine.")),
-    ("core", ("_result", "_runtime.", "_validate", "_finish", "cdog.", "_method", "_associate",
+    ("core", ("_result", "_runtime.", "_validate", "cdog.", "_method", "_associate",
               "people.", "tracking.")),
     ("methods", ("baselines.",)),
     ("data", ("io.", "synthetic.", "metrics.")),
