@@ -88,7 +88,6 @@ def associate(
     weights: ArrayLike | None = None,
     min_views: int = 2,
     memory_budget_gb: float | None = None,
-    config: Method | str | None = None,
 ) -> Association:
     """Associate the detections of one scene and triangulate every group.
 
@@ -115,7 +114,6 @@ def associate(
         memory_budget_gb: refuse (``MemoryError``, before compiling) when the estimated
             peak memory exceeds this many GB; default: ``CDOG_JAX_MEMORY_BUDGET`` or 80 %
             of the device's (CPU: the machine's) memory (ALGORITHM.md §14).
-        config: the older name of ``method`` (give one of them).
 
     ``xy`` may be float32 or float64 (integers are converted to the default float dtype);
     float16, bfloat16, complex and bool are refused. ``sigma`` must be finite, ``>= 0`` and
@@ -134,7 +132,7 @@ def associate(
         (:class:`cdog_jax.Status`, :func:`cdog_jax.check_status`).
     """
     expect_args("associate", rig=(rig, Rig))
-    method = method_argument(method, config, "associate")
+    method = method_argument(method, "associate")
     check_thresholds_type(thresholds, method, "associate")
     xy, mask = as_array(xy), as_array(mask)
     check_rig(rig)
@@ -320,7 +318,6 @@ def associate_batch(
     weights: ArrayLike | None = None,
     min_views: int = 2,
     memory_budget_gb: float | None = None,
-    config: Method | str | None = None,
 ) -> Association:
     """:func:`associate` for ``B`` scenes, ``batch_size`` at a time in one compiled program.
 
@@ -335,7 +332,7 @@ def associate_batch(
     """
     return associate_batch_at(
         rig, xy, mask, method=method, sigma=sigma, thresholds=thresholds, batch_size=batch_size, dist=dist,
-        weights=weights, min_views=min_views, memory_budget_gb=memory_budget_gb, config=config,
+        weights=weights, min_views=min_views, memory_budget_gb=memory_budget_gb,
     )  # fmt: skip
 
 
@@ -352,7 +349,6 @@ def associate_batch_at(
     weights=None,
     min_views=2,
     memory_budget_gb=None,
-    config=None,
     min_slots=0,
 ):
     """:func:`associate_batch` at a slot capacity of at least ``min_slots`` per view (the
@@ -360,7 +356,7 @@ def associate_batch_at(
     loop) gives its capacity here; results are those of :func:`associate_batch`."""
     expect_args("associate_batch", rig=(rig, Rig))
     expect(batch_size, INT, "batch_size", "associate_batch")
-    method = method_argument(method, config, "associate_batch")
+    method = method_argument(method, "associate_batch")
     check_thresholds_type(thresholds, method, "associate_batch")
     xy, mask = as_array(xy), as_array(mask)
     shared = rig.K.ndim == 3

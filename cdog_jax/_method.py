@@ -184,14 +184,9 @@ def method_from(method, where: str) -> Method:
     raise TypeError(f"{where}: method must be a Method or a registered name ({', '.join(_REGISTRY)}); got {type(method).__name__}")
 
 
-def method_argument(method, config, where: str, default: str | None = "best") -> Method:
-    """The method of a call: ``method`` (a :class:`Method` or a registered name), or the
-    older keyword ``config`` (the same thing), not both; ``default`` when neither is given
-    (``None``: one is required)."""
-    if config is not None:
-        if method is not None:
-            raise TypeError(f"{where}: give method= or config= (its older name), not both")
-        method = config
+def method_argument(method, where: str, default: str | None = "best") -> Method:
+    """The method of a call: ``method`` (a :class:`Method` or a registered name);
+    ``default`` when it is not given (``None``: one is required)."""
     if method is None:
         if default is None:
             raise TypeError(f"{where}: method= is required (a Method or a registered name)")

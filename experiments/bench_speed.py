@@ -8,7 +8,7 @@ Questions:
 2. How does the time of one scene grow with its point count (warm; compile apart)?
 
 Each full-grid run is a fresh Python process (so "cold" really compiles from nothing; no
-persistent compilation cache) that calls ``sweep(default_rig(), Grid.paper(), configs=…,
+persistent compilation cache) that calls ``sweep(default_rig(), Grid.paper(), methods=…,
 timing=False)`` once cold and ``--warm`` times warm. Reported: medians over ``--runs``
 processes of the cold call (wall, of which compile), the warm call, the throughput, and
 the process's peak RSS (``ru_maxrss``; device memory too on a GPU).
@@ -54,12 +54,12 @@ def _child(methods: list[str], quick: bool, warm_runs: int, cpu_devices: int) ->
     configs = {name: METHODS[name]() for name in methods}
     rig = default_rig()
     t0 = time.perf_counter()
-    cold = sweep(rig, grid, configs=configs, timing=False)
+    cold = sweep(rig, grid, methods=configs, timing=False)
     cold_s = time.perf_counter() - t0
     warm = []
     for _ in range(warm_runs):
         t0 = time.perf_counter()
-        sweep(rig, grid, configs=configs, timing=False)
+        sweep(rig, grid, methods=configs, timing=False)
         warm.append(time.perf_counter() - t0)
     out = {
         "scenes": grid.num_scenes,
@@ -116,7 +116,7 @@ def single_scene(methods: list[str], counts=SINGLE_COUNTS, runs: int = 7) -> lis
             scene = generate_scene(jax.random.PRNGKey(n), rig, n, 1.0, capacity=n)
 
             def call():
-                return jax.block_until_ready(cdog_jax.associate(rig, scene.xy, scene.mask, config=config, sigma=1.0))
+                return jax.block_until_ready(cdog_jax.associate(rig, scene.xy, scene.mask, method=config, sigma=1.0))
 
             t0 = time.perf_counter()
             call()

@@ -82,7 +82,7 @@ def run(*, sequences=6, frames=4, presets=PRESETS, seed=SEED, extras=True, log=p
         for preset in presets:
             for vote in (False, True):
                 t = time.perf_counter()
-                res = associate_classes(rig, batch.xy, batch.mask, batch.class_id, class_names=SKELETON_JOINTS, config=preset,
+                res = associate_classes(rig, batch.xy, batch.mask, batch.class_id, class_names=SKELETON_JOINTS, method=preset,
                                         instances=instances if vote else None, person_vote=vote)  # fmt: skip
                 seconds = time.perf_counter() - t
                 if not vote:  # the host step alone, on this association (its compile paid once before)
@@ -132,7 +132,7 @@ def run_pose2sim(demo: str, presets=("paper", "extended", "best"), log=print):
             for vote in (False, True):
                 t = time.perf_counter()
                 res[vote] = associate_classes(rig_file.rig, det.xy.astype(np.float32), det.mask, det.classes,
-                                              class_names=det.class_names, config=preset, dist=dist,
+                                              class_names=det.class_names, method=preset, dist=dist,
                                               instances=det.instances if vote else None, person_vote=vote)  # fmt: skip
                 jax.block_until_ready(res[vote].association.points3d)
                 stats = rp.trial_stats(det, res[vote], participants)

@@ -99,7 +99,7 @@ def associate_trial(rig_file, pose: str, preset: str):
     t0 = time.perf_counter()
     out = associate_classes(
         rig_file.rig, det.xy.astype(np.float32), det.mask, det.classes, class_names=det.class_names,
-        config=preset, sigma="auto", dist=dist,
+        method=preset, sigma="auto", dist=dist,
     )  # fmt: skip
     jax.block_until_ready(out.association.points3d)
     return det, out, time.perf_counter() - t0

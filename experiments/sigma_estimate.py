@@ -154,7 +154,7 @@ def _purity(rig, batch, old, with_clutter):
     sub = jax.tree.map(lambda a: a[with_clutter], batch)
     # The old estimator's pipeline is the given-σ pipeline with σ = its estimate.
     for name, sigma in (("before", jnp.asarray(old[with_clutter], jnp.float32)), ("auto", "auto"), ("given", 1.0)):
-        res = associate_batch(rig, sub.xy, sub.mask, config=Config.paper(), sigma=sigma, batch_size=8)
+        res = associate_batch(rig, sub.xy, sub.mask, method=Config.paper(), sigma=sigma, batch_size=8)
         purity[name] = _impure_share(np.asarray(res.labels), np.asarray(sub.instance), np.asarray(sub.mask))
     purity["scenes"] = int(with_clutter.sum())
     return purity

@@ -30,7 +30,7 @@ def run(sigmas=(0.0, 1.0, 3.0, 5.0), counts=(10, 40, 130), scenes=5, seed=0, cap
         batch = generate_scenes(jax.random.PRNGKey(seed), rig, jnp.asarray(n, jnp.int32), jnp.full(n.shape, sigma, jnp.float32), capacity=capacity)
         for name, cfg in presets.items():
             t0 = time.perf_counter()
-            res = cdog_jax.associate_batch(rig, batch.xy, batch.mask, config=cfg, sigma=sigma, batch_size=8)
+            res = cdog_jax.associate_batch(rig, batch.xy, batch.mask, method=cfg, sigma=sigma, batch_size=8)
             jax.block_until_ready(res)
             elapsed = time.perf_counter() - t0
             means = mean_metrics(score(rig, res, batch))

@@ -26,7 +26,7 @@ FIELDS = ("pg_r", "pg_p", "pg_f1", "g_f1", "num_unassigned")
 def run(*, sigmas=(1.0, 3.0), counts=None, scenes=2, seed=100):
     counts = counts or Grid.paper().counts
     grid = Grid(sigmas=tuple(sigmas), counts=tuple(counts), scenes=scenes, seed=seed)
-    res = sweep(default_rig(), grid, configs=STAGES, buckets=(max(counts),), timing=False)
+    res = sweep(default_rig(), grid, methods=STAGES, buckets=(max(counts),), timing=False)
     rows = []
     for sigma in grid.sigmas:
         where = np.isclose(res.sigma, sigma)

@@ -72,7 +72,7 @@ def evaluate(configs: dict[str, Config], grid: Grid, buckets) -> dict[str, dict[
     for start in range(0, len(names), CHUNK):
         chunk = {n: configs[n] for n in names[start : start + CHUNK]}
         t0 = time.perf_counter()
-        res = sweep(rig, grid, configs=chunk, buckets=buckets, timing=False)
+        res = sweep(rig, grid, methods=chunk, buckets=buckets, timing=False)
         print(f"    {start + len(chunk)}/{len(names)} configs ({time.perf_counter() - t0:.0f} s)", flush=True)
         out.update(res.metrics)
         sigma = res.sigma

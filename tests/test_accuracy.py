@@ -34,7 +34,7 @@ def test_noise_free_scenes_almost_perfect(preset, min_pg_p):
     scenes = jax.vmap(lambda scene: compact_scene(scene, capacity=130))(scenes)
     assert int(np.asarray(scenes.mask).sum(axis=2).max()) <= 128
     cfg = getattr(cdog_jax.Config, preset)()
-    res = cdog_jax.associate_batch(rig, scenes.xy, scenes.mask, config=cfg, sigma=0.0, batch_size=1)
+    res = cdog_jax.associate_batch(rig, scenes.xy, scenes.mask, method=cfg, sigma=0.0, batch_size=1)
     m = jax.vmap(scene_metrics, in_axes=(None, 0, 0))(rig, res, scenes)
     assert np.all(np.asarray(m.num_gt_groups) == COUNTS)
     assert np.all(np.asarray(m.pg_p) >= min_pg_p), np.asarray(m.pg_p)

@@ -36,7 +36,7 @@ _CHILD = textwrap.dedent(
     from cdog_jax.synthetic import default_rig, generate_scene
     rig = default_rig()
     scene = generate_scene(jax.random.PRNGKey(0), rig, 5, 1.0, capacity=8)
-    associate(rig, scene.xy, scene.mask, config=Config.paper(), sigma=1.0)  # a program of seconds
+    associate(rig, scene.xy, scene.mask, method=Config.paper(), sigma=1.0)  # a program of seconds
     jnp.sin(jnp.arange(3.0)).block_until_ready()  # one operation outside jit: not stored
     folder = jax.config.jax_compilation_cache_dir
     print("dir", folder)

@@ -175,13 +175,12 @@ def test_method_by_registered_name(scene):
     rig, xy, mask = scene
     by_name = associate(rig, xy, mask, method="paper")
     np.testing.assert_array_equal(by_name.labels, associate(rig, xy, mask, method=Config.paper()).labels)
-    np.testing.assert_array_equal(by_name.labels, associate(rig, xy, mask, config="paper").labels)  # the older name
     with pytest.raises(ValueError, match=r"associate: unknown method 'papr'; registered: best, extended, paper, reference"):
         associate(rig, xy, mask, method="papr")
     with pytest.raises(TypeError, match="associate_batch: method must be a Method or a registered name .*got int"):
         plain(associate_batch)(rig, xy[None], mask[None], method=3)
-    with pytest.raises(TypeError, match="associate: give method= or config=.*not both"):
-        associate(rig, xy, mask, method="paper", config="paper")
+    with pytest.raises(TypeError, match="unexpected keyword argument 'config'"):  # the name before 0.1
+        associate(rig, xy, mask, config="paper")
 
 
 # --- associate_batch: lists, per-scene rigs -------------------------------------------------
@@ -288,7 +287,7 @@ WRONG_TYPES = [
     (cdog_jax.benchmark.summary_table, ("results",), {}, "summary_table: result must be SweepResult; got str"),
     (cdog_jax.calibration.rig_errors, (_RIG, _RIG.K), {}, "rig_errors: reference must be Rig; got ArrayImpl"),
     (cdog_jax.calibration.align_rigs, ("rig.json", _RIG), {}, "align_rigs: rig must be Rig; got str"),
-    (cdog_jax.calibration.calibrate, (_RIG, _XY[None], _MASK[None]), {"thresholds": Config(), "config": _TH}, r"calibrate: method must be a Method or a registered name \(.*\); got Thresholds"),
+    (cdog_jax.calibration.calibrate, (_RIG, _XY[None], _MASK[None]), {"thresholds": Config(), "method": _TH}, r"calibrate: method must be a Method or a registered name \(.*\); got Thresholds"),
     (cdog_jax.calibration.calibrate, (_RIG, _XY[None], _MASK[None]), {"thresholds": Config(), "method": "paper"}, "calibrate: thresholds must be Thresholds (method.thresholds()); got Config"),
     (cdog_jax.calibration.bpe, (_XY, _RIG, jnp.zeros((2, 3), jnp.int32), jnp.ones(2, bool)), {}, "bpe: rig must be Rig; got ArrayImpl"),
 ]

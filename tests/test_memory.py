@@ -22,14 +22,14 @@ def test_ten_thousand_detections_per_view_are_refused_before_compiling(monkeypat
     before = _associate_jit._cache_size() + loaded_programs()
     t0 = time.perf_counter()
     with pytest.raises(MemoryError, match=r"10 views × 10000 slots need about 14[0-9]\.[0-9] GB") as info:
-        associate(rig, xy, mask, config=Config.paper(), memory_budget_gb=20.0)
+        associate(rig, xy, mask, method=Config.paper(), memory_budget_gb=20.0)
     assert time.perf_counter() - t0 < 1.0
     assert _associate_jit._cache_size() + loaded_programs() == before  # nothing was traced or compiled
     message = str(info.value)
     assert "memory budget of 20.0 GB" in message and "smaller capacity P (at most" in message and ENV_BUDGET in message
     # The default budget comes from this machine's memory; the estimate exceeds any of today's.
     with pytest.raises(MemoryError, match="of physical memory|memory\\)"):
-        associate(rig, xy, mask, config=Config.paper())
+        associate(rig, xy, mask, method=Config.paper())
 
 
 def test_budget_from_the_environment_and_per_chunk_in_a_batch(monkeypatch):
@@ -38,7 +38,7 @@ def test_budget_from_the_environment_and_per_chunk_in_a_batch(monkeypatch):
     one = estimate_peak_bytes(4, 300, Config.paper(), batch_size=4)
     monkeypatch.setenv(ENV_BUDGET, str(one / 1e9 * 0.99))
     with pytest.raises(MemoryError, match=f"4 scenes at a time.*{ENV_BUDGET}=.*smaller batch_size"):
-        associate_batch(rig, xy, mask, config=Config.paper(), batch_size=4)
+        associate_batch(rig, xy, mask, method=Config.paper(), batch_size=4)
     monkeypatch.setenv(ENV_BUDGET, "lots")
     with pytest.raises(ValueError, match=ENV_BUDGET):
         memory_budget_bytes()

@@ -55,10 +55,10 @@ def _people_in_groups(assoc, person):
 
 def test_vote_puts_a_swapped_joint_group_right(swapped):
     rig, xy, mask, classes, instances, person = swapped
-    plain = associate_classes(rig, xy, mask, classes, sigma=2.0, config="paper")
+    plain = associate_classes(rig, xy, mask, classes, sigma=2.0, method="paper")
     mixed = [p for p in _people_in_groups(plain.association, person) if len(p) > 1]
     assert len(mixed) == 2  # geometry alone: both joint-2 groups join A and B
-    voted = associate_classes(rig, xy, mask, classes, sigma=2.0, config="paper", instances=instances, person_vote=True)
+    voted = associate_classes(rig, xy, mask, classes, sigma=2.0, method="paper", instances=instances, person_vote=True)
     a = voted.association
     people = _people_in_groups(a, person)
     assert all(len(p) == 1 for p in people) and len(people) == 2 * J
@@ -72,9 +72,9 @@ def test_vote_puts_a_swapped_joint_group_right(swapped):
             assert groups[labels[m, s], m] == s
     assert np.all(np.asarray(a.err_px[0])[np.asarray(a.valid[0])] < 4.0)
     # On by default with instances; person_vote=False: the plain result.
-    default = associate_classes(rig, xy, mask, classes, sigma=2.0, config="paper", instances=instances)
+    default = associate_classes(rig, xy, mask, classes, sigma=2.0, method="paper", instances=instances)
     np.testing.assert_array_equal(np.asarray(default.association.labels), np.asarray(a.labels))
-    off = associate_classes(rig, xy, mask, classes, sigma=2.0, config="paper", instances=instances, person_vote=False)
+    off = associate_classes(rig, xy, mask, classes, sigma=2.0, method="paper", instances=instances, person_vote=False)
     np.testing.assert_array_equal(np.asarray(off.association.labels), np.asarray(plain.association.labels))
 
 
@@ -207,7 +207,7 @@ def test_nodes_and_votes():
 def test_bad_instances_refused(swapped, instances, person_vote, message):
     rig, xy, mask, classes, _, _ = swapped
     with pytest.raises(ValueError, match=message):
-        associate_classes(rig, xy, mask, classes, sigma=2.0, config="paper", instances=instances, person_vote=person_vote)
+        associate_classes(rig, xy, mask, classes, sigma=2.0, method="paper", instances=instances, person_vote=person_vote)
 
 
 def test_person_vote_numbers_checked():

@@ -27,8 +27,8 @@ def test_garbage_in_padded_slots_changes_nothing(preset):
     noisy = xy.copy()
     noisy[~mask] = np.random.default_rng(0).uniform(-1e4, 1e4, (int((~mask).sum()), 2))
     noisy[~mask][:3] = np.nan  # even NaN where masked
-    a = associate(RIG, xy, mask, config=PRESETS[preset], sigma=1.0)
-    b = associate(RIG, noisy, mask, config=PRESETS[preset], sigma=1.0)
+    a = associate(RIG, xy, mask, method=PRESETS[preset], sigma=1.0)
+    b = associate(RIG, noisy, mask, method=PRESETS[preset], sigma=1.0)
     for fa, fb in zip(jax.tree.leaves(a), jax.tree.leaves(b)):
         assert np.array_equal(np.asarray(fa), np.asarray(fb))
 
@@ -40,8 +40,8 @@ def test_permuting_slots_permutes_labels(preset):
     perms = [rng.permutation(P) for _ in range(M)]
     xy_p = np.stack([xy[m][perms[m]] for m in range(M)])
     mask_p = np.stack([mask[m][perms[m]] for m in range(M)])
-    a = associate(RIG, xy, mask, config=PRESETS[preset], sigma=0.5)
-    b = associate(RIG, xy_p, mask_p, config=PRESETS[preset], sigma=0.5)
+    a = associate(RIG, xy, mask, method=PRESETS[preset], sigma=0.5)
+    b = associate(RIG, xy_p, mask_p, method=PRESETS[preset], sigma=0.5)
     inverse = [np.argsort(p) for p in perms]
     back = {(m, int(inverse[m][i])) for m in range(M) for i in range(P)}
     assert back  # the permutation is a bijection
@@ -72,7 +72,7 @@ def test_jit_equals_eager():
     xy, mask, _, _ = random_scene(RIG, 4, 5, sigma=1.0, seed=5)
     cfg = Config.paper()
     th = cfg.thresholds(1.0)
-    jitted = associate(RIG, xy, mask, config=cfg, sigma=1.0)
+    jitted = associate(RIG, xy, mask, method=cfg, sigma=1.0)
     with jax.disable_jit():
         eager = associate_traced(RIG, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), th, cfg)
     for fa, fb in zip(jax.tree.leaves(jitted), jax.tree.leaves(eager)):
@@ -95,7 +95,7 @@ def test_noise_free_scenes_are_associated_exactly(preset):
     # on a 5-camera ring at these densities every group must be pure and complete.
     for seed, n in enumerate([1, 4, 10]):
         xy, mask, inst, _ = random_scene(RIG, n, P, sigma=0.0, seed=20 + seed)
-        res = associate(RIG, xy, mask, config=PRESETS[preset], sigma=0.0)
+        res = associate(RIG, xy, mask, method=PRESETS[preset], sigma=0.0)
         groups, pure, unassigned = purity(res.labels, inst, mask)
         assert (groups, pure, unassigned) == (n, n, 0)
 
@@ -116,8 +116,8 @@ def test_float64_pipeline():
 
 def test_refinement_lowers_reprojection_error():
     xy, mask, _, _ = random_scene(RIG, 10, P, sigma=2.0, seed=8)
-    plain = associate(RIG, xy, mask, sigma=2.0, config=Config.paper(bpe_filter=False))
-    refined = associate(RIG, xy, mask, sigma=2.0, config=Config.paper(bpe_filter=False, refine=True))
+    plain = associate(RIG, xy, mask, sigma=2.0, method=Config.paper(bpe_filter=False))
+    refined = associate(RIG, xy, mask, sigma=2.0, method=Config.paper(bpe_filter=False, refine=True))
     assert np.array_equal(np.asarray(plain.labels), np.asarray(refined.labels))
     n = int(plain.num_groups)
     assert n > 0
@@ -150,7 +150,7 @@ def test_thresholds_override_does_not_recompile():
     associate(RIG, xy, mask, sigma=1.0)
     programs = lambda: cdog_jax._associate._associate_jit._cache_size() + loaded_programs()  # noqa: E731
     before = programs()
-    associate(RIG, xy, mask, sigma=3.0, config=Config.paper(delta=0.6, iqr_alpha=1.5))
+    associate(RIG, xy, mask, sigma=3.0, method=Config.paper(delta=0.6, iqr_alpha=1.5))
     assert programs() == before
 
 

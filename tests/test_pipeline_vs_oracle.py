@@ -108,7 +108,7 @@ def run_jax(scene, cfg, dtype):
 
     def go():
         rig = Rig(jnp.asarray(scene["K"], dtype), jnp.asarray(scene["R"], dtype), jnp.asarray(scene["t"], dtype))
-        res = associate(rig, jnp.asarray(scene["xy"], dtype), jnp.asarray(scene["mask"]), config=cfg,
+        res = associate(rig, jnp.asarray(scene["xy"], dtype), jnp.asarray(scene["mask"]), method=cfg,
                         sigma=_sigma_arg(cfg, scene["sigma"]))
         return {k: np.asarray(getattr(res, k)) for k in
                 ("labels", "groups", "valid", "points3d", "bpe", "err_px", "n_views", "num_groups", "sigma_px",

@@ -65,7 +65,7 @@ def test_padded_capacity_is_bitwise_unpadded(config, sigma, seed):
     xy, mask = _scene(seed, clutter=1)
     # σ's estimate sums over all (padded) samples: its float sums may group terms differently.
     rtol = 1e-6 if sigma == "auto" else 0.0
-    _assert_same(associate(RIG, xy, mask, config=config, sigma=sigma), _unpadded(xy, mask, config, sigma), rtol)
+    _assert_same(associate(RIG, xy, mask, method=config, sigma=sigma), _unpadded(xy, mask, config, sigma), rtol)
 
 
 def test_padded_capacity_with_dist_weights_min_views():
@@ -73,14 +73,14 @@ def test_padded_capacity_with_dist_weights_min_views():
     dist = np.tile(np.array([[1e-3, 0.0, 0.0, 0.0, 0.0]], np.float32), (RIG.num_views, 1))
     weights = np.random.default_rng(0).uniform(0.5, 1.0, mask.shape).astype(np.float32)
     kwargs = dict(dist=dist, weights=weights, min_views=3)
-    _assert_same(associate(RIG, xy, mask, config=Config.extended(), **kwargs), _unpadded(xy, mask, Config.extended(), **kwargs))
+    _assert_same(associate(RIG, xy, mask, method=Config.extended(), **kwargs), _unpadded(xy, mask, Config.extended(), **kwargs))
 
 
 def padded_batch_is_bitwise_one_scene_at_a_time():
     scenes = [_scene(seed) for seed in range(5)]  # 5 scenes, batch_size 2: chunks of 2, one padded scene
     xy, mask = np.stack([s[0] for s in scenes]), np.stack([s[1] for s in scenes])
     sigma = jnp.asarray([1.0, 0.8, 1.2, 1.0, 0.9], jnp.float32)
-    batch = associate_batch(RIG, xy, mask, config=Config.extended(), sigma=sigma, batch_size=2)
+    batch = associate_batch(RIG, xy, mask, method=Config.extended(), sigma=sigma, batch_size=2)
     assert batch.labels.shape == (5, RIG.num_views, P)
     for b in range(5):
         one = _unpadded(xy[b], mask[b], Config.extended(), float(sigma[b]))
@@ -97,8 +97,8 @@ def test_padded_batch_is_bitwise_one_scene_at_a_time():
 
 def test_one_scene_batch_runs_the_single_scene_program():
     xy, mask = _scene(5)
-    batch = associate_batch(RIG, xy[None], mask[None], config=Config.extended(), sigma=1.0)
-    one = associate(RIG, xy, mask, config=Config.extended(), sigma=1.0)
+    batch = associate_batch(RIG, xy[None], mask[None], method=Config.extended(), sigma=1.0)
+    one = associate(RIG, xy, mask, method=Config.extended(), sigma=1.0)
     _assert_same(jax.tree.map(lambda a: a[0], batch), one)
     assert batch.labels.shape == (1, RIG.num_views, P) and isinstance(batch.labels, jax.Array)
 
@@ -123,7 +123,7 @@ def test_frames_within_one_rung_compile_one_program():
     try:
         xy, mask = _scene(6)
         for count in (9, 10, 11, 12):  # shapes no other test uses: any per-shape program would compile here
-            associate(RIG, xy[:, :count], mask[:, :count], config=Config.paper(), sigma=1.0)
+            associate(RIG, xy[:, :count], mask[:, :count], method=Config.paper(), sigma=1.0)
     finally:
         jax.monitoring.unregister_event_duration_listener(listener)
     assert len(compiles) <= 1, compiles  # the 12-slot program (none if already compiled)
@@ -143,10 +143,10 @@ def test_trailing_empty_slots_are_left_out(monkeypatch):
         associate_module, "_single_scene", lambda rig, xy, *rest: shapes.append(np.shape(xy)) or program(rig, xy, *rest)
     )
     config = Config.paper()
-    got = associate(RIG, *wide[0], config=config)
+    got = associate(RIG, *wide[0], method=config)
     assert shapes == [(RIG.num_views, 16, 2)]
     _assert_same(got, _unpadded(*wide[0], config))
-    batch = associate_batch(RIG, np.stack([w[0] for w in wide]), np.stack([w[1] for w in wide]), config=config, batch_size=1)
+    batch = associate_batch(RIG, np.stack([w[0] for w in wide]), np.stack([w[1] for w in wide]), method=config, batch_size=1)
     for b, (xy, mask) in enumerate(wide):
         _assert_same(jax.tree.map(lambda a: a[b], batch), _unpadded(xy, mask, config))
     assert shapes[1:] == [(RIG.num_views, 16, 2)] * 2

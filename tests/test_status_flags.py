@@ -15,7 +15,7 @@ XY, MASK = np.stack([_A[0], _B[0]]), np.stack([_A[1], _B[1]])
 
 
 def _status(config):
-    return [int(s) for s in np.asarray(associate_batch(RIG, XY, MASK, config=config, sigma=4.0, batch_size=2).status)]
+    return [int(s) for s in np.asarray(associate_batch(RIG, XY, MASK, method=config, sigma=4.0, batch_size=2).status)]
 
 
 def test_a_loop_stopped_at_its_bound_sets_its_flag_per_scene():

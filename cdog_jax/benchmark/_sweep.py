@@ -350,13 +350,9 @@ def _check_memory(num_views: int, layout: _Layout, groups: dict, dtype) -> None:
             check_memory(f"sweep (bucket {capacity})", num_views, capacity, structure, dtype, at_once, vmapped=batch > 1)
 
 
-def _check_methods(methods, configs) -> dict[str, Method]:
+def _check_methods(methods) -> dict[str, Method]:
     """``{name: Method}`` from ``methods`` (a mapping of names to methods or registered
-    names, or a sequence of registered names) or the older ``configs``; not both."""
-    if configs is not None:
-        if methods is not None:
-            raise TypeError("sweep: give methods= or configs= (its older name), not both")
-        methods = configs
+    names, or a sequence of registered names)."""
     if methods is None:
         methods = {"paper": Config.paper()}
     elif isinstance(methods, str):
@@ -405,7 +401,6 @@ def sweep(
     timing: bool = True,
     timing_runs: int = 3,
     progress: Callable[[SweepProgress], None] | str | bool | None = "auto",
-    configs: Mapping[str, Method | str] | None = None,
 ) -> SweepResult:
     """Generate, associate and score every scene of ``grid``: one compiled program per bucket.
 
@@ -434,7 +429,6 @@ def sweep(
             (default, or ``True``): a progress bar on stderr when it is a terminal, else none;
             ``False``: none. In a terminal a line also says while the sweep
             compiles.
-        configs: the older name of ``methods`` (give one of them).
 
     Returns:
         A :class:`SweepResult` with ``(S,)`` arrays in :meth:`Grid.flat` order.
@@ -446,7 +440,7 @@ def sweep(
         raise ValueError(f"sweep: progress must be a callable, None, a bool or 'auto'; got {progress!r}")
     if progress is not None and not isinstance(progress, str) and not callable(progress):
         raise TypeError(f"sweep: progress must be a callable, None, a bool or 'auto'; got {type(progress).__name__}")
-    methods = _check_methods(methods, configs)
+    methods = _check_methods(methods)
     close_bar = None
     if progress == "auto":
         progress, close_bar = sweep_bar(grid.num_scenes) if interactive() else (None, None)

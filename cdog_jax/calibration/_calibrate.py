@@ -50,7 +50,6 @@ def calibrate(
     thresholds: tuple,
     method: Method | str | None = None,
     rounds: int = 3,
-    config: Method | str | None = None,
     **refine_options,
 ) -> tuple[Rig, CalibrationHistory]:
     """Alternate association and :func:`refine_rig` for ``rounds`` rounds (``lax.scan``).
@@ -69,8 +68,8 @@ def calibrate(
         xy: ``(S, M, P, 2)`` detections (pixels) of ``S`` scenes; ``mask (S, M, P)`` bool.
         thresholds: the method's thresholds (``method.thresholds(σ)``; cast to the dtype of
             ``xy``).
-        method: any :class:`~cdog_jax.Method` or a registered name (static); ``config`` is
-            its older name. ``rounds`` static ≥ 1.
+        method: any :class:`~cdog_jax.Method` or a registered name (static). ``rounds``
+            static ≥ 1.
         **refine_options: keyword options of :func:`refine_rig`, all static but ``scale_px``.
 
     Returns:
@@ -78,7 +77,7 @@ def calibrate(
         ``rounds`` and the static refine options in ``static_argnames``.
     """
     expect_args("calibrate", rig=(rig, Rig), xy=(xy, ARRAY), mask=(mask, ARRAY))
-    method = method_argument(method, config, "calibrate", default=None)
+    method = method_argument(method, "calibrate", default=None)
     kind = type(method.thresholds())
     if not isinstance(thresholds, kind):
         raise TypeError(f"calibrate: thresholds must be {kind.__name__} (method.thresholds()); got {type(thresholds).__name__}")

@@ -126,8 +126,8 @@ def run_experiment(
     @jax.jit
     def run(rig):
         common = dict(loss="huber", refine_intrinsics=False)
-        rig, h_coarse = calibrate(rig, wand.xy, wand.mask, thresholds=th_coarse, config=coarse.structure(), rounds=len(gates_px), **common)
-        kwargs = dict(thresholds=th_fine, config=fine.structure(), loss="huber")
+        rig, h_coarse = calibrate(rig, wand.xy, wand.mask, thresholds=th_coarse, method=coarse.structure(), rounds=len(gates_px), **common)
+        kwargs = dict(thresholds=th_fine, method=fine.structure(), loss="huber")
         history = [h_coarse.rigs]
         if rounds > 1:
             rig, h_poses = calibrate(rig, batch.xy, batch.mask, rounds=rounds - 1, refine_intrinsics=False, **kwargs)

@@ -183,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
         result = sweep(
             rig,
             grid,
-            configs=configs,
+            methods=configs,
             buckets=buckets,
             box=box,
             image_size=image_size,

@@ -71,9 +71,9 @@ def _method_name(text: str) -> str:
 
 
 def add_method_argument(parser: argparse.ArgumentParser) -> None:
-    """``--method NAME`` (older name ``--preset``): a registered method, default best."""
+    """``--method NAME``: a registered method, default best."""
     parser.add_argument(
-        "--method", "--preset", dest="method", type=_method_name, default="best", metavar="NAME",
+        "--method", dest="method", type=_method_name, default="best", metavar="NAME",
         help="a registered method: best (default, the most accurate), extended (ours beyond the paper), paper (the "
-        "paper's C-DOG), reference (the original code's), or any other registered one; --preset is its older name",
+        "paper's C-DOG), reference (the original code's), or any other registered one",
     )

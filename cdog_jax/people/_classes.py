@@ -88,7 +88,6 @@ def associate_classes(
     min_views: int = 2,
     batch_size: int = 64,
     memory_budget_gb: float | None = None,
-    config=None,
     instances=None,
     person_vote=None,
 ) -> ClassAssociation:
@@ -102,7 +101,7 @@ def associate_classes(
             ``mask`` is False).
         class_names: optional names by class id (``C`` of them).
         num_classes: ``C``; default ``len(class_names)``, else the largest id + 1.
-        method, dist, weights (``(F, M, P)``), min_views, memory_budget_gb, config: as in
+        method, dist, weights (``(F, M, P)``), min_views, memory_budget_gb: as in
             :func:`cdog_jax.associate_batch`.
         sigma: the noise σ in pixels, or ``"auto"``: estimated from the epipolar
             nearest-neighbour distances of all classes pooled (see ``sigma_pool``): one
@@ -129,7 +128,7 @@ def associate_classes(
     return associate_classes_at(
         rig, xy, mask, classes, class_names=class_names, num_classes=num_classes, method=method, sigma=sigma,
         sigma_pool=sigma_pool, dist=dist, weights=weights, min_views=min_views, batch_size=batch_size,
-        memory_budget_gb=memory_budget_gb, config=config, instances=instances, person_vote=person_vote,
+        memory_budget_gb=memory_budget_gb, instances=instances, person_vote=person_vote,
     )  # fmt: skip
 
 
@@ -149,7 +148,6 @@ def associate_classes_at(
     min_views=2,
     batch_size=64,
     memory_budget_gb=None,
-    config=None,
     instances=None,
     person_vote=None,
     min_scenes=0,
@@ -163,7 +161,7 @@ def associate_classes_at(
     :func:`associate_classes`, up to the last bits of σ with ``sigma="auto"``."""
     expect_args("associate_classes", rig=(rig, Rig))
     expect(batch_size, INT, "batch_size", "associate_classes")
-    method = method_argument(method, config, "associate_classes")
+    method = method_argument(method, "associate_classes")
     xy, mask = np.asarray(as_array(xy)), np.asarray(as_array(mask))
     check_rig(rig)
     check_observations(xy, mask, rig.num_views, batched=True)

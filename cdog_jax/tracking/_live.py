@@ -134,7 +134,7 @@ class LiveAssociator:
         self.classed = num_classes is not None
         self.num_classes = int(num_classes) if self.classed else 1
         self.class_names = None if class_names is None else tuple(class_names)
-        self.method = method_argument(method, None, "LiveAssociator")
+        self.method = method_argument(method, "LiveAssociator")
         self.sigma = sigma
         self.dist = dist
         self.lens = None if dist is None else as_lens(dist, rig.K.dtype)

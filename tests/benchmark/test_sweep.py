@@ -41,12 +41,12 @@ from cdog_jax.benchmark import Grid, print_progress, save_results, sweep
 from cdog_jax.synthetic import default_rig
 assert jax.device_count() == 4, jax.devices()
 result = sweep(
-    default_rig(), {grid!r}, configs={configs!r}, buckets=(16,), batch_size={batch}, timing=False,
+    default_rig(), {grid!r}, methods={configs!r}, buckets=(16,), batch_size={batch}, timing=False,
     progress=print_progress,
 )
 save_results(result, sys.argv[1])
 try:  # refinement's solver cannot be split over devices: refused before compiling
-    sweep(default_rig(), {grid!r}, configs={{"refine": Config.paper(refine=True)}}, buckets=(16,), timing=False)
+    sweep(default_rig(), {grid!r}, methods={{"refine": Config.paper(refine=True)}}, buckets=(16,), timing=False)
 except ValueError as error:
     print("refused:", error, file=sys.stderr)
 """
@@ -71,7 +71,7 @@ def sharded_run(tmp_path_factory):
 @pytest.fixture(scope="module")
 def padded(rig, sharded_run):
     """Every scene padded to 16 slots (one bucket), with time estimates."""
-    return sweep(rig, GRID, configs=CONFIGS, buckets=(16,), batch_size=BATCH, timing=True, timing_runs=1)
+    return sweep(rig, GRID, methods=CONFIGS, buckets=(16,), batch_size=BATCH, timing=True, timing_runs=1)
 
 
 def _assert_same_metrics(a, b, *, exact):
@@ -131,7 +131,7 @@ def test_sweep_equals_per_scene_calls(rig, padded):
         scene = compact_scene(scene, capacity=16)
         assert int(scene.num_points) == padded.num_points[i]
         for name, config in CONFIGS.items():
-            res = associate(sub, scene.xy, scene.mask, config=config, sigma=float(idx.sigma[i]))
+            res = associate(sub, scene.xy, scene.mask, method=config, sigma=float(idx.sigma[i]))
             m = score(sub, res, scene)
             for field, value in padded.metrics[name].items():
                 if not hasattr(m, field):
@@ -150,7 +150,7 @@ def test_sweep_equals_per_scene_calls(rig, padded):
 def test_bucketed_equals_padded_to_max(rig, padded):
     # batch 1: the plain-scan path (the CPU default), against the vmapped one of `padded`.
     events = []
-    bucketed = sweep(rig, GRID, configs=CONFIGS, buckets=(8, 16), batch_size=1, timing=False, progress=events.append)
+    bucketed = sweep(rig, GRID, methods=CONFIGS, buckets=(8, 16), batch_size=1, timing=False, progress=events.append)
     # One report per bucket, in bucket order as each finishes, counting the scenes done.
     assert [(e.bucket, e.capacity, e.num_buckets) for e in events] == [(0, 8, 2), (1, 16, 2)]
     assert [e.scenes_done for e in events] == [int(np.sum(bucketed.capacity == 8)), GRID.num_scenes]
@@ -161,7 +161,7 @@ def test_bucketed_equals_padded_to_max(rig, padded):
     assert np.isnan(bucketed.time_s["paper"]).all()
     # Progress is reported from the host between the bucket programs: without it, the same
     # programs run (none compiled again), with the same results.
-    quiet = sweep(rig, GRID, configs=CONFIGS, buckets=(8, 16), batch_size=1, timing=False, progress=None)
+    quiet = sweep(rig, GRID, methods=CONFIGS, buckets=(8, 16), batch_size=1, timing=False, progress=None)
     assert quiet.compile_s == 0.0
     for name in CONFIGS:
         for field, value in bucketed.metrics[name].items():
@@ -186,11 +186,11 @@ def test_refinement_sweeps_on_one_device(rig):
     per-scene calls."""
     grid = dataclasses.replace(GRID, sigmas=(0.5,), counts=(7,))
     config = Config.paper(refine=True)
-    result = sweep(rig, grid, configs={"refine": config}, buckets=(16,), timing=False)
+    result = sweep(rig, grid, methods={"refine": config}, buckets=(16,), timing=False)
     sub, keys = rig.select(GRID.views), grid.keys()
     for i in range(grid.num_scenes):
         scene = compact_scene(generate_scene(keys[i], sub, 7, 0.5, capacity=GRID.capacity), capacity=16)
-        res = associate(sub, scene.xy, scene.mask, config=config, sigma=0.5)
+        res = associate(sub, scene.xy, scene.mask, method=config, sigma=0.5)
         m = scene_metrics(sub, res, scene)
         assert result.metrics["refine"]["num_groups"][i] == int(res.num_groups)
         np.testing.assert_array_equal(result.metrics["refine"]["pg_f1"][i], np.asarray(m.pg_f1))

@@ -24,7 +24,7 @@ MAX_GROUPS = 32
 
 # One compilation per static configuration for the whole module.
 refine_jit = jax.jit(refine_rig, static_argnames=("max_groups",))
-calibrate_jit = jax.jit(calibrate, static_argnames=("config", "rounds", "max_groups", "loss", "refine_intrinsics"))
+calibrate_jit = jax.jit(calibrate, static_argnames=("method", "rounds", "max_groups", "loss", "refine_intrinsics"))
 
 
 def gt_tables(instance, G):
@@ -140,7 +140,7 @@ def test_calibrate_with_association_improves_a_drifted_rig():
         scenes.xy,
         scenes.mask,
         thresholds=config.thresholds(sigma),
-        config=config,
+        method=config,
         rounds=rounds,
         max_groups=MAX_GROUPS,
         loss="huber",

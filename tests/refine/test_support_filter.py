@@ -75,8 +75,8 @@ def test_pipeline_drops_a_two_view_ghost():
     assert ghost_seen.all()
     xy[:2, P] = ghost_xy[:2, 0]
     mask[:2, P] = True
-    base = associate(RIG, xy, mask, config=Config.paper(), sigma=1.0)
-    filt = associate(RIG, xy, mask, config=Config.paper(support_filter=True), sigma=1.0)
+    base = associate(RIG, xy, mask, method=Config.paper(), sigma=1.0)
+    filt = associate(RIG, xy, mask, method=Config.paper(support_filter=True), sigma=1.0)
     lb, lf = np.asarray(base.labels), np.asarray(filt.labels)
     assert int(base.num_groups) == 5 and lb[0, P] >= 0 and lb[0, P] == lb[1, P]
     assert int(filt.num_groups) == 4 and lf[0, P] == lf[1, P] == -1

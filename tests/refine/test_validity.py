@@ -124,7 +124,7 @@ def test_extended_recovery_does_not_merge_two_points():
     # (Scene 15 of generate_scenes(PRNGKey(0), …) for 48 scenes.)
     rig = default_rig()
     scene = generate_scene(jax.random.split(jax.random.PRNGKey(0), 48)[15], rig, 40, 1.0, capacity=40)
-    res = cdog_jax.associate(rig, scene.xy, scene.mask, config=Config.extended(), sigma=1.0)
+    res = cdog_jax.associate(rig, scene.xy, scene.mask, method=Config.extended(), sigma=1.0)
     valid = np.asarray(res.valid)
     groups = np.asarray(res.groups)[valid]
     assert len(groups) >= 30

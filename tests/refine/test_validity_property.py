@@ -93,9 +93,9 @@ def test_valid_groups_pass_the_gate_and_masked_slots_change_nothing(preset, seed
     cfg = CONFIGS[preset]
     (K, R, t), xy, mask = _scene(seed, n_active, near_pair, behind, sigma)
     rig = Rig(*(jnp.asarray(a, jnp.float32) for a in (K, R, t)))
-    res = cdog_jax.associate(rig, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), config=cfg, sigma=max(sigma, 0.5))
+    res = cdog_jax.associate(rig, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), method=cfg, sigma=max(sigma, 0.5))
     _check_valid_groups(rig, np.asarray(jnp.asarray(xy, jnp.float32), np.float64), res, cfg)
     dirty = np.where(mask[..., None], xy, garbage)
-    res2 = cdog_jax.associate(rig, jnp.asarray(dirty, jnp.float32), jnp.asarray(mask), config=cfg, sigma=max(sigma, 0.5))
+    res2 = cdog_jax.associate(rig, jnp.asarray(dirty, jnp.float32), jnp.asarray(mask), method=cfg, sigma=max(sigma, 0.5))
     for field in ("labels", "groups", "valid", "points3d", "err_px"):
         np.testing.assert_array_equal(np.asarray(getattr(res2, field)), np.asarray(getattr(res, field)), err_msg=field)
