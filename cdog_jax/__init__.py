@@ -25,10 +25,9 @@ from . import baselines as baselines  # registers the baseline methods
 
 from ._version import __version__ as __version__  # noqa: E402
 
-from ._runtime.compile_cache import enable_compilation_cache as _enable_compilation_cache  # noqa: E402
-
-_enable_compilation_cache()  # compiled programs persist across processes (CDOG_JAX_CACHE=0: off)
-
+# Importing the package changes no JAX setting: the command line turns the persistent
+# compilation cache on, a script or notebook calls this.
+from ._runtime.compile_cache import enable_compilation_cache as enable_compilation_cache  # noqa: E402
 
 
 # The figures load on first use: `import cdog_jax` reads neither the plotting modules nor

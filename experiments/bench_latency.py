@@ -42,6 +42,7 @@ jax.monitoring.register_event_duration_secs_listener(
     lambda name, secs, **kw: compiles.append(secs) if name == "/jax/core/compile/backend_compile_duration" else None)
 jax.monitoring.register_event_listener(lambda name, **kw: hits.append(1) if name.endswith("cache_hits") else None)
 import cdog_jax
+cdog_jax.enable_compilation_cache()  # as a notebook would
 from cdog_jax.synthetic import default_rig
 rig = default_rig()
 frames = np.load(sys.argv[1])

@@ -25,6 +25,10 @@ sys.path.insert(0, os.path.dirname(__file__))
 
 from helpers import FAST_COMPILE_FLAGS, memory_mappings  # noqa: E402
 
+import cdog_jax  # noqa: E402
+
+cdog_jax.enable_compilation_cache()  # the run's folder (above); importing the package does not
+
 # The suite's time is compilation, not running. Three XLA switches cut it (on x86-64;
 # tests/helpers.py): XLA's older CPU code generator (one LLVM function per fusion, no MLIR
 # fusion emitters), LLVM without optimisation passes, and SSE4.2 code. Together they

@@ -32,7 +32,8 @@ _CHILD = textwrap.dedent(
     import jax, jax.numpy as jnp
     hits = []
     jax.monitoring.register_event_listener(lambda name, **kw: hits.append(name) if name.endswith("cache_hits") else None)
-    from cdog_jax import Config, associate
+    from cdog_jax import Config, associate, enable_compilation_cache
+    enable_compilation_cache()
     from cdog_jax.synthetic import default_rig, generate_scene
     rig = default_rig()
     scene = generate_scene(jax.random.PRNGKey(0), rig, 5, 1.0, capacity=8)
@@ -81,3 +82,17 @@ def test_no_cache_flag_turns_it_off(tmp_path):
         assert jax.config.jax_compilation_cache_dir is None
     finally:
         jax.config.update("jax_compilation_cache_dir", before)
+
+
+def test_importing_the_package_changes_no_jax_setting():
+    # The command line turns the cache on, a script calls enable_compilation_cache.
+    code = (
+        "import jax; before = {k: getattr(jax.config, k) for k in ('jax_compilation_cache_dir',"
+        " 'jax_persistent_cache_min_compile_time_secs', 'jax_compilation_cache_max_size')}\n"
+        "import cdog_jax\n"
+        "after = {k: getattr(jax.config, k) for k in before}\n"
+        "assert after == before, (before, after)\n"
+        "assert cdog_jax.enable_compilation_cache() is not None and jax.config.jax_compilation_cache_dir\n"
+    )
+    env = dict(os.environ, CDOG_JAX_CACHE="1", JAX_PLATFORMS="cpu")
+    subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120, check=True)

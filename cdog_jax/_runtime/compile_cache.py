@@ -1,8 +1,10 @@
-"""A persistent cache of compiled programs, on by default.
+"""A persistent cache of compiled programs: on in the command line, one call in a script.
 
 JAX compiles every new shape and structure on first use: seconds per program on a CPU. A
 compiled program is stored on disk and loaded the next time any process needs it, so only
-the first run on a machine pays for compilation.
+the first run on a machine pays for compilation. Importing ``cdog_jax`` changes no JAX
+setting: the command line turns the cache on, a library user calls
+:func:`cdog_jax.enable_compilation_cache` once, before the first association.
 
 Where: the per-user cache folder of the platform (``$XDG_CACHE_HOME/cdog_jax`` or
 ``~/.cache/cdog_jax`` on Linux, ``~/Library/Caches/cdog_jax`` on macOS,
@@ -54,8 +56,10 @@ def cache_dir_from_environment() -> Path | None:
     return root / f"jax-{jax.__version__}"
 
 
-def enable_compilation_cache(path: str | os.PathLike[str] | None = None) -> Path | None:
-    """Store compiled programs in ``path`` (default: :func:`cache_dir_from_environment`).
+def enable_compilation_cache(*, path: str | os.PathLike[str] | None = None) -> Path | None:
+    """Store compiled programs on disk and load them in later processes: JAX's persistent
+    compilation cache, for this whole process, in ``path`` (default: the per-user cache
+    folder, or ``CDOG_JAX_CACHE_DIR``; ``CDOG_JAX_CACHE=0`` makes this call do nothing).
 
     Returns the folder in use, or None when the cache is off or cannot be created (then
     everything still works, only without reuse across processes). Does nothing when JAX's

@@ -72,10 +72,12 @@ def main(argv: Sequence[str | os.PathLike[str]] | None = None) -> int:
         from ..benchmark._cpu_cores import use_cpu_cores
 
         use_cpu_cores(count=_cpu_devices_from_environment())
-    if args.no_cache:
-        from .._runtime.compile_cache import disable_compilation_cache
+    from .._runtime.compile_cache import disable_compilation_cache, enable_compilation_cache
 
+    if args.no_cache:
         disable_compilation_cache()
+    else:
+        enable_compilation_cache()  # importing the package leaves JAX's settings alone
     try:
         return args.func(args)
     # A bad file, path or value, or a scene too large for memory; other exceptions are bugs.
