@@ -49,3 +49,11 @@ def test_docstring_states_shapes(key, fn):
     annotations = " ".join(str(p.annotation) for p in sig.parameters.values()) + str(sig.return_annotation)
     if "Array" in annotations or "Rig" in annotations:
         assert SHAPE.search(inspect.getdoc(fn)), f"{key}: docstring states no shape"
+
+
+@pytest.mark.parametrize("module", MODULES + [cdog_jax.baselines], ids=lambda m: m.__name__)
+def test_no_subpackage_is_a_name_of_all(module):
+    # Subpackages stay reachable as attributes (cdog_jax.io, cdog_jax.geometry, ...); a star
+    # import gives functions, classes and constants only.
+    names = getattr(module, "__all__", [])
+    assert not [name for name in names if inspect.ismodule(getattr(module, name))], names

@@ -4,6 +4,7 @@ the package stays quick: ``cdog_jax``'s figures, ``cdog_jax.benchmark``'s sweep.
 from __future__ import annotations
 
 import importlib
+import types
 from collections.abc import Callable, Mapping
 
 
@@ -11,7 +12,8 @@ def load_on_first_use(namespace: dict, later: Mapping[str, str]) -> tuple[Callab
     """``(__getattr__, __dir__, __all__)`` for the package whose globals are ``namespace``:
     each name of ``later`` (name → module, relative to the package) is imported from its
     module when first read, then kept in ``namespace``. ``__dir__`` and ``__all__`` list
-    these names beside the package's public globals (a star import loads them too)."""
+    these names beside the package's public globals (a star import loads them too); the
+    subpackages are attributes, not names of ``__all__``."""
     package = namespace["__name__"]
 
     def __getattr__(name: str):
@@ -24,5 +26,6 @@ def load_on_first_use(namespace: dict, later: Mapping[str, str]) -> tuple[Callab
     def __dir__() -> list[str]:
         return sorted(set(namespace) | set(later))
 
-    public = sorted({name for name in namespace if not name.startswith("_")} | set(later))
+    names = {name for name, value in namespace.items() if not name.startswith("_") and not isinstance(value, types.ModuleType)}
+    public = sorted(names | set(later))
     return __getattr__, __dir__, public
