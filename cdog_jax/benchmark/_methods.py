@@ -33,7 +33,7 @@ class _NamedMethods(Mapping):
 
 
 METHODS: Mapping[str, Callable[[], Method]] = _NamedMethods()
-DEFAULT_METHODS = ("paper", "no_iqr", "reference", "extended")
+DEFAULT_METHODS = ("best", "extended", "paper", "reference")
 
 
 def ablation_stages() -> dict[str, Config]:

@@ -63,3 +63,15 @@ def test_benchmark_rig_file_with_explicit_box(tmp_path, capsys):
     assert "image 640×480 px (the rig file)" in text and "(--box)" in text
     assert "bucket 1/1" not in text  # --no-progress: no report between buckets
     np.testing.assert_allclose(load_results(out).box, [[-0.5, -0.5, 0.0], [0.5, 0.5, 0.4]], rtol=1e-6)
+
+
+def test_the_benchmark_runs_the_default_method_of_every_entry_point():
+    import inspect
+
+    from cdog_jax._method import method_argument
+    from cdog_jax.cli._cli import build_parser
+
+    default = inspect.signature(method_argument).parameters["default"].default
+    args = build_parser().parse_args(["benchmark", "--quick"])
+    assert args.methods[0] == default == "best" and "no_iqr" not in args.methods
+    assert build_parser().parse_args(["associate", "--rig", "r", "--points", "p"]).method == default
