@@ -18,32 +18,20 @@ import jax.numpy as jnp
 import numpy as np
 
 import cdog_jax
-from cdog_jax.baselines import (
-    ComponentsOptions,
-    GreedyOptions,
-    VotingOptions,
-    components_groups,
-    greedy_groups,
-    voting_groups,
-)
+from cdog_jax.baselines import Components, Greedy, Voting
 from cdog_jax.geometry import epipolar_distances
 from cdog_jax.synthetic import default_rig, generate_scene
 
-METHODS = {
-    "greedy (K=2)": (greedy_groups, GreedyOptions()),
-    "CCA": (components_groups, ComponentsOptions()),
-    "voting": (voting_groups, VotingOptions()),
-}
+METHODS = {"greedy (K=2)": Greedy(), "CCA": Components(), "voting": Voting()}
 
 
-def method_fn(fn, options):
-    """One scene, as a method wrapper runs it: distances, gate, then the method."""
+def method_fn(method):
+    """One scene, as a method wrapper runs it: distances, gate, then the method's groups."""
 
     def run(rig, xy, mask, sigma):
         d = epipolar_distances(rig, xy, mask)
         tau = jnp.maximum(2.0 * math.sqrt(2.0) * sigma, 1.0).astype(xy.dtype)
-        numbers = {name: jnp.asarray(getattr(options, name), xy.dtype) for name in options.NUMBERS}
-        return fn(rig, xy, mask, d, tau, sigma, numbers, options)
+        return method.group_table(rig, xy, mask, d, sigma, tau, method.thresholds(sigma, dtype=xy.dtype))
 
     return jax.jit(run)
 
@@ -71,7 +59,7 @@ def pair_counts(labels, instance, mask):
 
 def accuracy(sigmas, scenes, views, points, capacity):
     rig = default_rig(num_views=views)
-    fns = {name: method_fn(*m) for name, m in METHODS.items()}
+    fns = {name: method_fn(m) for name, m in METHODS.items()}
     rows = []
     for sigma in sigmas:
         totals = {name: np.zeros(3, int) for name in [*fns, "C-DOG extended()"]}
@@ -92,7 +80,7 @@ def timing(views, points, capacity, repeats):
     scenes = [generate_scene(jax.random.PRNGKey(1000 + k), rig, points, 1.0, capacity=capacity) for k in range(repeats)]
     out = {}
     for name, m in METHODS.items():
-        f = method_fn(*m)
+        f = method_fn(m)
         jax.block_until_ready(f(rig, scenes[0].xy, scenes[0].mask, jnp.float32(1.0)))  # compile
         times = []
         for s in scenes:

@@ -17,32 +17,19 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from cdog_jax.baselines import (
-    MatchSVTOptions,
-    SpectralClusteringOptions,
-    SpectralSyncOptions,
-    match_svt_groups,
-    spectral_clustering_groups,
-    spectral_sync_groups,
-)
-from cdog_jax.geometry._epipolar import epipolar_distances
+from cdog_jax.baselines import MatchSVT, SpectralClustering, SpectralSync
+from cdog_jax.geometry import epipolar_distances
 from cdog_jax.synthetic import default_rig, generate_scenes
 
-METHODS = {
-    "MatchEIG": (spectral_sync_groups, SpectralSyncOptions()),
-    "matchSVT": (match_svt_groups, MatchSVTOptions()),
-    "spectral clustering": (spectral_clustering_groups, SpectralClusteringOptions()),
-}
+METHODS = {"MatchEIG": SpectralSync(), "matchSVT": MatchSVT(), "spectral clustering": SpectralClustering()}
 
 
-def runner(fn, options, rig):
-    numbers = {name: jnp.asarray(getattr(options, name), rig.K.dtype) for name in options.NUMBERS}
-
+def runner(method, rig):
     @jax.jit
     def run(xy, mask, sigma):
         d = epipolar_distances(rig, xy, mask)
         tau = jnp.maximum(2.0 * jnp.sqrt(jnp.asarray(2.0, sigma.dtype)) * sigma, 1.0)
-        return fn(rig, xy, mask, d, tau, sigma, numbers, options)
+        return method.group_table(rig, xy, mask, d, sigma, tau, method.thresholds(sigma, dtype=rig.K.dtype))
 
     return run
 
@@ -74,8 +61,7 @@ def main():
     print("| method | σ (px) | pair precision | pair recall | warm s/scene (median) | (min) |")
     print("|---|---|---|---|---|---|")
     for name in args.methods:
-        fn, options = METHODS[name]
-        run = runner(fn, options, rig)
+        run = runner(METHODS[name], rig)
         for sigma in args.sigmas:
             scenes = generate_scenes(
                 jax.random.PRNGKey(0),

@@ -111,6 +111,7 @@ def test_a_second_process_loads_the_program_and_agrees(fresh_store, tmp_path):
 
     script = (
         "import sys, numpy as np, cdog_jax\n"
+        "cdog_jax.enable_compilation_cache()\n"  # as a script does: importing the package does not
         "sys.path.insert(0, sys.argv[2])\n"
         "from helpers import random_scene, ring_rig\n"
         "xy, mask, _, _ = random_scene(ring_rig(4), 12, 20, sigma=1.0, seed=7)\n"

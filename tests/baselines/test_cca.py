@@ -11,7 +11,7 @@ components are the points, none of which needs a split.
 import numpy as np
 from pairwise_baseline_checks import conformance, distances, gate, group_sets, jitted, random_scene
 
-from cdog_jax.baselines import ComponentsOptions, components_groups
+from cdog_jax.baselines._components import ComponentsOptions, components_groups
 
 
 def cca_numpy(d, mask, tau, max_rounds):

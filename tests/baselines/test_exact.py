@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from cdog_jax import associate, associate_batch
-from cdog_jax.baselines import Exact, exact_groups
+from cdog_jax.baselines import Exact
+from cdog_jax.baselines._exact import exact_groups
 from cdog_jax.baselines._exact import MAX_POINTS, clique_cost, gated_cost
 from cdog_jax.benchmark import Grid, sweep
 from cdog_jax.geometry import epipolar_distances

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from pairwise_baseline_checks import conformance, distances, gate, group_sets, jitted, random_scene
 
-from cdog_jax.baselines import GreedyOptions, greedy_groups
+from cdog_jax.baselines._greedy import GreedyOptions, greedy_groups
 
 
 def greedy_numpy(d, mask, tau, k):

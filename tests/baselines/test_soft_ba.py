@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 from pairwise_baseline_checks import check_table, conformance, group_sets, hand_scene, jitted, pair_scores, random_scene, run
 
-from cdog_jax.baselines import SoftBAOptions, VotingOptions, soft_ba_groups, voting_groups
+from cdog_jax.baselines._soft_ba import SoftBAOptions, soft_ba_groups
+from cdog_jax.baselines._voting import VotingOptions, voting_groups
 from cdog_jax.synthetic import default_rig
 
 

@@ -12,7 +12,8 @@ import pytest
 from scipy.sparse import csr_array
 
 from cdog_jax import Observations, associate
-from cdog_jax.baselines import StCut, st_cut_groups
+from cdog_jax.baselines import StCut
+from cdog_jax.baselines._st_cut import st_cut_groups
 from cdog_jax.baselines._st_cut import min_cut_source_side
 from cdog_jax.benchmark import Grid, sweep
 from cdog_jax.geometry import epipolar_distances

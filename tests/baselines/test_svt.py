@@ -1,4 +1,4 @@
-from cdog_jax.baselines import MatchSVTOptions, match_svt_groups
+from cdog_jax.baselines._svt import MatchSVTOptions, match_svt_groups
 from matrix_baseline_checks import check_hand_scene, check_jit_vmap_padding_permutation, check_noise_free
 
 OPTIONS = MatchSVTOptions()

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from pairwise_baseline_checks import check_table, conformance, group_sets, hand_scene, jitted, run
 
-from cdog_jax.baselines import VotingOptions, voting_groups
+from cdog_jax.baselines._voting import VotingOptions, voting_groups
 from cdog_jax.geometry import project
 from cdog_jax.synthetic import default_rig
 
