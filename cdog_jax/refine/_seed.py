@@ -92,7 +92,10 @@ def _all_hypotheses(rig, xy, mask, free, d, blocks, tau_px, gate_px, support_px,
     M, P = free.shape
     N = M * P
     d = d.reshape(N, N)
-    make = lambda sources: _hypotheses_of(rig, xy, mask, free, d, blocks, sources, tau_px, gate_px, support_px, min_views)
+
+    def make(sources):
+        return _hypotheses_of(rig, xy, mask, free, d, blocks, sources, tau_px, gate_px, support_px, min_views)
+
     if N <= SOURCE_CHUNK:
         return make(jnp.arange(N, dtype=jnp.int32))
     C = SOURCE_CHUNK
