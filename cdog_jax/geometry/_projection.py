@@ -45,17 +45,24 @@ def project_views_last(rig: Rig, X_world: Float[Array, "*S 3"]) -> tuple[Float[A
     return xy, ok & (depth > 0)
 
 
+def pixel_distances(pix: Float[Array, "*S M 2"], xy: Float[Array, "M P 2"]) -> Float[Array, "*S M P"]:
+    """Pixel distance ``(*S, M, P)`` from a pixel per view ``pix (*S, M, 2)`` to every slot of
+    that view's detections ``xy (M, P, 2)``. With x and y apart and no gather, XLA vectorises
+    the table along the slots (a trailing axis of length 2 would keep it from doing so)."""
+    lead = (None,) * (pix.ndim - 2)  # the axes of S
+    dx = pix[..., None, 0] - xy[lead + (..., 0)]
+    dy = pix[..., None, 1] - xy[lead + (..., 1)]
+    return jnp.sqrt(dx * dx + dy * dy)
+
+
 def distances_to_detections(
     rig: Rig, X_world: Float[Array, "G 3"], xy: Float[Array, "M P 2"]
 ) -> tuple[Float[Array, "G M P"], Bool[Array, "G M"]]:
     """Pixel distance ``(G, M, P)`` from every point ``X (G, 3)`` projected into each view to
     every slot of that view's detections ``xy (M, P, 2)`` (mask them as needed), and whether
-    each point is in front of each camera ``(G, M)``. With x and y apart and no gather, XLA
-    vectorises the table along the slots."""
+    each point is in front of each camera ``(G, M)``."""
     pix, in_front = project_views_last(rig, X_world)  # (G, M, 2), (G, M)
-    dx = pix[:, :, None, 0] - xy[None, :, :, 0]
-    dy = pix[:, :, None, 1] - xy[None, :, :, 1]
-    return jnp.sqrt(dx * dx + dy * dy), in_front
+    return pixel_distances(pix, xy), in_front
 
 
 def reprojection_errors(rig: Rig, X_world: Float[Array, "*S 3"], xy: Float[Array, "M *S 2"]) -> Float[Array, "M *S"]:

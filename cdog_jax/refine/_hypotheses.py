@@ -8,7 +8,7 @@ import jax.numpy as jnp
 
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
-from ..geometry._projection import project_views_last
+from ..geometry._projection import pixel_distances, project_views_last
 from ..geometry._triangulate import solve_normal_3x3
 
 
@@ -37,12 +37,8 @@ def voter_distances(
 ) -> Float[Array, "*S M P"]:
     """Pixel distance ``(*S, M, P)`` from each hypothesis' point ``xy_hat (*S, M, 2)`` to every
     eligible detection of a view where it may vote (``vote_views (*S, M)``); ``inf`` elsewhere."""
-    lead = (None,) * (vote_views.ndim - 1)  # the axes of S
-    votes = eligible[lead] & vote_views[..., None]  # (*S, M, P)
-    # x and y apart: a trailing axis of length 2 would keep XLA from vectorising the table.
-    dx = jnp.where(votes, xy_hat[..., None, 0] - xy[lead + (..., 0)], 0.0)
-    dy = jnp.where(votes, xy_hat[..., None, 1] - xy[lead + (..., 1)], 0.0)
-    return jnp.where(votes, jnp.sqrt(dx * dx + dy * dy), jnp.inf)
+    votes = eligible[(None,) * (vote_views.ndim - 1)] & vote_views[..., None]  # (*S, M, P)
+    return jnp.where(votes, pixel_distances(xy_hat, xy), jnp.inf)
 
 
 def score_hypotheses(
