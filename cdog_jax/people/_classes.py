@@ -352,13 +352,30 @@ SAMPLE_CHUNK = 4096
 this many (the last padded with empty scenes), so that memory stays flat in its length."""
 
 
-def _chunked_samples(rig, scenes: _Scenes, dist, dtype, robust: bool) -> list[np.ndarray]:
-    """:func:`_nearest_samples` of every scene, as host arrays ``(B, …)``: in one call up to
-    :data:`SAMPLE_CHUNK` scenes, else in chunks of that many (one program)."""
+class _UsedSamples(NamedTuple):
+    """The used entries (weight > 0) of every scene's σ samples, in scene order: what the σ
+    fit reads, without the padding that most of a scene's sample table is."""
+
+    values: list[np.ndarray]  # per array of :func:`_nearest_samples`: (K,) the used entries
+    per_scene: np.ndarray  # (B,) used entries of each scene
+    largest_count: np.ndarray  # (B,) each scene's largest view count (the fit reads it)
+
+
+def _used(samples, B: int) -> _UsedSamples:
+    """:class:`_UsedSamples` of the host arrays of :func:`_nearest_samples` for ``B`` scenes."""
+    flat = [np.asarray(a).reshape(B, -1) for a in samples]
+    used = flat[1] > 0
+    return _UsedSamples([a[used] for a in flat], used.sum(axis=1), flat[2].max(axis=1))
+
+
+def _chunked_samples(rig, scenes: _Scenes, dist, dtype, robust: bool) -> _UsedSamples:
+    """The used entries of :func:`_nearest_samples` of every scene: in one call up to
+    :data:`SAMPLE_CHUNK` scenes, else in chunks of that many (one program), each chunk cut to
+    its used entries before the next is made (so a long recording holds only those)."""
     B = len(scenes.frame)
     xy, mask = scenes.xy, scenes.mask
     if B <= SAMPLE_CHUNK:
-        return [np.asarray(a) for a in call_stored(_nearest_samples, (rig, np.asarray(xy, dtype), mask, dist), robust=robust)]
+        return _used(call_stored(_nearest_samples, (rig, np.asarray(xy, dtype), mask, dist), robust=robust), B)
     parts = []
     for start in range(0, B, SAMPLE_CHUNK):
         x, m = xy[start : start + SAMPLE_CHUNK], mask[start : start + SAMPLE_CHUNK]
@@ -367,8 +384,12 @@ def _chunked_samples(rig, scenes: _Scenes, dist, dtype, robust: bool) -> list[np
             x = np.concatenate([x, np.zeros((pad, *x.shape[1:]), x.dtype)])
             m = np.concatenate([m, np.zeros((pad, *m.shape[1:]), bool)])
         out = call_stored(_nearest_samples, (rig, np.asarray(x, dtype), m, dist), robust=robust)
-        parts.append([np.asarray(a)[: SAMPLE_CHUNK - pad] for a in out])
-    return [np.concatenate(arrays) for arrays in zip(*parts)]
+        parts.append(_used([np.asarray(a)[: SAMPLE_CHUNK - pad] for a in out], SAMPLE_CHUNK - pad))
+    return _UsedSamples(
+        [np.concatenate(arrays) for arrays in zip(*(p.values for p in parts))],
+        np.concatenate([p.per_scene for p in parts]),
+        np.concatenate([p.largest_count for p in parts]),
+    )
 
 
 def _pooled_sigma(rig, scenes: _Scenes, F: int, dist, dtype, pool: str, estimator: str, min_samples: int = 0) -> np.ndarray:
@@ -380,7 +401,7 @@ def _pooled_sigma(rig, scenes: _Scenes, F: int, dist, dtype, pool: str, estimato
     samples = _chunked_samples(rig, scenes, d, dtype, robust)
     group = scenes.frame if pool == "frame" else np.zeros_like(scenes.frame)
     G = F if pool == "frame" else 1
-    tables = _sample_tables([np.asarray(a).reshape(len(group), -1) for a in samples], group, G, min_samples)
+    tables = _sample_tables(samples, group, G, min_samples)
     sigma = _chunked_fit(_pooled_robust_fit if robust else _pooled_fit, tables, focal_scale(np.asarray(rig.K)))
     return sigma if pool == "frame" else np.full(F, sigma[0])
 
@@ -415,31 +436,29 @@ def _chunked_fit(fit, tables: list[np.ndarray], focal) -> np.ndarray:
     return np.concatenate([np.asarray(sigma)[:n] for sigma, n in out])
 
 
-def _sample_tables(samples: list[np.ndarray], group: np.ndarray, G: int, min_width: int = 0) -> list:
-    """The σ fit's inputs, ``(G, S)`` per array: each group's used samples (weight > 0) side
-    by side, in scene order, then padding of weight 0 up to the ladder rung above the
-    largest group's count and ``min_width`` (so few table shapes are compiled). ``samples``: the arrays of
-    :func:`_nearest_samples` flattened per scene ``(B, ·)`` (distance, weight, count[, second
-    distance]); ``group (B,)`` each scene's group, sorted.
+def _sample_tables(samples: _UsedSamples, group: np.ndarray, G: int, min_width: int = 0) -> list:
+    """The σ fit's inputs, ``(G, S)`` per array: each group's used samples side by side, in
+    scene order, then padding of weight 0 up to the ladder rung above the largest group's
+    count and ``min_width`` (so few table shapes are compiled). ``samples``: the used entries
+    of :func:`_nearest_samples` (distance, weight, count[, second distance]); ``group (B,)``
+    each scene's group, sorted.
 
     Only the used samples enter the fit: a frame's table is mostly padding (empty slots, empty
     classes, a view against itself), and the EM's cost is per entry. The one number the fit
     reads from unused entries, the largest view count, is kept in every padding entry."""
-    weight, count = samples[1], samples[2]
-    used = weight > 0
-    per_group = np.bincount(group, weights=used.sum(axis=1), minlength=G).astype(np.int64)
+    per_group = np.bincount(group, weights=samples.per_scene, minlength=G).astype(np.int64)
     width = ladder_rung(max(int(per_group.max()) + 1, min_width), 16)  # + 1: room for the largest count
-    rows = np.repeat(group, used.sum(axis=1))  # the group of each used sample, in order
+    rows = np.repeat(group, samples.per_scene)  # the group of each used sample, in order
     start = np.r_[0, np.cumsum(per_group)[:-1]]
     column = np.arange(len(rows)) - start[rows]
-    largest = np.zeros(G, count.dtype)
-    np.maximum.at(largest, group, count.max(axis=1))
+    largest = np.zeros(G, samples.largest_count.dtype)
+    np.maximum.at(largest, group, samples.largest_count)
     tables = []
-    for k, a in enumerate(samples):  # padding: weight 0, distance 0; count the group's largest
+    for k, a in enumerate(samples.values):  # padding: weight 0, distance 0; count the group's largest
         table = np.zeros((G, width), a.dtype)
         if k == 2:
             table[:] = largest[:, None]
-        table[rows, column] = a[used]
+        table[rows, column] = a
         tables.append(table)
     return tables
 
