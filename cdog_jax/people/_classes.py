@@ -406,7 +406,7 @@ def _pooled_sigma(rig, scenes: _Scenes, F: int, dist, dtype, pool: str, estimato
     return sigma if pool == "frame" else np.full(F, sigma[0])
 
 
-FIT_ELEMENTS = 1 << 20
+FIT_ELEMENTS = 1 << 18
 """Entries (rows × samples) of the σ fit's table in one call: a long recording's frames are
 fitted in chunks of rows (the last padded with empty rows), so that the EM's temporaries stay
 the same size whatever its length. Each row's fit is its own (bitwise the same in any chunk)."""
@@ -425,15 +425,18 @@ def _chunked_fit(fit, tables: list[np.ndarray], focal) -> np.ndarray:
     if G <= rows:
         return np.asarray(call_stored(fit, (*tables, focal))[0])
     starts = range(0, G, rows)
-    out = []
+    done, running = [], []
     for start, device in zip(starts, chunk_devices(len(starts))):
+        if len(running) == devices:  # one chunk in flight per device: one's temporaries each
+            done += [np.asarray(sigma)[:n] for sigma, n in running]
+            running = []
         part = [t[start : start + rows] for t in tables]
         n = len(part[0])
         if n < rows:  # empty rows: weight 0, discarded
             part = [np.concatenate([t, np.zeros((rows - n, S), t.dtype)]) for t in part]
         args = (*part, focal) if device is None else jax.device_put((*part, focal), device)
-        out.append((call_stored(fit, args)[0], n))  # dispatched; the host waits below
-    return np.concatenate([np.asarray(sigma)[:n] for sigma, n in out])
+        running.append((call_stored(fit, args)[0], n))  # dispatched; the host waits above
+    return np.concatenate(done + [np.asarray(sigma)[:n] for sigma, n in running])
 
 
 def _sample_tables(samples: _UsedSamples, group: np.ndarray, G: int, min_width: int = 0) -> list:
