@@ -15,16 +15,22 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .cdog._pipeline import Config
 from ._expect import INT, expect, expect_args
-from ._runtime.memory import check_memory
 from ._method import Method, Observations, method_argument
 from ._result import Association, association_from_groups
-from ._runtime.shapes import chunk_size, occupied_slots, pad_scenes, pad_slots, slot_capacity, trim
 from ._runtime.devices import chunk_devices
+from ._runtime.memory import check_memory
+from ._runtime.shapes import chunk_size, occupied_slots, pad_scenes, pad_slots, slot_capacity, trim
 from ._runtime.stored_programs import call_stored
 from ._types import Array, ArrayLike, Float, Int
-from ._validate import as_array, check_batch_rig, check_observations, check_rig, check_sigma, check_threshold_shapes
+from ._validate import (
+    as_array,
+    check_batch_rig,
+    check_observations,
+    check_rig,
+    check_sigma,
+    check_threshold_shapes,
+)
 from .geometry._camera import Rig
 from .geometry._distortion import Fisheye, undistorted
 from .geometry._projection import group_errors
@@ -37,7 +43,9 @@ def check_thresholds_type(thresholds, method: Method, where: str) -> None:
     """``thresholds`` is None or of the type of ``method.thresholds()``."""
     kind = type(method.thresholds())
     if thresholds is not None and not isinstance(thresholds, kind):
-        raise TypeError(f"{where}: thresholds must be {kind.__name__} or None; got {type(thresholds).__name__}")
+        raise TypeError(
+            f"{where}: thresholds must be {kind.__name__} or None; got {type(thresholds).__name__}"
+        )
 
 
 def _run_scene(rig, xy, mask, th, method):
@@ -64,7 +72,12 @@ def _prepare(method: Method, sigma, thresholds, dtype):
         thresholds = thresholds._replace(sigma_px=sigma)
     # NumPy scalars go to the jitted call as they are (cheaper than one device array each).
     np_dtype = np.dtype(jax.dtypes.canonicalize_dtype(dtype))
-    thresholds = type(thresholds)(*(jnp.asarray(v, dtype) if isinstance(v, jax.Array) else np.asarray(v, np_dtype) for v in thresholds))
+    thresholds = type(thresholds)(
+        *(
+            jnp.asarray(v, dtype) if isinstance(v, jax.Array) else np.asarray(v, np_dtype)
+            for v in thresholds
+        )
+    )
     return method.structure(), thresholds
 
 
@@ -142,7 +155,9 @@ def associate(
         check_threshold_shapes(thresholds, None)
     dtype = _float_dtype(xy)
     M, P = np.shape(mask)
-    capacity = _capacity("associate", M, occupied_slots(mask), method, dtype, 1, memory_budget_gb, vmapped=None)
+    capacity = _capacity(
+        "associate", M, occupied_slots(mask), method, dtype, 1, memory_budget_gb, vmapped=None
+    )
     static, th = _prepare(method, sigma, thresholds, dtype)
     np_dtype = np.dtype(dtype)
     xy = pad_slots(np.asarray(xy, np_dtype), capacity, axis=1)
@@ -154,7 +169,11 @@ def associate(
             extras = (extras[0], pad_slots(extras[1], capacity, axis=1), extras[2])
         return trim(_associate_host(rig, xy, mask, th, extras, static), P)
     if extras is not None:
-        extras = (extras[0], None if extras[1] is None else pad_slots(extras[1], capacity, axis=1), extras[2])
+        extras = (
+            extras[0],
+            None if extras[1] is None else pad_slots(extras[1], capacity, axis=1),
+            extras[2],
+        )
     return trim(_single_scene(rig, xy, mask, th, extras, static), P)
 
 
@@ -184,19 +203,25 @@ def _check_extras(dist, weights, min_views, mask_shape, dtype):
     """Checked ``(dist, weights, min_views)`` as NumPy arrays of ``dtype``, or None when all
     are defaults (then the plain pipeline runs)."""
     if not isinstance(min_views, (int, np.integer)) or isinstance(min_views, bool) or min_views < 2:
-        raise ValueError(f"min_views must be an int >= 2 (a group needs two views); got {min_views!r}")
+        raise ValueError(
+            f"min_views must be an int >= 2 (a group needs two views); got {min_views!r}"
+        )
     if dist is None and weights is None and min_views == 2:
         return None
     M = mask_shape[-2]
     if isinstance(dist, Fisheye):
         coeffs = np.asarray(dist.coeffs)
         if coeffs.shape != (M, 4) or not np.isfinite(coeffs).all():
-            raise ValueError(f"dist: Fisheye coefficients must be finite with shape (M, 4) = ({M}, 4); got shape {coeffs.shape}")
+            raise ValueError(
+                f"dist: Fisheye coefficients must be finite with shape (M, 4) = ({M}, 4); got shape {coeffs.shape}"
+            )
         dist = Fisheye(jnp.asarray(coeffs, dtype))
     elif dist is not None:
         dist_h = np.asarray(dist)
         if dist_h.shape != (M, 5):
-            raise ValueError(f"dist must have shape (M, 5) = ({M}, 5), OpenCV (k1, k2, p1, p2, k3) per view; got {dist_h.shape}")
+            raise ValueError(
+                f"dist must have shape (M, 5) = ({M}, 5), OpenCV (k1, k2, p1, p2, k3) per view; got {dist_h.shape}"
+            )
         if not np.isfinite(dist_h).all():
             view = int(np.argwhere(~np.isfinite(dist_h))[0, 0])
             raise ValueError(f"dist of view {view} has non-finite entries")
@@ -204,11 +229,15 @@ def _check_extras(dist, weights, min_views, mask_shape, dtype):
     if weights is not None:
         w_h = np.asarray(weights)
         if w_h.shape != tuple(mask_shape):
-            raise ValueError(f"weights must have the shape of mask {tuple(mask_shape)}; got {w_h.shape}")
+            raise ValueError(
+                f"weights must have the shape of mask {tuple(mask_shape)}; got {w_h.shape}"
+            )
         bad = ~(np.isfinite(w_h) & (w_h >= 0))
         if bad.any():
             where = ", ".join(str(int(i)) for i in np.argwhere(bad)[0])
-            raise ValueError(f"weights must be finite and >= 0; got {float(w_h[bad][0])!r} at index ({where})")
+            raise ValueError(
+                f"weights must be finite and >= 0; got {float(w_h[bad][0])!r} at index ({where})"
+            )
         weights = np.asarray(weights, dtype)
     return dist, weights, np.asarray(min_views, np.int32)
 
@@ -246,12 +275,18 @@ def finish_groups(
         w_g = jnp.where(member, gather_groups(groups, weights), 0.0)
         X_w, ok = triangulate_views_last(rig, xy_g, member, weights=w_g)
         X = jnp.where(ok[:, None], X_w, X)  # fewer than 2 weighted views: the gate dissolves it
-    member, keep, X = validity_gate(rig, xy_g, member, X, result.tau_px, th.max_err_frac, th.min_parallax_deg, weights=w_g)
-    keep = keep & (jnp.sum(member, axis=1, dtype=jnp.int32) >= min_views)  # detaching may leave fewer
+    member, keep, X = validity_gate(
+        rig, xy_g, member, X, result.tau_px, th.max_err_frac, th.min_parallax_deg, weights=w_g
+    )
+    keep = keep & (
+        jnp.sum(member, axis=1, dtype=jnp.int32) >= min_views
+    )  # detaching may leave fewer
     member = member & keep[:, None]
     groups = jnp.where(member, groups, -1)
     bpe, err_px = group_errors(rig, X, xy_g, member)
-    return association_from_groups(groups, keep, member, X, bpe, err_px, P, result.sigma_px, result.tau_px, result.status)
+    return association_from_groups(
+        groups, keep, member, X, bpe, err_px, P, result.sigma_px, result.tau_px, result.status
+    )
 
 
 def _associate_one(rig, xy, mask, th, dist, weights, min_views, method):
@@ -331,9 +366,18 @@ def associate_batch(
     :func:`associate`); ``status`` is per scene.
     """
     return associate_batch_at(
-        rig, xy, mask, method=method, sigma=sigma, thresholds=thresholds, batch_size=batch_size, dist=dist,
-        weights=weights, min_views=min_views, memory_budget_gb=memory_budget_gb,
-    )  # fmt: skip
+        rig,
+        xy,
+        mask,
+        method=method,
+        sigma=sigma,
+        thresholds=thresholds,
+        batch_size=batch_size,
+        dist=dist,
+        weights=weights,
+        min_views=min_views,
+        memory_budget_gb=memory_budget_gb,
+    )
 
 
 def associate_batch_at(
@@ -373,10 +417,14 @@ def associate_batch_at(
     M, P = np.shape(mask)[1:]
     chunk = chunk_size(B, batch_size)
     in_use = max(occupied_slots(mask), int(min_slots))
-    capacity = _capacity("associate_batch", M, in_use, method, dtype, chunk, memory_budget_gb, vmapped=True)
+    capacity = _capacity(
+        "associate_batch", M, in_use, method, dtype, chunk, memory_budget_gb, vmapped=True
+    )
     static, th = _prepare(method, sigma, thresholds, dtype)
     if dist is not None and not shared:
-        raise ValueError("dist needs a shared rig (K of shape (M, 3, 3)); undistort per-scene rigs yourself")
+        raise ValueError(
+            "dist needs a shared rig (K of shape (M, 3, 3)); undistort per-scene rigs yourself"
+        )
     np_dtype = np.dtype(dtype)
     extras = _check_extras(dist, weights, min_views, tuple(np.shape(mask)), np_dtype)
     padded = -(-B // chunk) * chunk  # whole chunks; padded scenes repeat the last one
@@ -393,15 +441,25 @@ def associate_batch_at(
             static.check_scene(mask[b], f"associate_batch (scene {b})")
         for b in range(B):
             rig_b = rig if shared else Rig(*(jnp.asarray(a[b]) for a in rig_arrays))
-            extras_b = None if extras is None else (extras[0], None if extras[1] is None else extras[1][b], extras[2])
-            one = _associate_host(rig_b, xy[b], mask[b], type(th)(*(v[b] for v in th)), extras_b, static)
+            extras_b = (
+                None
+                if extras is None
+                else (extras[0], None if extras[1] is None else extras[1][b], extras[2])
+            )
+            one = _associate_host(
+                rig_b, xy[b], mask[b], type(th)(*(v[b] for v in th)), extras_b, static
+            )
             results.append(jax.tree.map(lambda a: np.asarray(a)[None], one))
         padded = 0
     elif chunk == 1:  # one scene at a time: the single-scene program (no vmap to trace)
         for b in range(B):
             rig_b = rig if shared else Rig(*(jnp.asarray(a[b]) for a in rig_arrays))
             th_b = type(th)(*(v[b] for v in th))
-            extras_b = None if extras is None else (extras[0], None if extras[1] is None else extras[1][b], extras[2])
+            extras_b = (
+                None
+                if extras is None
+                else (extras[0], None if extras[1] is None else extras[1][b], extras[2])
+            )
             one = _single_scene(rig_b, xy[b], mask[b], th_b, extras_b, static)
             results.append(jax.tree.map(lambda a: np.asarray(a)[None], one))
         padded = 0
@@ -411,11 +469,17 @@ def associate_batch_at(
     for start, device in zip(range(0, padded, chunk), devices):
         part = slice(start, start + chunk)
         rig_part = rig if shared else Rig(*(jnp.asarray(a[part]) for a in rig_arrays))
-        extras_part = None if extras is None else (extras[0], None if extras[1] is None else extras[1][part], extras[2])
+        extras_part = (
+            None
+            if extras is None
+            else (extras[0], None if extras[1] is None else extras[1][part], extras[2])
+        )
         args = (rig_part, xy[part], mask[part], type(th)(*(v[part] for v in th)), extras_part)
         if device is not None:
             args = jax.device_put(args, device)
         results.append(call_stored(_associate_batch_jit, args, static, shared_rig=shared))
     if len(results) > 1:
-        results = [jax.tree.map(lambda *parts: np.concatenate([np.asarray(p) for p in parts]), *results)]
+        results = [
+            jax.tree.map(lambda *parts: np.concatenate([np.asarray(p) for p in parts]), *results)
+        ]
     return trim(results[0], P, num_scenes=B)

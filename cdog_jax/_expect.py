@@ -33,16 +33,24 @@ def _is_array_like(value) -> bool:
 
 ARRAY = Kind("an array (jax.Array, numpy.ndarray, list or number)", _is_array_like)
 PATH = Kind("a path (str or os.PathLike)", lambda v: isinstance(v, (str, os.PathLike)))
-INT = Kind("an int", lambda v: isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_)))
+INT = Kind(
+    "an int", lambda v: isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+)
 REAL = Kind(
     "a real number",
-    lambda v: isinstance(v, (numbers.Real, np.floating, np.integer)) and not isinstance(v, (bool, np.bool_)),
+    lambda v: (
+        isinstance(v, (numbers.Real, np.floating, np.integer))
+        and not isinstance(v, (bool, np.bool_))
+    ),
 )
 
 
 def _describe_expected(expected) -> str:
     options = expected if isinstance(expected, tuple) else (expected,)
-    names = [o.description if isinstance(o, Kind) else ("None" if o is type(None) else o.__name__) for o in options]
+    names = [
+        o.description if isinstance(o, Kind) else ("None" if o is type(None) else o.__name__)
+        for o in options
+    ]
     return " or ".join(names)
 
 
@@ -58,7 +66,11 @@ def describe_value(value) -> str:
         text = repr(value)
         return name if value is None else f"{name} {text[:60] + '...' if len(text) > 60 else text}"
     shape = getattr(value, "shape", None)
-    return f"{name} of shape {tuple(shape)}" if shape is not None and not isinstance(value, type) else name
+    return (
+        f"{name} of shape {tuple(shape)}"
+        if shape is not None and not isinstance(value, type)
+        else name
+    )
 
 
 def expect(value, expected, name: str, function: str) -> None:
@@ -72,7 +84,9 @@ def expect(value, expected, name: str, function: str) -> None:
         function: the public function's name, as users call it.
     """
     if not _matches(value, expected):
-        raise TypeError(f"{function}: {name} must be {_describe_expected(expected)}; got {describe_value(value)}")
+        raise TypeError(
+            f"{function}: {name} must be {_describe_expected(expected)}; got {describe_value(value)}"
+        )
 
 
 def expect_args(function: str, **arguments) -> None:

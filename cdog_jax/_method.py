@@ -62,6 +62,7 @@ from .graph._sigma import estimate_sigma, focal_scale
 from .graph._sigma_robust import estimate_sigma_robust
 from .refine._validity import validity_gate
 
+
 class Observations(NamedTuple):
     """One scene's detections, a pytree: ``xy (M, P, 2)`` pixels, ``mask (M, P)`` bool (the
     slot holds a detection; other slots may hold anything), and optional ``weights (M, P)``
@@ -91,7 +92,7 @@ class Method(abc.ABC):
     jittable: ClassVar[bool] = True
 
     @abc.abstractmethod
-    def structure(self) -> "Method":
+    def structure(self) -> Method:
         """This method with its numbers reset to their defaults: the part a jit key needs."""
 
     @abc.abstractmethod
@@ -109,7 +110,9 @@ class Method(abc.ABC):
         """Raise ``ValueError`` for a concrete threshold outside its range (callers pass
         user-given thresholds through here before any work). Default: finite numbers."""
         if not isinstance(thresholds, type(self.thresholds())):
-            raise TypeError(f"thresholds must be a {type(self.thresholds()).__name__} (from thresholds()); got {type(thresholds).__name__}")
+            raise TypeError(
+                f"thresholds must be a {type(self.thresholds()).__name__} (from thresholds()); got {type(thresholds).__name__}"
+            )
         for name, value in zip(thresholds._fields, thresholds):
             if name == "sigma_px" or isinstance(value, jax.core.Tracer):
                 continue
@@ -122,7 +125,7 @@ class Method(abc.ABC):
         host, that this method cannot handle; called for every scene before any work.
         Default: every scene is fine."""
 
-    def replace(self, **changes) -> "Method":
+    def replace(self, **changes) -> Method:
         """A copy with ``changes`` applied (checked like a new instance)."""
         return dataclasses.replace(self, **changes)
 
@@ -146,7 +149,9 @@ def register_method(name: str, factory: Callable[[], Method]) -> None:
     (``method="name"``, ``cdog-jax associate --method name``,
     ``cdog-jax benchmark --methods name``). Re-registering a name replaces it."""
     if not isinstance(name, str) or not name or any(c in name for c in "/, "):
-        raise ValueError(f"register_method: name must be a non-empty string without '/', ',' or spaces; got {name!r}")
+        raise ValueError(
+            f"register_method: name must be a non-empty string without '/', ',' or spaces; got {name!r}"
+        )
     if not callable(factory):
         raise TypeError(f"register_method: factory must be callable; got {type(factory).__name__}")
     _REGISTRY[name] = factory
@@ -176,12 +181,18 @@ def method_from(method, where: str) -> Method:
         return method
     if isinstance(method, str):
         if method not in _REGISTRY:
-            raise ValueError(f"{where}: unknown method {method!r}; registered: {', '.join(_REGISTRY)}")
+            raise ValueError(
+                f"{where}: unknown method {method!r}; registered: {', '.join(_REGISTRY)}"
+            )
         made = _REGISTRY[method]()
         if not isinstance(made, Method):
-            raise TypeError(f"{where}: the factory registered as {method!r} made a {type(made).__name__}, not a Method")
+            raise TypeError(
+                f"{where}: the factory registered as {method!r} made a {type(made).__name__}, not a Method"
+            )
         return made
-    raise TypeError(f"{where}: method must be a Method or a registered name ({', '.join(_REGISTRY)}); got {type(method).__name__}")
+    raise TypeError(
+        f"{where}: method must be a Method or a registered name ({', '.join(_REGISTRY)}); got {type(method).__name__}"
+    )
 
 
 def method_argument(method, where: str, default: str | None = "best") -> Method:
@@ -210,7 +221,9 @@ def numbers_type(cls: type) -> type:
     """The ``NamedTuple`` of ``cls``'s numbers: ``sigma_px`` then its ``float`` fields (one
     type per class, made once)."""
     if cls not in _NUMBER_TYPES:
-        fields = [("sigma_px", Float[Array, ""])] + [(name, Float[Array, ""]) for name in _numeric_fields(cls)]
+        fields = [("sigma_px", Float[Array, ""])] + [
+            (name, Float[Array, ""]) for name in _numeric_fields(cls)
+        ]
         _NUMBER_TYPES[cls] = NamedTuple(f"{cls.__name__}Thresholds", fields)
     return _NUMBER_TYPES[cls]
 
@@ -233,11 +246,20 @@ class GroupTableMethod(Method):
 
     def __post_init__(self):
         if self.sigma_mode not in SIGMA_MODES:
-            raise ValueError(f"{type(self).__name__}.sigma_mode must be one of {SIGMA_MODES}; got {self.sigma_mode!r}")
+            raise ValueError(
+                f"{type(self).__name__}.sigma_mode must be one of {SIGMA_MODES}; got {self.sigma_mode!r}"
+            )
         for name in _numeric_fields(type(self)):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
-                raise ValueError(f"{type(self).__name__}.{name} must be a finite number >= 0; got {value!r}")
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, float))
+                or not np.isfinite(value)
+                or value < 0
+            ):
+                raise ValueError(
+                    f"{type(self).__name__}.{name} must be a finite number >= 0; got {value!r}"
+                )
         later = getattr(super(), "__post_init__", None)  # an options base class's own checks
         if later is not None:
             later()
@@ -263,30 +285,57 @@ class GroupTableMethod(Method):
         within a view and for padding); ``tau`` is the σ-matched gate (px). A valid group
         has ≥ 2 members, at most one per view, and groups are disjoint."""
         if self.GROUPS is None:
-            raise NotImplementedError(f"{type(self).__name__} must override group_table or set GROUPS")
+            raise NotImplementedError(
+                f"{type(self).__name__} must override group_table or set GROUPS"
+            )
         numbers = {name: getattr(thresholds, name) for name in getattr(self, "NUMBERS", ())}
         return type(self).GROUPS(rig, xy, mask, d, tau, sigma, numbers, self)
 
-    def structure(self) -> "GroupTableMethod":
+    def structure(self) -> GroupTableMethod:
         defaults = type(self)()
-        return dataclasses.replace(self, **{name: getattr(defaults, name) for name in _numeric_fields(type(self))})
+        return dataclasses.replace(
+            self, **{name: getattr(defaults, name) for name in _numeric_fields(type(self))}
+        )
 
     def thresholds(self, sigma_px=0.0, *, dtype=None) -> tuple:
         dtype = np.dtype(jax.dtypes.canonicalize_dtype(dtype or jnp.float32))
-        sigma = jnp.asarray(sigma_px, dtype) if isinstance(sigma_px, jax.Array) else np.asarray(sigma_px, dtype)
-        values = {name: np.asarray(getattr(self, name), dtype) for name in _numeric_fields(type(self))}
+        sigma = (
+            jnp.asarray(sigma_px, dtype)
+            if isinstance(sigma_px, jax.Array)
+            else np.asarray(sigma_px, dtype)
+        )
+        values = {
+            name: np.asarray(getattr(self, name), dtype) for name in _numeric_fields(type(self))
+        }
         return numbers_type(type(self))(sigma_px=sigma, **values)
 
-    def associate_scene(self, rig: Rig, observations: Observations, thresholds: tuple) -> Association:
+    def associate_scene(
+        self, rig: Rig, observations: Observations, thresholds: tuple
+    ) -> Association:
         th = type(thresholds)(*(jnp.asarray(v) for v in thresholds))
         xy, d, sigma, tau, fallback = scene_gate(rig, observations, th, self.sigma_mode)
         groups, valid, status = self.group_table(rig, xy, observations.mask, d, sigma, tau, th)
-        return finish_table(rig, xy, groups, valid, status | raise_flag(fallback, Status.SIGMA_FALLBACK), sigma, tau, th)
+        return finish_table(
+            rig,
+            xy,
+            groups,
+            valid,
+            status | raise_flag(fallback, Status.SIGMA_FALLBACK),
+            sigma,
+            tau,
+            th,
+        )
 
 
 def scene_gate(
     rig: Rig, observations: Observations, th: tuple, sigma_mode: str
-) -> tuple[Float[Array, "M P 2"], Float[Array, "M P M P"], Float[Array, ""], Float[Array, ""], Bool[Array, ""]]:
+) -> tuple[
+    Float[Array, "M P 2"],
+    Float[Array, "M P M P"],
+    Float[Array, ""],
+    Float[Array, ""],
+    Bool[Array, ""],
+]:
     """What every group-table method starts from: ``xy (M, P, 2)`` with padding zeroed, the
     epipolar distances ``d (M, P, M, P)`` (px), σ (given, or estimated when ``sigma_mode``
     is ``"auto"`` or ``"robust"``), the σ-matched gate τ (px) and whether the estimate fell back."""
@@ -320,14 +369,26 @@ def finish_table(
     member = valid[:, None] & (groups >= 0)
     xy_g = gather_groups(groups, xy)
     X, _ = triangulate_views_last(rig, xy_g, member)
-    member, valid, X = validity_gate(rig, xy_g, member, X, tau, th.max_err_frac, th.min_parallax_deg)
+    member, valid, X = validity_gate(
+        rig, xy_g, member, X, tau, th.max_err_frac, th.min_parallax_deg
+    )
     bpe, err_px = group_errors(rig, X, xy_g, member)
     return association_from_groups(
-        groups, valid, member, X, bpe, err_px, P, jnp.asarray(sigma, xy.dtype), jnp.asarray(tau, xy.dtype), status
+        groups,
+        valid,
+        member,
+        X,
+        bpe,
+        err_px,
+        P,
+        jnp.asarray(sigma, xy.dtype),
+        jnp.asarray(tau, xy.dtype),
+        status,
     )
 
 
 # --------------------------------------------------------------------------- on the host
+
 
 @partial(jax.jit, static_argnames=("sigma_mode",))
 def _gate(rig, observations, th, sigma_mode):
@@ -354,7 +415,13 @@ class HostGroupTableMethod(GroupTableMethod):
         (``mask (M, P)`` bool, host array). Every scene by default."""
 
     def host_groups(
-        self, rig: Rig, xy: np.ndarray, mask: np.ndarray, d: np.ndarray, tau: float, thresholds: tuple
+        self,
+        rig: Rig,
+        xy: np.ndarray,
+        mask: np.ndarray,
+        d: np.ndarray,
+        tau: float,
+        thresholds: tuple,
     ) -> tuple[np.ndarray, np.ndarray]:
         """``groups (G, M)`` int (slot per view or -1; ``G = M·P // 2``) and ``valid (G,)``
         bool from host arrays: ``xy (M, P, 2)`` px (padding zeroed), ``mask (M, P)``, the
@@ -367,13 +434,22 @@ class HostGroupTableMethod(GroupTableMethod):
             f"{self.HOST_NAME}: a host method; it has no traced group table (call associate_scene on host arrays)"
         )
 
-    def associate_scene(self, rig: Rig, observations: Observations, thresholds: tuple) -> Association:
-        if any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree.leaves((rig, observations, thresholds))):
-            raise TypeError(f"{self.HOST_NAME}: a host method ({self.HOST_TOOLS}); it cannot run under jit or vmap")
+    def associate_scene(
+        self, rig: Rig, observations: Observations, thresholds: tuple
+    ) -> Association:
+        if any(
+            isinstance(leaf, jax.core.Tracer)
+            for leaf in jax.tree.leaves((rig, observations, thresholds))
+        ):
+            raise TypeError(
+                f"{self.HOST_NAME}: a host method ({self.HOST_TOOLS}); it cannot run under jit or vmap"
+            )
         mask = np.asarray(observations.mask, bool)
         self.check_scene(mask, self.HOST_NAME)
         observations = Observations(observations.xy, observations.mask)
         xy, d, sigma, tau, fallback = _gate(rig, observations, thresholds, self.sigma_mode)
-        groups, valid = self.host_groups(rig, np.asarray(xy), mask, np.asarray(d), float(tau), thresholds)
+        groups, valid = self.host_groups(
+            rig, np.asarray(xy), mask, np.asarray(d), float(tau), thresholds
+        )
         status = raise_flag(fallback, Status.SIGMA_FALLBACK)
         return _finish(rig, xy, groups, valid, status, sigma, tau, thresholds)

@@ -84,5 +84,10 @@ def batched_association(**fields) -> Association:
     """An :class:`Association` with a leading axis (frames or scenes) from its fields (host
     or device arrays). Built from the pytree's leaves, so that nothing runs eagerly: a
     ``vmap`` of the constructor traced new operations for every new group count."""
-    names = tuple(field.name for field in dataclasses.fields(Association))  # the pytree's leaf order
-    return jax.tree.unflatten(dataclass_tree(Association, names), [jax.device_put(np.asarray(fields[name])) for name in names])
+    names = tuple(
+        field.name for field in dataclasses.fields(Association)
+    )  # the pytree's leaf order
+    return jax.tree.unflatten(
+        dataclass_tree(Association, names),
+        [jax.device_put(np.asarray(fields[name])) for name in names],
+    )

@@ -51,11 +51,15 @@ def check_observations(xy, mask, num_views: int, batched: bool = False) -> None:
     xy_shape, mask_shape = tuple(np.shape(xy)), tuple(np.shape(mask))
     want_xy = "(B, M, P, 2)" if batched else "(M, P, 2)"
     if len(xy_shape) != 3 + lead or xy_shape[-1] != 2 or xy_shape[-3] != num_views:
-        raise ValueError(f"xy must have shape {want_xy} with M={num_views} from the rig; got {xy_shape}")
+        raise ValueError(
+            f"xy must have shape {want_xy} with M={num_views} from the rig; got {xy_shape}"
+        )
     if xy_shape[-2] < 1:
         raise ValueError(f"xy must have at least one slot per view (P >= 1); got {xy_shape}")
     if mask_shape != xy_shape[:-1]:
-        raise ValueError(f"mask must have shape {xy_shape[:-1]} to match xy {xy_shape}; got {mask_shape}")
+        raise ValueError(
+            f"mask must have shape {xy_shape[:-1]} to match xy {xy_shape}; got {mask_shape}"
+        )
     if np.dtype(getattr(mask, "dtype", np.asarray(mask).dtype)) != np.bool_:
         raise ValueError(f"mask must be boolean; got dtype {np.asarray(mask).dtype}")
     check_pixel_dtype(xy.dtype if hasattr(xy, "dtype") else np.asarray(xy).dtype, "xy")
@@ -65,7 +69,9 @@ def check_observations(xy, mask, num_views: int, batched: bool = False) -> None:
         if bad.any():
             where = tuple(int(i) for i in np.argwhere(bad)[0])
             label = "scene {}, view {}, slot {}" if batched else "view {}, slot {}"
-            raise ValueError(f"xy is not finite at {label.format(*where)} although mask is True there")
+            raise ValueError(
+                f"xy is not finite at {label.format(*where)} although mask is True there"
+            )
 
 
 def check_pixel_dtype(dtype, name: str) -> None:
@@ -76,9 +82,13 @@ def check_pixel_dtype(dtype, name: str) -> None:
     if jnp.issubdtype(dtype, jnp.integer) and dtype != np.bool_:
         return
     if not jnp.issubdtype(dtype, jnp.floating):
-        raise ValueError(f"{name} must hold real pixel coordinates (float32 or float64); got dtype {dtype}")
+        raise ValueError(
+            f"{name} must hold real pixel coordinates (float32 or float64); got dtype {dtype}"
+        )
     if jnp.finfo(dtype).bits < 32:
-        raise ValueError(f"{name} has dtype {dtype}, too coarse for pixel coordinates; use float32 or float64")
+        raise ValueError(
+            f"{name} has dtype {dtype}, too coarse for pixel coordinates; use float32 or float64"
+        )
 
 
 def as_array(value):
@@ -115,27 +125,41 @@ def check_sigma(sigma, rig: Rig, xy, mask, num_scenes: int | None = None) -> Non
         if sigma != "auto":
             raise ValueError(f'sigma must be a number (pixels), an array or "auto"; got {sigma!r}')
         return
-    if sigma is None or isinstance(sigma, (bool, np.bool_)) or not (
-        isinstance(sigma, (numbers.Number, jax.Array, np.ndarray, np.generic, list, tuple))
+    if (
+        sigma is None
+        or isinstance(sigma, (bool, np.bool_))
+        or not (isinstance(sigma, (numbers.Number, jax.Array, np.ndarray, np.generic, list, tuple)))
     ):
-        want = 'a number (pixels), a (B,) array or "auto"' if num_scenes is not None else 'a number (pixels) or "auto"'
+        want = (
+            'a number (pixels), a (B,) array or "auto"'
+            if num_scenes is not None
+            else 'a number (pixels) or "auto"'
+        )
         raise TypeError(f"sigma must be {want}; got {type(sigma).__name__} {sigma!r}")
     shape = tuple(np.shape(sigma))
     if num_scenes is None and shape != ():
-        raise ValueError(f"sigma must be a scalar for one scene; got shape {shape} (use associate_batch for many)")
+        raise ValueError(
+            f"sigma must be a scalar for one scene; got shape {shape} (use associate_batch for many)"
+        )
     if num_scenes is not None and shape not in ((), (num_scenes,)):
-        raise ValueError(f"sigma must be a scalar or have shape (B,) = ({num_scenes},), one per scene; got shape {shape}")
+        raise ValueError(
+            f"sigma must be a scalar or have shape (B,) = ({num_scenes},), one per scene; got shape {shape}"
+        )
     if isinstance(sigma, jax.core.Tracer):
         return
     host = np.asarray(sigma)
-    if host.dtype == np.bool_ or not (np.issubdtype(host.dtype, np.floating) or np.issubdtype(host.dtype, np.integer)):
+    if host.dtype == np.bool_ or not (
+        np.issubdtype(host.dtype, np.floating) or np.issubdtype(host.dtype, np.integer)
+    ):
         raise ValueError(f"sigma must be real; got dtype {host.dtype}")
     host = host.astype(np.float64)
     scene = lambda i: f" of scene {i}" if host.ndim else ""  # noqa: E731
     bad = ~np.isfinite(host) | (host < 0)
     if bad.any():
         i = int(np.argwhere(bad.reshape(-1))[0, 0])
-        raise ValueError(f"sigma{scene(i)} must be a finite number >= 0 (pixels); got {float(host.reshape(-1)[i])!r}")
+        raise ValueError(
+            f"sigma{scene(i)} must be a finite number >= 0 (pixels); got {float(host.reshape(-1)[i])!r}"
+        )
     largest = float(host.max())
     if isinstance(rig.K, jax.core.Tracer) or largest == 0.0:
         return
@@ -150,7 +174,9 @@ def check_sigma(sigma, rig: Rig, xy, mask, num_scenes: int | None = None) -> Non
         bound = f"the image diagonal {bound_K:.1f} px (twice the largest principal point of rig.K)"
     else:
         bound = f"the detections' extent {bound_xy:.1f} px (hypot of the largest |x| and |y|)"
-    raise ValueError(f"sigma{scene(i)} = {largest!r} px is larger than {bound}; no detection noise can be that large")
+    raise ValueError(
+        f"sigma{scene(i)} = {largest!r} px is larger than {bound}; no detection noise can be that large"
+    )
 
 
 def check_threshold_shapes(thresholds, num_scenes: int | None) -> None:
@@ -159,7 +185,9 @@ def check_threshold_shapes(thresholds, num_scenes: int | None) -> None:
     for name, value in zip(type(thresholds)._fields, thresholds):
         if name != "sigma_px" and tuple(np.shape(value)) not in allowed:
             want = "a scalar" if num_scenes is None else f"a scalar or shape (B,) = ({num_scenes},)"
-            raise ValueError(f"thresholds.{name} must be {want}; got shape {tuple(np.shape(value))}")
+            raise ValueError(
+                f"thresholds.{name} must be {want}; got shape {tuple(np.shape(value))}"
+            )
 
 
 def check_batch_rig(rig: Rig, num_scenes: int) -> None:

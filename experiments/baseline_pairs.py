@@ -31,7 +31,9 @@ def method_fn(method):
     def run(rig, xy, mask, sigma):
         d = epipolar_distances(rig, xy, mask)
         tau = jnp.maximum(2.0 * math.sqrt(2.0) * sigma, 1.0).astype(xy.dtype)
-        return method.group_table(rig, xy, mask, d, sigma, tau, method.thresholds(sigma, dtype=xy.dtype))
+        return method.group_table(
+            rig, xy, mask, d, sigma, tau, method.thresholds(sigma, dtype=xy.dtype)
+        )
 
     return jax.jit(run)
 
@@ -67,9 +69,13 @@ def accuracy(sigmas, scenes, views, points, capacity):
             s = generate_scene(jax.random.PRNGKey(seed), rig, points, sigma, capacity=capacity)
             for name, f in fns.items():
                 g, v, _ = f(rig, s.xy, s.mask, jnp.float32(sigma))
-                totals[name] += pair_counts(labels_of(g, v, capacity), np.asarray(s.instance), np.asarray(s.mask))
+                totals[name] += pair_counts(
+                    labels_of(g, v, capacity), np.asarray(s.instance), np.asarray(s.mask)
+                )
             result = cdog_jax.associate(rig, s.xy, s.mask, sigma=max(sigma, 1e-3))
-            totals["C-DOG extended()"] += pair_counts(np.asarray(result.labels), np.asarray(s.instance), np.asarray(s.mask))
+            totals["C-DOG extended()"] += pair_counts(
+                np.asarray(result.labels), np.asarray(s.instance), np.asarray(s.mask)
+            )
         for name, (hit, found, true) in totals.items():
             rows.append((name, sigma, hit / max(found, 1), hit / max(true, 1)))
     return rows
@@ -77,7 +83,10 @@ def accuracy(sigmas, scenes, views, points, capacity):
 
 def timing(views, points, capacity, repeats):
     rig = default_rig(num_views=views)
-    scenes = [generate_scene(jax.random.PRNGKey(1000 + k), rig, points, 1.0, capacity=capacity) for k in range(repeats)]
+    scenes = [
+        generate_scene(jax.random.PRNGKey(1000 + k), rig, points, 1.0, capacity=capacity)
+        for k in range(repeats)
+    ]
     out = {}
     for name, m in METHODS.items():
         f = method_fn(m)
@@ -99,14 +108,18 @@ def main():
     parser.add_argument("--time-points", type=int, default=50)
     args = parser.parse_args()
     capacity = max(32, 1 << (args.points - 1).bit_length())
-    print(f"pairwise precision / recall, {args.scenes} scenes of {args.views} views x {args.points} points (P = {capacity})")
+    print(
+        f"pairwise precision / recall, {args.scenes} scenes of {args.views} views x {args.points} points (P = {capacity})"
+    )
     print("| method | σ = 0 | σ = 1 | σ = 3 |\n|---|---|---|---|")
     rows = accuracy((0.0, 1.0, 3.0), args.scenes, args.views, args.points, capacity)
     for name in dict.fromkeys(r[0] for r in rows):
         cells = [f"{p:.3f} / {r:.3f}" for n, _, p, r in rows if n == name]
         print(f"| {name} | " + " | ".join(cells) + " |")
     t_capacity = max(32, 1 << (args.time_points - 1).bit_length())
-    print(f"\nwarm time per scene (median of 10, compile apart), {args.views} views x {args.time_points} points (P = {t_capacity}):")
+    print(
+        f"\nwarm time per scene (median of 10, compile apart), {args.views} views x {args.time_points} points (P = {t_capacity}):"
+    )
     for name, seconds in timing(args.views, args.time_points, t_capacity, 10).items():
         print(f"| {name} | {1e3 * seconds:.1f} ms |")
 

@@ -69,9 +69,14 @@ def option_b(rig, xy, mask, classes, sigma, batch_size):
     config = Config.paper()
     th = config.thresholds(sigma)
     r = _option_b_jit(
-        rig, jnp.asarray(xy), jnp.asarray(mask), jnp.asarray(classes, jnp.int32), th,
-        config=config.structure(), batch_size=min(batch_size, xy.shape[0]),
-    )  # fmt: skip
+        rig,
+        jnp.asarray(xy),
+        jnp.asarray(mask),
+        jnp.asarray(classes, jnp.int32),
+        th,
+        config=config.structure(),
+        batch_size=min(batch_size, xy.shape[0]),
+    )
     r = jax.block_until_ready(r)
     groups = np.asarray(r.groups)
     valid = np.asarray(r.valid)
@@ -110,7 +115,9 @@ def timed(fn, *args):
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("--frames", type=int, default=100)
     p.add_argument("--classes", type=int, default=25)
     p.add_argument("--people", type=int, default=3)
@@ -121,17 +128,25 @@ def main(argv=None):
     args = p.parse_args(argv)
     rig = default_rig(num_views=args.views)
     xy, mask, classes, truth = make_scenes(rig, args.frames, args.classes, args.people)
-    print(f"{args.classes} classes × {args.frames} frames × {args.views} views × {args.people} people, σ = 1 px given")
-    print("| option | scenes × slots | compile + first run (s) | warm run, best of 3 (s) | groups | mixing classes | mixing instances |")
+    print(
+        f"{args.classes} classes × {args.frames} frames × {args.views} views × {args.people} people, σ = 1 px given"
+    )
+    print(
+        "| option | scenes × slots | compile + first run (s) | warm run, best of 3 (s) | groups | mixing classes | mixing instances |"
+    )
     print("|---|---|---:|---:|---:|---:|---:|")
     for bs in args.batch_size_a:
         (a, _), first, warm = timed(option_a, rig, xy, mask, classes, 1.0, bs)
         n, mc, mi = score(a, classes, truth)
-        print(f"| A: (frame, class) scenes, chunks of {bs} | {args.frames * args.classes} × {args.people} | {first:.2f} | {warm:.2f} | {n} | {mc} | {mi} |")
+        print(
+            f"| A: (frame, class) scenes, chunks of {bs} | {args.frames * args.classes} × {args.people} | {first:.2f} | {warm:.2f} | {n} | {mc} | {mi} |"
+        )
     if not args.skip_b:
         (b, _), first, warm = timed(option_b, rig, xy, mask, classes, 1.0, args.batch_size_b)
         n, mc, mi = score(b, classes, truth)
-        print(f"| B: classes masked in one graph per frame | {args.frames} × {args.classes * args.people} | {first:.2f} | {warm:.2f} | {n} | {mc} | {mi} |")
+        print(
+            f"| B: classes masked in one graph per frame | {args.frames} × {args.classes * args.people} | {first:.2f} | {warm:.2f} | {n} | {mc} | {mi} |"
+        )
     print(f"(true points: {args.frames * args.classes * args.people})")
 
 

@@ -31,7 +31,12 @@ import time
 from pathlib import Path
 
 ORIGINAL_S = {10: 0.35, 40: 0.64, 130: 2.56}  # the original code, whole process, 2-core CPU
-TARGETS = {"second run, 40 points": 2.0, "first run, 40 points": 8.0, "notebook loop": 10.0, "demo second run": 4.0}
+TARGETS = {
+    "second run, 40 points": 2.0,
+    "first run, 40 points": 8.0,
+    "notebook loop": 10.0,
+    "demo second run": 4.0,
+}
 
 _NOTEBOOK = """
 import sys, time, json
@@ -82,7 +87,9 @@ def _write_frame(folder: Path, num_points: int, seed: int = 0) -> tuple[Path, Pa
     rig = default_rig()
     scene = generate_scene(jax.random.PRNGKey(seed), rig, num_points, 1.0, capacity=num_points)
     xy, mask = np.asarray(scene.xy), np.asarray(scene.mask)
-    views = [[[float(x), float(y)] for (x, y), m in zip(xy[v], mask[v]) if m] for v in range(xy.shape[0])]
+    views = [
+        [[float(x), float(y)] for (x, y), m in zip(xy[v], mask[v]) if m] for v in range(xy.shape[0])
+    ]
     rig_path, det_path = folder / "rig.json", folder / f"frame_{num_points}.json"
     save_rig_json(rig_path, rig, image_size=(640, 480))
     det_path.write_text(json.dumps({"views": views}))
@@ -106,17 +113,34 @@ def _timed(cmd: list[str], env: dict, cwd: Path) -> float:
     return time.perf_counter() - t0
 
 
-def main(runs: int = 3, counts=(10, 40, 130), out: str | None = None, notebook: bool = True, demo: bool = True) -> dict:
+def main(
+    runs: int = 3,
+    counts=(10, 40, 130),
+    out: str | None = None,
+    notebook: bool = True,
+    demo: bool = True,
+) -> dict:
     exe = [sys.executable, "-m", "cdog_jax"]
     results: dict = {"associate": {}, "runs": runs}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         for n in counts:
             rig_path, det_path = _write_frame(tmp, n)
-            cmd = [*exe, "associate", "--rig", str(rig_path), "--points", str(det_path), "--sigma", "1"]
+            cmd = [
+                *exe,
+                "associate",
+                "--rig",
+                str(rig_path),
+                "--points",
+                str(det_path),
+                "--sigma",
+                "1",
+            ]
             first, second, off, cpu = [], [], [], []
             for r in range(runs):
-                env = dict(os.environ, CDOG_JAX_CACHE_DIR=str(tmp / f"cache_{n}_{r}"), CDOG_JAX_CACHE="1")
+                env = dict(
+                    os.environ, CDOG_JAX_CACHE_DIR=str(tmp / f"cache_{n}_{r}"), CDOG_JAX_CACHE="1"
+                )
                 first.append(_timed(cmd, env, tmp))
                 second.append(_timed(cmd, env, tmp))
                 off.append(_timed(cmd, dict(env, CDOG_JAX_CACHE="0"), tmp))
@@ -153,19 +177,28 @@ def main(runs: int = 3, counts=(10, 40, 130), out: str | None = None, notebook: 
     results["load_average"] = os.getloadavg()
 
     print(f"cdog-jax associate, one 10-view frame, whole process (median of {runs}):")
-    print("wall seconds (CPU seconds of the process in brackets); load average", " ".join(f"{x:.1f}" for x in results["load_average"]))
+    print(
+        "wall seconds (CPU seconds of the process in brackets); load average",
+        " ".join(f"{x:.1f}" for x in results["load_average"]),
+    )
     print("| points | first run (empty cache) | second run | cache off | original code |")
     print("|---|---|---|---|---|")
     for n, row in results["associate"].items():
-        print(f"| {n} | {row['first_s']:.2f} s ({row['cpu_first_s']:.2f}) | {row['second_s']:.2f} s ({row['cpu_second_s']:.2f}) "
-              f"| {row['no_cache_s']:.2f} s ({row['cpu_no_cache_s']:.2f}) | {ORIGINAL_S.get(n, float('nan')):.2f} s |")
+        print(
+            f"| {n} | {row['first_s']:.2f} s ({row['cpu_first_s']:.2f}) | {row['second_s']:.2f} s ({row['cpu_second_s']:.2f}) "
+            f"| {row['no_cache_s']:.2f} s ({row['cpu_no_cache_s']:.2f}) | {ORIGINAL_S.get(n, float('nan')):.2f} s |"
+        )
     if "notebook" in results:
         nb = results["notebook"]
-        print(f"notebook loop, 20 frames of 5-130 points, first time: {nb['total_s']:.2f} s, "
-              f"{nb['backend_compiles']:.0f} programs compiled (target <= 3, <= {TARGETS['notebook loop']:.0f} s)")
+        print(
+            f"notebook loop, 20 frames of 5-130 points, first time: {nb['total_s']:.2f} s, "
+            f"{nb['backend_compiles']:.0f} programs compiled (target <= 3, <= {TARGETS['notebook loop']:.0f} s)"
+        )
     if "demo_second_s" in results:
-        print(f"cdog-jax demo, second run: {results['demo_second_s']:.2f} s ({results['demo_second_cpu_s']:.2f} CPU s) "
-              f"(target <= {TARGETS['demo second run']:.0f} s)")
+        print(
+            f"cdog-jax demo, second run: {results['demo_second_s']:.2f} s ({results['demo_second_cpu_s']:.2f} CPU s) "
+            f"(target <= {TARGETS['demo second run']:.0f} s)"
+        )
     if out is not None:
         Path(out).write_text(json.dumps(results, indent=1))
     return results
@@ -175,7 +208,9 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--out", default=None, help="write the numbers as JSON")
-    parser.add_argument("--counts", default="10,40,130", help="points per frame of the associate runs")
+    parser.add_argument(
+        "--counts", default="10,40,130", help="points per frame of the associate runs"
+    )
     parser.add_argument("--skip-notebook", action="store_true")
     parser.add_argument("--skip-demo", action="store_true")
     a = parser.parse_args()

@@ -67,7 +67,11 @@ def shelf_like_frames(rig, count: int, classes: int = 25, seed: int = 0):
             x = np.concatenate([xy[m, keep[m]], rng.uniform((0, 0), (640, 480), (strays[m], 2))])
             c = np.concatenate([cls[m, keep[m]], rng.integers(0, classes, strays[m])])
             i = np.concatenate([inst[m, keep[m]], np.full(strays[m], -1)])
-            f_xy[m, : len(order)], f_cls[m, : len(order)], f_inst[m, : len(order)] = x[order], c[order], i[order]
+            f_xy[m, : len(order)], f_cls[m, : len(order)], f_inst[m, : len(order)] = (
+                x[order],
+                c[order],
+                i[order],
+            )
             f_mask[m, : len(order)] = True
         frames.append((f_xy[None], f_mask[None], f_cls[None], f_inst[None]))
     return frames
@@ -120,7 +124,13 @@ def live_loop(frames, rig, count: int, **options) -> dict:
         t = time.perf_counter()
         live.update(xy[0], mask[0], classes=cls[0])
         times.append(time.perf_counter() - t)
-    return {"first_s": first, **_percentiles(times), "raises": live.compiles, "maps": _maps(), "rss_gb": round(_rss_gb(), 3)}
+    return {
+        "first_s": first,
+        **_percentiles(times),
+        "raises": live.compiles,
+        "maps": _maps(),
+        "rss_gb": round(_rss_gb(), 3),
+    }
 
 
 def ten_views(count: int = 20) -> dict:
@@ -139,32 +149,48 @@ def ten_views(count: int = 20) -> dict:
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("--frames", type=int, default=2000)
     p.add_argument("--pool", type=int, default=50)
     p.add_argument("--out", help="write the numbers as JSON here")
     p.add_argument("--skip-ten-views", action="store_true")
-    p.add_argument("--skip-prior", action="store_true", help="leave out the live loop with the temporal prior")
+    p.add_argument(
+        "--skip-prior", action="store_true", help="leave out the live loop with the temporal prior"
+    )
     args = p.parse_args(argv)
     rig = default_rig(num_views=5)
     frames = shelf_like_frames(rig, args.pool)
     sizes = [int(f[1].sum()) for f in frames]
-    print(f"Shelf-like frames: 5 views, 25 classes, {min(sizes)}–{max(sizes)} detections, {args.frames} calls")
+    print(
+        f"Shelf-like frames: 5 views, 25 classes, {min(sizes)}–{max(sizes)} detections, {args.frames} calls"
+    )
     out = {"shelf_like": shelf_loop(frames, rig, args.frames), "targets_ms": TARGETS_MS}
     s = out["shelf_like"]
-    print(f"  warm-up over {len(frames)} frames {s['warm_up_s']:.1f} s; per frame p50 {s['p50_ms']:.1f} / "
-          f"p95 {s['p95_ms']:.1f} / p99 {s['p99_ms']:.1f} ms (targets {TARGETS_MS['shelf_p50']} / {TARGETS_MS['shelf_p99']})")
+    print(
+        f"  warm-up over {len(frames)} frames {s['warm_up_s']:.1f} s; per frame p50 {s['p50_ms']:.1f} / "
+        f"p95 {s['p95_ms']:.1f} / p99 {s['p99_ms']:.1f} ms (targets {TARGETS_MS['shelf_p50']} / {TARGETS_MS['shelf_p99']})"
+    )
     for m in s["memory"]:
         print(f"  frame {m['frame']:>5}: {m['maps']} maps, {m['rss_gb']:.2f} GB resident")
-    loops = (("live", {}),) if args.skip_prior else (("live", {}), ("live_temporal_prior", {"temporal_prior": True}))
+    loops = (
+        (("live", {}),)
+        if args.skip_prior
+        else (("live", {}), ("live_temporal_prior", {"temporal_prior": True}))
+    )
     for name, options in loops:
         out[name] = t = live_loop(frames, rig, args.frames, **options)
-        print(f"LiveAssociator {options or ''}: first frame {t['first_s']:.1f} s; per frame p50 {t['p50_ms']:.1f} / "
-              f"p95 {t['p95_ms']:.1f} / p99 {t['p99_ms']:.1f} ms; {t['raises']} capacity raises; {t['maps']} maps, {t['rss_gb']:.2f} GB")
+        print(
+            f"LiveAssociator {options or ''}: first frame {t['first_s']:.1f} s; per frame p50 {t['p50_ms']:.1f} / "
+            f"p95 {t['p95_ms']:.1f} / p99 {t['p99_ms']:.1f} ms; {t['raises']} capacity raises; {t['maps']} maps, {t['rss_gb']:.2f} GB"
+        )
     if not args.skip_ten_views:
         out["ten_views_130_points"] = t = ten_views()
-        print(f"10 views × 130 points: first {t['first_s']:.1f} s, warm p50 {t['p50_ms']:.1f} ms "
-              f"(target {TARGETS_MS['ten_views_130_points']})")
+        print(
+            f"10 views × 130 points: first {t['first_s']:.1f} s, warm p50 {t['p50_ms']:.1f} ms "
+            f"(target {TARGETS_MS['ten_views_130_points']})"
+        )
     if args.out:
         with open(args.out, "w") as f:
             json.dump(out, f, indent=1)

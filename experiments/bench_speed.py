@@ -78,12 +78,23 @@ def _child(methods: list[str], quick: bool, warm_runs: int, cpu_devices: int) ->
     return out
 
 
-def full_grid(methods: list[str], runs: int, quick: bool, warm_runs: int, cpu_devices: int) -> list[dict]:
+def full_grid(
+    methods: list[str], runs: int, quick: bool, warm_runs: int, cpu_devices: int
+) -> list[dict]:
     """``runs`` fresh processes of :func:`_child`; their JSON reports."""
     reports = []
     for r in range(runs):
-        cmd = [sys.executable, __file__, "--_child", "--methods", ",".join(methods), "--warm", str(warm_runs),
-               "--cpu-devices", str(cpu_devices)]
+        cmd = [
+            sys.executable,
+            __file__,
+            "--_child",
+            "--methods",
+            ",".join(methods),
+            "--warm",
+            str(warm_runs),
+            "--cpu-devices",
+            str(cpu_devices),
+        ]
         if quick:
             cmd.append("--quick")
         env = dict(os.environ, CDOG_JAX_CACHE="0")  # every cold call compiles from nothing
@@ -116,7 +127,9 @@ def single_scene(methods: list[str], counts=SINGLE_COUNTS, runs: int = 7) -> lis
             scene = generate_scene(jax.random.PRNGKey(n), rig, n, 1.0, capacity=n)
 
             def call():
-                return jax.block_until_ready(cdog_jax.associate(rig, scene.xy, scene.mask, method=config, sigma=1.0))
+                return jax.block_until_ready(
+                    cdog_jax.associate(rig, scene.xy, scene.mask, method=config, sigma=1.0)
+                )
 
             t0 = time.perf_counter()
             call()
@@ -138,8 +151,13 @@ REFERENCE_2CORE = {"cold_s": 37.0, "compile_s": 19.0, "warm_s": 17.9}
 
 def _grid_table(columns: list[list[dict]]) -> None:
     """One column per device count (medians over its processes), then the reference."""
-    meds = [{k: float(np.median([r[k] for r in reps])) for k in ("cold_s", "compile_s", "warm_s", "rss_gb", "process_s")}
-            for reps in columns]
+    meds = [
+        {
+            k: float(np.median([r[k] for r in reps]))
+            for k in ("cold_s", "compile_s", "warm_s", "rss_gb", "process_s")
+        }
+        for reps in columns
+    ]
     scenes = columns[0][0]["scenes"]
     head = " | ".join(f"{reps[0]['device']}, median of {len(reps)}" for reps in columns)
     print(f"\n| grid ({scenes} scenes) | {head} | before (1 device, 2-core CPU) |")
@@ -149,30 +167,66 @@ def _grid_table(columns: list[list[dict]]) -> None:
         cells = " | ".join(fmt(m[key]) for m in meds)
         print(f"| {label} | {cells} | {fmt(ref) if ref is not None else ''} |")
 
-    row("cold call (trace + compile + run)", lambda v: f"{v:.1f} s", "cold_s", REFERENCE_2CORE["cold_s"])
+    row(
+        "cold call (trace + compile + run)",
+        lambda v: f"{v:.1f} s",
+        "cold_s",
+        REFERENCE_2CORE["cold_s"],
+    )
     row("of which compile", lambda v: f"{v:.1f} s", "compile_s", REFERENCE_2CORE["compile_s"])
     row("warm call", lambda v: f"{v:.1f} s", "warm_s", REFERENCE_2CORE["warm_s"])
-    row("throughput, warm", lambda v: f"{scenes / v:.0f} scenes/s", "warm_s", REFERENCE_2CORE["warm_s"])
+    row(
+        "throughput, warm",
+        lambda v: f"{scenes / v:.0f} scenes/s",
+        "warm_s",
+        REFERENCE_2CORE["warm_s"],
+    )
     row("whole process (imports included)", lambda v: f"{v:.1f} s", "process_s")
     row("peak RSS", lambda v: f"{v:.2f} GB", "rss_gb")
     if "device_peak_gb" in columns[0][0]:
-        print("| peak device memory | " + " | ".join(f"{np.median([r['device_peak_gb'] for r in reps]):.2f} GB" for reps in columns) + " | |")
-    print("| mean PG-F1 over the grid | " + " | ".join(
-        ", ".join(f"{k} {v:.4f}" for k, v in reps[0]["pg_f1"].items()) for reps in columns) + " | |")
+        print(
+            "| peak device memory | "
+            + " | ".join(
+                f"{np.median([r['device_peak_gb'] for r in reps]):.2f} GB" for reps in columns
+            )
+            + " | |"
+        )
+    print(
+        "| mean PG-F1 over the grid | "
+        + " | ".join(
+            ", ".join(f"{k} {v:.4f}" for k, v in reps[0]["pg_f1"].items()) for reps in columns
+        )
+        + " | |"
+    )
 
 
 def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--runs", type=int, default=3, help="fresh processes for the full grid (default 3)")
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "--runs", type=int, default=3, help="fresh processes for the full grid (default 3)"
+    )
     parser.add_argument("--warm", type=int, default=3, help="warm calls per process (median kept)")
     parser.add_argument("--single-runs", type=int, default=7)
-    parser.add_argument("--single-counts", type=int, nargs="+", default=SINGLE_COUNTS, help="points per single scene")
-    parser.add_argument("--methods", default="paper", help="comma list of cdog-jax benchmark methods")
-    parser.add_argument("--quick", action="store_true", help="the --quick grid instead of the full one")
+    parser.add_argument(
+        "--single-counts",
+        type=int,
+        nargs="+",
+        default=SINGLE_COUNTS,
+        help="points per single scene",
+    )
+    parser.add_argument(
+        "--methods", default="paper", help="comma list of cdog-jax benchmark methods"
+    )
+    parser.add_argument(
+        "--quick", action="store_true", help="the --quick grid instead of the full one"
+    )
     parser.add_argument("--skip-grid", action="store_true")
     parser.add_argument("--skip-single", action="store_true")
     parser.add_argument(
-        "--cpu-devices", default="1,0",
+        "--cpu-devices",
+        default="1,0",
         help="comma list of JAX CPU device counts to run the grid with, side by side (0: one per core; "
         "default 1,0: one core, then every core)",
     )
@@ -185,17 +239,26 @@ def main(argv=None) -> None:
 
     import jax
 
-    print(f"JAX {jax.__version__} on {jax.default_backend()} ({jax.device_count()} device(s)); methods {methods}")
+    print(
+        f"JAX {jax.__version__} on {jax.default_backend()} ({jax.device_count()} device(s)); methods {methods}"
+    )
     if not args.skip_grid:
         columns = []
         for count in (int(c) for c in args.cpu_devices.split(",")):
-            print(f"Full grid, {args.runs} fresh processes, {count or 'one per core'} CPU device(s):", flush=True)
+            print(
+                f"Full grid, {args.runs} fresh processes, {count or 'one per core'} CPU device(s):",
+                flush=True,
+            )
             columns.append(full_grid(methods, args.runs, args.quick, args.warm, count))
         _grid_table(columns)
     if not args.skip_single:
-        print(f"\nSingle scene, σ = 1 px, capacity = count, median of {args.single_runs} warm calls:")
+        print(
+            f"\nSingle scene, σ = 1 px, capacity = count, median of {args.single_runs} warm calls:"
+        )
         print("| method | points | compile (s) | warm (ms) |\n|---|---|---|---|")
-        for name, n, compile_s, warm_s in single_scene(methods, tuple(args.single_counts), runs=args.single_runs):
+        for name, n, compile_s, warm_s in single_scene(
+            methods, tuple(args.single_counts), runs=args.single_runs
+        ):
             print(f"| {name} | {n} | {compile_s:.2f} | {1000 * warm_s:.1f} |")
 
 

@@ -62,7 +62,9 @@ import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this checkout's cdog_jax
+sys.path.insert(
+    0, os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+)  # this checkout's cdog_jax
 import cdog_jax  # noqa: E402
 from cdog_jax import method_from, method_names  # noqa: E402
 from cdog_jax.benchmark import Grid, load_results, print_progress, save_results, sweep, sweep_host  # noqa: E402
@@ -139,8 +141,14 @@ def _rule_modules(method) -> list:
             continue
         seen[module.__name__] = module
         for value in vars(module).values():
-            owner = value.__name__ if inspect.ismodule(value) else getattr(value, "__module__", None)
-            if isinstance(owner, str) and owner.split(".")[0] == "cdog_jax" and owner in sys.modules:
+            owner = (
+                value.__name__ if inspect.ismodule(value) else getattr(value, "__module__", None)
+            )
+            if (
+                isinstance(owner, str)
+                and owner.split(".")[0] == "cdog_jax"
+                and owner in sys.modules
+            ):
                 todo.append(sys.modules[owner])
     return [seen[name] for name in sorted(seen)]
 
@@ -217,14 +225,20 @@ def probe(rig, name, method, base: Grid, scenes: int, budget_s: float):
         return small[0], small[1], 1.0, small[0]
     predicted = small[1] * (float(_bucket(larger[0])) / float(_bucket(small[0]))) ** 3
     if (scenes + 1) * predicted > 0.1 * budget_s:
-        log(f"  {name}: {1e3 * small[1]:.3g} ms per scene at count {small[0]}; not probed at {larger[0]} "
-            f"(predicted {predicted:.1f} s per scene)")
+        log(
+            f"  {name}: {1e3 * small[1]:.3g} ms per scene at count {small[0]}; not probed at {larger[0]} "
+            f"(predicted {predicted:.1f} s per scene)"
+        )
         return small[0], small[1], 3.0, small[0] if not method.jittable else max(base.counts)
     for count in larger:
         t = _probe_at(rig, name, method, base, count, scenes)
         if t is not None:
             ratio = float(_bucket(count)) / float(_bucket(small[0]))
-            alpha = 1.0 if ratio == 1.0 else float(np.clip(np.log(max(t, 1e-9) / small[1]) / np.log(ratio), 0.5, 3.0))
+            alpha = (
+                1.0
+                if ratio == 1.0
+                else float(np.clip(np.log(max(t, 1e-9) / small[1]) / np.log(ratio), 0.5, 3.0))
+            )
             return count, t, alpha, count
     return small[0], small[1], 1.0, small[0]
 
@@ -234,7 +248,9 @@ def per_scene_s(counts, plan_count: int, plan_s: float, alpha: float) -> np.ndar
     return plan_s * (_bucket(counts).astype(np.float64) / float(_bucket(plan_count))) ** alpha
 
 
-def estimate(grid: Grid, probe_count: int, probe_s: float, alpha: float, compiled: bool, timing_runs: int) -> float:
+def estimate(
+    grid: Grid, probe_count: int, probe_s: float, alpha: float, compiled: bool, timing_runs: int
+) -> float:
     """Seconds to run ``grid`` (the model of :func:`per_scene_s`, compiles apart), plus per
     bucket the compiled sweep's warm-up and timing runs of one chunk, or sweep_host's one
     warm-up scene."""
@@ -251,7 +267,9 @@ def estimate(grid: Grid, probe_count: int, probe_s: float, alpha: float, compile
 def ladder(base: Grid, max_count: int) -> list[Grid]:
     """Candidate grids, largest first (see the module docstring)."""
     counts = tuple(c for c in base.counts if c <= max_count)
-    table = tuple(s for s in base.sigmas if any(abs(s - t) < 5e-4 for t in TABLE_SIGMAS)) or base.sigmas
+    table = (
+        tuple(s for s in base.sigmas if any(abs(s - t) < 5e-4 for t in TABLE_SIGMAS)) or base.sigmas
+    )
     out = [base.replace(counts=counts)]
     for n in sorted({k for k in (base.scenes, 3, 2, 1) if k <= base.scenes}, reverse=True):
         out.append(base.replace(sigmas=table, counts=counts, scenes=n))
@@ -261,7 +279,9 @@ def ladder(base: Grid, max_count: int) -> list[Grid]:
             out.append(base.replace(sigmas=table, counts=sub, scenes=1))
     for top in sorted({c for c in counts if c in BUCKETS or c in (10, 5)}, reverse=True):
         if top < max(counts):
-            out.append(base.replace(sigmas=table, counts=tuple(c for c in counts if c <= top), scenes=1))
+            out.append(
+                base.replace(sigmas=table, counts=tuple(c for c in counts if c <= top), scenes=1)
+            )
     return out
 
 
@@ -275,8 +295,22 @@ def make_plan(rig, name, method, base: Grid, budget_s: float, probe_scenes: int)
     for grid in candidates:
         est = estimate(grid, count, t, alpha, compiled, runs)
         if est <= budget_s:
-            return Plan(name, method.jittable, count, t, alpha, max_count, grid, est, runs, True, compiled)
-    return Plan(name, method.jittable, count, t, alpha, max_count, candidates[-1], est, runs, False, compiled)
+            return Plan(
+                name, method.jittable, count, t, alpha, max_count, grid, est, runs, True, compiled
+            )
+    return Plan(
+        name,
+        method.jittable,
+        count,
+        t,
+        alpha,
+        max_count,
+        candidates[-1],
+        est,
+        runs,
+        False,
+        compiled,
+    )
 
 
 def describe_grid(grid: Grid, base: Grid) -> str:
@@ -301,8 +335,14 @@ def describe_grid(grid: Grid, base: Grid) -> str:
 
 def run_method(rig, name, method, plan: Plan):
     if plan.compiled:
-        return sweep(rig, plan.grid, methods={name: method}, buckets=BUCKETS, timing_runs=plan.timing_runs,
-                     progress=print_progress)
+        return sweep(
+            rig,
+            plan.grid,
+            methods={name: method},
+            buckets=BUCKETS,
+            timing_runs=plan.timing_runs,
+            progress=print_progress,
+        )
     grid = plan.grid
     while True:  # a host method may refuse a scene the probe did not see: drop that count
         try:
@@ -318,14 +358,24 @@ def run_method(rig, name, method, plan: Plan):
 # ----------------------------------------------------------------------------- report
 
 
-def paper_numbers(path: str) -> tuple[dict[float, dict[str, float]], dict[str, dict[float, dict[str, float]]]]:
+def paper_numbers(
+    path: str,
+) -> tuple[dict[float, dict[str, float]], dict[str, dict[float, dict[str, float]]]]:
     """docs/BENCHMARK.md §3: the paper's C-DOG row per σ ``{σ: {key: value}}`` and its
     baselines ``{row name: {σ: {"pg_f1": …, "g_f1": …}}}``."""
     text = open(path, encoding="utf-8").read()
     sec = text.split("## 3.", 1)[1].split("\n## ", 1)[0]
     ours, baselines = {}, {}
-    keys = {"G-F1": "g_f1", "mP-F1": "mp_f1", "PG-P": "pg_p", "PG-R": "pg_r", "PG-F1": "pg_f1", "3DErr": "err3d",
-            "BPE": "bpe_px", "time (ms)": "time_ms"}
+    keys = {
+        "G-F1": "g_f1",
+        "mP-F1": "mp_f1",
+        "PG-P": "pg_p",
+        "PG-R": "pg_r",
+        "PG-F1": "pg_f1",
+        "3DErr": "err3d",
+        "BPE": "bpe_px",
+        "time (ms)": "time_ms",
+    }
     header = None
     for line in sec.splitlines():
         if not line.startswith("|") or line.startswith("|---"):
@@ -335,7 +385,9 @@ def paper_numbers(path: str) -> tuple[dict[float, dict[str, float]], dict[str, d
             header = cells
             continue
         if header and header[0] == "σ (px)":
-            ours[float(cells[0])] = {keys[h]: float(v) for h, v in zip(header[1:], cells[1:]) if h in keys}
+            ours[float(cells[0])] = {
+                keys[h]: float(v) for h, v in zip(header[1:], cells[1:]) if h in keys
+            }
         elif header and header[0] == "method":
             row = {}
             for h, v in zip(header[1:], cells[1:]):
@@ -367,7 +419,9 @@ def _cells(means: dict[str, float]) -> list[str]:
 
 
 def _at_table_sigmas(grid: Grid) -> Grid:
-    keep = tuple(s for s in grid.sigmas if any(abs(s - t) < 5e-4 for t in TABLE_SIGMAS)) or grid.sigmas
+    keep = (
+        tuple(s for s in grid.sigmas if any(abs(s - t) < 5e-4 for t in TABLE_SIGMAS)) or grid.sigmas
+    )
     return grid.replace(sigmas=keep)
 
 
@@ -383,29 +437,52 @@ def tables(results: dict, plans: dict[str, Plan], base: Grid, ours, baselines) -
     for sigma in TABLE_SIGMAS:
         if not any(abs(sigma - s) < 5e-4 for s in base.sigmas):
             continue
-        lines += [f"**σ = {sigma:g} px**", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        lines += [
+            f"**σ = {sigma:g} px**",
+            "",
+            "| " + " | ".join(head) + " |",
+            "|" + "---|" * len(head),
+        ]
         for name, res in results.items():
             where = np.isclose(res.sigma, sigma, rtol=0.0, atol=5e-4)
             if not where.any():
-                lines.append(f"| {name}{marks.get(name, '')} | " + " | ".join(["–"] * (len(COLUMNS) + 1)) + " |")
+                lines.append(
+                    f"| {name}{marks.get(name, '')} | "
+                    + " | ".join(["–"] * (len(COLUMNS) + 1))
+                    + " |"
+                )
                 continue
             means = mean_metrics(res.metrics_of(name, where=where))
             means["time_ms"] = 1000.0 * float(np.mean(res.time_s[name][where]))
-            lines.append(f"| {name}{marks.get(name, '')} | " + " | ".join(_cells(means)) + f" | {int(where.sum())} |")
+            lines.append(
+                f"| {name}{marks.get(name, '')} | "
+                + " | ".join(_cells(means))
+                + f" | {int(where.sum())} |"
+            )
             paper = paper_row_for(name, ours, baselines)
             if paper is not None and sigma in paper[1]:
-                lines.append(f"| ↳ *{paper[0]}* | " + " | ".join(_cells(paper[1][sigma])) + " | full grid |")
+                lines.append(
+                    f"| ↳ *{paper[0]}* | " + " | ".join(_cells(paper[1][sigma])) + " | full grid |"
+                )
         lines.append("")
-    notes = [f"{mark} {name}: {describe_grid(plans[name].grid, base)}" for name, mark in marks.items()]
+    notes = [
+        f"{mark} {name}: {describe_grid(plans[name].grid, base)}" for name, mark in marks.items()
+    ]
     if notes:
-        lines += ["Methods marked run on a sub-grid (the same scenes as the full grid's, fewer of them; the "
-                  "tables below compare them with the full-grid methods on exactly their scenes):", ""]
+        lines += [
+            "Methods marked run on a sub-grid (the same scenes as the full grid's, fewer of them; the "
+            "tables below compare them with the full-grid methods on exactly their scenes):",
+            "",
+        ]
         lines += [f"- {n}" for n in notes] + [""]
     sigma_only = [n for n in results if plans[n].grid != base and n not in marks]
     if sigma_only:
-        lines += [f"{', '.join(sigma_only)}: σ ∈ {{0, 1, 3, 5}} only (every count, every scene): at these σ the "
-                  "full grid's scenes, so their rows above are full-grid numbers; their lines in the figure "
-                  "have four points.", ""]
+        lines += [
+            f"{', '.join(sigma_only)}: σ ∈ {{0, 1, 3, 5}} only (every count, every scene): at these σ the "
+            "full grid's scenes, so their rows above are full-grid numbers; their lines in the figure "
+            "have four points.",
+            "",
+        ]
     return "\n".join(lines)
 
 
@@ -423,8 +500,12 @@ def same_scenes_tables(results: dict, plans: dict[str, Plan], base: Grid) -> str
     for sub in (n for n in results if n not in full):
         ids = _scene_ids(results[sub])
         sigmas = [t for t in TABLE_SIGMAS if np.isclose(results[sub].sigma, t, atol=5e-4).any()]
-        lines += [f"On the scenes of {sub} ({describe_grid(plans[sub].grid, base)}), PG-F1 / G-F1:", "",
-                  "| method | " + " | ".join(f"σ = {t:g}" for t in sigmas) + " |", "|---|" + "---|" * len(sigmas)]
+        lines += [
+            f"On the scenes of {sub} ({describe_grid(plans[sub].grid, base)}), PG-F1 / G-F1:",
+            "",
+            "| method | " + " | ".join(f"σ = {t:g}" for t in sigmas) + " |",
+            "|---|" + "---|" * len(sigmas),
+        ]
         for name in [sub, *full]:
             res = results[name]
             on = np.isin(_scene_ids(res), ids)
@@ -444,11 +525,17 @@ def plan_table(plans: dict[str, Plan], base: Grid, budget_s: float) -> str:
         "|---|---|---|---|---|---|---|",
     ]
     for p in plans.values():
-        where = "compiled sweep" if p.compiled else ("jitted, " if p.jittable else "host, ") + "scene by scene (sweep_host)"
+        where = (
+            "compiled sweep"
+            if p.compiled
+            else ("jitted, " if p.jittable else "host, ") + "scene by scene (sweep_host)"
+        )
         fit = "" if p.fits else f" (over the {budget_s:g} s budget even at its smallest)"
         measured = "–" if p.measured_s is None else f"{p.measured_s:.0f}"
-        lines.append(f"| {p.name} | {where} | {1e3 * p.probe_s:.3g} ({p.probe_count}) | {p.alpha:.2f} | "
-                     f"{describe_grid(p.grid, base)}{fit} | {p.estimate_s:.0f} | {measured} |")
+        lines.append(
+            f"| {p.name} | {where} | {1e3 * p.probe_s:.3g} ({p.probe_count}) | {p.alpha:.2f} | "
+            f"{describe_grid(p.grid, base)}{fit} | {p.estimate_s:.0f} | {measured} |"
+        )
     return "\n".join(lines)
 
 
@@ -465,7 +552,9 @@ def figures(results: dict, base: Grid, out_dir: str, prefix: str) -> list[str]:
     p1 = os.path.join(out_dir, f"{prefix}metrics_vs_sigma.png")
     metrics_vs_sigma(sigma, metrics, full_grid=full, path=p1)
     p2 = os.path.join(out_dir, f"{prefix}time_vs_count.png")
-    time_vs_count(count, {label[n]: r.time_s[n] for n, r in results.items()}, capacity=capacity, path=p2)
+    time_vs_count(
+        count, {label[n]: r.time_s[n] for n, r in results.items()}, capacity=capacity, path=p2
+    )
     return [p1, p2]
 
 
@@ -485,27 +574,59 @@ def write_section(path: str, body: str) -> None:
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--methods", default="all", help="'all' (every registered method) or a comma-separated list")
-    ap.add_argument("--quick", action="store_true", help="the small grid of Grid.quick() (a smoke run)")
-    ap.add_argument("--budget-s", type=float, default=300.0, help="compute budget per method (s), sets sub-grids")
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument(
+        "--methods", default="all", help="'all' (every registered method) or a comma-separated list"
+    )
+    ap.add_argument(
+        "--quick", action="store_true", help="the small grid of Grid.quick() (a smoke run)"
+    )
+    ap.add_argument(
+        "--budget-s",
+        type=float,
+        default=300.0,
+        help="compute budget per method (s), sets sub-grids",
+    )
     ap.add_argument("--probe-scenes", type=int, default=3)
-    ap.add_argument("--cache", default=os.path.join(os.path.expanduser("~"), ".cache", "cdog_jax", "compare"))
-    ap.add_argument("--refresh", nargs="?", const="all", default="",
-                    help="recompute even when cached: every method, or a comma-separated list")
-    ap.add_argument("--plan-only", action="store_true", help="probe and print the plan, run nothing")
-    ap.add_argument("--figures", default=None, help="figure folder (default experiments/figures; --quick: none)")
-    ap.add_argument("--results", default=None, help="Markdown file to write the section into "
-                    "(default experiments/RESULTS.md; --quick: none)")
+    ap.add_argument(
+        "--cache", default=os.path.join(os.path.expanduser("~"), ".cache", "cdog_jax", "compare")
+    )
+    ap.add_argument(
+        "--refresh",
+        nargs="?",
+        const="all",
+        default="",
+        help="recompute even when cached: every method, or a comma-separated list",
+    )
+    ap.add_argument(
+        "--plan-only", action="store_true", help="probe and print the plan, run nothing"
+    )
+    ap.add_argument(
+        "--figures", default=None, help="figure folder (default experiments/figures; --quick: none)"
+    )
+    ap.add_argument(
+        "--results",
+        default=None,
+        help="Markdown file to write the section into "
+        "(default experiments/RESULTS.md; --quick: none)",
+    )
     args = ap.parse_args(argv)
 
-    names = list(method_names()) if args.methods == "all" else [m.strip() for m in args.methods.split(",") if m.strip()]
+    names = (
+        list(method_names())
+        if args.methods == "all"
+        else [m.strip() for m in args.methods.split(",") if m.strip()]
+    )
     methods = {n: method_from(n, "compare_methods --methods") for n in names}
     base = Grid.quick() if args.quick else Grid.paper()
     figures_dir = args.figures or (None if args.quick else os.path.join(HERE, "figures"))
     results_md = args.results or (None if args.quick else os.path.join(HERE, "RESULTS.md"))
     rig = default_rig()
-    log(f"methods: {', '.join(names)}; base grid: {base.num_scenes} scenes; budget {args.budget_s:g} s per method")
+    log(
+        f"methods: {', '.join(names)}; base grid: {base.num_scenes} scenes; budget {args.budget_s:g} s per method"
+    )
 
     plans, results, folders = {}, {}, {}
     for name, method in methods.items():
@@ -514,7 +635,9 @@ def main(argv=None):
         if not refresh and os.path.exists(os.path.join(folder, "plan.json")):
             with open(os.path.join(folder, "plan.json")) as f:
                 saved = json.load(f)
-            saved["grid"] = Grid(**{k: tuple(v) if isinstance(v, list) else v for k, v in saved["grid"].items()})
+            saved["grid"] = Grid(
+                **{k: tuple(v) if isinstance(v, list) else v for k, v in saved["grid"].items()}
+            )
             saved.setdefault("compiled", saved["jittable"])  # plans saved before that field
             plans[name] = Plan(**saved)
             results[name] = load_results(folder)
@@ -522,9 +645,11 @@ def main(argv=None):
             continue
         t0 = time.perf_counter()
         plans[name] = make_plan(rig, name, method, base, args.budget_s, args.probe_scenes)
-        log(f"{name}: probe {1e3 * plans[name].probe_s:.3g} ms per scene at count {plans[name].probe_count} "
+        log(
+            f"{name}: probe {1e3 * plans[name].probe_s:.3g} ms per scene at count {plans[name].probe_count} "
             f"({time.perf_counter() - t0:.1f} s with compiles) -> {describe_grid(plans[name].grid, base)}, "
-            f"estimate {plans[name].estimate_s:.0f} s")
+            f"estimate {plans[name].estimate_s:.0f} s"
+        )
     log("\nPlan:\n" + plan_table(plans, base, args.budget_s) + "\n")
     if args.plan_only:
         return plans
@@ -539,7 +664,11 @@ def main(argv=None):
         log(f"  {name}: {plans[name].measured_s:.1f} s (compile {res.compile_s:.1f} s)")
         save_results(res, folders[name])
         with open(os.path.join(folders[name], "plan.json"), "w") as f:
-            json.dump({**dataclasses.asdict(plans[name]), "grid": dataclasses.asdict(plans[name].grid)}, f, indent=1)
+            json.dump(
+                {**dataclasses.asdict(plans[name]), "grid": dataclasses.asdict(plans[name].grid)},
+                f,
+                indent=1,
+            )
         results[name] = res
 
     ours, baselines = paper_numbers(os.path.join(ROOT, "docs", "BENCHMARK.md"))

@@ -38,9 +38,9 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 from cdog_jax import Config  # noqa: E402
+from cdog_jax._status import Status  # noqa: E402
 from cdog_jax.cdog._pipeline import associate_traced, plan, scene_tables  # noqa: E402
 from cdog_jax.cdog._stage import GroupTable, State, raise_flag  # noqa: E402
-from cdog_jax._status import Status  # noqa: E402
 from cdog_jax.synthetic import default_rig, generate_scene  # noqa: E402
 
 
@@ -48,7 +48,11 @@ def _sizes(lowered, compiled) -> dict:
     """Operations and while loops of the StableHLO; instructions, fusions and while loops
     of the optimised HLO."""
     text = lowered.as_text()
-    ops = sum(1 for line in text.splitlines() if re.search(r"= (stablehlo|chlo|func|call)\b|stablehlo\.", line))
+    ops = sum(
+        1
+        for line in text.splitlines()
+        if re.search(r"= (stablehlo|chlo|func|call)\b|stablehlo\.", line)
+    )
     hlo = compiled.as_text() or ""
     lines = [line for line in hlo.splitlines() if " = " in line]
     return {
@@ -71,7 +75,10 @@ def _distinct_kernels(hlo: str) -> int:
         lines = computation.strip().splitlines()
         if not lines or not re.match(r"%?(fused_computation|wrapped_)", lines[0]):
             continue
-        body = (re.sub(r"%[\w.\-]+", "%", re.sub(r", metadata=\{[^}]*\}", "", line)).strip() for line in lines[1:])
+        body = (
+            re.sub(r"%[\w.\-]+", "%", re.sub(r", metadata=\{[^}]*\}", "", line)).strip()
+            for line in lines[1:]
+        )
         bodies.add("\n".join(body))
     return len(bodies)
 
@@ -96,7 +103,9 @@ def _scene_inputs(num_points: int = 30, capacity: int = 32, sigma: float = 1.0):
 
 def whole_program(config, rig, xy, mask, sigma: float = 1.0) -> dict:
     th = config.thresholds(sigma)
-    tr, lo, co, compiled, sizes = _compile(lambda r, x, m, t: associate_traced(r, x, m, t, config), rig, xy, mask, th)
+    tr, lo, co, compiled, sizes = _compile(
+        lambda r, x, m, t: associate_traced(r, x, m, t, config), rig, xy, mask, th
+    )
     jax.block_until_ready(compiled(rig, xy, mask, th))
     warm = []
     for _ in range(10):
@@ -109,7 +118,9 @@ def whole_program(config, rig, xy, mask, sigma: float = 1.0) -> dict:
 def per_stage(config, rig, xy, mask, sigma: float = 1.0) -> list[tuple[str, dict]]:
     th = config.thresholds(sigma)
     rows = []
-    tr, lo, co, compiled, sizes = _compile(lambda r, x, m, t: scene_tables(r, x, m, t, config), rig, xy, mask, th)
+    tr, lo, co, compiled, sizes = _compile(
+        lambda r, x, m, t: scene_tables(r, x, m, t, config), rig, xy, mask, th
+    )
     scene, fallback = compiled(rig, xy, mask, th)
     rows.append(("scene tables", dict(lower=tr + lo, compile=co, **sizes)))
     M, P = mask.shape
@@ -117,22 +128,32 @@ def per_stage(config, rig, xy, mask, sigma: float = 1.0) -> list[tuple[str, dict
     empty = GroupTable(jnp.full((G, M), -1, jnp.int32), jnp.zeros((G,), bool))
     state = State(empty, None, raise_flag(fallback, Status.SIGMA_FALLBACK))
     for stage, options in plan(config):
-        tr, lo, co, compiled, sizes = _compile(lambda s, st, _stage=stage, _o=options: _stage.run(s, st, _o), scene, state)
+        tr, lo, co, compiled, sizes = _compile(
+            lambda s, st, _stage=stage, _o=options: _stage.run(s, st, _o), scene, state
+        )
         state = compiled(scene, state)
         rows.append((stage.name, dict(lower=tr + lo, compile=co, **sizes)))
     return rows
 
 
-def main(presets=("paper", "extended", "best"), sigmas=("given", "auto"), stages: bool = True) -> None:
+def main(
+    presets=("paper", "extended", "best"), sigmas=("given", "auto"), stages: bool = True
+) -> None:
     rig, xy, mask = _scene_inputs()
-    print(f"scene: {mask.shape[0]} views, {int(mask.sum(axis=1).max())} of {mask.shape[1]} slots; {jax.devices()[0].platform}")
-    print("\nwhole program        trace  lower compile    cpu  warm ms    ops while |    hlo fusions kernels while")
+    print(
+        f"scene: {mask.shape[0]} views, {int(mask.sum(axis=1).max())} of {mask.shape[1]} slots; {jax.devices()[0].platform}"
+    )
+    print(
+        "\nwhole program        trace  lower compile    cpu  warm ms    ops while |    hlo fusions kernels while"
+    )
     for preset in presets:
         for sigma_mode in sigmas:
             config = getattr(Config, preset)(sigma_mode=sigma_mode)
             r = whole_program(config, rig, xy, mask)
-            print(f"{preset:>9} σ {sigma_mode:<6} {r['trace']:6.2f} {r['lower']:6.2f} {r['compile']:7.2f} {r['cpu']:6.2f} {r['warm_ms']:8.2f} "
-                  f"{r['ops']:6d} {r['while']:5d} | {r['hlo']:6d} {r['fusions']:7d} {r['kernels']:7d} {r['hlo_while']:5d}")
+            print(
+                f"{preset:>9} σ {sigma_mode:<6} {r['trace']:6.2f} {r['lower']:6.2f} {r['compile']:7.2f} {r['cpu']:6.2f} {r['warm_ms']:8.2f} "
+                f"{r['ops']:6d} {r['while']:5d} | {r['hlo']:6d} {r['fusions']:7d} {r['kernels']:7d} {r['hlo_while']:5d}"
+            )
     if not stages:
         return
     for preset in presets:
@@ -142,11 +163,17 @@ def main(presets=("paper", "extended", "best"), sigmas=("given", "auto"), stages
             config = getattr(Config, preset)(sigma_mode=sigma_mode)
             rows = per_stage(config, rig, xy, mask)
             total = sum(r["cpu"] for _, r in rows)
-            print(f"\n{preset}(sigma_mode={sigma_mode!r}), each stage alone: trace+lower / compile (s), share of the compile CPU sum ({total:.2f} s)")
-            print("stage                 lower compile    cpu  share    ops while |    hlo fusions kernels while")
+            print(
+                f"\n{preset}(sigma_mode={sigma_mode!r}), each stage alone: trace+lower / compile (s), share of the compile CPU sum ({total:.2f} s)"
+            )
+            print(
+                "stage                 lower compile    cpu  share    ops while |    hlo fusions kernels while"
+            )
             for name, r in rows:
-                print(f"{name:<20} {r['lower']:6.2f} {r['compile']:7.2f} {r['cpu']:6.2f} {100 * r['cpu'] / total:5.1f}% "
-                      f"{r['ops']:6d} {r['while']:5d} | {r['hlo']:6d} {r['fusions']:7d} {r['kernels']:7d} {r['hlo_while']:5d}")
+                print(
+                    f"{name:<20} {r['lower']:6.2f} {r['compile']:7.2f} {r['cpu']:6.2f} {100 * r['cpu'] / total:5.1f}% "
+                    f"{r['ops']:6d} {r['while']:5d} | {r['hlo']:6d} {r['fusions']:7d} {r['kernels']:7d} {r['hlo_while']:5d}"
+                )
 
 
 if __name__ == "__main__":

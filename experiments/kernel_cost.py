@@ -52,7 +52,9 @@ def main(blocks=(1, 50, 200, 400)) -> None:
                 compiled = lowered.compile()
                 seconds = time.perf_counter() - t0
                 fusions = compiled.as_text().count(" fusion(")
-                print(f"{k:6d} {str(heavy):>6} {str(same):>7} | {fusions:7d} {seconds:10.2f} {1e3 * seconds / max(fusions, 1):14.1f}")
+                print(
+                    f"{k:6d} {str(heavy):>6} {str(same):>7} | {fusions:7d} {seconds:10.2f} {1e3 * seconds / max(fusions, 1):14.1f}"
+                )
 
 
 if __name__ == "__main__":

@@ -21,7 +21,11 @@ from cdog_jax.baselines import MatchSVT, SpectralClustering, SpectralSync
 from cdog_jax.geometry import epipolar_distances
 from cdog_jax.synthetic import default_rig, generate_scenes
 
-METHODS = {"MatchEIG": SpectralSync(), "matchSVT": MatchSVT(), "spectral clustering": SpectralClustering()}
+METHODS = {
+    "MatchEIG": SpectralSync(),
+    "matchSVT": MatchSVT(),
+    "spectral clustering": SpectralClustering(),
+}
 
 
 def runner(method, rig):
@@ -29,7 +33,9 @@ def runner(method, rig):
     def run(xy, mask, sigma):
         d = epipolar_distances(rig, xy, mask)
         tau = jnp.maximum(2.0 * jnp.sqrt(jnp.asarray(2.0, sigma.dtype)) * sigma, 1.0)
-        return method.group_table(rig, xy, mask, d, sigma, tau, method.thresholds(sigma, dtype=rig.K.dtype))
+        return method.group_table(
+            rig, xy, mask, d, sigma, tau, method.thresholds(sigma, dtype=rig.K.dtype)
+        )
 
     return run
 
@@ -78,9 +84,14 @@ def main():
                 start = time.perf_counter()
                 groups, valid, _ = jax.block_until_ready(run(scenes.xy[b], scenes.mask[b], sig))
                 times.append(time.perf_counter() - start)
-                counts = pair_counts(np.asarray(groups), np.asarray(valid), np.asarray(scenes.instance[b]))
+                counts = pair_counts(
+                    np.asarray(groups), np.asarray(valid), np.asarray(scenes.instance[b])
+                )
                 tp, pred, true = tp + counts[0], pred + counts[1], true + counts[2]
-            print(f"| {name} | {sigma:g} | {tp / max(pred, 1):.4f} | {tp / max(true, 1):.4f} | {np.median(times):.3f} | {np.min(times):.3f} |", flush=True)
+            print(
+                f"| {name} | {sigma:g} | {tp / max(pred, 1):.4f} | {tp / max(true, 1):.4f} | {np.median(times):.3f} | {np.min(times):.3f} |",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

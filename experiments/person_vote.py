@@ -76,27 +76,66 @@ def run(*, sequences=6, frames=4, presets=PRESETS, seed=SEED, extras=True, log=p
     t0 = time.perf_counter()
     out = {"nu": NU, "sigma": SIGMA, "sequences": sequences, "frames": frames, "rows": []}
     for case, opts in cases.items():
-        rig, batch = rr.skeleton_batch([("tails", NU)], sequences, frames, family, seed + 11, people=(3, 4, 5), realism_of=opts)
+        rig, batch = rr.skeleton_batch(
+            [("tails", NU)], sequences, frames, family, seed + 11, people=(3, 4, 5), realism_of=opts
+        )
         instances = per_view_instances(batch, seed)
         point_class = np.arange(batch.points3d.shape[1]) % len(SKELETON_JOINTS)
         for preset in presets:
             for vote in (False, True):
                 t = time.perf_counter()
-                res = associate_classes(rig, batch.xy, batch.mask, batch.class_id, class_names=SKELETON_JOINTS, method=preset,
-                                        instances=instances if vote else None, person_vote=vote)  # fmt: skip
+                res = associate_classes(
+                    rig,
+                    batch.xy,
+                    batch.mask,
+                    batch.class_id,
+                    class_names=SKELETON_JOINTS,
+                    method=preset,
+                    instances=instances if vote else None,
+                    person_vote=vote,
+                )
                 seconds = time.perf_counter() - t
-                if not vote:  # the host step alone, on this association (its compile paid once before)
-                    args = (rig, res.association, res.group_class, np.asarray(batch.xy), np.asarray(batch.mask),
-                            np.asarray(batch.class_id), instances, PersonVote())  # fmt: skip
+                if (
+                    not vote
+                ):  # the host step alone, on this association (its compile paid once before)
+                    args = (
+                        rig,
+                        res.association,
+                        res.group_class,
+                        np.asarray(batch.xy),
+                        np.asarray(batch.mask),
+                        np.asarray(batch.class_id),
+                        instances,
+                        PersonVote(),
+                    )
                     person_consistent(*args)
                     t = time.perf_counter()
                     person_consistent(*args)
                     step_ms = 1e3 * (time.perf_counter() - t) / batch.xy.shape[0]
-                s = rr.score(rig, res.association, batch, point_class, res.group_class, family["radius"], family["sigma"])
-                out["rows"].append({"case": case, "preset": preset, "vote": vote, "recall": float(np.nanmean(s["recall"])),
-                                    "joined": float(s["joined"].sum() / max(s["groups"].sum(), 1)),
-                                    "pg_f1": float(np.mean(s["pg_f1"])), "seconds": seconds, "vote_ms_per_frame": step_ms})  # fmt: skip
-                log(f"{case} {preset} vote={vote}: {out['rows'][-1]}, {time.perf_counter() - t0:.0f} s")
+                s = rr.score(
+                    rig,
+                    res.association,
+                    batch,
+                    point_class,
+                    res.group_class,
+                    family["radius"],
+                    family["sigma"],
+                )
+                out["rows"].append(
+                    {
+                        "case": case,
+                        "preset": preset,
+                        "vote": vote,
+                        "recall": float(np.nanmean(s["recall"])),
+                        "joined": float(s["joined"].sum() / max(s["groups"].sum(), 1)),
+                        "pg_f1": float(np.mean(s["pg_f1"])),
+                        "seconds": seconds,
+                        "vote_ms_per_frame": step_ms,
+                    }
+                )
+                log(
+                    f"{case} {preset} vote={vote}: {out['rows'][-1]}, {time.perf_counter() - t0:.0f} s"
+                )
         out.setdefault("frames_total", int(batch.xy.shape[0]))
     out["seconds"] = time.perf_counter() - t0
     return out
@@ -126,69 +165,124 @@ def run_pose2sim(demo: str, presets=("paper", "extended", "best"), log=print):
     for name, pose, participants in trials:
         if "Static" in name:
             continue
-        det = load_openpose(pose, keypoints="BODY_25B", num_views=rig_file.rig.num_views, image_size=rig_file.image_size)
+        det = load_openpose(
+            pose,
+            keypoints="BODY_25B",
+            num_views=rig_file.rig.num_views,
+            image_size=rig_file.image_size,
+        )
         for preset in presets:
             res = {}
             for vote in (False, True):
                 t = time.perf_counter()
-                res[vote] = associate_classes(rig_file.rig, det.xy.astype(np.float32), det.mask, det.classes,
-                                              class_names=det.class_names, method=preset, dist=dist,
-                                              instances=det.instances if vote else None, person_vote=vote)  # fmt: skip
+                res[vote] = associate_classes(
+                    rig_file.rig,
+                    det.xy.astype(np.float32),
+                    det.mask,
+                    det.classes,
+                    class_names=det.class_names,
+                    method=preset,
+                    dist=dist,
+                    instances=det.instances if vote else None,
+                    person_vote=vote,
+                )
                 jax.block_until_ready(res[vote].association.points3d)
                 stats = rp.trial_stats(det, res[vote], participants)
-                stats.update(trial=name, people=participants, preset=preset, vote=vote, seconds=time.perf_counter() - t)
+                stats.update(
+                    trial=name,
+                    people=participants,
+                    preset=preset,
+                    vote=vote,
+                    seconds=time.perf_counter() - t,
+                )
                 rows.append(stats)
             F = det.mask.shape[0]
-            moved = sum(sum(a.get(k) != b.get(k) for k in set(a) | set(b))
-                        for a, b in (( _members(res[False].association, f), _members(res[True].association, f)) for f in range(F)))  # fmt: skip
+            moved = sum(
+                sum(a.get(k) != b.get(k) for k in set(a) | set(b))
+                for a, b in (
+                    (_members(res[False].association, f), _members(res[True].association, f))
+                    for f in range(F)
+                )
+            )
             rows[-1]["moved"] = int(moved)
-            log(f"pose2sim {name} {preset}: {rows[-2]['points']} → {rows[-1]['points']} points, {moved} detections change group")
+            log(
+                f"pose2sim {name} {preset}: {rows[-2]['points']} → {rows[-1]['points']} points, {moved} detections change group"
+            )
     return rows
 
 
 def markdown_pose2sim(rows) -> str:
-    lines = ["| trial | people | preset | 3D points (off → vote) | assigned | err median (px) | err p90 (px) | = visible "
-             "| detections that change group |", "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    lines = [
+        "| trial | people | preset | 3D points (off → vote) | assigned | err median (px) | err p90 (px) | = visible "
+        "| detections that change group |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for a, b in zip(rows[0::2], rows[1::2]):
-        lines.append(f"| {a['trial']} | {a['people']} | {a['preset']} | {a['points']} → {b['points']} | "
-                     f"{a['assigned'] / a['detections']:.3f} → {b['assigned'] / b['detections']:.3f} | "
-                     f"{a['err_median']:.1f} → {b['err_median']:.1f} | {a['err_p90']:.1f} → {b['err_p90']:.1f} | "
-                     f"{a['visible_exact']:.3f} → {b['visible_exact']:.3f} | {b['moved']} of {a['detections']} |")  # fmt: skip
+        lines.append(
+            f"| {a['trial']} | {a['people']} | {a['preset']} | {a['points']} → {b['points']} | "
+            f"{a['assigned'] / a['detections']:.3f} → {b['assigned'] / b['detections']:.3f} | "
+            f"{a['err_median']:.1f} → {b['err_median']:.1f} | {a['err_p90']:.1f} → {b['err_p90']:.1f} | "
+            f"{a['visible_exact']:.3f} → {b['visible_exact']:.3f} | {b['moved']} of {a['detections']} |"
+        )
     return "\n".join(lines)
 
 
 def markdown(out) -> str:
-    lines = [f"Skeleton scenes of 3–5 people, 5 views, ν = {out['nu']:g}, σ = {out['sigma']:.2f} px, σ estimated "
-             f"({out['frames_total']} frames: {out['sequences']} sequences × {out['frames']}):", "",
-             "| scenes | preset | recall within 10 cm (off → vote) | groups joining two people (off → vote) | PG-F1 (off → vote) "
-             "| vote step (ms/frame) |", "|---|---|---|---|---|---|"]  # fmt: skip
+    lines = [
+        f"Skeleton scenes of 3–5 people, 5 views, ν = {out['nu']:g}, σ = {out['sigma']:.2f} px, σ estimated "
+        f"({out['frames_total']} frames: {out['sequences']} sequences × {out['frames']}):",
+        "",
+        "| scenes | preset | recall within 10 cm (off → vote) | groups joining two people (off → vote) | PG-F1 (off → vote) "
+        "| vote step (ms/frame) |",
+        "|---|---|---|---|---|---|",
+    ]
     rows = {(r["case"], r["preset"], r["vote"]): r for r in out["rows"]}
     for case, preset, vote in rows:
         if vote:
             continue
         a, b = rows[case, preset, False], rows[case, preset, True]
-        lines.append(f"| {case} | {preset} | {a['recall']:.3f} → {b['recall']:.3f} | {100 * a['joined']:.2f} % → "
-                     f"{100 * b['joined']:.2f} % | {a['pg_f1']:.3f} → {b['pg_f1']:.3f} | {b['vote_ms_per_frame']:.1f} |")  # fmt: skip
+        lines.append(
+            f"| {case} | {preset} | {a['recall']:.3f} → {b['recall']:.3f} | {100 * a['joined']:.2f} % → "
+            f"{100 * b['joined']:.2f} % | {a['pg_f1']:.3f} → {b['pg_f1']:.3f} | {b['vote_ms_per_frame']:.1f} |"
+        )
     return "\n".join(lines)
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sequences", type=int, default=6, help="sequences (3, 4, 5 people in turn)")
+    parser.add_argument(
+        "--sequences", type=int, default=6, help="sequences (3, 4, 5 people in turn)"
+    )
     parser.add_argument("--frames", type=int, default=4, help="frames per sequence")
     parser.add_argument("--presets", nargs="+", choices=PRESETS, default=list(PRESETS))
     parser.add_argument("--seed", type=int, default=SEED)
     parser.add_argument("--json", default=None, help="also write the numbers here")
-    parser.add_argument("--quick", action="store_true", help="tiny run: 1 sequence of 2 frames, paper() only, targets only")
-    parser.add_argument("--pose2sim", default=None, help="also the Pose2Sim demo folder (S00_Demo_Session, unpacked)")
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="tiny run: 1 sequence of 2 frames, paper() only, targets only",
+    )
+    parser.add_argument(
+        "--pose2sim",
+        default=None,
+        help="also the Pose2Sim demo folder (S00_Demo_Session, unpacked)",
+    )
     args = parser.parse_args(argv)
     extras = not args.quick
     if args.quick:
         args.sequences, args.frames, args.presets = 1, 2, ["paper"]
-    out = run(sequences=args.sequences, frames=args.frames, presets=tuple(args.presets), seed=args.seed, extras=extras)
+    out = run(
+        sequences=args.sequences,
+        frames=args.frames,
+        presets=tuple(args.presets),
+        seed=args.seed,
+        extras=extras,
+    )
     if args.pose2sim:
         t = time.perf_counter()
-        out["pose2sim"] = run_pose2sim(args.pose2sim, presets=tuple(p for p in args.presets if p != "reference"))
+        out["pose2sim"] = run_pose2sim(
+            args.pose2sim, presets=tuple(p for p in args.presets if p != "reference")
+        )
         out["seconds_pose2sim"] = time.perf_counter() - t
     if args.json:
         with open(args.json, "w") as f:

@@ -42,13 +42,32 @@ DEMO_PREFIX = "Pose2Sim/S00_Demo_Session/"
 DEFAULT_CACHE = os.path.join(os.path.expanduser("~"), ".cache", "cdog_jax", f"pose2sim-{VERSION}")
 # BODY_25B bones (Pose2Sim's skeleton tree, the hip centre left out; eyes and ears as in COCO).
 BONES = [
-    ("RHip", "RKnee"), ("RKnee", "RAnkle"), ("RAnkle", "RBigToe"), ("RBigToe", "RSmallToe"), ("RAnkle", "RHeel"),
-    ("LHip", "LKnee"), ("LKnee", "LAnkle"), ("LAnkle", "LBigToe"), ("LBigToe", "LSmallToe"), ("LAnkle", "LHeel"),
-    ("RHip", "LHip"), ("Neck", "RHip"), ("Neck", "LHip"), ("Neck", "Head"), ("Head", "Nose"),
-    ("Nose", "LEye"), ("Nose", "REye"), ("LEye", "LEar"), ("REye", "REar"),
-    ("Neck", "RShoulder"), ("RShoulder", "RElbow"), ("RElbow", "RWrist"),
-    ("Neck", "LShoulder"), ("LShoulder", "LElbow"), ("LElbow", "LWrist"),
-]  # fmt: skip
+    ("RHip", "RKnee"),
+    ("RKnee", "RAnkle"),
+    ("RAnkle", "RBigToe"),
+    ("RBigToe", "RSmallToe"),
+    ("RAnkle", "RHeel"),
+    ("LHip", "LKnee"),
+    ("LKnee", "LAnkle"),
+    ("LAnkle", "LBigToe"),
+    ("LBigToe", "LSmallToe"),
+    ("LAnkle", "LHeel"),
+    ("RHip", "LHip"),
+    ("Neck", "RHip"),
+    ("Neck", "LHip"),
+    ("Neck", "Head"),
+    ("Head", "Nose"),
+    ("Nose", "LEye"),
+    ("Nose", "REye"),
+    ("LEye", "LEar"),
+    ("REye", "REar"),
+    ("Neck", "RShoulder"),
+    ("RShoulder", "RElbow"),
+    ("RElbow", "RWrist"),
+    ("Neck", "LShoulder"),
+    ("LShoulder", "LElbow"),
+    ("LElbow", "LWrist"),
+]
 
 
 def fetch_demo(cache: str) -> str:
@@ -59,13 +78,25 @@ def fetch_demo(cache: str) -> str:
     os.makedirs(cache, exist_ok=True)
     wheels = glob.glob(os.path.join(cache, f"pose2sim-{VERSION}-*.whl"))
     if not wheels:
-        cmd = [sys.executable, "-m", "pip", "download", "--no-deps", f"pose2sim=={VERSION}", "-d", cache, "-q"]
+        cmd = [
+            sys.executable,
+            "-m",
+            "pip",
+            "download",
+            "--no-deps",
+            f"pose2sim=={VERSION}",
+            "-d",
+            cache,
+            "-q",
+        ]
         print("Downloading:", " ".join(cmd))
         subprocess.run(cmd, check=True)
         wheels = glob.glob(os.path.join(cache, f"pose2sim-{VERSION}-*.whl"))
     with zipfile.ZipFile(wheels[0]) as z:
         for name in z.namelist():
-            keep = name.startswith(DEMO_PREFIX) and (name.endswith(".json") or name.endswith(".qca.txt"))
+            keep = name.startswith(DEMO_PREFIX) and (
+                name.endswith(".json") or name.endswith(".qca.txt")
+            )
             if keep:
                 target = os.path.join(cache, name[len("Pose2Sim/") :])
                 os.makedirs(os.path.dirname(target), exist_ok=True)
@@ -82,7 +113,9 @@ def find_inputs(demo: str) -> tuple[str, list[tuple[str, str, int]]]:
     trials = []
     for pose in sorted(glob.glob(os.path.join(demo, "**", "pose"), recursive=True)):
         name = os.path.basename(os.path.dirname(pose))
-        participants = 2 if "Participants1-2" in name else 1  # the demo's trial names say who is filmed
+        participants = (
+            2 if "Participants1-2" in name else 1
+        )  # the demo's trial names say who is filmed
         trials.append((name, pose, participants))
     return calib[0], trials
 
@@ -94,13 +127,21 @@ def associate_trial(rig_file, pose: str, preset: str):
     from cdog_jax import associate_classes
     from cdog_jax.io import load_openpose
 
-    det = load_openpose(pose, keypoints="BODY_25B", num_views=rig_file.rig.num_views, image_size=rig_file.image_size)
+    det = load_openpose(
+        pose, keypoints="BODY_25B", num_views=rig_file.rig.num_views, image_size=rig_file.image_size
+    )
     dist = rig_file.dist if rig_file.dist is not None and np.any(rig_file.dist) else None
     t0 = time.perf_counter()
     out = associate_classes(
-        rig_file.rig, det.xy.astype(np.float32), det.mask, det.classes, class_names=det.class_names,
-        method=preset, sigma="auto", dist=dist,
-    )  # fmt: skip
+        rig_file.rig,
+        det.xy.astype(np.float32),
+        det.mask,
+        det.classes,
+        class_names=det.class_names,
+        method=preset,
+        sigma="auto",
+        dist=dist,
+    )
     jax.block_until_ready(out.association.points3d)
     return det, out, time.perf_counter() - t0
 
@@ -117,7 +158,9 @@ def trial_stats(det, out, participants: int) -> dict:
     np.add.at(per, (f, out.group_class[f, g]), 1)
     # Instances of a joint type that 2 views could show: the second-largest count of its
     # detections over the views (people in the background count; there is no ground truth).
-    counts = np.stack([((det.classes == c) & det.mask).sum(axis=2) for c in range(C)], axis=1)  # (F, C, M)
+    counts = np.stack(
+        [((det.classes == c) & det.mask).sum(axis=2) for c in range(C)], axis=1
+    )  # (F, C, M)
     visible = np.sort(counts, axis=2)[:, :, -2]
     seen = visible >= 1
     n_views = np.asarray(a.n_views)[valid]
@@ -177,7 +220,9 @@ def plot_frame(rig_file, det, out, frame: int, path: str, title: str) -> None:
             ax.scatter(*xy[lab == g].T, s=8, color=colours(int(g) % 20))
         ax.set_title((rig_file.names or [f"view {i}" for i in range(M)])[m], fontsize=8)
     ax3 = fig.add_subplot(1, M + 2, (M + 1, M + 2), projection="3d")
-    ref = int(np.argmax([(groups[valid][:, m] >= 0).sum() for m in range(M)]))  # the view in most groups
+    ref = int(
+        np.argmax([(groups[valid][:, m] >= 0).sum() for m in range(M)])
+    )  # the view in most groups
     person = np.full(len(groups), -1)
     joint = out.group_class[frame]
     for g in np.flatnonzero(valid):
@@ -189,8 +234,14 @@ def plot_frame(rig_file, det, out, frame: int, path: str, title: str) -> None:
         for u, v in BONES:
             if u in at and v in at:
                 ax3.plot(*np.stack([at[u], at[v]]).T, color=people_colours[p % 5], linewidth=1.5)
-    ax3.scatter(*X[valid].T, s=6, c=["k" if person[g] < 0 else people_colours[person[g] % 5] for g in np.flatnonzero(valid)])
-    ax3.set_title("3D points (m); skeletons by person in " + (rig_file.names or [""] * M)[ref], fontsize=8)
+    ax3.scatter(
+        *X[valid].T,
+        s=6,
+        c=["k" if person[g] < 0 else people_colours[person[g] % 5] for g in np.flatnonzero(valid)],
+    )
+    ax3.set_title(
+        "3D points (m); skeletons by person in " + (rig_file.names or [""] * M)[ref], fontsize=8
+    )
     ax3.tick_params(labelsize=6)
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
@@ -201,13 +252,21 @@ def plot_frame(rig_file, det, out, frame: int, path: str, title: str) -> None:
 
 
 def main(argv=None) -> dict:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--cache", default=DEFAULT_CACHE, help="where the wheel is downloaded and the demo unpacked")
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    p.add_argument(
+        "--cache", default=DEFAULT_CACHE, help="where the wheel is downloaded and the demo unpacked"
+    )
     p.add_argument("--demo-dir", default=None, help="an unpacked demo folder (no download)")
     p.add_argument("--presets", default="paper,extended", help="comma-separated presets")
-    p.add_argument("--figure", default=None, help="figure of one frame of the multi-participant trial (.png)")
+    p.add_argument(
+        "--figure", default=None, help="figure of one frame of the multi-participant trial (.png)"
+    )
     p.add_argument("--frame", type=int, default=50, help="frame of the figure")
-    p.add_argument("--results", default=None, help="append a section with the table to this Markdown file")
+    p.add_argument(
+        "--results", default=None, help="append a section with the table to this Markdown file"
+    )
     args = p.parse_args(argv)
 
     from cdog_jax.io import load_rig
@@ -215,7 +274,9 @@ def main(argv=None) -> dict:
     demo = args.demo_dir or fetch_demo(args.cache)
     calib, trials = find_inputs(demo)
     rig_file = load_rig(calib)
-    print(f"Calibration: {calib}: {rig_file.rig.num_views} views, {rig_file.image_size}, names {rig_file.names}")
+    print(
+        f"Calibration: {calib}: {rig_file.rig.num_views} views, {rig_file.image_size}, names {rig_file.names}"
+    )
     rows, stats = [], {}
     header = (
         "| trial | people | preset | frames | detections | 3D points | assigned | views/point | σ̂ (px) | err median (px) | "
@@ -240,7 +301,14 @@ def main(argv=None) -> dict:
     if args.figure and figure_trial is not None:
         name, det, out, preset = figure_trial
         frame = min(args.frame, det.mask.shape[0] - 1)
-        plot_frame(rig_file, det, out, frame, args.figure, f"Pose2Sim demo {name}, frame {frame}, {preset} preset")
+        plot_frame(
+            rig_file,
+            det,
+            out,
+            frame,
+            args.figure,
+            f"Pose2Sim demo {name}, frame {frame}, {preset} preset",
+        )
         print(f"Figure: {args.figure} ({os.path.getsize(args.figure) // 1024} KB)")
     if args.results:
         with open(args.results, "a") as f:

@@ -154,12 +154,18 @@ def evaluate(rig, batch, configs, log=print, budget_s=None, order=None):
         fields = {f: np.full(S, np.nan) for f in FIELDS}
         t_first, done = None, 0
         for start in range(0, ok.size, CHUNK):
-            if budget_s is not None and t_first is not None and time.perf_counter() - t_first > budget_s:
+            if (
+                budget_s is not None
+                and t_first is not None
+                and time.perf_counter() - t_first > budget_s
+            ):
                 break
-            idx = ok[start:start + CHUNK]
+            idx = ok[start : start + CHUNK]
             pad = np.concatenate([idx, np.repeat(idx[:1], CHUNK - idx.size)])  # one compiled shape
             sub = jax.tree.map(lambda a: a[pad], batch)
-            assoc = associate_batch(rig, sub.xy, sub.mask, method=method, sigma=SIGMA, batch_size=CHUNK)
+            assoc = associate_batch(
+                rig, sub.xy, sub.mask, method=method, sigma=SIGMA, batch_size=CHUNK
+            )
             m = _metrics_batch(rig, assoc, sub)
             for f in FIELDS:
                 fields[f][idx] = np.asarray(getattr(m, f), np.float64)[: idx.size]
@@ -167,7 +173,9 @@ def evaluate(rig, batch, configs, log=print, budget_s=None, order=None):
             if t_first is None:
                 t_first = time.perf_counter()
         out[name] = fields
-        log(f"  {name}: {done}/{S} scenes ({S - ok.size} refused), {time.perf_counter() - t0:.1f} s (compile included)")
+        log(
+            f"  {name}: {done}/{S} scenes ({S - ok.size} refused), {time.perf_counter() - t0:.1f} s (compile included)"
+        )
     return out
 
 
@@ -176,10 +184,17 @@ def summarise(per_scene, drop, clutter, g_max):
     rows = []
     for d, c in levels():
         at = (drop == d) & (clutter == c)
-        row = {"drop_rate": d, "clutter_rate": c, "num_scenes": int(at.sum()), "g_f1_max": float(g_max[at].mean())}
+        row = {
+            "drop_rate": d,
+            "clutter_rate": c,
+            "num_scenes": int(at.sum()),
+            "g_f1_max": float(g_max[at].mean()),
+        }
         for name, fields in per_scene.items():
             run = at & np.isfinite(fields["pg_f1"])
-            row[name] = {f: float(v[run].mean()) if run.any() else float("nan") for f, v in fields.items()}
+            row[name] = {
+                f: float(v[run].mean()) if run.any() else float("nan") for f, v in fields.items()
+            }
             row[name]["scenes_run"] = int(run.sum())
             # The true grouping's G-F1 on the same scenes, for a method run on a subset.
             row[name]["g_f1_max"] = float(g_max[run].mean()) if run.any() else float("nan")
@@ -187,7 +202,16 @@ def summarise(per_scene, drop, clutter, g_max):
     return rows
 
 
-def run(*, counts=(20, 60, 100), scenes=8, seed=0, stages=False, configs=tuple(CONFIGS), budget_s=None, log=print):
+def run(
+    *,
+    counts=(20, 60, 100),
+    scenes=8,
+    seed=0,
+    stages=False,
+    configs=tuple(CONFIGS),
+    budget_s=None,
+    log=print,
+):
     rig = default_rig()
     known = all_methods()
     counts = tuple(int(c) for c in counts)
@@ -195,12 +219,17 @@ def run(*, counts=(20, 60, 100), scenes=8, seed=0, stages=False, configs=tuple(C
     batch, drop, clutter, count = make_scenes(rig, counts, scenes, seed)
     num_clutter = np.asarray(batch.num_clutter)
     clipped = int(np.sum(num_clutter >= CLUTTER_CAPACITY))
-    log(f"{drop.size} scenes ({len(levels())} levels × {len(counts)} counts × {scenes}); "
-        f"views with clipped clutter: {clipped}")
+    log(
+        f"{drop.size} scenes ({len(levels())} levels × {len(counts)} counts × {scenes}); "
+        f"views with clipped clutter: {clipped}"
+    )
     scene_index = np.tile(np.arange(scenes), drop.size // scenes)
-    order = np.lexsort((np.arange(drop.size), scene_index))  # scene 0 of every cell first, then 1, …
-    per_scene = evaluate(rig, batch, {name: known[name] for name in configs}, log=log, budget_s=budget_s,
-                         order=order)
+    order = np.lexsort(
+        (np.arange(drop.size), scene_index)
+    )  # scene 0 of every cell first, then 1, …
+    per_scene = evaluate(
+        rig, batch, {name: known[name] for name in configs}, log=log, budget_s=budget_s, order=order
+    )
     out = {
         "sigma_px": SIGMA,
         "counts": list(counts),
@@ -214,15 +243,25 @@ def run(*, counts=(20, 60, 100), scenes=8, seed=0, stages=False, configs=tuple(C
         "rows": summarise(per_scene, drop, clutter, truth_g_f1(batch)),
     }
     if stages:
-        worst = (drop == max(DROP_RATES)) | (clutter == max(CLUTTER_RATES)) | ((drop == 0) & (clutter == 0))
+        worst = (
+            (drop == max(DROP_RATES))
+            | (clutter == max(CLUTTER_RATES))
+            | ((drop == 0) & (clutter == 0))
+        )
         sub = jax.tree.map(lambda a: a[worst], batch)
         st = evaluate(rig, sub, STAGES, log=log)
         rows = []
         for d, c in ((0.0, 0.0), (max(DROP_RATES), 0.0), (0.0, max(CLUTTER_RATES))):
             at = (drop[worst] == d) & (clutter[worst] == c)
             for name, fields in st.items():
-                rows.append({"drop_rate": d, "clutter_rate": c, "stage": name,
-                             **{f: float(v[at].mean()) for f, v in fields.items()}})
+                rows.append(
+                    {
+                        "drop_rate": d,
+                        "clutter_rate": c,
+                        "stage": name,
+                        **{f: float(v[at].mean()) for f, v in fields.items()},
+                    }
+                )
         out["stages"] = rows
     out["total_seconds"] = time.perf_counter() - t_all
     return out
@@ -243,25 +282,38 @@ def markdown_tables(out: dict) -> str:
             head.append("truth G-F1")
         lines += ["", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         for r in out["rows"]:
-            cells = [f"{100 * r['drop_rate']:g}", f"{r['clutter_rate']:g}"] + [_cell(r[n][f]) for n in names]
+            cells = [f"{100 * r['drop_rate']:g}", f"{r['clutter_rate']:g}"] + [
+                _cell(r[n][f]) for n in names
+            ]
             if f == "g_f1":
                 cells.append(f"{r['g_f1_max']:.3f}")
             lines.append("| " + " | ".join(cells) + " |")
     partial = [n for n in names if any(r[n]["scenes_run"] < r["num_scenes"] for r in out["rows"])]
     if partial:
-        lines += ["", "Run on part of the scenes (a time budget of "
-                  f"{out.get('budget_s')} s per method after its first chunk, or scenes it refuses), scenes run per "
-                  "level of " + str(out["rows"][0]["num_scenes"]) + ", and the true grouping's G-F1 on those scenes:", ""]
+        lines += [
+            "",
+            "Run on part of the scenes (a time budget of "
+            f"{out.get('budget_s')} s per method after its first chunk, or scenes it refuses), scenes run per "
+            "level of "
+            + str(out["rows"][0]["num_scenes"])
+            + ", and the true grouping's G-F1 on those scenes:",
+            "",
+        ]
         for n in partial:
             runs = ", ".join(f"{r[n]['scenes_run']}" for r in out["rows"])
             truth = ", ".join(_cell(r[n]["g_f1_max"]) for r in out["rows"])
             lines.append(f"- {n}: {runs} (truth G-F1 {truth})")
     if "stages" in out:
-        lines += ["", "| drop (%) | clutter / view | stages | PG-R | PG-P | PG-F1 | G-F1 | unassigned / scene |",
-                  "|---|---|---|---|---|---|---|---|"]
+        lines += [
+            "",
+            "| drop (%) | clutter / view | stages | PG-R | PG-P | PG-F1 | G-F1 | unassigned / scene |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
         for r in out["stages"]:
-            lines.append(f"| {100 * r['drop_rate']:g} | {r['clutter_rate']:g} | {r['stage']} | {r['pg_r']:.3f} | "
-                         f"{r['pg_p']:.3f} | {r['pg_f1']:.3f} | {r['g_f1']:.3f} | {r['num_unassigned']:.1f} |")
+            lines.append(
+                f"| {100 * r['drop_rate']:g} | {r['clutter_rate']:g} | {r['stage']} | {r['pg_r']:.3f} | "
+                f"{r['pg_p']:.3f} | {r['pg_f1']:.3f} | {r['g_f1']:.3f} | {r['num_unassigned']:.1f} |"
+            )
     return "\n".join(lines[1:])
 
 
@@ -279,9 +331,18 @@ def figure(out: dict, path: str):
     colors = {n: cmap(i % cmap.N) for i, n in enumerate(out["configs"])}
     rows = out["rows"]
     sweeps = (
-        ([r for r in rows if r["clutter_rate"] == 0], "drop_rate", 100.0, "missed detections: drop rate (%)"),
-        ([r for r in rows if r["drop_rate"] == 0], "clutter_rate", 1.0,
-         "clutter: mean false detections per view (Poisson mean)"),
+        (
+            [r for r in rows if r["clutter_rate"] == 0],
+            "drop_rate",
+            100.0,
+            "missed detections: drop rate (%)",
+        ),
+        (
+            [r for r in rows if r["drop_rate"] == 0],
+            "clutter_rate",
+            1.0,
+            "clutter: mean false detections per view (Poisson mean)",
+        ),
     )
     for ax, (sel, key, scale, xlabel) in zip(axes, sweeps):
         x = [scale * r[key] for r in sel]
@@ -296,44 +357,78 @@ def figure(out: dict, path: str):
     axes[1].set_title(f"σ = {out['sigma_px']:g} px, no missed detections")
     by_config = [Line2D([], [], color=colors[n], lw=2, label=n) for n in out["configs"]]
     by_score = [Line2D([], [], color="k", ls=ls, label=lab) for ls, lab in styles.values()]
-    by_score.append(Line2D([], [], color="0.4", lw=1.2, ls=(0, (1, 3)), label="G-F1 of the true grouping"))
+    by_score.append(
+        Line2D([], [], color="0.4", lw=1.2, ls=(0, (1, 3)), label="G-F1 of the true grouping")
+    )
     # The lower part of the drop panel is empty: both legends go there.
-    axes[0].add_artist(axes[0].legend(handles=by_config, fontsize=8, loc="lower left", title="config", title_fontsize=8))
+    axes[0].add_artist(
+        axes[0].legend(
+            handles=by_config, fontsize=8, loc="lower left", title="config", title_fontsize=8
+        )
+    )
     axes[0].legend(handles=by_score, fontsize=8, loc="lower right", title="score", title_fontsize=8)
     fig.savefig(path, dpi=120)
     return fig
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--counts", type=int, nargs="+", default=[20, 60, 100])
     parser.add_argument("--scenes", type=int, default=8, help="scenes per (level, count)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--stages", action="store_true", help="per-stage table at the worst levels")
-    parser.add_argument("--methods", "--configs", dest="configs", default="all",
-                        help="'all' (the presets and variants above, then every registered method) or a comma-separated list")
-    parser.add_argument("--budget-s", type=float, default=None,
-                        help="seconds per method after its first chunk (slow methods then run on part of the scenes)")
-    parser.add_argument("--quick", action="store_true", help="tiny run: paper() only, counts 8, 1 scene each")
-    parser.add_argument("--figure", default=os.path.join("experiments", "figures", "robustness.png"))
+    parser.add_argument(
+        "--methods",
+        "--configs",
+        dest="configs",
+        default="all",
+        help="'all' (the presets and variants above, then every registered method) or a comma-separated list",
+    )
+    parser.add_argument(
+        "--budget-s",
+        type=float,
+        default=None,
+        help="seconds per method after its first chunk (slow methods then run on part of the scenes)",
+    )
+    parser.add_argument(
+        "--quick", action="store_true", help="tiny run: paper() only, counts 8, 1 scene each"
+    )
+    parser.add_argument(
+        "--figure", default=os.path.join("experiments", "figures", "robustness.png")
+    )
     parser.add_argument("--json", default=None, help="also write the numbers here")
     args = parser.parse_args(argv)
     if args.quick:
         args.counts, args.scenes, args.configs = [8], 1, "paper"
     known = all_methods()
-    names = list(known) if args.configs == "all" else [n.strip() for n in args.configs.split(",") if n.strip()]
+    names = (
+        list(known)
+        if args.configs == "all"
+        else [n.strip() for n in args.configs.split(",") if n.strip()]
+    )
     unknown = [n for n in names if n not in known]
     if unknown:
         parser.error(f"--methods: unknown {unknown}; known: {', '.join(known)}")
-    out = run(counts=args.counts, scenes=args.scenes, seed=args.seed, stages=args.stages, configs=names,
-              budget_s=args.budget_s)
+    out = run(
+        counts=args.counts,
+        scenes=args.scenes,
+        seed=args.seed,
+        stages=args.stages,
+        configs=names,
+        budget_s=args.budget_s,
+    )
     os.makedirs(os.path.dirname(os.path.abspath(args.figure)), exist_ok=True)
     figure(out, args.figure)
     if args.json:
         with open(args.json, "w") as f:
             json.dump(out, f, indent=1)
     print(markdown_tables(out))
-    print(f"\ntotal {out['total_seconds']:.1f} s; wrote {args.figure}" + (f" and {args.json}" if args.json else ""))
+    print(
+        f"\ntotal {out['total_seconds']:.1f} s; wrote {args.figure}"
+        + (f" and {args.json}" if args.json else "")
+    )
     return out
 
 

@@ -78,10 +78,28 @@ ROBUST = {"best_robust"}  # presets whose σ̂ comes from the robust estimator
 
 def _method(preset):
     return METHODS.get(preset, preset)
+
+
 FAMILIES = {
     # sigma (px), radius (scene units), camera distance for the translation error, capacities
-    "box": dict(sigma=1.0, radius=0.01, distance=2.6, points=30, doubles=12, clutter=24, clutter_levels=(2.0, 5.0, 10.0)),
-    "skeleton": dict(sigma=3.0, radius=0.1, distance=5.0, people=4, doubles=40, clutter=48, clutter_levels=(5.0, 15.0, 30.0)),
+    "box": dict(
+        sigma=1.0,
+        radius=0.01,
+        distance=2.6,
+        points=30,
+        doubles=12,
+        clutter=24,
+        clutter_levels=(2.0, 5.0, 10.0),
+    ),
+    "skeleton": dict(
+        sigma=3.0,
+        radius=0.1,
+        distance=5.0,
+        people=4,
+        doubles=40,
+        clutter=48,
+        clutter_levels=(5.0, 15.0, 30.0),
+    ),
 }
 FACTORS = {
     # factor: (axis label, levels)
@@ -92,7 +110,14 @@ FACTORS = {
     "clutter": ("clutter per view (Poisson mean)", None),  # per family
     "doubles": ("double detection rate", (0.0, 0.1, 0.3)),
 }
-CLEAN = {"tails": math.inf, "far": 0.0, "spread": 0.0, "calibration": 0.0, "clutter": 0.0, "doubles": 0.0}
+CLEAN = {
+    "tails": math.inf,
+    "far": 0.0,
+    "spread": 0.0,
+    "calibration": 0.0,
+    "clutter": 0.0,
+    "doubles": 0.0,
+}
 TARGET = dict(median_px=5.7, beyond_10px=0.27)
 FIT_NUS = (1.5, 2.0, 2.5, 3.0, 4.0, 6.0, 10.0, math.inf)
 SEED = 0
@@ -127,6 +152,7 @@ def levels(family: dict, quick: bool = False) -> list[tuple[str, float]]:
 
 # ---------------------------------------------------------------- scoring (host, NumPy)
 
+
 def recall_within(points_true, exists_true, cls_true, points_hat, valid_hat, cls_hat, radius):
     """Share of true points ``(T, 3)`` (where ``exists_true``) with a valid reconstructed point
     of the same class within ``radius``."""
@@ -154,25 +180,40 @@ def detected_twice(instance, kind, mask, num_points):
 
 
 # Per scene: RealScene.as_scene() checks one scene's shapes, so it runs inside the vmap.
-_metrics = jax.jit(jax.vmap(lambda rig, assoc, scene: scene_metrics(rig, assoc, scene.as_scene()), in_axes=(None, 0, 0)))
+_metrics = jax.jit(
+    jax.vmap(
+        lambda rig, assoc, scene: scene_metrics(rig, assoc, scene.as_scene()), in_axes=(None, 0, 0)
+    )
+)
 
 
 def score(rig, assoc, scenes, point_class, result_class, radius, sigma_true):
     """Per-scene arrays: pg_f1, g_f1, recall, joined, groups, sigma_ratio."""
     m = _metrics(rig, assoc, scenes)
     labels, valid, X_hat = (np.asarray(a) for a in (assoc.labels, assoc.valid, assoc.points3d))
-    inst, kind, mask, X = (np.asarray(a) for a in (scenes.instance, scenes.kind, scenes.mask, scenes.points3d))
+    inst, kind, mask, X = (
+        np.asarray(a) for a in (scenes.instance, scenes.kind, scenes.mask, scenes.points3d)
+    )
     B, I = X.shape[0], X.shape[1]
     recall, joined, groups = np.zeros(B), np.zeros(B), np.zeros(B)
     for b in range(B):
         twice = detected_twice(inst[b], kind[b], mask[b], I)
-        recall[b] = recall_within(X[b], twice, point_class, X_hat[b], valid[b], result_class[b], radius)
+        recall[b] = recall_within(
+            X[b], twice, point_class, X_hat[b], valid[b], result_class[b], radius
+        )
         joined[b], groups[b] = joined_share(labels[b], valid[b], inst[b], mask[b])
-    return dict(pg_f1=np.asarray(m.pg_f1), g_f1=np.asarray(m.g_f1), recall=recall, joined=joined, groups=groups,
-                sigma_ratio=np.asarray(assoc.sigma_px) / sigma_true)
+    return dict(
+        pg_f1=np.asarray(m.pg_f1),
+        g_f1=np.asarray(m.g_f1),
+        recall=recall,
+        joined=joined,
+        groups=groups,
+        sigma_ratio=np.asarray(assoc.sigma_px) / sigma_true,
+    )
 
 
 # ---------------------------------------------------------------- scene families
+
 
 def box_batch(lv, scenes, family, seed, quick):
     rig = default_rig()
@@ -180,10 +221,18 @@ def box_batch(lv, scenes, family, seed, quick):
     for i, (factor, value) in enumerate(lv):
         for s in range(scenes):
             key = jax.random.fold_in(jax.random.PRNGKey(seed), 1000 * i + s)
-            parts.append(generate_realistic_scene(
-                key, rig, 8 if quick else family["points"], family["sigma"], realism=realism(factor, value, family),
-                capacity=family["points"], double_capacity=family["doubles"], clutter_capacity=family["clutter"],
-            ))  # fmt: skip
+            parts.append(
+                generate_realistic_scene(
+                    key,
+                    rig,
+                    8 if quick else family["points"],
+                    family["sigma"],
+                    realism=realism(factor, value, family),
+                    capacity=family["points"],
+                    double_capacity=family["doubles"],
+                    clutter_capacity=family["clutter"],
+                )
+            )
     return rig, jax.tree.map(lambda *a: jnp.stack(a), *parts)
 
 
@@ -197,26 +246,51 @@ def skeleton_batch(lv, sequences, frames, family, seed, people=None, realism_of=
             n = family["people"] if people is None else people[q % len(people)]
             opts = realism(factor, value, family) if realism_of is None else realism_of
             sk = generate_skeleton_scenes(
-                key, rig, n, family["sigma"], realism=opts, num_frames=frames, max_people=5,
-                double_capacity=family["doubles"], clutter_capacity=family["clutter"],
-            )  # fmt: skip
+                key,
+                rig,
+                n,
+                family["sigma"],
+                realism=opts,
+                num_frames=frames,
+                max_people=5,
+                double_capacity=family["doubles"],
+                clutter_capacity=family["clutter"],
+            )
             parts.append(sk.frames)
     return rig, jax.tree.map(lambda *a: jnp.concatenate(a), *parts)
 
 
 def run_box(lv, scenes, family, preset, batch, rig, sigma="auto"):
-    assoc = associate_batch(rig, batch.xy, batch.mask, method=_method(preset), sigma=sigma, batch_size=8)
+    assoc = associate_batch(
+        rig, batch.xy, batch.mask, method=_method(preset), sigma=sigma, batch_size=8
+    )
     zeros = np.zeros((batch.xy.shape[0], assoc.valid.shape[1]), np.int64)
-    return score(rig, assoc, batch, np.zeros(batch.points3d.shape[1], np.int64), zeros, family["radius"], family["sigma"])
+    return score(
+        rig,
+        assoc,
+        batch,
+        np.zeros(batch.points3d.shape[1], np.int64),
+        zeros,
+        family["radius"],
+        family["sigma"],
+    )
 
 
 def run_skeleton(family, preset, batch, rig, sigma="auto"):
     out = associate_classes(
-        rig, batch.xy, batch.mask, batch.class_id, class_names=SKELETON_JOINTS, method=_method(preset), sigma=sigma
+        rig,
+        batch.xy,
+        batch.mask,
+        batch.class_id,
+        class_names=SKELETON_JOINTS,
+        method=_method(preset),
+        sigma=sigma,
     )
     J = len(SKELETON_JOINTS)
     point_class = np.arange(batch.points3d.shape[1]) % J
-    return score(rig, out.association, batch, point_class, out.group_class, family["radius"], family["sigma"])
+    return score(
+        rig, out.association, batch, point_class, out.group_class, family["radius"], family["sigma"]
+    )
 
 
 def summarise(per_scene, lv, per_level):
@@ -226,24 +300,32 @@ def summarise(per_scene, lv, per_level):
         row = {"factor": factor, "value": value}
         for preset, s in per_scene.items():
             row[preset] = {
-                "pg_f1": float(np.mean(s["pg_f1"][at])), "g_f1": float(np.mean(s["g_f1"][at])),
+                "pg_f1": float(np.mean(s["pg_f1"][at])),
+                "g_f1": float(np.mean(s["g_f1"][at])),
                 "recall": float(np.nanmean(s["recall"][at])),
                 "joined": float(s["joined"][at].sum() / max(s["groups"][at].sum(), 1)),
                 "sigma_ratio": float(np.median(s["sigma_ratio"][at])),
-            }  # fmt: skip
+            }
         rows.append(row)
     return rows
 
 
 # ---------------------------------------------------------------- fitting the tails
 
+
 def true_pair_distances(rig, frames) -> np.ndarray:
     """Epipolar distances (px) of every true pair (the same point's real detections in two
     views), both directions, over all frames."""
-    d = np.asarray(jax.jit(jax.vmap(epipolar_distances, in_axes=(None, 0, 0)))(rig, frames.xy, frames.mask))
+    d = np.asarray(
+        jax.jit(jax.vmap(epipolar_distances, in_axes=(None, 0, 0)))(rig, frames.xy, frames.mask)
+    )
     inst, kind, mask = (np.asarray(a) for a in (frames.instance, frames.kind, frames.mask))
     real = mask & (kind == 0)
-    same = (inst[:, :, :, None, None] == inst[:, None, None, :, :]) & real[:, :, :, None, None] & real[:, None, None, :, :]
+    same = (
+        (inst[:, :, :, None, None] == inst[:, None, None, :, :])
+        & real[:, :, :, None, None]
+        & real[:, None, None, :, :]
+    )
     return d[same & np.isfinite(d)]
 
 
@@ -252,10 +334,19 @@ def fit_tails(family, sequences, frames, seed, nus=FIT_NUS):
     :data:`TARGET`: for each ν, σ sets the median; ν is the one closest to the 10 px share."""
     rows = []
     for nu in nus:
-        rig, batch = skeleton_batch([("tails", nu)], sequences, frames, dict(family, sigma=1.0), seed + 7)
+        rig, batch = skeleton_batch(
+            [("tails", nu)], sequences, frames, dict(family, sigma=1.0), seed + 7
+        )
         d1 = true_pair_distances(rig, batch)
         sigma = TARGET["median_px"] / float(np.median(d1))
-        rows.append({"nu": nu, "sigma": sigma, "beyond_10px": float(np.mean(sigma * d1 > 10.0)), "pairs": int(d1.size)})
+        rows.append(
+            {
+                "nu": nu,
+                "sigma": sigma,
+                "beyond_10px": float(np.mean(sigma * d1 > 10.0)),
+                "pairs": int(d1.size),
+            }
+        )
     best = min(rows, key=lambda r: abs(r["beyond_10px"] - TARGET["beyond_10px"]))
     return rows, best
 
@@ -265,22 +356,48 @@ def targets(family, best, sequences, frames, seed, presets, given=True):
     share, σ̂/σ per preset, with σ estimated and with the true σ given (not for a preset whose
     method estimates σ whatever it is given: ``best_robust``)."""
     fam = dict(family, sigma=best["sigma"])
-    rig, batch = skeleton_batch([("tails", best["nu"])], sequences, frames, fam, seed + 11, people=(3, 4, 5))
+    rig, batch = skeleton_batch(
+        [("tails", best["nu"])], sequences, frames, fam, seed + 11, people=(3, 4, 5)
+    )
     d = true_pair_distances(rig, batch)
-    out = {"nu": best["nu"], "sigma": best["sigma"], "frames": int(batch.xy.shape[0]),
-           "median_px": float(np.median(d)), "beyond_10px": float(np.mean(d > 10.0)), "rows": []}
+    out = {
+        "nu": best["nu"],
+        "sigma": best["sigma"],
+        "frames": int(batch.xy.shape[0]),
+        "median_px": float(np.median(d)),
+        "beyond_10px": float(np.mean(d > 10.0)),
+        "rows": [],
+    }
     for preset in presets:
         for sigma in ("auto", best["sigma"]) if given and preset not in ROBUST else ("auto",):
             s = run_skeleton(fam, preset, batch, rig, sigma=sigma)
-            out["rows"].append({"preset": preset, "sigma": "auto" if sigma == "auto" else f"given {sigma:.2f}",
-                                "recall": float(np.nanmean(s["recall"])), "joined": float(s["joined"].sum() / max(s["groups"].sum(), 1)),
-                                "sigma_ratio": float(np.median(s["sigma_ratio"])), "pg_f1": float(np.mean(s["pg_f1"]))})  # fmt: skip
+            out["rows"].append(
+                {
+                    "preset": preset,
+                    "sigma": "auto" if sigma == "auto" else f"given {sigma:.2f}",
+                    "recall": float(np.nanmean(s["recall"])),
+                    "joined": float(s["joined"].sum() / max(s["groups"].sum(), 1)),
+                    "sigma_ratio": float(np.median(s["sigma_ratio"])),
+                    "pg_f1": float(np.mean(s["pg_f1"])),
+                }
+            )
     return out
 
 
 # ---------------------------------------------------------------- driver, tables, figure
 
-def run(*, scenes=10, sequences=3, frames=5, presets=PRESETS, families=tuple(FAMILIES), quick=False, seed=SEED, log=print):
+
+def run(
+    *,
+    scenes=10,
+    sequences=3,
+    frames=5,
+    presets=PRESETS,
+    families=tuple(FAMILIES),
+    quick=False,
+    seed=SEED,
+    log=print,
+):
     t0 = time.perf_counter()
     out = {"presets": list(presets), "families": {}, "seed": seed}
     for name in families:
@@ -294,13 +411,25 @@ def run(*, scenes=10, sequences=3, frames=5, presets=PRESETS, families=tuple(FAM
             rig, batch = skeleton_batch(lv, sequences, frames, family, seed)
             per_level = sequences * frames
             per_scene = {p: run_skeleton(family, p, batch, rig) for p in presets}
-        out["families"][name] = {"sigma": family["sigma"], "radius": family["radius"], "rows": summarise(per_scene, lv, per_level),
-                                 "per_level": per_level}  # fmt: skip
+        out["families"][name] = {
+            "sigma": family["sigma"],
+            "radius": family["radius"],
+            "rows": summarise(per_scene, lv, per_level),
+            "per_level": per_level,
+        }
         log(f"{name}: {len(lv)} levels × {per_level} scenes, {time.perf_counter() - t0:.0f} s")
     fam = FAMILIES["skeleton"]
-    out["fit"], best = fit_tails(fam, sequences if quick else 4 * sequences, frames, seed, nus=(3.0, math.inf) if quick else FIT_NUS)
+    out["fit"], best = fit_tails(
+        fam,
+        sequences if quick else 4 * sequences,
+        frames,
+        seed,
+        nus=(3.0, math.inf) if quick else FIT_NUS,
+    )
     log(f"fit: ν = {best['nu']}, σ = {best['sigma']:.2f} px, {time.perf_counter() - t0:.0f} s")
-    out["targets"] = targets(fam, best, sequences if quick else 4 * sequences, frames, seed, presets, given=not quick)
+    out["targets"] = targets(
+        fam, best, sequences if quick else 4 * sequences, frames, seed, presets, given=not quick
+    )
     out["seconds"] = time.perf_counter() - t0
     return out
 
@@ -318,24 +447,44 @@ def markdown(out) -> str:
     lines = []
     for name, fam in out["families"].items():
         head = ["level"] + [f"{p} {k}" for k in ("PG-F1", "G-F1", "recall", "σ̂/σ") for p in presets]
-        lines += ["", f"{name} (σ = {fam['sigma']:g} px, recall within {fam['radius']:g}, {fam['per_level']} scenes per level):", "",
-                  "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]  # fmt: skip
+        lines += [
+            "",
+            f"{name} (σ = {fam['sigma']:g} px, recall within {fam['radius']:g}, {fam['per_level']} scenes per level):",
+            "",
+            "| " + " | ".join(head) + " |",
+            "|" + "---|" * len(head),
+        ]
         for r in fam["rows"]:
             cells = [_fmt_level(r["factor"], r["value"])]
             for k in ("pg_f1", "g_f1", "recall", "sigma_ratio"):
-                cells += [f"{r[p][k]:.3f}" if k != "sigma_ratio" else f"{r[p][k]:.2f}" for p in presets]
+                cells += [
+                    f"{r[p][k]:.3f}" if k != "sigma_ratio" else f"{r[p][k]:.2f}" for p in presets
+                ]
             lines.append("| " + " | ".join(cells) + " |")
-    lines += ["", "Fit of the tails (skeleton scenes, true pairs, σ scaled so the median is 5.7 px):", "",
-              "| ν | σ (px) | beyond 10 px | pairs |", "|---|---|---|---|"]
+    lines += [
+        "",
+        "Fit of the tails (skeleton scenes, true pairs, σ scaled so the median is 5.7 px):",
+        "",
+        "| ν | σ (px) | beyond 10 px | pairs |",
+        "|---|---|---|---|",
+    ]
     for r in out["fit"]:
-        lines.append(f"| {_fmt_nu(r['nu'])} | {r['sigma']:.2f} | {r['beyond_10px']:.3f} | {r['pairs']} |")
+        lines.append(
+            f"| {_fmt_nu(r['nu'])} | {r['sigma']:.2f} | {r['beyond_10px']:.3f} | {r['pairs']} |"
+        )
     t = out["targets"]
-    lines += ["", f"Targets: 3–5 people, 5 views, ν = {t['nu']:g}, σ = {t['sigma']:.2f} px ({t['frames']} frames; true pairs: "
-              f"median {t['median_px']:.2f} px, {100 * t['beyond_10px']:.1f} % beyond 10 px):", "",
-              "| preset | σ | recall within 10 cm | groups joining two people's joints | σ̂/σ (median) | PG-F1 |",
-              "|---|---|---|---|---|---|"]  # fmt: skip
+    lines += [
+        "",
+        f"Targets: 3–5 people, 5 views, ν = {t['nu']:g}, σ = {t['sigma']:.2f} px ({t['frames']} frames; true pairs: "
+        f"median {t['median_px']:.2f} px, {100 * t['beyond_10px']:.1f} % beyond 10 px):",
+        "",
+        "| preset | σ | recall within 10 cm | groups joining two people's joints | σ̂/σ (median) | PG-F1 |",
+        "|---|---|---|---|---|---|",
+    ]
     for r in t["rows"]:
-        lines.append(f"| {r['preset']} | {r['sigma']} | {r['recall']:.3f} | {100 * r['joined']:.2f} % | {r['sigma_ratio']:.2f} | {r['pg_f1']:.3f} |")
+        lines.append(
+            f"| {r['preset']} | {r['sigma']} | {r['recall']:.3f} | {100 * r['joined']:.2f} % | {r['sigma_ratio']:.2f} | {r['pg_f1']:.3f} |"
+        )
     return "\n".join(lines[1:])
 
 
@@ -355,17 +504,31 @@ def figure(out, path):
         for i, (name, fam) in enumerate(out["families"].items()):
             rows = [fam["rows"][0]] + [r for r in fam["rows"][1:] if r["factor"] == factor]
             # The clean level is the first row; the tails axis is categorical (ν = ∞ first).
-            x = np.arange(len(rows)) if factor == "tails" else [r["value"] if r["factor"] == factor else CLEAN[factor] for r in rows]
+            x = (
+                np.arange(len(rows))
+                if factor == "tails"
+                else [r["value"] if r["factor"] == factor else CLEAN[factor] for r in rows]
+            )
             for p in out["presets"]:
                 for k, ls in styles.items():
-                    axes[i, j].plot(x, [r[p][k] for r in rows], ls, marker="o", ms=3, color=colors[p])
+                    axes[i, j].plot(
+                        x, [r[p][k] for r in rows], ls, marker="o", ms=3, color=colors[p]
+                    )
             # σ̂ depends only on the estimator (it runs before the graph): one line per estimator.
-            estimators = {"auto": next((p for p in out["presets"] if p not in ROBUST), None),
-                          "robust": next((p for p in out["presets"] if p in ROBUST), None)}  # fmt: skip
+            estimators = {
+                "auto": next((p for p in out["presets"] if p not in ROBUST), None),
+                "robust": next((p for p in out["presets"] if p in ROBUST), None),
+            }
             for estimator, p in estimators.items():
                 if p is not None:
-                    axes[n, j].plot(x, [r[p]["sigma_ratio"] for r in rows], "-" if name == "box" else "--", marker="o", ms=3,
-                                    color="k" if estimator == "auto" else colors[p])  # fmt: skip
+                    axes[n, j].plot(
+                        x,
+                        [r[p]["sigma_ratio"] for r in rows],
+                        "-" if name == "box" else "--",
+                        marker="o",
+                        ms=3,
+                        color="k" if estimator == "auto" else colors[p],
+                    )
             if factor == "tails":
                 for ax in axes[:, j]:
                     ax.set_xticks(range(len(rows)), [_fmt_nu(r["value"]) for r in rows])
@@ -378,8 +541,15 @@ def figure(out, path):
         axes[i, 0].set_ylabel(f"{name} (σ = {out['families'][name]['sigma']:g} px)")
     axes[n, 0].set_ylabel("σ̂ / σ (median)")
     handles = [Line2D([], [], color=c, lw=2, label=p) for p, c in colors.items()]
-    handles += [Line2D([], [], color="k", ls=ls, label=lab) for ls, lab in (("-", "PG-F1"), ("--", "G-F1"), (":", "3D recall within r"))]
-    handles += [Line2D([], [], color="k", ls="--", label="σ̂/σ (black: \"auto\", else robust): dashed = skeletons")]
+    handles += [
+        Line2D([], [], color="k", ls=ls, label=lab)
+        for ls, lab in (("-", "PG-F1"), ("--", "G-F1"), (":", "3D recall within r"))
+    ]
+    handles += [
+        Line2D(
+            [], [], color="k", ls="--", label='σ̂/σ (black: "auto", else robust): dashed = skeletons'
+        )
+    ]
     axes[0, 0].legend(handles=handles, fontsize=7, loc="lower left")
     fig.savefig(path, dpi=110)
     return fig
@@ -388,27 +558,53 @@ def figure(out, path):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", type=int, default=10, help="box scenes per level")
-    parser.add_argument("--sequences", type=int, default=3, help="skeleton sequences per level (×4 for the fit and the targets)")
+    parser.add_argument(
+        "--sequences",
+        type=int,
+        default=3,
+        help="skeleton sequences per level (×4 for the fit and the targets)",
+    )
     parser.add_argument("--frames", type=int, default=5, help="frames per skeleton sequence")
     parser.add_argument("--presets", nargs="+", choices=PRESETS, default=list(PRESETS))
     parser.add_argument("--seed", type=int, default=SEED)
     parser.add_argument("--families", nargs="+", choices=list(FAMILIES), default=list(FAMILIES))
-    parser.add_argument("--quick", action="store_true",
-                        help="tiny run: skeletons only, paper() only, one level per factor, 2 frames, σ estimated only")
-    parser.add_argument("--figure", default=os.path.join("experiments", "figures", "robustness_realistic.png"))
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="tiny run: skeletons only, paper() only, one level per factor, 2 frames, σ estimated only",
+    )
+    parser.add_argument(
+        "--figure", default=os.path.join("experiments", "figures", "robustness_realistic.png")
+    )
     parser.add_argument("--json", default=None, help="also write the numbers here")
     args = parser.parse_args(argv)
     if args.quick:
-        args.scenes, args.sequences, args.frames, args.presets, args.families = 1, 1, 2, ["paper"], ["skeleton"]
-    out = run(scenes=args.scenes, sequences=args.sequences, frames=args.frames, presets=tuple(args.presets),
-              families=tuple(args.families), quick=args.quick, seed=args.seed)  # fmt: skip
+        args.scenes, args.sequences, args.frames, args.presets, args.families = (
+            1,
+            1,
+            2,
+            ["paper"],
+            ["skeleton"],
+        )
+    out = run(
+        scenes=args.scenes,
+        sequences=args.sequences,
+        frames=args.frames,
+        presets=tuple(args.presets),
+        families=tuple(args.families),
+        quick=args.quick,
+        seed=args.seed,
+    )
     os.makedirs(os.path.dirname(os.path.abspath(args.figure)), exist_ok=True)
     figure(out, args.figure)
     if args.json:
         with open(args.json, "w") as f:
             json.dump(out, f, indent=1)
     print(markdown(out))
-    print(f"\ntotal {out['seconds']:.1f} s; wrote {args.figure}" + (f" and {args.json}" if args.json else ""))
+    print(
+        f"\ntotal {out['seconds']:.1f} s; wrote {args.figure}"
+        + (f" and {args.json}" if args.json else "")
+    )
     return out
 
 

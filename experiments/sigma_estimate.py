@@ -108,8 +108,12 @@ def estimate_both(rig, xy, mask):
 def _scenes(rig, key, counts, sigma, capacity, drop=0.0, clutter=0.0, clutter_capacity=0):
     counts = np.asarray(counts)
     return generate_scenes(
-        key, rig, jnp.asarray(counts, jnp.int32), jnp.full(counts.shape, sigma, jnp.float32),
-        capacity=capacity, drop_rate=jnp.asarray(np.broadcast_to(drop, counts.shape), jnp.float32),
+        key,
+        rig,
+        jnp.asarray(counts, jnp.int32),
+        jnp.full(counts.shape, sigma, jnp.float32),
+        capacity=capacity,
+        drop_rate=jnp.asarray(np.broadcast_to(drop, counts.shape), jnp.float32),
         clutter_rate=jnp.asarray(np.broadcast_to(clutter, counts.shape), jnp.float32),
         clutter_capacity=clutter_capacity,
     )
@@ -131,9 +135,19 @@ def _heavy_noise(key, batch, kind, share, sigma):
 def _ratio_row(label, sigma_true, old, new, fallback):
     """σ̂/σ quantiles; after: over the scenes that did not fall back (the fallback share apart)."""
     r_old, r_new = old / sigma_true, new[~fallback] / sigma_true
-    q = lambda r: (float(np.median(r)), float(np.quantile(r, 0.1)), float(np.quantile(r, 0.9))) if r.size else (np.nan,) * 3
-    return {"set": label, "scenes": int(old.size), "old": q(r_old), "new": q(r_new),
-            "old_nonfinite": int(np.sum(~np.isfinite(old))), "fallback": float(np.mean(fallback))}
+    q = lambda r: (
+        (float(np.median(r)), float(np.quantile(r, 0.1)), float(np.quantile(r, 0.9)))
+        if r.size
+        else (np.nan,) * 3
+    )
+    return {
+        "set": label,
+        "scenes": int(old.size),
+        "old": q(r_old),
+        "new": q(r_new),
+        "old_nonfinite": int(np.sum(~np.isfinite(old))),
+        "fallback": float(np.mean(fallback)),
+    }
 
 
 def _impure_share(labels, instance, mask):
@@ -153,9 +167,17 @@ def _purity(rig, batch, old, with_clutter):
     purity = {}
     sub = jax.tree.map(lambda a: a[with_clutter], batch)
     # The old estimator's pipeline is the given-σ pipeline with σ = its estimate.
-    for name, sigma in (("before", jnp.asarray(old[with_clutter], jnp.float32)), ("auto", "auto"), ("given", 1.0)):
-        res = associate_batch(rig, sub.xy, sub.mask, method=Config.paper(), sigma=sigma, batch_size=8)
-        purity[name] = _impure_share(np.asarray(res.labels), np.asarray(sub.instance), np.asarray(sub.mask))
+    for name, sigma in (
+        ("before", jnp.asarray(old[with_clutter], jnp.float32)),
+        ("auto", "auto"),
+        ("given", 1.0),
+    ):
+        res = associate_batch(
+            rig, sub.xy, sub.mask, method=Config.paper(), sigma=sigma, batch_size=8
+        )
+        purity[name] = _impure_share(
+            np.asarray(res.labels), np.asarray(sub.instance), np.asarray(sub.mask)
+        )
     purity["scenes"] = int(with_clutter.sum())
     return purity
 
@@ -177,28 +199,48 @@ def run(*, scenes=4, seed=0, quick=False, log=print):
     log(f"grid: {time.perf_counter() - t0:.0f} s")
 
     # (b) the robustness levels at σ = 1.
-    robust_counts, robust_capacity = ((5,), 11) if quick else (ROBUST_COUNTS, ROBUST_CLUTTER_CAPACITY)
+    robust_counts, robust_capacity = (
+        ((5,), 11) if quick else (ROBUST_COUNTS, ROBUST_CLUTTER_CAPACITY)
+    )
     for i, (label, drop, clutter) in enumerate(ROBUST_LEVELS):
         counts = np.repeat(robust_counts, scenes)
-        batch = _scenes(rig, jax.random.fold_in(key, 100 + i), counts, 1.0, max(robust_counts),
-                        drop, clutter, robust_capacity)
+        batch = _scenes(
+            rig,
+            jax.random.fold_in(key, 100 + i),
+            counts,
+            1.0,
+            max(robust_counts),
+            drop,
+            clutter,
+            robust_capacity,
+        )
         old, new, fb = estimate_both(rig, batch.xy, batch.mask)
         rows.append(_ratio_row(f"robust {label}", 1.0, old, new, fb))
     log(f"robust: {time.perf_counter() - t0:.0f} s")
 
     # (c) sparse scenes, with and without clutter; purity with σ estimated and given.
     sparse_scenes = scenes if quick else 10 * scenes
-    sparse_counts, sparse_clutter = (SPARSE_COUNTS[:2], SPARSE_CLUTTER[::2]) if quick else (SPARSE_COUNTS, SPARSE_CLUTTER)
+    sparse_counts, sparse_clutter = (
+        (SPARSE_COUNTS[:2], SPARSE_CLUTTER[::2]) if quick else (SPARSE_COUNTS, SPARSE_CLUTTER)
+    )
     counts = np.tile(np.repeat(sparse_counts, sparse_scenes), len(sparse_clutter))
     clutter = np.repeat(sparse_clutter, len(sparse_counts) * sparse_scenes)
-    batch = _scenes(rig, jax.random.fold_in(key, 200), counts, 1.0, max(SPARSE_COUNTS), 0.0, clutter, SPARSE_CLUTTER_CAPACITY)
+    batch = _scenes(
+        rig,
+        jax.random.fold_in(key, 200),
+        counts,
+        1.0,
+        max(SPARSE_COUNTS),
+        0.0,
+        clutter,
+        SPARSE_CLUTTER_CAPACITY,
+    )
     old, new, fb = estimate_both(rig, batch.xy, batch.mask)
     for c in sparse_clutter:
         at = clutter == c
         rows.append(_ratio_row(f"sparse 1–5 points, clutter {c:g}", 1.0, old[at], new[at], fb[at]))
     purity = {} if quick else _purity(rig, batch, old, clutter > 0)
     log(f"sparse: {time.perf_counter() - t0:.0f} s")
-
 
     # (d) heavy-tailed noise at σ = 1.
     heavy_counts = grid_counts if quick else HEAVY_COUNTS  # --quick: the grid's scene shape
@@ -211,34 +253,65 @@ def run(*, scenes=4, seed=0, quick=False, log=print):
     log(f"heavy: {time.perf_counter() - t0:.0f} s")
 
     # The noise-free one-point scene (--quick: in the grid's scene shape).
-    batch = _scenes(rig, jax.random.fold_in(key, 500), np.ones(scenes, int), 0.0, max(grid_counts) if quick else 1)
+    batch = _scenes(
+        rig,
+        jax.random.fold_in(key, 500),
+        np.ones(scenes, int),
+        0.0,
+        max(grid_counts) if quick else 1,
+    )
     old, new, fb = estimate_both(rig, batch.xy, batch.mask)
-    noise_free = {"old": [float(v) for v in old], "new": [float(v) for v in new], "fallback": [bool(v) for v in fb]}
+    noise_free = {
+        "old": [float(v) for v in old],
+        "new": [float(v) for v in new],
+        "fallback": [bool(v) for v in fb],
+    }
     # The same with every distance exactly 0 (one point in three views, exact arithmetic).
     d = jnp.where(jnp.eye(3, dtype=bool)[:, None, :, None], jnp.inf, jnp.zeros((3, 1, 3, 1)))
-    both = jax.jit(lambda d, mask: (old_estimate_sigma(d, mask), *estimate_sigma(d, mask, focal_scale(rig.K))))
+    both = jax.jit(
+        lambda d, mask: (old_estimate_sigma(d, mask), *estimate_sigma(d, mask, focal_scale(rig.K)))
+    )
     old, new, fb = (np.asarray(a) for a in both(d, jnp.ones((3, 1), bool)))
     noise_free["exact_zero"] = {"old": float(old), "new": float(new), "fallback": bool(fb)}
-    return {"rows": rows, "purity": purity, "noise_free_one_point": noise_free,
-            "scenes_per_cell": scenes, "seed": seed, "seconds": time.perf_counter() - t0}
+    return {
+        "rows": rows,
+        "purity": purity,
+        "noise_free_one_point": noise_free,
+        "scenes_per_cell": scenes,
+        "seed": seed,
+        "seconds": time.perf_counter() - t0,
+    }
 
 
 def markdown(out):
-    lines = ["| scenes | n | σ̂/σ before: median [10 %, 90 %] | after (scenes not falling back) | after: fallback share |",
-             "|---|---|---|---|---|"]
+    lines = [
+        "| scenes | n | σ̂/σ before: median [10 %, 90 %] | after (scenes not falling back) | after: fallback share |",
+        "|---|---|---|---|---|",
+    ]
     fmt = lambda q: f"{q[0]:.2f} [{q[1]:.2f}, {q[2]:.2f}]"
     for r in out["rows"]:
         bad = f" ({r['old_nonfinite']} not finite)" if r["old_nonfinite"] else ""
-        lines.append(f"| {r['set']} | {r['scenes']} | {fmt(r['old'])}{bad} | {fmt(r['new'])} | {r['fallback']:.2f} |")
+        lines.append(
+            f"| {r['set']} | {r['scenes']} | {fmt(r['old'])}{bad} | {fmt(r['new'])} | {r['fallback']:.2f} |"
+        )
     p = out["purity"]
-    lines += [] if not p else ["", f"Sparse scenes with clutter ({p['scenes']} scenes), Config.paper(): impure groups "
-              f"{p['before'][0]} of {p['before'][1]} with σ estimated before, "
-              f"{p['auto'][0]} of {p['auto'][1]} after, {p['given'][0]} of {p['given'][1]} with σ = 1 given."]
+    lines += (
+        []
+        if not p
+        else [
+            "",
+            f"Sparse scenes with clutter ({p['scenes']} scenes), Config.paper(): impure groups "
+            f"{p['before'][0]} of {p['before'][1]} with σ estimated before, "
+            f"{p['auto'][0]} of {p['auto'][1]} after, {p['given'][0]} of {p['given'][1]} with σ = 1 given.",
+        ]
+    )
     nf = out["noise_free_one_point"]
     ez = nf["exact_zero"]
-    lines.append(f"Noise-free one-point scenes: before σ̂ = {', '.join(f'{v:.1e}' for v in nf['old'])} px, after "
-                 f"{', '.join(f'{v:.1e}' for v in nf['new'])} px (fallback {sum(nf['fallback'])} of {len(nf['new'])}); "
-                 f"every distance exactly 0: before {ez['old']}, after {ez['new']:.1e} px (fallback {ez['fallback']}).")
+    lines.append(
+        f"Noise-free one-point scenes: before σ̂ = {', '.join(f'{v:.1e}' for v in nf['old'])} px, after "
+        f"{', '.join(f'{v:.1e}' for v in nf['new'])} px (fallback {sum(nf['fallback'])} of {len(nf['new'])}); "
+        f"every distance exactly 0: before {ez['old']}, after {ez['new']:.1e} px (fallback {ez['fallback']})."
+    )
     return "\n".join(lines)
 
 

@@ -43,11 +43,21 @@ ESTIMATORS = {"auto": estimate_sigma, "robust": estimate_sigma_robust}
 @partial(jax.jit, static_argnames=("estimator",))
 def _box_sigmas(rig, xy, mask, estimator):
     fit = ESTIMATORS[estimator]
-    return jax.lax.map(lambda a: fit(epipolar_distances(rig, *a), a[1], focal_scale(rig.K))[0], (xy, mask), batch_size=8)
+    return jax.lax.map(
+        lambda a: fit(epipolar_distances(rig, *a), a[1], focal_scale(rig.K))[0],
+        (xy, mask),
+        batch_size=8,
+    )
 
 
 def _frame_sigmas(rig, frames, estimator):
-    return class_sigmas(rig, np.asarray(frames.xy), np.asarray(frames.mask), np.asarray(frames.class_id), estimator=estimator)
+    return class_sigmas(
+        rig,
+        np.asarray(frames.xy),
+        np.asarray(frames.mask),
+        np.asarray(frames.class_id),
+        estimator=estimator,
+    )
 
 
 def run(scenes=10, sequences=3, frames=5, seed=rr.SEED, estimator="robust", log=print):
@@ -63,27 +73,51 @@ def run(scenes=10, sequences=3, frames=5, seed=rr.SEED, estimator="robust", log=
             rig, batch = rr.skeleton_batch(lv, sequences, frames, family, seed)
             ratio = _frame_sigmas(rig, batch, estimator) / family["sigma"]
             per = sequences * frames
-        out[name] = [{"factor": f, "value": v, "ratio": float(np.median(ratio[i * per:(i + 1) * per])),
-                      "p10": float(np.quantile(ratio[i * per:(i + 1) * per], 0.1)),
-                      "p90": float(np.quantile(ratio[i * per:(i + 1) * per], 0.9))} for i, (f, v) in enumerate(lv)]
+        out[name] = [
+            {
+                "factor": f,
+                "value": v,
+                "ratio": float(np.median(ratio[i * per : (i + 1) * per])),
+                "p10": float(np.quantile(ratio[i * per : (i + 1) * per], 0.1)),
+                "p90": float(np.quantile(ratio[i * per : (i + 1) * per], 0.9)),
+            }
+            for i, (f, v) in enumerate(lv)
+        ]
         log(f"{name}: {time.perf_counter() - t0:.0f} s")
     fam = dict(rr.FAMILIES["skeleton"], sigma=5.21)
-    rig, batch = rr.skeleton_batch([("tails", 2.5)], 4 * sequences, frames, fam, seed + 11, people=(3, 4, 5))
+    rig, batch = rr.skeleton_batch(
+        [("tails", 2.5)], 4 * sequences, frames, fam, seed + 11, people=(3, 4, 5)
+    )
     ratio = _frame_sigmas(rig, batch, estimator) / fam["sigma"]
-    out["targets"] = {"ratio": float(np.median(ratio)), "p10": float(np.quantile(ratio, 0.1)), "p90": float(np.quantile(ratio, 0.9)),
-                      "frames": int(ratio.size)}
+    out["targets"] = {
+        "ratio": float(np.median(ratio)),
+        "p10": float(np.quantile(ratio, 0.1)),
+        "p90": float(np.quantile(ratio, 0.9)),
+        "frames": int(ratio.size),
+    }
     out["seconds"] = time.perf_counter() - t0
     return out
 
 
 def markdown(out):
-    lines = [f"σ estimator: sigma_mode={out['estimator']!r}", "", "| level | box σ̂/σ: median [10 %, 90 %] | skeleton σ̂/σ |", "|---|---|---|"]
+    lines = [
+        f"σ estimator: sigma_mode={out['estimator']!r}",
+        "",
+        "| level | box σ̂/σ: median [10 %, 90 %] | skeleton σ̂/σ |",
+        "|---|---|---|",
+    ]
     fmt = lambda r: f"{r['ratio']:.2f} [{r['p10']:.2f}, {r['p90']:.2f}]"
     for b, s in zip(out["box"], out["skeleton"]):
-        label = rr._fmt_level(b["factor"], b["value"]) if b["factor"] != "clutter" else f"clutter {b['value']:g} / {s['value']:g}"
+        label = (
+            rr._fmt_level(b["factor"], b["value"])
+            if b["factor"] != "clutter"
+            else f"clutter {b['value']:g} / {s['value']:g}"
+        )
         lines.append(f"| {label} | {fmt(b)} | {fmt(s)} |")
     t = out["targets"]
-    lines.append(f"| targets (ν = 2.5, σ = 5.21 px, 3–5 people, {t['frames']} frames) | | {fmt(t)} |")
+    lines.append(
+        f"| targets (ν = 2.5, σ = 5.21 px, 3–5 people, {t['frames']} frames) | | {fmt(t)} |"
+    )
     return "\n".join(lines)
 
 

@@ -32,7 +32,9 @@ def run(*, sigmas=(1.0, 3.0), counts=None, scenes=2, seed=100):
         where = np.isclose(res.sigma, sigma)
         for name in res.configs:
             m = res.metrics[name]
-            rows.append({"sigma": sigma, "stage": name, **{f: float(np.mean(m[f][where])) for f in FIELDS}})
+            rows.append(
+                {"sigma": sigma, "stage": name, **{f: float(np.mean(m[f][where])) for f in FIELDS}}
+            )
     return rows, res
 
 
@@ -44,10 +46,16 @@ def main(argv=None):
     parser.add_argument("--out", default=None, help="write the rows as JSON here")
     args = parser.parse_args(argv)
     rows, res = run(sigmas=args.sigmas, counts=args.counts, scenes=args.scenes)
-    print(f"{res.num_scenes} scenes per stage; sweep {res.wall_s:.1f} s (compile {res.compile_s:.1f} s)")
-    print("| σ (px) | stages | PG-R | PG-P | PG-F1 | G-F1 | unassigned / scene |\n|---|---|---|---|---|---|---|")
+    print(
+        f"{res.num_scenes} scenes per stage; sweep {res.wall_s:.1f} s (compile {res.compile_s:.1f} s)"
+    )
+    print(
+        "| σ (px) | stages | PG-R | PG-P | PG-F1 | G-F1 | unassigned / scene |\n|---|---|---|---|---|---|---|"
+    )
     for r in rows:
-        print(f"| {r['sigma']:g} | {r['stage']} | {r['pg_r']:.3f} | {r['pg_p']:.3f} | {r['pg_f1']:.3f} | {r['g_f1']:.3f} | {r['num_unassigned']:.1f} |")
+        print(
+            f"| {r['sigma']:g} | {r['stage']} | {r['pg_r']:.3f} | {r['pg_p']:.3f} | {r['pg_f1']:.3f} | {r['g_f1']:.3f} | {r['num_unassigned']:.1f} |"
+        )
     if args.out:
         os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
         with open(args.out, "w") as f:

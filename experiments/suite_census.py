@@ -102,7 +102,11 @@ def summarise(folder: str | Path) -> tuple[dict, dict]:
 
 def _line(name: str, row: dict) -> str:
     cells = [f"{row[c]:.0f}" for c in (*COLUMNS, "rest_s")]
-    return f"| {name} | " + " | ".join(cells) + f" | {row['compile_small_n']:.0f} | {row['compile_program_n']:.0f} |"
+    return (
+        f"| {name} | "
+        + " | ".join(cells)
+        + f" | {row['compile_small_n']:.0f} | {row['compile_program_n']:.0f} |"
+    )
 
 
 def main(argv=None) -> None:
@@ -114,7 +118,9 @@ def main(argv=None) -> None:
     if not per_file:
         raise SystemExit(f"suite_census: no census files in {args.folder}")
     print("worker seconds, summed over the workers")
-    print("| | wall | compile: programs | compile: small | trace | lower | rest | small compiles | program compiles |")
+    print(
+        "| | wall | compile: programs | compile: small | trace | lower | rest | small compiles | program compiles |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     print(_line("all tests", totals))
     for name, row in sorted(per_file.items(), key=lambda item: -item[1]["wall_s"])[: args.top]:

@@ -45,7 +45,10 @@ from cdog_jax.synthetic import SKELETON_JOINTS, Realism, generate_skeleton_scene
 
 PRESETS = ("paper", "extended", "best")
 CONDITIONS = ((False, 0), (True, 0), (True, 1))  # (temporal_prior, max_gap)
-QUICK_CONDITIONS = ((False, 0), (True, 1))  # --quick: without and with the prior (each condition compiles its own tracker)
+QUICK_CONDITIONS = (
+    (False, 0),
+    (True, 1),
+)  # --quick: without and with the prior (each condition compiles its own tracker)
 NU, SIGMA_PX, RADIUS_M = 2.5, 5.21, 0.1
 SEED = 0
 
@@ -58,8 +61,15 @@ def sequences(num_sequences: int, frames: int, drop: float, seed: int = SEED):
     out, before, after = [], 0, 0
     for q in range(num_sequences):
         people = (3, 4, 5)[q % 3]
-        sk = generate_skeleton_scenes(jax.random.fold_in(jax.random.PRNGKey(seed), q), rig, people, SIGMA_PX,
-                                      realism=Realism(nu=NU), num_frames=frames, max_people=5)  # fmt: skip
+        sk = generate_skeleton_scenes(
+            jax.random.fold_in(jax.random.PRNGKey(seed), q),
+            rig,
+            people,
+            SIGMA_PX,
+            realism=Realism(nu=NU),
+            num_frames=frames,
+            max_people=5,
+        )
         fr = jax.tree.map(np.asarray, sk.frames)
         mask = fr.mask.copy()
         for f in range(frames):
@@ -68,8 +78,15 @@ def sequences(num_sequences: int, frames: int, drop: float, seed: int = SEED):
                     views = np.flatnonzero(np.any(mask[f] & (fr.instance[f] == point), axis=1))
                     for m in rng.permutation(views)[2:]:
                         mask[f, m] &= fr.instance[f, m] != point
-        before, after = before + int((fr.mask & (fr.kind == 0)).sum()), after + int((mask & (fr.kind == 0)).sum())
-        out.append(SimpleNamespace(**{**{k: getattr(fr, k) for k in fr.__dataclass_fields__}, "mask": mask}))
+        before, after = (
+            before + int((fr.mask & (fr.kind == 0)).sum()),
+            after + int((mask & (fr.kind == 0)).sum()),
+        )
+        out.append(
+            SimpleNamespace(
+                **{**{k: getattr(fr, k) for k in fr.__dataclass_fields__}, "mask": mask}
+            )
+        )
     return rig, out, 1.0 - after / max(before, 1)
 
 
@@ -100,7 +117,11 @@ def score(tracked, fr, rig_frames):
         real = fr.mask[f] & (fr.kind[f] == 0)
         seen = np.bincount(fr.instance[f][real], minlength=fr.points3d.shape[1]) >= 2
         for i in np.flatnonzero(seen):
-            ok = valid[f] & (cls[f] == i % J) & (np.linalg.norm(X[f] - fr.points3d[f, i], axis=1) <= RADIUS_M)
+            ok = (
+                valid[f]
+                & (cls[f] == i % J)
+                & (np.linalg.norm(X[f] - fr.points3d[f, i], axis=1) <= RADIUS_M)
+            )
             hit, total = hit + int(ok.any()), total + 1
         joint, join = true_joint_of_groups(labels[f], valid[f], fr.instance[f], fr.mask[f])
         joined, groups = joined + int(join.sum()), groups + int(valid[f].sum())
@@ -108,13 +129,34 @@ def score(tracked, fr, rig_frames):
             joint_of.setdefault(int(tid[f, g]), []).append(int(joint[g]))
             if joint[g] >= 0:
                 ids_of_joint.setdefault(int(joint[g]), set()).add(int(tid[f, g]))
-    switches = sum(sum(1 for a_, b_ in zip(js, js[1:]) if a_ >= 0 and b_ >= 0 and a_ != b_) for js in joint_of.values())
+    switches = sum(
+        sum(1 for a_, b_ in zip(js, js[1:]) if a_ >= 0 and b_ >= 0 and a_ != b_)
+        for js in joint_of.values()
+    )
     per_joint = [len(s) for s in ids_of_joint.values()]
-    return dict(hit=hit, total=total, joined=joined, groups=groups, switches=switches, tracks=len(joint_of),
-                joint_tracks=sum(per_joint), joints=len(per_joint), recovered=int(np.asarray(tracked.recovered).sum()))  # fmt: skip
+    return dict(
+        hit=hit,
+        total=total,
+        joined=joined,
+        groups=groups,
+        switches=switches,
+        tracks=len(joint_of),
+        joint_tracks=sum(per_joint),
+        joints=len(per_joint),
+        recovered=int(np.asarray(tracked.recovered).sum()),
+    )
 
 
-def run(*, num_sequences=6, frames=10, drop=0.2, presets=PRESETS, conditions=CONDITIONS, seed=SEED, log=print):
+def run(
+    *,
+    num_sequences=6,
+    frames=10,
+    drop=0.2,
+    presets=PRESETS,
+    conditions=CONDITIONS,
+    seed=SEED,
+    log=print,
+):
     t0 = time.perf_counter()
     rig, seqs, dropped_share = sequences(num_sequences, frames, drop, seed)
     xy = np.concatenate([s.xy for s in seqs])
@@ -122,26 +164,53 @@ def run(*, num_sequences=6, frames=10, drop=0.2, presets=PRESETS, conditions=CON
     classes = np.concatenate([s.class_id for s in seqs])
     rows = []
     for preset in presets:
-        result = associate_classes(rig, xy, mask, classes, class_names=SKELETON_JOINTS, method=preset, sigma="auto")
+        result = associate_classes(
+            rig, xy, mask, classes, class_names=SKELETON_JOINTS, method=preset, sigma="auto"
+        )
         log(f"{preset}: associated {xy.shape[0]} frames, {time.perf_counter() - t0:.0f} s")
         for prior, gap in conditions:
             total = {}
             for q, s in enumerate(seqs):
                 part = slice(q * frames, (q + 1) * frames)
-                one = result._replace(association=jax.tree.map(lambda v: v[part], result.association),
-                                      group_class=result.group_class[part])  # fmt: skip
-                tracked = track_groups(rig, one, xy=s.xy, mask=s.mask, classes=s.class_id, temporal_prior=prior, max_gap=gap)
+                one = result._replace(
+                    association=jax.tree.map(lambda v: v[part], result.association),
+                    group_class=result.group_class[part],
+                )
+                tracked = track_groups(
+                    rig,
+                    one,
+                    xy=s.xy,
+                    mask=s.mask,
+                    classes=s.class_id,
+                    temporal_prior=prior,
+                    max_gap=gap,
+                )
                 for k, v in score(tracked, s, frames).items():
                     total[k] = total.get(k, 0) + v
-            rows.append({
-                "preset": preset, "prior": prior, "max_gap": gap, "recall": total["hit"] / max(total["total"], 1),
-                "joined": total["joined"] / max(total["groups"], 1), "switches_per_track": total["switches"] / max(total["tracks"], 1),
-                "tracks_per_joint": total["joint_tracks"] / max(total["joints"], 1), "recovered": total["recovered"],
-                "groups": total["groups"],
-            })  # fmt: skip
+            rows.append(
+                {
+                    "preset": preset,
+                    "prior": prior,
+                    "max_gap": gap,
+                    "recall": total["hit"] / max(total["total"], 1),
+                    "joined": total["joined"] / max(total["groups"], 1),
+                    "switches_per_track": total["switches"] / max(total["tracks"], 1),
+                    "tracks_per_joint": total["joint_tracks"] / max(total["joints"], 1),
+                    "recovered": total["recovered"],
+                    "groups": total["groups"],
+                }
+            )
         log(f"{preset}: tracked, {time.perf_counter() - t0:.0f} s")
-    return {"sequences": num_sequences, "frames": frames, "drop": drop, "nu": NU, "sigma": SIGMA_PX, "rows": rows,
-            "dropped_share": dropped_share, "seconds": time.perf_counter() - t0}  # fmt: skip
+    return {
+        "sequences": num_sequences,
+        "frames": frames,
+        "drop": drop,
+        "nu": NU,
+        "sigma": SIGMA_PX,
+        "rows": rows,
+        "dropped_share": dropped_share,
+        "seconds": time.perf_counter() - t0,
+    }
 
 
 def markdown(out) -> str:
@@ -155,8 +224,10 @@ def markdown(out) -> str:
         "|---|---|---|---|---|---|---|---|",
     ]
     for r in out["rows"]:
-        lines.append(f"| {r['preset']} | {'on' if r['prior'] else 'off'} | {r['max_gap']} | {r['recall']:.3f} | {100 * r['joined']:.2f} % | "
-                     f"{r['switches_per_track']:.3f} | {r['tracks_per_joint']:.2f} | {r['recovered']} |")  # fmt: skip
+        lines.append(
+            f"| {r['preset']} | {'on' if r['prior'] else 'off'} | {r['max_gap']} | {r['recall']:.3f} | {100 * r['joined']:.2f} % | "
+            f"{r['switches_per_track']:.3f} | {r['tracks_per_joint']:.2f} | {r['recovered']} |"
+        )
     return "\n".join(lines)
 
 
@@ -164,16 +235,31 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sequences", type=int, default=6)
     parser.add_argument("--frames", type=int, default=10)
-    parser.add_argument("--drop", type=float, default=0.2, help="probability that a joint is kept in only 2 views in a frame")
+    parser.add_argument(
+        "--drop",
+        type=float,
+        default=0.2,
+        help="probability that a joint is kept in only 2 views in a frame",
+    )
     parser.add_argument("--presets", nargs="+", choices=PRESETS, default=list(PRESETS))
     parser.add_argument("--seed", type=int, default=SEED)
     parser.add_argument("--json", default=None, help="also write the numbers here")
-    parser.add_argument("--quick", action="store_true", help="tiny run: 1 sequence of 3 frames, paper() only, the prior off and on with max_gap=1")
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="tiny run: 1 sequence of 3 frames, paper() only, the prior off and on with max_gap=1",
+    )
     args = parser.parse_args(argv)
     if args.quick:
         args.sequences, args.frames, args.presets = 1, 3, ["paper"]
-    out = run(num_sequences=args.sequences, frames=args.frames, drop=args.drop, presets=tuple(args.presets),
-              conditions=QUICK_CONDITIONS if args.quick else CONDITIONS, seed=args.seed)  # fmt: skip
+    out = run(
+        num_sequences=args.sequences,
+        frames=args.frames,
+        drop=args.drop,
+        presets=tuple(args.presets),
+        conditions=QUICK_CONDITIONS if args.quick else CONDITIONS,
+        seed=args.seed,
+    )
     if args.json:
         with open(args.json, "w") as f:
             json.dump(out, f, indent=1)

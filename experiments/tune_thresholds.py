@@ -73,14 +73,19 @@ def evaluate(configs: dict[str, Config], grid: Grid, buckets) -> dict[str, dict[
         chunk = {n: configs[n] for n in names[start : start + CHUNK]}
         t0 = time.perf_counter()
         res = sweep(rig, grid, methods=chunk, buckets=buckets, timing=False)
-        print(f"    {start + len(chunk)}/{len(names)} configs ({time.perf_counter() - t0:.0f} s)", flush=True)
+        print(
+            f"    {start + len(chunk)}/{len(names)} configs ({time.perf_counter() - t0:.0f} s)",
+            flush=True,
+        )
         out.update(res.metrics)
         sigma = res.sigma
     out["_sigma"] = sigma
     return out
 
 
-def search(space: dict[str, tuple], base: Config, grid: Grid, buckets, top: int, fields=OBJECTIVES["mean"]):
+def search(
+    space: dict[str, tuple], base: Config, grid: Grid, buckets, top: int, fields=OBJECTIVES["mean"]
+):
     """Every combination of ``space`` on top of ``base``; returns (best config, ranked rows)."""
     keys = list(space)
     combos = list(itertools.product(*(space[k] for k in keys)))
@@ -88,7 +93,10 @@ def search(space: dict[str, tuple], base: Config, grid: Grid, buckets, top: int,
     metrics = evaluate(configs, grid, buckets)
     default = {k: getattr(base, k) for k in keys}
     rows = sorted(
-        ((objective(metrics[name], fields=fields), dict(zip(keys, c)), name) for name, c in zip(configs, combos)),
+        (
+            (objective(metrics[name], fields=fields), dict(zip(keys, c)), name)
+            for name, c in zip(configs, combos)
+        ),
         # Equal scores (δ values between two attainable overlap ratios tie exactly): prefer
         # the fewest changes from the starting values.
         key=lambda r: (-r[0], sum(r[1][k] != default[k] for k in keys)),
@@ -96,7 +104,9 @@ def search(space: dict[str, tuple], base: Config, grid: Grid, buckets, top: int,
     print(f"  top {top} of {len(rows)}:")
     for score, values, _ in rows[:top]:
         print(f"    {score:.4f}  {values}")
-    base_score = next(s for s, v, _ in rows if v == default) if default in [v for _, v, _ in rows] else None
+    base_score = (
+        next(s for s, v, _ in rows if v == default) if default in [v for _, v, _ in rows] else None
+    )
     if base_score is not None:
         rank = [v for _, v, _ in rows].index(default) + 1
         print(f"  the starting values {default}: {base_score:.4f} (rank {rank})")
@@ -114,11 +124,18 @@ def compare(default: Config, tuned: Config, scenes: int, fields=OBJECTIVES["mean
         where = None if s is None else np.isclose(sigma, s)
         for name in ("default", "tuned"):
             m = metrics[name]
-            vals = [float(np.mean(m[f] if where is None else m[f][where])) for f in ("pg_f1", "mp_f1", "g_f1")]
+            vals = [
+                float(np.mean(m[f] if where is None else m[f][where]))
+                for f in ("pg_f1", "mp_f1", "g_f1")
+            ]
             label = "all" if s is None else f"{s:g}"
-            print(f"| {label} | {name} | {vals[0]:.3f} | {vals[1]:.3f} | {vals[2]:.3f} | {objective(m, where, fields):.4f} |")
+            print(
+                f"| {label} | {name} | {vals[0]:.3f} | {vals[1]:.3f} | {vals[2]:.3f} | {objective(m, where, fields):.4f} |"
+            )
     better, reasons = accept(metrics["default"], metrics["tuned"], sigma, fields)
-    print(f"\nAdopt the tuned values in paper(): {'yes' if better else 'no'} ({'; '.join(reasons)})")
+    print(
+        f"\nAdopt the tuned values in paper(): {'yes' if better else 'no'} ({'; '.join(reasons)})"
+    )
 
 
 TOLERANCE = 0.005
@@ -141,25 +158,40 @@ def accept(default, tuned, sigma, fields=OBJECTIVES["mean"]) -> tuple[bool, list
 
 
 def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seed", type=int, default=1, help="seed of the tuning split (evaluation uses 0)")
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "--seed", type=int, default=1, help="seed of the tuning split (evaluation uses 0)"
+    )
     parser.add_argument("--scenes", type=int, default=2, help="scenes per tuning cell")
-    parser.add_argument("--eval-scenes", type=int, default=5, help="scenes per evaluation cell (0: skip)")
+    parser.add_argument(
+        "--eval-scenes", type=int, default=5, help="scenes per evaluation cell (0: skip)"
+    )
     parser.add_argument("--top", type=int, default=10)
-    parser.add_argument("--objective", choices=tuple(OBJECTIVES), default="mean", help="mean of PG/mP/G-F1, or PG-F1")
+    parser.add_argument(
+        "--objective",
+        choices=tuple(OBJECTIVES),
+        default="mean",
+        help="mean of PG/mP/G-F1, or PG-F1",
+    )
     args = parser.parse_args(argv)
     fields = OBJECTIVES[args.objective]
 
     grid = Grid(sigmas=TUNING_SIGMAS, counts=TUNING_COUNTS, scenes=args.scenes, seed=args.seed)
     buckets = (20, 60, 130)
     t0 = time.perf_counter()
-    print(f"Tuning split: {grid.num_scenes} scenes (seed {args.seed}); objective: mean of {'/'.join(fields)}")
+    print(
+        f"Tuning split: {grid.num_scenes} scenes (seed {args.seed}); objective: mean of {'/'.join(fields)}"
+    )
     default = Config.paper()
     print(f"Stage 1, the graph ({np.prod([len(v) for v in STAGE1.values()])} configs):")
     best1, _ = search(STAGE1, default, grid, buckets, args.top, fields)
     print(f"Stage 2, the per-group checks ({np.prod([len(v) for v in STAGE2.values()])} configs):")
     best2, _ = search(STAGE2, best1, grid, buckets, args.top, fields)
-    changed = {k: getattr(best2, k) for k in (*STAGE1, *STAGE2) if getattr(best2, k) != getattr(default, k)}
+    changed = {
+        k: getattr(best2, k) for k in (*STAGE1, *STAGE2) if getattr(best2, k) != getattr(default, k)
+    }
     print(f"\nTuned: {changed or 'the defaults'} (search took {time.perf_counter() - t0:.0f} s)")
     if args.eval_scenes:
         compare(default, best2, args.eval_scenes, fields)

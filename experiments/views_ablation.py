@@ -47,17 +47,18 @@ import time
 import numpy as np
 
 from cdog_jax import method_from, method_names
-from cdog_jax.benchmark import Grid, sweep, sweep_host
-from cdog_jax.benchmark import metric_fields
-from cdog_jax.viz import PAPER_VIEWS_PG_F1, views_ablation
+from cdog_jax.benchmark import Grid, metric_fields, sweep, sweep_host
 from cdog_jax.synthetic import default_rig
+from cdog_jax.viz import PAPER_VIEWS_PG_F1, views_ablation
 
 SIGMA = 3.0
 FIELDS = ("pg_f1", "mp_f1", "g_f1")
 PAPER_TABLE_I = dict(zip(range(2, 2 + len(PAPER_VIEWS_PG_F1)), PAPER_VIEWS_PG_F1))
 
 
-def draw_subsets(num_views: int, k: int, subsets: int, rng: np.random.Generator) -> list[tuple[int, ...]]:
+def draw_subsets(
+    num_views: int, k: int, subsets: int, rng: np.random.Generator
+) -> list[tuple[int, ...]]:
     """``subsets`` distinct sorted k-subsets of ``range(num_views)`` (fewer when not possible)."""
     from math import comb
 
@@ -84,8 +85,18 @@ def _host_sweep_admissible(rig, grid, name, method):
             grid = grid.replace(counts=grid.counts[:-1])
 
 
-def run(*, views_range=(2, 10), counts=(10, 30, 60), scenes=10, subsets=8, seed=0, grid_seed=0, methods=None,
-        budget_s=None, log=print):
+def run(
+    *,
+    views_range=(2, 10),
+    counts=(10, 30, 60),
+    scenes=10,
+    subsets=8,
+    seed=0,
+    grid_seed=0,
+    methods=None,
+    budget_s=None,
+    log=print,
+):
     """Run the ablation; returns a JSON-able dict of the per-k means and run details."""
     rig = default_rig()
     names = list(method_names()) if methods is None else list(methods)
@@ -108,16 +119,29 @@ def run(*, views_range=(2, 10), counts=(10, 30, 60), scenes=10, subsets=8, seed=
     for group in ([compiled] if compiled else []) + [{n: m} for n, m in host.items()]:
         t0 = time.perf_counter()
         for k, j in schedule:
-            if budget_s is not None and j > 0 and time.perf_counter() - t0 > budget_s:  # every k runs once
-                log(f"  {', '.join(group)}: budget spent after {sum(ran[next(iter(group))].values())} subsets")
+            if (
+                budget_s is not None and j > 0 and time.perf_counter() - t0 > budget_s
+            ):  # every k runs once
+                log(
+                    f"  {', '.join(group)}: budget spent after {sum(ran[next(iter(group))].values())} subsets"
+                )
                 break
-            grid = Grid(sigmas=(SIGMA,), counts=counts, scenes=scenes, seed=grid_seed, views=subs_of[k][j])
+            grid = Grid(
+                sigmas=(SIGMA,), counts=counts, scenes=scenes, seed=grid_seed, views=subs_of[k][j]
+            )
             if group is compiled:
-                res = sweep(rig, grid, methods=compiled, buckets=(max(counts),), timing=False, progress=False)
+                res = sweep(
+                    rig,
+                    grid,
+                    methods=compiled,
+                    buckets=(max(counts),),
+                    timing=False,
+                    progress=False,
+                )
                 compile_s[k] += res.compile_s
                 num_points[k].append(res.num_points)
             else:
-                (name, method), = group.items()
+                ((name, method),) = group.items()
                 res = _host_sweep_admissible(rig, grid, name, method)
                 if res is None:
                     continue
@@ -125,13 +149,22 @@ def run(*, views_range=(2, 10), counts=(10, 30, 60), scenes=10, subsets=8, seed=
                 pooled[k][name].append(res.metrics[name])
                 ran[name][k] += 1
         log(f"  {', '.join(group)}: {time.perf_counter() - t0:.1f} s")
-    rows, per_scene_views, per_scene = [], {n: [] for n in configs}, {name: {f: [] for f in FIELDS} for name in configs}
+    rows, per_scene_views, per_scene = (
+        [],
+        {n: [] for n in configs},
+        {name: {f: [] for f in FIELDS} for name in configs},
+    )
     for k in ks:
         pts = np.concatenate(num_points[k]) if num_points[k] else np.zeros(0)
-        row = {"views": k, "subsets": [list(s) for s in subs_of[k]], "num_scenes": {},
-               "mean_points": float(np.mean(pts)) if pts.size else float("nan"),
-               "paper_table_i_pg_f1": PAPER_TABLE_I.get(k), "compile_s": compile_s[k],
-               "subsets_run": {n: ran[n][k] for n in configs}}
+        row = {
+            "views": k,
+            "subsets": [list(s) for s in subs_of[k]],
+            "num_scenes": {},
+            "mean_points": float(np.mean(pts)) if pts.size else float("nan"),
+            "paper_table_i_pg_f1": PAPER_TABLE_I.get(k),
+            "compile_s": compile_s[k],
+            "subsets_run": {n: ran[n][k] for n in configs},
+        }
         for name in configs:
             if not pooled[k][name]:
                 row[name] = {f: float("nan") for f in ("pg_f1", "pg_p", "pg_r", "mp_f1", "g_f1")}
@@ -140,7 +173,10 @@ def run(*, views_range=(2, 10), counts=(10, 30, 60), scenes=10, subsets=8, seed=
             fields = {f: np.concatenate([m[f] for m in pooled[k][name]]) for f in metric_fields()}
             # mean_metrics' rule for scores (a plain mean over all scenes, zeros included);
             # Metrics itself is not built here, its runtime type check wants jax arrays.
-            row[name] = {f: float(np.mean(fields[f].astype(np.float64))) for f in ("pg_f1", "pg_p", "pg_r", "mp_f1", "g_f1")}
+            row[name] = {
+                f: float(np.mean(fields[f].astype(np.float64)))
+                for f in ("pg_f1", "pg_p", "pg_r", "mp_f1", "g_f1")
+            }
             row["num_scenes"][name] = int(fields["pg_f1"].size)
             for f in FIELDS:
                 per_scene[name][f].append(fields[f])
@@ -158,9 +194,15 @@ def run(*, views_range=(2, 10), counts=(10, 30, 60), scenes=10, subsets=8, seed=
         "methods": list(configs),
         "rows": rows,
         "total_seconds": time.perf_counter() - t_all,
-        "_per_scene": {"views": {n: np.concatenate(v) if v else np.zeros(0) for n, v in per_scene_views.items()},
-                       "metrics": {n: {f: np.concatenate(v) if v else np.zeros(0) for f, v in d.items()}
-                                   for n, d in per_scene.items()}},
+        "_per_scene": {
+            "views": {
+                n: np.concatenate(v) if v else np.zeros(0) for n, v in per_scene_views.items()
+            },
+            "metrics": {
+                n: {f: np.concatenate(v) if v else np.zeros(0) for f, v in d.items()}
+                for n, d in per_scene.items()
+            },
+        },
     }
 
 
@@ -173,22 +215,32 @@ def markdown_table(out: dict) -> str:
         head = ["views"] + list(methods) + (["paper Table I"] if f == "pg_f1" else [])
         lines += [f"**{label}**", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         for r in out["rows"]:
-            cells = [str(r["views"])] + ["–" if r[m][f] != r[m][f] else f"{r[m][f]:.3f}" for m in methods]
+            cells = [str(r["views"])] + [
+                "–" if r[m][f] != r[m][f] else f"{r[m][f]:.3f}" for m in methods
+            ]
             if f == "pg_f1":
                 p = r["paper_table_i_pg_f1"]
                 cells.append("—" if p is None else f"{p:.3f}")
             lines.append("| " + " | ".join(cells) + " |")
         lines.append("")
-    short = [m for m in methods if any(r["subsets_run"][m] < len(r["subsets"]) for r in out["rows"])]
+    short = [
+        m for m in methods if any(r["subsets_run"][m] < len(r["subsets"]) for r in out["rows"])
+    ]
     if short:
-        lines.append("Subsets run per k (of " + ", ".join(str(len(r["subsets"])) for r in out["rows"]) + "):")
+        lines.append(
+            "Subsets run per k (of " + ", ".join(str(len(r["subsets"])) for r in out["rows"]) + "):"
+        )
         lines.append("")
-        lines += [f"- {m}: " + ", ".join(str(r["subsets_run"][m]) for r in out["rows"]) for m in short]
+        lines += [
+            f"- {m}: " + ", ".join(str(r["subsets_run"][m]) for r in out["rows"]) for m in short
+        ]
     return "\n".join(lines)
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--counts", type=int, nargs="+", default=[10, 30, 60])
     parser.add_argument("--scenes", type=int, default=10, help="scenes per count")
     parser.add_argument("--subsets", type=int, default=8, help="random view subsets per k")
@@ -196,14 +248,30 @@ def main(argv=None):
     parser.add_argument("--seed", type=int, default=0, help="NumPy seed of the view subsets")
     parser.add_argument("--grid-seed", type=int, default=0, help="Grid.seed (scene keys)")
     parser.add_argument("--out", default=os.path.join("experiments", "figures"))
-    parser.add_argument("--methods", default="all", help="'all' (every registered method) or a comma-separated list")
-    parser.add_argument("--budget-s", type=float, default=None,
-                        help="seconds per group (the compiled methods together; each host method) before it starts no new subset")
+    parser.add_argument(
+        "--methods", default="all", help="'all' (every registered method) or a comma-separated list"
+    )
+    parser.add_argument(
+        "--budget-s",
+        type=float,
+        default=None,
+        help="seconds per group (the compiled methods together; each host method) before it starts no new subset",
+    )
     args = parser.parse_args(argv)
 
-    methods = None if args.methods == "all" else [n.strip() for n in args.methods.split(",") if n.strip()]
-    out = run(views_range=args.views_range, counts=args.counts, scenes=args.scenes, subsets=args.subsets,
-              seed=args.seed, grid_seed=args.grid_seed, methods=methods, budget_s=args.budget_s)
+    methods = (
+        None if args.methods == "all" else [n.strip() for n in args.methods.split(",") if n.strip()]
+    )
+    out = run(
+        views_range=args.views_range,
+        counts=args.counts,
+        scenes=args.scenes,
+        subsets=args.subsets,
+        seed=args.seed,
+        grid_seed=args.grid_seed,
+        methods=methods,
+        budget_s=args.budget_s,
+    )
     per_scene = out.pop("_per_scene")
     os.makedirs(args.out, exist_ok=True)
     json_path = os.path.join(args.out, "views_ablation.json")
@@ -211,8 +279,11 @@ def main(argv=None):
         json.dump(out, f, indent=2)
     png_path = os.path.join(args.out, "views_ablation.png")
     ran = [n for n, v in per_scene["views"].items() if v.size]
-    fig = views_ablation({n: per_scene["views"][n] for n in ran},
-                         {n: per_scene["metrics"][n]["pg_f1"] for n in ran}, path=png_path)
+    fig = views_ablation(
+        {n: per_scene["views"][n] for n in ran},
+        {n: per_scene["metrics"][n]["pg_f1"] for n in ran},
+        path=png_path,
+    )
     try:
         import matplotlib.pyplot as plt
 

@@ -15,10 +15,10 @@ _COMPILE_CACHE = os.environ[_RUN_CACHE_VARIABLE]
 os.environ["CDOG_JAX_CACHE_DIR"] = _COMPILE_CACHE
 os.environ.pop("CDOG_JAX_CACHE", None)
 
+import sys  # noqa: E402
+
 import jax  # noqa: E402
 import pytest  # noqa: E402
-
-import sys  # noqa: E402
 
 # Test modules live in sub-folders without __init__.py; make tests/helpers.py importable.
 sys.path.insert(0, os.path.dirname(__file__))

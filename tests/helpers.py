@@ -28,7 +28,9 @@ FAST_COMPILE_FLAGS = (
 def run_with_xla_defaults(test_file: str, function: str) -> None:
     """Call ``function()`` of the test module at ``test_file`` in a child process compiled
     with XLA's defaults, the code users run, rather than with the suite's switches."""
-    env = dict(os.environ, XLA_FLAGS=os.environ.get("XLA_FLAGS", "").replace(FAST_COMPILE_FLAGS, ""))
+    env = dict(
+        os.environ, XLA_FLAGS=os.environ.get("XLA_FLAGS", "").replace(FAST_COMPILE_FLAGS, "")
+    )
     folder, module = os.path.split(os.path.splitext(os.path.abspath(test_file))[0])
     tests = os.path.dirname(os.path.abspath(__file__))
     code = f"import sys; sys.path[:0] = [{tests!r}, {folder!r}]; import {module}; {module}.{function}()"
@@ -60,15 +62,27 @@ def ring_rig(num_views=5, radius=3.0, negate=(), seed=0, dtype=np.float32):
     Ks, Rs, ts = [], [], []
     for m in range(num_views):
         ang = 2 * np.pi * m / num_views + 0.2 * rng.standard_normal()
-        c = np.array([radius * np.cos(ang), radius * np.sin(ang), 1.0 + 0.5 * rng.standard_normal()])
+        c = np.array(
+            [radius * np.cos(ang), radius * np.sin(ang), 1.0 + 0.5 * rng.standard_normal()]
+        )
         R, t = look_at(c, target=0.1 * rng.standard_normal(3))
-        K = np.array([[800.0 + 20 * m, 0.5, 320.0 + 3 * m], [0.0, 790.0 + 20 * m, 240.0 - 2 * m], [0.0, 0.0, 1.0]])
+        K = np.array(
+            [
+                [800.0 + 20 * m, 0.5, 320.0 + 3 * m],
+                [0.0, 790.0 + 20 * m, 240.0 - 2 * m],
+                [0.0, 0.0, 1.0],
+            ]
+        )
         if m in negate:
             K = -K
         Ks.append(K)
         Rs.append(R)
         ts.append(t)
-    return Rig(jnp.asarray(np.array(Ks), dtype), jnp.asarray(np.array(Rs), dtype), jnp.asarray(np.array(ts), dtype))
+    return Rig(
+        jnp.asarray(np.array(Ks), dtype),
+        jnp.asarray(np.array(Rs), dtype),
+        jnp.asarray(np.array(ts), dtype),
+    )
 
 
 def project_np(rig, X):
@@ -115,7 +129,9 @@ def random_scene(rig, num_points, capacity, sigma=0.0, seed=0, box=0.6, clutter=
 def tree_allclose(a, b, rtol=1e-6, atol=1e-6):
     la, lb = jax.tree_util.tree_leaves(a), jax.tree_util.tree_leaves(b)
     return len(la) == len(lb) and all(
-        np.shape(x) == np.shape(y) and np.allclose(np.asarray(x), np.asarray(y), rtol=rtol, atol=atol) for x, y in zip(la, lb)
+        np.shape(x) == np.shape(y)
+        and np.allclose(np.asarray(x), np.asarray(y), rtol=rtol, atol=atol)
+        for x, y in zip(la, lb)
     )
 
 
@@ -123,7 +139,9 @@ def purity(labels, instance, mask):
     """(number of groups, number of groups whose members share one instance, unassigned)."""
     labels = np.asarray(labels)
     groups = [g for g in np.unique(labels) if g >= 0]
-    pure = sum(len(set(instance[labels == g])) == 1 and instance[labels == g][0] >= 0 for g in groups)
+    pure = sum(
+        len(set(instance[labels == g])) == 1 and instance[labels == g][0] >= 0 for g in groups
+    )
     return len(groups), pure, int((mask & (labels < 0)).sum())
 
 

@@ -197,7 +197,9 @@ def sigma_samples(d, mask):
                 if np.isfinite(row[0]):
                     x.append(float(row[0]))
                     count.append(float(mask[n].sum()))
-                    second.append(float(row[1]) if row.size > 1 and np.isfinite(row[1]) else float(row[0]))
+                    second.append(
+                        float(row[1]) if row.size > 1 and np.isfinite(row[1]) else float(row[0])
+                    )
     return np.asarray(x, np.float64), np.asarray(count, np.float64), np.asarray(second, np.float64)
 
 
@@ -209,9 +211,14 @@ def focal_scale(K):
 
 def _log_q(a):
     """``log Q(a) = log P(Z > a)`` for a ≥ 0, stable in the tail."""
-    return np.array([math.log(0.5 * math.erfc(v / math.sqrt(2.0))) if v < 30 else
-                     -0.5 * v * v - math.log(v * math.sqrt(2.0 * math.pi)) + math.log1p(-1.0 / (v * v))
-                     for v in np.atleast_1d(a)])
+    return np.array(
+        [
+            math.log(0.5 * math.erfc(v / math.sqrt(2.0)))
+            if v < 30
+            else -0.5 * v * v - math.log(v * math.sqrt(2.0 * math.pi)) + math.log1p(-1.0 / (v * v))
+            for v in np.atleast_1d(a)
+        ]
+    )
 
 
 _NU_GRID = (math.inf, 8.0, 4.0, 2.0)  # the match distance's degrees of freedom (inf: half-normal)
@@ -247,13 +254,23 @@ def _sigma_log_parts(x, x2, count, c, inv_kappa, pi, width, nu):
     lam_true = (count - 1.0) / inv_kappa
     lam_none = count / inv_kappa
     log_t, _ = _log_match(x, c, nu)
-    _, log_beyond = _log_match(x2, c, nu)  # a hidden true match lies at or beyond the second nearest
+    _, log_beyond = _log_match(
+        x2, c, nu
+    )  # a hidden true match lies at or beyond the second nearest
     other = count > 1.0
     with np.errstate(divide="ignore"):
-        hidden = np.where(other, np.log(np.where(other, lam_true, 1.0)) - lam_true * x + log_beyond, -np.inf)
+        hidden = np.where(
+            other, np.log(np.where(other, lam_true, 1.0)) - lam_true * x + log_beyond, -np.inf
+        )
         none = np.log(lam_none) - lam_none * x
-    return np.stack([log_t - lam_true * x + math.log(pi[0]), hidden + math.log(pi[0]),
-                     none + math.log(pi[1]), np.full(x.shape, -math.log(width) + math.log(pi[2]))])
+    return np.stack(
+        [
+            log_t - lam_true * x + math.log(pi[0]),
+            hidden + math.log(pi[0]),
+            none + math.log(pi[1]),
+            np.full(x.shape, -math.log(width) + math.log(pi[2])),
+        ]
+    )
 
 
 def _sigma_log_parts_normal(x, count, c, inv_kappa, pi, width):
@@ -264,10 +281,20 @@ def _sigma_log_parts_normal(x, count, c, inv_kappa, pi, width):
     log_hn = 0.5 * math.log(2.0 / math.pi) - math.log(c) - 0.5 * a * a
     other = count > 1.0
     with np.errstate(divide="ignore"):
-        hidden = np.where(other, np.log(np.where(other, lam_true, 1.0)) - lam_true * x + math.log(2.0) + _log_q(a), -np.inf)
+        hidden = np.where(
+            other,
+            np.log(np.where(other, lam_true, 1.0)) - lam_true * x + math.log(2.0) + _log_q(a),
+            -np.inf,
+        )
         none = np.log(lam_none) - lam_none * x
-    return np.stack([log_hn - lam_true * x + math.log(pi[0]), hidden + math.log(pi[0]),
-                     none + math.log(pi[1]), np.full(x.shape, -math.log(width) + math.log(pi[2]))])
+    return np.stack(
+        [
+            log_hn - lam_true * x + math.log(pi[0]),
+            hidden + math.log(pi[0]),
+            none + math.log(pi[1]),
+            np.full(x.shape, -math.log(width) + math.log(pi[2])),
+        ]
+    )
 
 
 def _softmax0(parts):
@@ -303,10 +330,15 @@ def estimate_sigma(d, mask, focal_px, iters=40):
             mills = np.exp(-0.5 * a * a - 0.5 * math.log(2.0 * math.pi) - _log_q(a))
             mills = np.clip(mills, a, a + 1.0 / np.maximum(a, 1e-3))
             n_true = float(np.sum(match + hidden))
-            c_new = math.sqrt(float(np.sum(match * x * x + hidden * c * c * (1.0 + a * mills))) / max(n_true, 1e-3))
+            c_new = math.sqrt(
+                float(np.sum(match * x * x + hidden * c * c * (1.0 + a * mills)))
+                / max(n_true, 1e-3)
+            )
             others = np.where(count > 1.0, count - 1.0, 0.0)
             censored = np.where(count > 1.0, match, 0.0)
-            seen = float(np.sum(hidden * others * x + none * count * x + censored * (others * x + inv_kappa)))
+            seen = float(
+                np.sum(hidden * others * x + none * count * x + censored * (others * x + inv_kappa))
+            )
             inv_kappa = seen / max(float(np.sum(hidden + none + censored)), 1e-3)
             c = min(max(c_new, 1e-3), width)
             inv_kappa = min(max(inv_kappa, spread_min), width * top_count)
@@ -315,14 +347,18 @@ def estimate_sigma(d, mask, focal_px, iters=40):
         r, log_total = _softmax0(_sigma_log_parts_normal(x, count, c, inv_kappa, pi, width))
         fits.append((float(np.sum(w * log_total)), c, float(np.sum(w * (r[0] + r[1])))))
     top = max(f[0] for f in fits)
-    best = next(k for k, f in enumerate(fits) if f[0] >= top - 1e-5 * (1.0 + abs(top)))  # near-ties: the first
+    best = next(
+        k for k, f in enumerate(fits) if f[0] >= top - 1e-5 * (1.0 + abs(top))
+    )  # near-ties: the first
     _, c, n_match = fits[best]
     sigma = c / math.sqrt(2.0)
     fallback = not (n_match >= 2.5 and sigma <= 0.01 * focal)
     return (1.0 if fallback else sigma), fallback
 
 
-def estimate_sigma_robust(d, mask, focal_px, iters=40, coverage=0.9544997361036416, with_gate=False):
+def estimate_sigma_robust(
+    d, mask, focal_px, iters=40, coverage=0.9544997361036416, with_gate=False
+):
     """§0.1, sigma_mode="robust": EM on the censored mixture (a true match nearest / a true
     match beyond the second-nearest point / no true match / uniform) of the nearest
     distances, each with weight ½, the match distance half-normal or half-t (ν = 8, 4, 2), from three starts each; σ = the
@@ -344,8 +380,12 @@ def estimate_sigma_robust(d, mask, focal_px, iters=40, coverage=0.95449973610364
             at_q = float(xs[int(math.floor(q * (x.size - 1)))]) if x.size else 0.0
             c = min(max(at_q / z, 1e-3), width)
             other = count > 1.0
-            start = (float(np.sum(w[other] * (count[other] - 1.0) * x2[other])) / max(float(np.sum(w[other])), 1e-3)
-                     if other.any() else float(np.sum(w * count * x)) / total)
+            start = (
+                float(np.sum(w[other] * (count[other] - 1.0) * x2[other]))
+                / max(float(np.sum(w[other])), 1e-3)
+                if other.any()
+                else float(np.sum(w * count * x)) / total
+            )
             inv_kappa = min(max(start, spread_min), width * top_count)
             pi = np.array([0.6, 0.3, 0.1])
             for _ in range(iters):
@@ -354,10 +394,16 @@ def estimate_sigma_robust(d, mask, focal_px, iters=40, coverage=0.95449973610364
                 t2_match, _ = _moments(x, c, nu)
                 _, t2_beyond = _moments(x2, c, nu)
                 n_true = float(np.sum(match + hidden))
-                c_new = math.sqrt(float(np.sum(match * t2_match + hidden * t2_beyond)) / max(n_true, 1e-3))
+                c_new = math.sqrt(
+                    float(np.sum(match * t2_match + hidden * t2_beyond)) / max(n_true, 1e-3)
+                )
                 others = np.where(count > 1.0, count - 1.0, 0.0)
                 censored = np.where(count > 1.0, match, 0.0)
-                seen = float(np.sum(hidden * others * x + none * count * x + censored * (others * x + inv_kappa)))
+                seen = float(
+                    np.sum(
+                        hidden * others * x + none * count * x + censored * (others * x + inv_kappa)
+                    )
+                )
                 inv_kappa = seen / max(float(np.sum(hidden + none + censored)), 1e-3)
                 c = min(max(c_new, 1e-3), width)
                 inv_kappa = min(max(inv_kappa, spread_min), width * top_count)
@@ -366,14 +412,22 @@ def estimate_sigma_robust(d, mask, focal_px, iters=40, coverage=0.95449973610364
             r, log_total = _softmax0(_sigma_log_parts(x, x2, count, c, inv_kappa, pi, width, nu))
             fits.append((float(np.sum(w * log_total)), nu, r * w, c))
     top = max(f[0] for f in fits)
-    best = next(k for k, f in enumerate(fits) if f[0] >= top - 1e-5 * (1.0 + abs(top)))  # near-ties: the first
+    best = next(
+        k for k, f in enumerate(fits) if f[0] >= top - 1e-5 * (1.0 + abs(top))
+    )  # near-ties: the first
     _, nu, r, c = fits[best]
     n_match = float(np.sum(r[0] + r[1]))
     median = true_distance_quantile(0.5, x, x2, r[0], r[1], c, nu, width)
     sigma = median / (math.sqrt(2.0) * NormalDist().inv_cdf(0.75))
     fallback = not (n_match >= 2.5 and sigma <= 0.01 * focal)
-    gate = math.nan if fallback else true_distance_quantile(coverage, x, x2, r[0], r[1], c, nu, width)
-    return ((1.0 if fallback else sigma), fallback) if not with_gate else ((1.0 if fallback else sigma), gate, fallback)
+    gate = (
+        math.nan if fallback else true_distance_quantile(coverage, x, x2, r[0], r[1], c, nu, width)
+    )
+    return (
+        ((1.0 if fallback else sigma), fallback)
+        if not with_gate
+        else ((1.0 if fallback else sigma), gate, fallback)
+    )
 
 
 def true_distance_quantile(q, x, x2, match, hidden, c, nu, width):
@@ -586,7 +640,14 @@ def iqr_scores(K, R, t, xy_views, member_mask, score="exclude_own"):
 
 
 def iqr_outliers(
-    scores, member_mask, alpha, quartiles="zero_pad", guards=False, min_px=10.0, force_px=50.0, floor_px=0.0
+    scores,
+    member_mask,
+    alpha,
+    quartiles="zero_pad",
+    guards=False,
+    min_px=10.0,
+    force_px=50.0,
+    floor_px=0.0,
 ):
     """Outlier members (M,) bool of one group from its node scores (§6): outside
     ``[max(0, Q1 − α IQR), Q3 + α IQR]`` and above ``floor_px``; then the guards."""
@@ -800,12 +861,16 @@ def recover_leftovers(K, R, t, xy, mask, groups, gvalid, pts, tau, frac):
                 X_cam = R[m] @ pts[g] + t[m]
                 if X_cam[2] <= 0:
                     continue
-                err = np.linalg.norm(project(K[m : m + 1], R[m : m + 1], t[m : m + 1], pts[g])[0] - xy[m, i])
+                err = np.linalg.norm(
+                    project(K[m : m + 1], R[m : m + 1], t[m : m + 1], pts[g])[0] - xy[m, i]
+                )
                 if err < best_err:
                     best, best_err = g, err
             if best is not None and best_err < frac * tau:
                 choice[(m, i)] = (best, best_err)
-    for (m, i), (g, err) in sorted(choice.items(), key=lambda kv: (kv[1][1], kv[0][0] * P + kv[0][1])):
+    for (m, i), (g, _err) in sorted(
+        choice.items(), key=lambda kv: (kv[1][1], kv[0][0] * P + kv[0][1])
+    ):
         if groups[g, m] < 0:
             groups[g, m] = i
     return groups
@@ -869,7 +934,10 @@ def seed_groups(K, R, t, xy, free, d, tau, gate, min_views, mask=None, support=n
                     continue
                 pix = project(K, R, t, X)
                 dist = np.full((M, P), np.inf)
-                total, count = np.linalg.norm(pix[m] - xy[m, i]) + np.linalg.norm(pix[n] - xy[n, best]), 2
+                total, count = (
+                    np.linalg.norm(pix[m] - xy[m, i]) + np.linalg.norm(pix[n] - xy[n, best]),
+                    2,
+                )
                 for v in range(M):
                     if v in (m, n) or _depth(R, t, v, X) <= 0:
                         continue
@@ -878,7 +946,11 @@ def seed_groups(K, R, t, xy, free, d, tau, gate, min_views, mask=None, support=n
                             dist[v, j] = np.linalg.norm(pix[v] - xy[v, j])
                     if dist[v].min() < gate:
                         total, count = total + dist[v].min(), count + 1
-                if any(_view_misses(K, R, t, xy, mask, X, v, support) for v in range(M) if v not in (m, n)):
+                if any(
+                    _view_misses(K, R, t, xy, mask, X, v, support)
+                    for v in range(M)
+                    if v not in (m, n)
+                ):
                     continue
                 if count >= min_views:
                     hyps.append((-count, total / count, index, (m, i), (n, best), dist))
@@ -986,8 +1058,12 @@ def reassign_groups(K, R, t, xy, mask, groups, gvalid, tau, cfg, rounds=3):
     """§8g: ``cfg.reassign_iters`` rounds of nearest-point re-assignment and merging."""
     gate = cfg.reassign_frac * tau
     for _ in range(cfg.reassign_iters):
-        groups, gvalid = reassign_nearest(_node_errors(K, R, t, xy, mask, groups, gvalid), gvalid, gate, rounds)
-        groups, gvalid = merge_split_groups(_node_errors(K, R, t, xy, mask, groups, gvalid), groups, gvalid, gate)
+        groups, gvalid = reassign_nearest(
+            _node_errors(K, R, t, xy, mask, groups, gvalid), gvalid, gate, rounds
+        )
+        groups, gvalid = merge_split_groups(
+            _node_errors(K, R, t, xy, mask, groups, gvalid), groups, gvalid, gate
+        )
     return groups, gvalid
 
 
@@ -1010,7 +1086,19 @@ def _compact(rows, G, M):
 def _seed_stage(K, R, t, xy, mask, d, groups, gvalid, tau, cfg):
     G, M = groups.shape
     free = _free(mask, groups, gvalid)
-    new = seed_groups(K, R, t, xy, free, d, tau, cfg.seed_frac * tau, cfg.seed_min_views, mask, cfg.seed_support_frac * tau)
+    new = seed_groups(
+        K,
+        R,
+        t,
+        xy,
+        free,
+        d,
+        tau,
+        cfg.seed_frac * tau,
+        cfg.seed_min_views,
+        mask,
+        cfg.seed_support_frac * tau,
+    )
     return _compact([groups[g] for g in np.flatnonzero(gvalid)] + new, G, M)
 
 
@@ -1237,10 +1325,18 @@ def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
 
     # §12 validity gate
     changed = groups.copy()
-    groups, gvalid, pts = validity_gate(K, R, t, xy, groups, gvalid, pts, tau, cfg.max_err_frac, cfg.min_parallax_deg)
+    groups, gvalid, pts = validity_gate(
+        K, R, t, xy, groups, gvalid, pts, tau, cfg.max_err_frac, cfg.min_parallax_deg
+    )
     for g in np.flatnonzero(gvalid):
         if (changed[g] != groups[g]).any():  # members detached: BPE and error of the new point
-            r = np.linalg.norm(project(K, R, t, pts[g]) - np.array([xy[m, groups[g, m]] if groups[g, m] >= 0 else [0.0, 0.0] for m in range(M)]), axis=1)[groups[g] >= 0]
+            r = np.linalg.norm(
+                project(K, R, t, pts[g])
+                - np.array(
+                    [xy[m, groups[g, m]] if groups[g, m] >= 0 else [0.0, 0.0] for m in range(M)]
+                ),
+                axis=1,
+            )[groups[g] >= 0]
             bpe[g], err[g] = np.mean(r**2), np.mean(r)
     stages["labels_gate"] = _group_labels(groups, gvalid, M, P)
 

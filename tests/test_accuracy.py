@@ -23,11 +23,17 @@ from cdog_jax.synthetic import default_rig, generate_scenes
 COUNTS = np.array([1, 2, 5, 13, 30, 60, 100, 130])
 
 
-@pytest.mark.parametrize("preset, min_pg_p", [("paper", 1.0), ("reference", 0.99), ("extended", 0.99), ("best", 1.0)])
+@pytest.mark.parametrize(
+    "preset, min_pg_p", [("paper", 1.0), ("reference", 0.99), ("extended", 0.99), ("best", 1.0)]
+)
 def test_noise_free_scenes_almost_perfect(preset, min_pg_p):
     rig = default_rig()
     scenes = generate_scenes(
-        jax.random.PRNGKey(7), rig, jnp.asarray(COUNTS, jnp.int32), jnp.zeros(len(COUNTS), jnp.float32), capacity=130
+        jax.random.PRNGKey(7),
+        rig,
+        jnp.asarray(COUNTS, jnp.int32),
+        jnp.zeros(len(COUNTS), jnp.float32),
+        capacity=130,
     )
     # Detections first in every view, as the benchmark holds them: no view sees more than
     # 128 of the 130 points, so the scenes run at 128 slots rather than 256.

@@ -17,14 +17,25 @@ import cdog_jax.refine
 import cdog_jax.synthetic
 import cdog_jax.viz
 
-MODULES = [cdog_jax, cdog_jax.geometry, cdog_jax.graph, cdog_jax.io, cdog_jax.refine, cdog_jax.synthetic, cdog_jax.metrics,
-           cdog_jax.calibration, cdog_jax.viz, cdog_jax.benchmark]
+MODULES = [
+    cdog_jax,
+    cdog_jax.geometry,
+    cdog_jax.graph,
+    cdog_jax.io,
+    cdog_jax.refine,
+    cdog_jax.synthetic,
+    cdog_jax.metrics,
+    cdog_jax.calibration,
+    cdog_jax.viz,
+    cdog_jax.benchmark,
+]
 PUBLIC = sorted(
     {
         (mod.__name__, name): obj
         for mod in MODULES
         for name in dir(mod)  # dir, not vars: it also lists the names a module loads on first use
-        if not name.startswith("_") and (inspect.isfunction(obj := getattr(mod, name)) or inspect.isclass(obj))
+        if not name.startswith("_")
+        and (inspect.isfunction(obj := getattr(mod, name)) or inspect.isclass(obj))
     }.items()
 )
 FUNCTIONS = [(key, obj) for key, obj in PUBLIC if inspect.isfunction(obj)]
@@ -40,13 +51,17 @@ def test_has_docstring(key, obj):
 def test_options_are_keyword_only(key, fn):
     for p in inspect.signature(fn).parameters.values():
         if p.default is not inspect.Parameter.empty:
-            assert p.kind == inspect.Parameter.KEYWORD_ONLY, f"{key}: option {p.name!r} must be keyword-only"
+            assert p.kind == inspect.Parameter.KEYWORD_ONLY, (
+                f"{key}: option {p.name!r} must be keyword-only"
+            )
 
 
 @pytest.mark.parametrize("key, fn", FUNCTIONS, ids=[f"{m}.{n}" for (m, n), _ in FUNCTIONS])
 def test_docstring_states_shapes(key, fn):
     sig = inspect.signature(fn)
-    annotations = " ".join(str(p.annotation) for p in sig.parameters.values()) + str(sig.return_annotation)
+    annotations = " ".join(str(p.annotation) for p in sig.parameters.values()) + str(
+        sig.return_annotation
+    )
     if "Array" in annotations or "Rig" in annotations:
         assert SHAPE.search(inspect.getdoc(fn)), f"{key}: docstring states no shape"
 

@@ -15,7 +15,12 @@ import pytest
 import cdog_jax
 from cdog_jax import associate_classes
 from cdog_jax.cli import main
-from cdog_jax.io import save_association_csv, save_association_json, save_association_npz, save_rig_json
+from cdog_jax.io import (
+    save_association_csv,
+    save_association_json,
+    save_association_npz,
+    save_rig_json,
+)
 from cdog_jax.synthetic import DEFAULT_BOX, default_rig
 
 F, C, K, M = 2, 3, 2, 4  # frames, classes, instances per class, views
@@ -33,7 +38,9 @@ def scene():
     xy_true, _ = cdog_jax.project(rig, jnp.asarray(X.reshape(-1, 3), jnp.float32))
     xy_true = np.asarray(xy_true).reshape(M, F, C * K, 2).transpose(1, 0, 2, 3)  # (F, M, C·K, 2)
     xy_true = xy_true + rng.normal(0.0, 0.3, xy_true.shape)
-    xy_true[:, :, C * 0 + 0] = xy_true[:, :, K]  # class 1's first instance coincides exactly with class 0's
+    xy_true[:, :, C * 0 + 0] = xy_true[
+        :, :, K
+    ]  # class 1's first instance coincides exactly with class 0's
     truth = np.broadcast_to(np.arange(C * K), (F, M, C * K)).copy()  # c · K + k
     for f in range(F):
         for m in range(M):
@@ -47,7 +54,9 @@ def scene():
 def _groups(assoc, f):
     """Valid groups of frame ``f`` as sets of ``(view, slot)``."""
     groups = np.asarray(assoc.groups[f])
-    return [{(m, int(s)) for m, s in enumerate(g) if s >= 0} for g in groups[np.asarray(assoc.valid[f])]]
+    return [
+        {(m, int(s)) for m, s in enumerate(g) if s >= 0} for g in groups[np.asarray(assoc.valid[f])]
+    ]
 
 
 def test_classes_never_joined_and_truth_recovered(scene):
@@ -77,11 +86,17 @@ def test_each_class_as_associate_on_that_class_alone(scene):
     slot_of = np.full((M, K), -1)
     for m in range(M):
         slots = np.flatnonzero(mask[f, m] & (classes[f, m] == c))
-        sub_xy[m, : len(slots)], sub_mask[m, : len(slots)], slot_of[m, : len(slots)] = xy[f, m, slots], True, slots
+        sub_xy[m, : len(slots)], sub_mask[m, : len(slots)], slot_of[m, : len(slots)] = (
+            xy[f, m, slots],
+            True,
+            slots,
+        )
     ref = cdog_jax.associate(rig, sub_xy, sub_mask, sigma=1.0)
     want = {}
     for g in range(int(ref.num_groups)):
-        members = frozenset((m, int(slot_of[m, s])) for m, s in enumerate(np.asarray(ref.groups[g])) if s >= 0)
+        members = frozenset(
+            (m, int(slot_of[m, s])) for m, s in enumerate(np.asarray(ref.groups[g])) if s >= 0
+        )
         want[members] = np.asarray(ref.points3d[g])
     got = {}
     for g in np.flatnonzero(np.asarray(a.valid[f]) & (out.group_class[f] == c)):
@@ -119,7 +134,10 @@ def test_bad_classes_refused(scene):
     rig, xy, mask, classes, _ = scene
     bad = classes.copy()
     bad[1, 2, 0] = -3
-    with pytest.raises(ValueError, match="classes must be >= 0 where mask is True; got -3 at frame 1, view 2, slot 0"):
+    with pytest.raises(
+        ValueError,
+        match="classes must be >= 0 where mask is True; got -3 at frame 1, view 2, slot 0",
+    ):
         associate_classes(rig, xy, mask, bad)
     with pytest.raises(ValueError, match="class id 2 at frame 0, .* is >= num_classes = 2"):
         associate_classes(rig, xy, mask, classes, num_classes=2)
@@ -159,9 +177,23 @@ def test_cli_associates_openpose_folder_by_keypoint(scene, tmp_path, capsys):
                 c, k = divmod(int(truth[f, m, s]), K)
                 people[(k + m) % K, c] = [*xy[f, m, s], 0.9]
             with open(tmp_path / "pose" / f"cam{m + 1}" / f"f.{f:04d}.json", "w") as fh:
-                json.dump({"people": [{"pose_keypoints_2d": p.reshape(-1).tolist()} for p in people]}, fh)
+                json.dump(
+                    {"people": [{"pose_keypoints_2d": p.reshape(-1).tolist()} for p in people]}, fh
+                )
     out = tmp_path / "out.csv"
-    code = main(["associate", "--rig", str(tmp_path / "rig.json"), "--points", str(tmp_path / "pose"), "--sigma", "1", "--out", str(out)])
+    code = main(
+        [
+            "associate",
+            "--rig",
+            str(tmp_path / "rig.json"),
+            "--points",
+            str(tmp_path / "pose"),
+            "--sigma",
+            "1",
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0
     text = capsys.readouterr().out
     assert "classes: 3" in text
@@ -176,11 +208,23 @@ def test_cli_keypoint_options_checked_before_work(scene, tmp_path, capsys):
     save_rig_json(tmp_path / "rig.json", rig)
     points = tmp_path / "points.json"
     points.write_text(json.dumps({"views": [[[1, 2]], [[3, 4]], [[5, 6]], [[7, 8]]]}))
-    code = main(["associate", "--rig", str(tmp_path / "rig.json"), "--points", str(points), "--keypoints", "BODY_25"])
+    code = main(
+        [
+            "associate",
+            "--rig",
+            str(tmp_path / "rig.json"),
+            "--points",
+            str(points),
+            "--keypoints",
+            "BODY_25",
+        ]
+    )
     assert code == 2
     assert "--keypoints names OpenPose keypoints" in capsys.readouterr().err
     os.makedirs(tmp_path / "pose" / "cam1")
-    code = main(["associate", "--rig", str(tmp_path / "rig.json"), "--points", str(tmp_path / "pose")])
+    code = main(
+        ["associate", "--rig", str(tmp_path / "rig.json"), "--points", str(tmp_path / "pose")]
+    )
     assert code == 2
     assert "expected one folder per camera" in capsys.readouterr().err
 
@@ -196,11 +240,27 @@ def test_associate_traced_with_classes_never_joins_two_classes():
     config = cdog_jax.Config.paper()
     th = config.thresholds(0.2)
     run = jax.jit(cdog_jax.associate_traced, static_argnums=4)
-    plain = cdog_jax.associate(rig, xy.astype(np.float32), mask, method=config, thresholds=th)  # a program other tests compile
-    agreeing = run(rig, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), th, config, classes=jnp.asarray(instance % 2, jnp.int32))
+    plain = cdog_jax.associate(
+        rig, xy.astype(np.float32), mask, method=config, thresholds=th
+    )  # a program other tests compile
+    agreeing = run(
+        rig,
+        jnp.asarray(xy, jnp.float32),
+        jnp.asarray(mask),
+        th,
+        config,
+        classes=jnp.asarray(instance % 2, jnp.int32),
+    )
     np.testing.assert_array_equal(np.asarray(plain.labels), np.asarray(agreeing.labels))
     random_classes = np.random.default_rng(2).integers(0, 2, instance.shape).astype(np.int32)
-    split = run(rig, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), th, config, classes=jnp.asarray(random_classes))
+    split = run(
+        rig,
+        jnp.asarray(xy, jnp.float32),
+        jnp.asarray(mask),
+        th,
+        config,
+        classes=jnp.asarray(random_classes),
+    )
     groups, valid = np.asarray(split.groups), np.asarray(split.valid)
     assert valid.sum() > 0
     for g in np.flatnonzero(valid):

@@ -42,7 +42,9 @@ def test_min_views_keeps_exactly_the_groups_with_enough_views(scene_and_plain):
 
 def test_unit_weights_give_the_plain_points(scene_and_plain):
     rig, scene, plain = scene_and_plain
-    out = cdog_jax.associate(rig, scene.xy, scene.mask, sigma=0.5, weights=np.ones(scene.mask.shape))
+    out = cdog_jax.associate(
+        rig, scene.xy, scene.mask, sigma=0.5, weights=np.ones(scene.mask.shape)
+    )
     np.testing.assert_array_equal(_groups(out), _groups(plain))
     np.testing.assert_allclose(np.asarray(out.points3d), np.asarray(plain.points3d), atol=1e-4)
     np.testing.assert_allclose(np.asarray(out.bpe), np.asarray(plain.bpe), rtol=1e-3, atol=1e-4)
@@ -93,11 +95,17 @@ def test_batch_options_match_single_scene_calls(scene_and_plain):
     rig, scene, _ = scene_and_plain
     weights = np.random.default_rng(0).uniform(0.2, 1.0, (2, *scene.mask.shape))
     xy, mask = jnp.stack([scene.xy, scene.xy]), jnp.stack([scene.mask, scene.mask])
-    batch = cdog_jax.associate_batch(rig, xy, mask, sigma=0.5, weights=weights, min_views=3, batch_size=2)
+    batch = cdog_jax.associate_batch(
+        rig, xy, mask, sigma=0.5, weights=weights, min_views=3, batch_size=2
+    )
     for b in range(2):
-        one = cdog_jax.associate(rig, scene.xy, scene.mask, sigma=0.5, weights=weights[b], min_views=3)
+        one = cdog_jax.associate(
+            rig, scene.xy, scene.mask, sigma=0.5, weights=weights[b], min_views=3
+        )
         np.testing.assert_array_equal(np.asarray(batch.groups[b]), np.asarray(one.groups))
-        np.testing.assert_allclose(np.asarray(batch.points3d[b]), np.asarray(one.points3d), atol=1e-5)
+        np.testing.assert_allclose(
+            np.asarray(batch.points3d[b]), np.asarray(one.points3d), atol=1e-5
+        )
 
 
 @pytest.mark.parametrize(
@@ -107,7 +115,10 @@ def test_batch_options_match_single_scene_calls(scene_and_plain):
         (dict(dist=np.zeros((3, 5))), r"dist must have shape \(M, 5\) = \(10, 5\)"),
         (dict(dist=np.full((10, 5), np.nan)), r"dist of view 0 has non-finite entries"),
         (dict(weights=np.ones((10, 3))), r"weights must have the shape of mask \(10, 14\)"),
-        (dict(weights=-np.ones((10, 14))), r"weights must be finite and >= 0; got -1.0 at index \(0, 0\)"),
+        (
+            dict(weights=-np.ones((10, 14))),
+            r"weights must be finite and >= 0; got -1.0 at index \(0, 0\)",
+        ),
     ],
 )
 def test_option_errors(scene_and_plain, kwargs, message):

@@ -9,7 +9,11 @@ from pathlib import Path
 
 import pytest
 
-from cdog_jax._runtime.compile_cache import MIN_COMPILE_SECONDS, cache_dir_from_environment, default_cache_dir
+from cdog_jax._runtime.compile_cache import (
+    MIN_COMPILE_SECONDS,
+    cache_dir_from_environment,
+    default_cache_dir,
+)
 
 
 def test_folder_follows_the_environment(monkeypatch, tmp_path):
@@ -50,18 +54,29 @@ _CHILD = textwrap.dedent(
 
 
 def _run_child(env) -> dict:
-    out = subprocess.run([sys.executable, "-c", _CHILD], env=env, capture_output=True, text=True, timeout=300, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", _CHILD],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=True,
+    )
     return dict(line.split(" ", 1) for line in out.stdout.splitlines())
 
 
 def test_second_process_loads_the_compiled_program(tmp_path):
-    env = dict(os.environ, CDOG_JAX_CACHE_DIR=str(tmp_path), CDOG_JAX_CACHE="1", JAX_PLATFORMS="cpu")
+    env = dict(
+        os.environ, CDOG_JAX_CACHE_DIR=str(tmp_path), CDOG_JAX_CACHE="1", JAX_PLATFORMS="cpu"
+    )
     first = _run_child(env)
     assert Path(first["dir"]).parent == tmp_path
     assert any(name.startswith("jit_call-") for name in first["entries"].split()), first["entries"]
     # Programs of one operation compile as fast as they load: not stored.
     assert float(first["min_s"]) == MIN_COMPILE_SECONDS > 0
-    assert not any(name.startswith("jit_sin-") for name in first["entries"].split()), first["entries"]
+    assert not any(name.startswith("jit_sin-") for name in first["entries"].split()), first[
+        "entries"
+    ]
     second = _run_child(env)
     assert int(second["hits"]) > int(first["hits"])
     off = _run_child(dict(env, CDOG_JAX_CACHE="0"))
@@ -95,4 +110,11 @@ def test_importing_the_package_changes_no_jax_setting():
         "assert cdog_jax.enable_compilation_cache() is not None and jax.config.jax_compilation_cache_dir\n"
     )
     env = dict(os.environ, CDOG_JAX_CACHE="1", JAX_PLATFORMS="cpu")
-    subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120, check=True)
+    subprocess.run(
+        [sys.executable, "-c", code],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+    )

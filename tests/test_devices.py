@@ -52,7 +52,9 @@ def test_two_devices_give_the_same_bits_as_one(tmp_path):
     for prefix, result in (("batch_", batch), ("classes_", classed.association)):
         for name, value in vars(result).items():
             value = np.asarray(value)
-            assert two[prefix + name].dtype == value.dtype and np.array_equal(two[prefix + name], value), prefix + name
+            assert two[prefix + name].dtype == value.dtype and np.array_equal(
+                two[prefix + name], value
+            ), prefix + name
 
 
 def test_chunks_take_the_devices_in_turn():

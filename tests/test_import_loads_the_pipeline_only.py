@@ -21,19 +21,33 @@ print(json.dumps({"before": before, "cli": cli, "after": sorted(sys.modules), "f
                   "listed": "plot_association" in dir(cdog_jax), "sweep": f"{sweep.__module__}.{sweep.__name__}",
                   "sweep_listed": "sweep" in dir(cdog_jax.benchmark) and "sweep" in cdog_jax.benchmark.__all__}))
 """
-LATER = ("cdog_jax.io", "cdog_jax.viz", "cdog_jax.benchmark", "cdog_jax.calibration", "cdog_jax.cli",
-         "cdog_jax.synthetic", "matplotlib", "optimistix")
+LATER = (
+    "cdog_jax.io",
+    "cdog_jax.viz",
+    "cdog_jax.benchmark",
+    "cdog_jax.calibration",
+    "cdog_jax.cli",
+    "cdog_jax.synthetic",
+    "matplotlib",
+    "optimistix",
+)
 
 
 @pytest.fixture(scope="module")
 def loaded():
     """The modules a fresh process holds after each step of ``_CHILD``, and what it found."""
-    done = subprocess.run([sys.executable, "-c", _CHILD], capture_output=True, text=True, check=True)
+    done = subprocess.run(
+        [sys.executable, "-c", _CHILD], capture_output=True, text=True, check=True
+    )
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
 def test_import_leaves_figures_formats_and_tools_for_later(loaded):
-    early = [m for m in loaded["before"] if m.split(".")[0] in ("matplotlib", "optimistix") or m.startswith(LATER)]
+    early = [
+        m
+        for m in loaded["before"]
+        if m.split(".")[0] in ("matplotlib", "optimistix") or m.startswith(LATER)
+    ]
     assert early == [], f"import cdog_jax loaded {early}"
     assert "cdog_jax._associate" in loaded["before"] and "cdog_jax.baselines" in loaded["before"]
     # The figures are still where users find them, and load when asked for.
@@ -42,10 +56,23 @@ def test_import_leaves_figures_formats_and_tools_for_later(loaded):
 
 
 def test_the_command_line_leaves_the_sweep_and_the_figures_for_later(loaded):
-    early = [m for m in loaded["cli"] if m.split(".")[0] == "matplotlib"
-             or m.startswith(("cdog_jax.viz", "cdog_jax.benchmark._sweep", "cdog_jax.benchmark._grid", "cdog_jax.calibration"))]
+    early = [
+        m
+        for m in loaded["cli"]
+        if m.split(".")[0] == "matplotlib"
+        or m.startswith(
+            (
+                "cdog_jax.viz",
+                "cdog_jax.benchmark._sweep",
+                "cdog_jax.benchmark._grid",
+                "cdog_jax.calibration",
+            )
+        )
+    ]
     assert early == [], f"import cdog_jax.cli loaded {early}"
-    assert "cdog_jax.io._rig_files" in loaded["cli"] and "cdog_jax.benchmark._methods" in loaded["cli"]
+    assert (
+        "cdog_jax.io._rig_files" in loaded["cli"] and "cdog_jax.benchmark._methods" in loaded["cli"]
+    )
     assert loaded["sweep"] == "cdog_jax.benchmark._sweep.sweep" and loaded["sweep_listed"]
 
 

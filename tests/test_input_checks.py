@@ -6,8 +6,8 @@ The tests run with jaxtyping+beartype on every annotated function, which would r
 of these arguments first; ``plain(f)`` is ``f`` without that wrapper, as users call it."""
 
 import inspect
-import re
 import math
+import re
 
 import jax.numpy as jnp
 import numpy as np
@@ -16,7 +16,6 @@ from helpers import random_scene, ring_rig
 
 import cdog_jax
 from cdog_jax import Config, Rig, associate, associate_batch, triangulate
-
 
 plain = inspect.unwrap
 
@@ -80,8 +79,12 @@ def test_integer_xy_is_converted_to_float(scene):
         (math.nan, ValueError, "sigma must be a finite number >= 0 .*got nan"),
         (-1.0, ValueError, "sigma must be a finite number >= 0 .*got -1.0"),
         (math.inf, ValueError, "sigma must be a finite number >= 0 .*got inf"),
-        (1e39, ValueError, r"sigma = 1e\+39 px is larger than the image diagonal 8\d\d\.\d px \(twice the largest principal point of rig.K\)"),
-        ("1.0", ValueError, 'sigma must be a number .*"auto".*got \'1.0\''),
+        (
+            1e39,
+            ValueError,
+            r"sigma = 1e\+39 px is larger than the image diagonal 8\d\d\.\d px \(twice the largest principal point of rig.K\)",
+        ),
+        ("1.0", ValueError, "sigma must be a number .*\"auto\".*got '1.0'"),
         (np.ones(3), ValueError, r"sigma must be a scalar for one scene; got shape \(3,\)"),
     ],
 )
@@ -102,7 +105,10 @@ def test_sigma_bound_is_the_detections_extent_when_larger(scene):
 @pytest.mark.parametrize(
     "sigma, message",
     [
-        (np.ones(3), r"sigma must be a scalar or have shape \(B,\) = \(2,\), one per scene; got shape \(3,\)"),
+        (
+            np.ones(3),
+            r"sigma must be a scalar or have shape \(B,\) = \(2,\), one per scene; got shape \(3,\)",
+        ),
         (np.array([1.0, np.nan]), "sigma of scene 1 must be a finite number >= 0 .*got nan"),
         (np.array([-2.0, 1.0]), "sigma of scene 0 must be a finite number >= 0 .*got -2.0"),
         (np.array([1.0, 1e39]), r"sigma of scene 1 = 1e\+39 px is larger than the image diagonal"),
@@ -155,17 +161,29 @@ def test_every_numeric_field_has_a_range():
 def test_thresholds_out_of_range_are_refused(scene, batch):
     rig, xy, mask = scene
     th = Config().thresholds(1.0)
-    with pytest.raises(ValueError, match=r"thresholds.delta must be finite and in \(0, 1\]; got nan"):
+    with pytest.raises(
+        ValueError, match=r"thresholds.delta must be finite and in \(0, 1\]; got nan"
+    ):
         associate(rig, xy, mask, thresholds=th._replace(delta=np.float32(np.nan)))
     with pytest.raises(ValueError, match=r"thresholds.iqr_alpha must be .*got -1.0"):
         associate(rig, xy, mask, thresholds=th._replace(iqr_alpha=np.float32(-1.0)))
     with pytest.raises(ValueError, match=r"thresholds.delta must be a scalar; got shape \(2,\)"):
         associate(rig, xy, mask, thresholds=th._replace(delta=np.array([0.5, 0.6], np.float32)))
     rig, xy_b, mask_b = batch
-    with pytest.raises(ValueError, match=r"thresholds.delta must be finite and in \(0, 1\]; got 2.0 at index \(1,\)"):
-        associate_batch(rig, xy_b, mask_b, thresholds=th._replace(delta=np.array([0.5, 2.0], np.float32)))
-    with pytest.raises(ValueError, match=r"thresholds.delta must be a scalar or shape \(B,\) = \(2,\); got shape \(3,\)"):
-        associate_batch(rig, xy_b, mask_b, thresholds=th._replace(delta=np.full(3, 0.5, np.float32)))
+    with pytest.raises(
+        ValueError,
+        match=r"thresholds.delta must be finite and in \(0, 1\]; got 2.0 at index \(1,\)",
+    ):
+        associate_batch(
+            rig, xy_b, mask_b, thresholds=th._replace(delta=np.array([0.5, 2.0], np.float32))
+        )
+    with pytest.raises(
+        ValueError,
+        match=r"thresholds.delta must be a scalar or shape \(B,\) = \(2,\); got shape \(3,\)",
+    ):
+        associate_batch(
+            rig, xy_b, mask_b, thresholds=th._replace(delta=np.full(3, 0.5, np.float32))
+        )
 
 
 # --- methods by name ------------------------------------------------------------------------
@@ -174,12 +192,21 @@ def test_thresholds_out_of_range_are_refused(scene, batch):
 def test_method_by_registered_name(scene):
     rig, xy, mask = scene
     by_name = associate(rig, xy, mask, method="paper")
-    np.testing.assert_array_equal(by_name.labels, associate(rig, xy, mask, method=Config.paper()).labels)
-    with pytest.raises(ValueError, match=r"associate: unknown method 'papr'; registered: best, extended, paper, reference"):
+    np.testing.assert_array_equal(
+        by_name.labels, associate(rig, xy, mask, method=Config.paper()).labels
+    )
+    with pytest.raises(
+        ValueError,
+        match=r"associate: unknown method 'papr'; registered: best, extended, paper, reference",
+    ):
         associate(rig, xy, mask, method="papr")
-    with pytest.raises(TypeError, match="associate_batch: method must be a Method or a registered name .*got int"):
+    with pytest.raises(
+        TypeError, match="associate_batch: method must be a Method or a registered name .*got int"
+    ):
         plain(associate_batch)(rig, xy[None], mask[None], method=3)
-    with pytest.raises(TypeError, match="unexpected keyword argument 'config'"):  # the name before 0.1
+    with pytest.raises(
+        TypeError, match="unexpected keyword argument 'config'"
+    ):  # the name before 0.1
         associate(rig, xy, mask, config="paper")
 
 
@@ -196,7 +223,10 @@ def test_batch_accepts_lists_like_associate(batch):
 def test_per_scene_rig_with_another_B_is_refused(batch):
     rig, xy, mask = batch
     rig3 = Rig(*(jnp.stack([a] * 3) for a in (rig.K, rig.R, rig.t)))
-    with pytest.raises(ValueError, match=r"the per-scene rig has 3 scenes \(rig.K shape \(3, 3, 3, 3\)\) but xy has B=2"):
+    with pytest.raises(
+        ValueError,
+        match=r"the per-scene rig has 3 scenes \(rig.K shape \(3, 3, 3, 3\)\) but xy has B=2",
+    ):
         associate_batch(rig3, xy, mask)
 
 
@@ -206,12 +236,24 @@ def test_per_scene_rig_with_another_B_is_refused(batch):
 @pytest.mark.parametrize(
     "views_xy, views_mask, weights_shape, message",
     [
-        (2, 2, None, r"triangulate: xy must have shape \(M, \*S, 2\), the view axis first, with M=3 views from the rig; got \(2, 6, 2\)"),
-        (3, 2, None, r"triangulate: mask must have shape \(3, 6\) \(one flag per view of each track\); got \(2, 6\)"),
+        (
+            2,
+            2,
+            None,
+            r"triangulate: xy must have shape \(M, \*S, 2\), the view axis first, with M=3 views from the rig; got \(2, 6, 2\)",
+        ),
+        (
+            3,
+            2,
+            None,
+            r"triangulate: mask must have shape \(3, 6\) \(one flag per view of each track\); got \(2, 6\)",
+        ),
         (3, 3, (2, 6), r"triangulate: weights must have the shape of mask \(3, 6\); got \(2, 6\)"),
     ],
 )
-def test_triangulate_view_mismatch_is_a_plain_message(scene, views_xy, views_mask, weights_shape, message):
+def test_triangulate_view_mismatch_is_a_plain_message(
+    scene, views_xy, views_mask, weights_shape, message
+):
     rig, xy, mask = scene
     tracks_xy = xy[:views_xy]  # (M, P, 2)
     tracks_mask = mask[:views_mask]
@@ -223,7 +265,10 @@ def test_triangulate_view_mismatch_is_a_plain_message(scene, views_xy, views_mas
 def test_triangulate_refuses_a_batched_rig(scene):
     rig, xy, mask = scene
     rig2 = Rig(*(jnp.stack([a] * 2) for a in (rig.K, rig.R, rig.t)))
-    with pytest.raises(ValueError, match=r"triangulate: rig.K must have shape \(M, 3, 3\) \(one rig; vmap over many\); got \(2, 3, 3, 3\)"):
+    with pytest.raises(
+        ValueError,
+        match=r"triangulate: rig.K must have shape \(M, 3, 3\) \(one rig; vmap over many\); got \(2, 3, 3, 3\)",
+    ):
         plain(cdog_jax.geometry.triangulate)(rig2, jnp.asarray(xy), jnp.asarray(mask))
 
 
@@ -245,55 +290,244 @@ _TH = Config().thresholds(1.0)
 
 # (function, arguments, keyword arguments, the expected message)
 WRONG_TYPES = [
-    (cdog_jax.associate, (_XY, _RIG, _MASK), {}, "associate: rig must be Rig; got ArrayImpl of shape (3, 4, 2)"),
-    (cdog_jax.associate, (_RIG, _XY, _MASK), {"thresholds": Config()}, "associate: thresholds must be Thresholds or None; got Config"),
-    (cdog_jax.associate_batch, (_XY, _RIG, _MASK), {}, "associate_batch: rig must be Rig; got ArrayImpl"),
-    (cdog_jax.associate_batch, (_RIG, _XY[None], _MASK[None]), {"batch_size": 2.5}, "associate_batch: batch_size must be an int; got float 2.5"),
-    (cdog_jax.associate_traced, (_RIG, _XY, _MASK, Config(), _TH), {}, "associate_traced: thresholds must be Thresholds; got Config"),
+    (
+        cdog_jax.associate,
+        (_XY, _RIG, _MASK),
+        {},
+        "associate: rig must be Rig; got ArrayImpl of shape (3, 4, 2)",
+    ),
+    (
+        cdog_jax.associate,
+        (_RIG, _XY, _MASK),
+        {"thresholds": Config()},
+        "associate: thresholds must be Thresholds or None; got Config",
+    ),
+    (
+        cdog_jax.associate_batch,
+        (_XY, _RIG, _MASK),
+        {},
+        "associate_batch: rig must be Rig; got ArrayImpl",
+    ),
+    (
+        cdog_jax.associate_batch,
+        (_RIG, _XY[None], _MASK[None]),
+        {"batch_size": 2.5},
+        "associate_batch: batch_size must be an int; got float 2.5",
+    ),
+    (
+        cdog_jax.associate_traced,
+        (_RIG, _XY, _MASK, Config(), _TH),
+        {},
+        "associate_traced: thresholds must be Thresholds; got Config",
+    ),
     (cdog_jax.triangulate, (_XY, _RIG, _MASK), {}, "triangulate: rig must be Rig; got ArrayImpl"),
     (cdog_jax.project, ("points.npy", _RIG), {}, "project: rig must be Rig; got str 'points.npy'"),
     (cdog_jax.project, (_RIG, _RIG), {}, f"project: X_world must be {_ARRAY_MSG}; got Rig"),
     (cdog_jax.plot_rig, ("rig.json",), {}, "plot_rig: rig must be Rig; got str 'rig.json'"),
-    (cdog_jax.rig_from_arrays, (_RIG.K, _RIG.R, None), {}, f"rig_from_arrays: t must be {_ARRAY_MSG}; got None"),
+    (
+        cdog_jax.rig_from_arrays,
+        (_RIG.K, _RIG.R, None),
+        {},
+        f"rig_from_arrays: t must be {_ARRAY_MSG}; got None",
+    ),
     (cdog_jax.geometry.describe_rig, ("rig.json",), {}, "describe_rig: rig must be Rig; got str"),
-    (cdog_jax.geometry.fundamental_from_rig, (_RIG.K,), {}, "fundamental_from_rig: rig must be Rig; got ArrayImpl"),
-    (cdog_jax.geometry.epipolar_distances, (_RIG, _MASK, "xy"), {}, f"epipolar_distances: mask must be {_ARRAY_MSG}; got str 'xy'"),
-    (cdog_jax.geometry.undistort_pixels, (_RIG.K, jnp.zeros((3, 5)), _XY), {"iterations": 2.0}, "undistort_pixels: iterations must be an int; got float 2.0"),
-    (cdog_jax.geometry.params_from_rig, (_RIG.K,), {}, "params_from_rig: rig must be Rig; got ArrayImpl"),
-    (cdog_jax.geometry.rig_from_params, (_RIG,), {}, "rig_from_params: params must be CameraParams; got Rig"),
-    (cdog_jax.io.save_rig_json, (_RIG, "rig.json"), {}, f"save_rig_json: path must be {_PATH_MSG}; got Rig"),
-    (cdog_jax.io.save_rig_npz, ("rig.npz", "rig.json"), {}, "save_rig_npz: rig must be Rig; got str 'rig.json'"),
-    (cdog_jax.io.save_rig_easyvis, (_RIG, "folder"), {}, f"save_rig_easyvis: folder must be {_PATH_MSG}; got Rig"),
-    (cdog_jax.io.save_rig_anipose, (_RIG, "calibration.toml"), {}, f"save_rig_anipose: path must be {_PATH_MSG}; got Rig"),
-    (cdog_jax.io.save_rig_colmap, (_RIG, "folder"), {"image_size": (640, 480)}, f"save_rig_colmap: folder must be {_PATH_MSG}; got Rig"),
-    (cdog_jax.io.save_rig_easymocap, (_RIG, "folder"), {}, f"save_rig_easymocap: folder must be {_PATH_MSG}; got Rig"),
+    (
+        cdog_jax.geometry.fundamental_from_rig,
+        (_RIG.K,),
+        {},
+        "fundamental_from_rig: rig must be Rig; got ArrayImpl",
+    ),
+    (
+        cdog_jax.geometry.epipolar_distances,
+        (_RIG, _MASK, "xy"),
+        {},
+        f"epipolar_distances: mask must be {_ARRAY_MSG}; got str 'xy'",
+    ),
+    (
+        cdog_jax.geometry.undistort_pixels,
+        (_RIG.K, jnp.zeros((3, 5)), _XY),
+        {"iterations": 2.0},
+        "undistort_pixels: iterations must be an int; got float 2.0",
+    ),
+    (
+        cdog_jax.geometry.params_from_rig,
+        (_RIG.K,),
+        {},
+        "params_from_rig: rig must be Rig; got ArrayImpl",
+    ),
+    (
+        cdog_jax.geometry.rig_from_params,
+        (_RIG,),
+        {},
+        "rig_from_params: params must be CameraParams; got Rig",
+    ),
+    (
+        cdog_jax.io.save_rig_json,
+        (_RIG, "rig.json"),
+        {},
+        f"save_rig_json: path must be {_PATH_MSG}; got Rig",
+    ),
+    (
+        cdog_jax.io.save_rig_npz,
+        ("rig.npz", "rig.json"),
+        {},
+        "save_rig_npz: rig must be Rig; got str 'rig.json'",
+    ),
+    (
+        cdog_jax.io.save_rig_easyvis,
+        (_RIG, "folder"),
+        {},
+        f"save_rig_easyvis: folder must be {_PATH_MSG}; got Rig",
+    ),
+    (
+        cdog_jax.io.save_rig_anipose,
+        (_RIG, "calibration.toml"),
+        {},
+        f"save_rig_anipose: path must be {_PATH_MSG}; got Rig",
+    ),
+    (
+        cdog_jax.io.save_rig_colmap,
+        (_RIG, "folder"),
+        {"image_size": (640, 480)},
+        f"save_rig_colmap: folder must be {_PATH_MSG}; got Rig",
+    ),
+    (
+        cdog_jax.io.save_rig_easymocap,
+        (_RIG, "folder"),
+        {},
+        f"save_rig_easymocap: folder must be {_PATH_MSG}; got Rig",
+    ),
     (cdog_jax.io.load_rig, (_RIG,), {}, f"load_rig: path must be {_PATH_MSG}; got Rig"),
-    (cdog_jax.io.load_detections, (None,), {}, f"load_detections: path must be {_PATH_MSG}; got None"),
-    (cdog_jax.io.detections_from_lists, ("view0",), {}, "detections_from_lists: views must be list or tuple; got str 'view0'"),
-    (cdog_jax.io.save_association_json, (_RIG, "out.json", _XY, _MASK), {}, f"save_association_json: path must be {_PATH_MSG}; got Rig"),
-    (cdog_jax.io.save_association_csv, ("out.csv", _XY), {}, "save_association_csv: assoc must be an Association (or an object with its fields); got ArrayImpl"),
-    (cdog_jax.io.save_association_npz, ("out.npz", "result"), {}, "save_association_npz: assoc must be an Association (or an object with its fields); got str 'result'"),
-    (cdog_jax.io.load_association_json, (3,), {}, f"load_association_json: path must be {_PATH_MSG}; got int 3"),
-    (cdog_jax.io.association_records, (_XY, _XY, _MASK), {}, "association_records: assoc must be an Association (or an object with its fields); got ArrayImpl"),
-    (cdog_jax.synthetic.default_rig, (), {"num_views": 2.0}, "default_rig: num_views must be an int; got float 2.0"),
-    (cdog_jax.synthetic.negate_intrinsics, ([0], _RIG), {}, "negate_intrinsics: rig must be Rig; got list"),
-    (cdog_jax.synthetic.generate_scene, (_RIG, jnp.zeros(2, jnp.uint32), 5, 1.0), {"capacity": 8}, f"generate_scene: key must be {_ARRAY_MSG}; got Rig"),
-    (cdog_jax.synthetic.visible_box, ((640, 480), _RIG), {}, "visible_box: rig must be Rig; got tuple"),
-    (cdog_jax.metrics.scene_metrics, (_RIG, _XY, _XY), {}, "scene_metrics: result must be Association; got ArrayImpl"),
+    (
+        cdog_jax.io.load_detections,
+        (None,),
+        {},
+        f"load_detections: path must be {_PATH_MSG}; got None",
+    ),
+    (
+        cdog_jax.io.detections_from_lists,
+        ("view0",),
+        {},
+        "detections_from_lists: views must be list or tuple; got str 'view0'",
+    ),
+    (
+        cdog_jax.io.save_association_json,
+        (_RIG, "out.json", _XY, _MASK),
+        {},
+        f"save_association_json: path must be {_PATH_MSG}; got Rig",
+    ),
+    (
+        cdog_jax.io.save_association_csv,
+        ("out.csv", _XY),
+        {},
+        "save_association_csv: assoc must be an Association (or an object with its fields); got ArrayImpl",
+    ),
+    (
+        cdog_jax.io.save_association_npz,
+        ("out.npz", "result"),
+        {},
+        "save_association_npz: assoc must be an Association (or an object with its fields); got str 'result'",
+    ),
+    (
+        cdog_jax.io.load_association_json,
+        (3,),
+        {},
+        f"load_association_json: path must be {_PATH_MSG}; got int 3",
+    ),
+    (
+        cdog_jax.io.association_records,
+        (_XY, _XY, _MASK),
+        {},
+        "association_records: assoc must be an Association (or an object with its fields); got ArrayImpl",
+    ),
+    (
+        cdog_jax.synthetic.default_rig,
+        (),
+        {"num_views": 2.0},
+        "default_rig: num_views must be an int; got float 2.0",
+    ),
+    (
+        cdog_jax.synthetic.negate_intrinsics,
+        ([0], _RIG),
+        {},
+        "negate_intrinsics: rig must be Rig; got list",
+    ),
+    (
+        cdog_jax.synthetic.generate_scene,
+        (_RIG, jnp.zeros(2, jnp.uint32), 5, 1.0),
+        {"capacity": 8},
+        f"generate_scene: key must be {_ARRAY_MSG}; got Rig",
+    ),
+    (
+        cdog_jax.synthetic.visible_box,
+        ((640, 480), _RIG),
+        {},
+        "visible_box: rig must be Rig; got tuple",
+    ),
+    (
+        cdog_jax.metrics.scene_metrics,
+        (_RIG, _XY, _XY),
+        {},
+        "scene_metrics: result must be Association; got ArrayImpl",
+    ),
     (cdog_jax.metrics.mean_metrics, ({},), {}, "mean_metrics: metrics must be Metrics; got dict"),
     (cdog_jax.benchmark.sweep, ("grid", _RIG), {}, "sweep: rig must be Rig; got str 'grid'"),
-    (cdog_jax.benchmark.save_results, ("out", "result"), {}, "save_results: result must be SweepResult; got str 'out'"),
-    (cdog_jax.benchmark.load_results, (None,), {}, f"load_results: directory must be {_PATH_MSG}; got None"),
-    (cdog_jax.benchmark.summary_table, ("results",), {}, "summary_table: result must be SweepResult; got str"),
-    (cdog_jax.calibration.rig_errors, (_RIG, _RIG.K), {}, "rig_errors: reference must be Rig; got ArrayImpl"),
-    (cdog_jax.calibration.align_rigs, ("rig.json", _RIG), {}, "align_rigs: rig must be Rig; got str"),
-    (cdog_jax.calibration.calibrate, (_RIG, _XY[None], _MASK[None]), {"thresholds": Config(), "method": _TH}, r"calibrate: method must be a Method or a registered name \(.*\); got Thresholds"),
-    (cdog_jax.calibration.calibrate, (_RIG, _XY[None], _MASK[None]), {"thresholds": Config(), "method": "paper"}, "calibrate: thresholds must be Thresholds (method.thresholds()); got Config"),
-    (cdog_jax.calibration.bpe, (_XY, _RIG, jnp.zeros((2, 3), jnp.int32), jnp.ones(2, bool)), {}, "bpe: rig must be Rig; got ArrayImpl"),
+    (
+        cdog_jax.benchmark.save_results,
+        ("out", "result"),
+        {},
+        "save_results: result must be SweepResult; got str 'out'",
+    ),
+    (
+        cdog_jax.benchmark.load_results,
+        (None,),
+        {},
+        f"load_results: directory must be {_PATH_MSG}; got None",
+    ),
+    (
+        cdog_jax.benchmark.summary_table,
+        ("results",),
+        {},
+        "summary_table: result must be SweepResult; got str",
+    ),
+    (
+        cdog_jax.calibration.rig_errors,
+        (_RIG, _RIG.K),
+        {},
+        "rig_errors: reference must be Rig; got ArrayImpl",
+    ),
+    (
+        cdog_jax.calibration.align_rigs,
+        ("rig.json", _RIG),
+        {},
+        "align_rigs: rig must be Rig; got str",
+    ),
+    (
+        cdog_jax.calibration.calibrate,
+        (_RIG, _XY[None], _MASK[None]),
+        {"thresholds": Config(), "method": _TH},
+        r"calibrate: method must be a Method or a registered name \(.*\); got Thresholds",
+    ),
+    (
+        cdog_jax.calibration.calibrate,
+        (_RIG, _XY[None], _MASK[None]),
+        {"thresholds": Config(), "method": "paper"},
+        "calibrate: thresholds must be Thresholds (method.thresholds()); got Config",
+    ),
+    (
+        cdog_jax.calibration.bpe,
+        (_XY, _RIG, jnp.zeros((2, 3), jnp.int32), jnp.ones(2, bool)),
+        {},
+        "bpe: rig must be Rig; got ArrayImpl",
+    ),
 ]
 
 
-@pytest.mark.parametrize("fn, args, kwargs, message", WRONG_TYPES, ids=[f"{c[0].__name__}-{i}" for i, c in enumerate(WRONG_TYPES)])
+@pytest.mark.parametrize(
+    "fn, args, kwargs, message",
+    WRONG_TYPES,
+    ids=[f"{c[0].__name__}-{i}" for i, c in enumerate(WRONG_TYPES)],
+)
 def test_public_functions_name_the_expected_and_received_types(fn, args, kwargs, message):
     with pytest.raises(TypeError, match=re.escape(message) if "\\(" not in message else message):
         plain(fn)(*args, **kwargs)

@@ -25,8 +25,19 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("geometry", ("geometry.",)),
     ("stage", ("cdog._stage",)),
     ("stages", ("graph.", "refine.")),
-    ("core", ("_result", "_runtime.", "_validate", "cdog.", "_method", "_associate",
-              "people.", "tracking.")),
+    (
+        "core",
+        (
+            "_result",
+            "_runtime.",
+            "_validate",
+            "cdog.",
+            "_method",
+            "_associate",
+            "people.",
+            "tracking.",
+        ),
+    ),
     ("methods", ("baselines.",)),
     ("data", ("io.", "synthetic.", "metrics.")),
     ("harness", ("benchmark.", "calibration.")),
@@ -79,7 +90,9 @@ def _imports(name: str, modules: dict[str, Path]) -> dict[str, int]:
         for source, attribute in targets:
             if source != PACKAGE and not source.startswith(PACKAGE + "."):
                 continue
-            assert source in modules, f"{modules[name]}:{node.lineno}: imports {source}, which does not exist"
+            assert source in modules, (
+                f"{modules[name]}:{node.lineno}: imports {source}, which does not exist"
+            )
             target = f"{source}.{attribute}" if f"{source}.{attribute}" in modules else source
             add(target, node.lineno)
             # Importing a submodule from outside its package runs the package's __init__ first.
@@ -96,7 +109,7 @@ def _graph() -> tuple[dict[str, Path], dict[str, dict[str, int]]]:
 
 
 def _layer_of(name: str) -> int | None:
-    relative = name[len(PACKAGE) + 1:] if name != PACKAGE else "__init__"
+    relative = name[len(PACKAGE) + 1 :] if name != PACKAGE else "__init__"
     for rank, (_, entries) in enumerate(LAYERS):
         for entry in entries:
             if entry.endswith(".") and (relative == entry[:-1] or relative.startswith(entry)):
@@ -112,7 +125,9 @@ def _where(modules: dict[str, Path], name: str, line: int) -> str:
 
 def test_every_module_has_a_layer():
     unplaced = [name for name in _modules() if _layer_of(name) is None]
-    assert not unplaced, f"modules in no layer (add them to LAYERS here and in docs/ARCHITECTURE.md): {unplaced}"
+    assert not unplaced, (
+        f"modules in no layer (add them to LAYERS here and in docs/ARCHITECTURE.md): {unplaced}"
+    )
 
 
 def test_no_import_from_a_higher_layer():
@@ -123,8 +138,10 @@ def test_no_import_from_a_higher_layer():
         for target, line in targets.items():
             high = _layer_of(target)
             if low is not None and high is not None and high > low:
-                upward.append(f"{_where(modules, name, line)}: {name} ({LAYERS[low][0]}) imports "
-                              f"{target} ({LAYERS[high][0]})")
+                upward.append(
+                    f"{_where(modules, name, line)}: {name} ({LAYERS[low][0]}) imports "
+                    f"{target} ({LAYERS[high][0]})"
+                )
     assert not upward, "imports from a higher layer:\n" + "\n".join(upward)
 
 
@@ -139,8 +156,10 @@ def test_no_import_cycles():
         path.append(name)
         for target in sorted(graph[name]):
             if state.get(target) == 1:
-                loop = path[path.index(target):] + [target]
-                edges = [f"{_where(modules, a, graph[a][b])}: {a} -> {b}" for a, b in zip(loop, loop[1:])]
+                loop = path[path.index(target) :] + [target]
+                edges = [
+                    f"{_where(modules, a, graph[a][b])}: {a} -> {b}" for a, b in zip(loop, loop[1:])
+                ]
                 cycles.append("\n  ".join(edges))
             elif target not in state:
                 visit(target)
@@ -156,9 +175,13 @@ def test_no_import_cycles():
 def test_only_the_entry_points_import_the_command_line():
     modules, graph = _graph()
     inside = lambda name: name == CLI or name.startswith(CLI + ".")  # noqa: E731
-    offenders = [f"{_where(modules, name, line)}: {name} imports {target}"
-                 for name, targets in graph.items() if not inside(name) and name not in CLI_IMPORTERS
-                 for target, line in targets.items() if inside(target)]
+    offenders = [
+        f"{_where(modules, name, line)}: {name} imports {target}"
+        for name, targets in graph.items()
+        if not inside(name) and name not in CLI_IMPORTERS
+        for target, line in targets.items()
+        if inside(target)
+    ]
     assert not offenders, "the command line is imported from outside it:\n" + "\n".join(offenders)
 
 
@@ -166,8 +189,13 @@ def test_the_architecture_page_shows_the_same_layers():
     text = (ROOT.parent / "docs" / "ARCHITECTURE.md").read_text(encoding="utf-8")
     section = text.split("## Layers", 1)[1].split("\n## ", 1)[0]
     rows = [line.split("|") for line in section.splitlines() if re.match(r"\| \d+ \|", line)]
-    documented = [(cells[2].strip(), tuple(name.replace("/", ".") for name in re.findall(r"`([^`]+)`", cells[3])))
-                  for cells in rows]
+    documented = [
+        (
+            cells[2].strip(),
+            tuple(name.replace("/", ".") for name in re.findall(r"`([^`]+)`", cells[3])),
+        )
+        for cells in rows
+    ]
     assert documented == LAYERS, f"docs/ARCHITECTURE.md lists\n{documented}\nthe test\n{LAYERS}"
 
 

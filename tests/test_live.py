@@ -67,7 +67,9 @@ def test_nothing_compiled_after_the_first_frame(walk):
     live = LiveAssociator(rig, num_classes=J, temporal_prior=True)
     live.update(xy[0], mask[0], classes=classes[0])
     lowered = []
-    listener = lambda name, secs, **kw: lowered.append(kw.get("fun_name")) if name == LOWERING else None  # noqa: E731
+    listener = lambda name, secs, **kw: (
+        lowered.append(kw.get("fun_name")) if name == LOWERING else None
+    )  # noqa: E731
     jax.monitoring.register_event_duration_secs_listener(listener)
     try:
         for f in range(1, FRAMES):
@@ -83,7 +85,10 @@ def test_a_frame_that_does_not_fit_raises_its_capacity_once(walk):
     one larger program, the same answers as offline; the next such frame compiles nothing."""
     rig, xy, mask, classes = walk
     extra = 5  # stray detections of class 0 in view 0 of frames 1 and 2
-    xy, mask, classes = (np.pad(a[:3], [(0, 0), (0, 0), (0, extra)] + [(0, 0)] * (a.ndim - 3)) for a in (xy, mask, classes))
+    xy, mask, classes = (
+        np.pad(a[:3], [(0, 0), (0, 0), (0, extra)] + [(0, 0)] * (a.ndim - 3))
+        for a in (xy, mask, classes)
+    )
     strays = np.random.default_rng(0).uniform(100, 400, (2, extra, 2))
     xy[1:, 0, -extra:], mask[1:, 0, -extra:] = strays, True
     live = LiveAssociator(rig, num_classes=J, slots=4)
@@ -115,7 +120,9 @@ def test_bad_frames_refused_and_state_kept(walk):
         live.update(xy[0], mask[0])
     slot = int(np.flatnonzero(mask[0, 0])[0])
     with pytest.raises(ValueError, match=rf"class 17 at view 0, slot {slot} is not in \[0, 17\)"):
-        live.update(xy[0], mask[0], classes=np.where(np.arange(xy.shape[2]) == slot, 17, classes[0]))
+        live.update(
+            xy[0], mask[0], classes=np.where(np.arange(xy.shape[2]) == slot, 17, classes[0])
+        )
     with pytest.raises(ValueError, match=r"xy must have shape \(M, P, 2\)"):
         live.update(xy[:2], mask[:2], classes=classes[:2])
     assert live.frame == 0
@@ -143,8 +150,13 @@ def test_person_vote_same_answers_as_offline(walk):
         out = live.update(xy[f], mask[f], classes=classes[f], instances=person[f])
         _assert_same_frame(out, offline, f)
         # every group's person id as offline: ids kept over frames through the tracks
-        np.testing.assert_array_equal(out.person_id, people.group_person[f][np.asarray(offline.association.valid[f])])
-        assert sorted(set(out.person_id.tolist())) == [0, 1] and out.merged_people == out.split_people == ()
+        np.testing.assert_array_equal(
+            out.person_id, people.group_person[f][np.asarray(offline.association.valid[f])]
+        )
+        assert (
+            sorted(set(out.person_id.tolist())) == [0, 1]
+            and out.merged_people == out.split_people == ()
+        )
     plain = LiveAssociator(rig, num_classes=J).update(xy[0], mask[0], classes=classes[0])
     assert plain.person_id is None and plain.merged_people == ()  # no instances, no people
 
@@ -153,7 +165,9 @@ def test_the_documented_loop_runs(capsys):
     import os
     import re
 
-    with open(os.path.join(os.path.dirname(__file__), "..", "docs", "LIVE.md"), encoding="utf-8") as f:
+    with open(
+        os.path.join(os.path.dirname(__file__), "..", "docs", "LIVE.md"), encoding="utf-8"
+    ) as f:
         block = re.search(r"```python\n(.*?)```", f.read(), re.S).group(1)
     assert len(block.splitlines()) <= 20
     exec(compile(block, "docs/LIVE.md", "exec"), {"__name__": "__live__"})

@@ -9,8 +9,13 @@ from helpers import ring_rig
 
 import cdog_jax
 from cdog_jax import Config, associate, associate_batch
-from cdog_jax._runtime.memory import ENV_BUDGET, check_memory, estimate_peak_bytes, memory_budget_bytes
 from cdog_jax._associate import _associate_jit, _prepare
+from cdog_jax._runtime.memory import (
+    ENV_BUDGET,
+    check_memory,
+    estimate_peak_bytes,
+    memory_budget_bytes,
+)
 from cdog_jax._runtime.stored_programs import loaded_programs
 
 
@@ -21,12 +26,20 @@ def test_ten_thousand_detections_per_view_are_refused_before_compiling(monkeypat
     mask = np.ones((10, 10_000), bool)
     before = _associate_jit._cache_size() + loaded_programs()
     t0 = time.perf_counter()
-    with pytest.raises(MemoryError, match=r"10 views × 10000 slots need about 14[0-9]\.[0-9] GB") as info:
+    with pytest.raises(
+        MemoryError, match=r"10 views × 10000 slots need about 14[0-9]\.[0-9] GB"
+    ) as info:
         associate(rig, xy, mask, method=Config.paper(), memory_budget_gb=20.0)
     assert time.perf_counter() - t0 < 1.0
-    assert _associate_jit._cache_size() + loaded_programs() == before  # nothing was traced or compiled
+    assert (
+        _associate_jit._cache_size() + loaded_programs() == before
+    )  # nothing was traced or compiled
     message = str(info.value)
-    assert "memory budget of 20.0 GB" in message and "smaller capacity P (at most" in message and ENV_BUDGET in message
+    assert (
+        "memory budget of 20.0 GB" in message
+        and "smaller capacity P (at most" in message
+        and ENV_BUDGET in message
+    )
     # The default budget comes from this machine's memory; the estimate exceeds any of today's.
     with pytest.raises(MemoryError, match="of physical memory|memory\\)"):
         associate(rig, xy, mask, method=Config.paper())
@@ -49,22 +62,34 @@ def test_budget_from_the_environment_and_per_chunk_in_a_batch(monkeypatch):
 
 
 def test_estimate_is_monotone():
-    for config in (Config.paper(), Config.reference(), Config.extended(support_filter=True, refine=True)):
+    for config in (
+        Config.paper(),
+        Config.reference(),
+        Config.extended(support_filter=True, refine=True),
+    ):
         by_p = [estimate_peak_bytes(5, p, config) for p in (1, 10, 100, 1000)]
         by_m = [estimate_peak_bytes(m, 50, config) for m in (2, 5, 10, 20)]
         by_b = [estimate_peak_bytes(5, 50, config, batch_size=b) for b in (1, 2, 8, 32)]
         for seq in (by_p, by_m, by_b):
             assert all(a < b for a, b in zip(seq, seq[1:]))
-        assert estimate_peak_bytes(5, 50, config, dtype=jnp.float64) > estimate_peak_bytes(5, 50, config, dtype=jnp.float32)
+        assert estimate_peak_bytes(5, 50, config, dtype=jnp.float64) > estimate_peak_bytes(
+            5, 50, config, dtype=jnp.float32
+        )
 
 
 @pytest.mark.parametrize("name, M, P", [("paper", 4, 64), ("reference", 8, 32)])
 def test_estimate_is_within_a_factor_of_xla(name, M, P):
     config = getattr(Config, name)()
     static, th = _prepare(config, 1.0, None, jnp.float32)
-    compiled = _associate_jit.lower(ring_rig(M), jnp.zeros((M, P, 2)), jnp.ones((M, P), bool), th, method=static).compile()
+    compiled = _associate_jit.lower(
+        ring_rig(M), jnp.zeros((M, P, 2)), jnp.ones((M, P), bool), th, method=static
+    ).compile()
     analysis = compiled.memory_analysis()
-    xla = analysis.temp_size_in_bytes + analysis.argument_size_in_bytes + analysis.output_size_in_bytes
+    xla = (
+        analysis.temp_size_in_bytes
+        + analysis.argument_size_in_bytes
+        + analysis.output_size_in_bytes
+    )
     ratio = estimate_peak_bytes(M, P, config) / xla
     assert 1.0 <= ratio <= 1.5, ratio
 

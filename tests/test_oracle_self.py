@@ -4,9 +4,6 @@ import itertools
 
 import numpy as np
 import pytest
-
-from cdog_jax import Config
-
 from oracle import (
     adjacency,
     bpe_jump_keep,
@@ -29,6 +26,8 @@ from oracle import (
     triangulate_dlt,
     triangulate_dlt_svd,
 )
+
+from cdog_jax import Config
 
 
 def hand_rig():
@@ -121,7 +120,9 @@ def test_dlt_exact_on_noise_free_points():
             np.testing.assert_allclose(triangulate_dlt(K, R, t, xy, use), X, atol=1e-10)
             np.testing.assert_allclose(triangulate_dlt_svd(K, R, t, xy, use), X, atol=1e-10)
             # the origin shift c̄ does not change the solution
-            np.testing.assert_allclose(triangulate_dlt(K, R, t, xy, use, center=np.zeros(3)), X, atol=1e-10)
+            np.testing.assert_allclose(
+                triangulate_dlt(K, R, t, xy, use, center=np.zeros(3)), X, atol=1e-10
+            )
 
 
 def test_dlt_noisy_close_to_svd():
@@ -236,7 +237,9 @@ def test_iqr_outliers_by_hand():
     s0 = np.array([0.1, 5.0, 5.1, 5.2, 5.05, 0.0])
     np.testing.assert_array_equal(iqr_outliers(s0, members, 1.5, "positive"), [1, 0, 0, 0, 0, 0])
     # ... but never a zero score (an outlier's score must exceed the floor, ≥ 0)
-    np.testing.assert_array_equal(iqr_outliers(np.where(s0 == 0.1, 0.0, s0), members, 1.5, "positive"), [0] * 6)
+    np.testing.assert_array_equal(
+        iqr_outliers(np.where(s0 == 0.1, 0.0, s0), members, 1.5, "positive"), [0] * 6
+    )
     # the absolute floor: an outlier's score must also exceed it (either side of the fences)
     np.testing.assert_array_equal(iqr_outliers(s, members, 2.0, "zero_pad", floor_px=10.0), [0] * 6)
     np.testing.assert_array_equal(iqr_outliers(s0, members, 1.5, "positive", floor_px=1.0), [0] * 6)
@@ -250,7 +253,9 @@ def test_iqr_outliers_by_hand():
     # guards: no fence outlier but the max is above 50 px → the max goes (ties: lowest view)
     s2 = np.array([60.0, 60.0, 55.0, 58.0, 59.0, 0.0])
     assert not iqr_outliers(s2, members, 2.0, "positive").any()
-    np.testing.assert_array_equal(iqr_outliers(s2, members, 2.0, "positive", guards=True), [1, 0, 0, 0, 0, 0])
+    np.testing.assert_array_equal(
+        iqr_outliers(s2, members, 2.0, "positive", guards=True), [1, 0, 0, 0, 0, 0]
+    )
 
 
 # ----------------------------------------------------------------------------- §7, §8
@@ -284,19 +289,29 @@ def test_bpe_jump_keep_by_hand():
     bpe = np.array([0.3, 0.1, 100.0, 0.2, 0.35, 0.5, 120.0, 0.0])
     valid = np.array([1, 1, 1, 1, 1, 1, 1, 0], bool)
     # sorted: .1 .2 .3 .35 .5 100 120; gaps .1 .1 .05 .15 99.5 20 → jump at i = 4
-    keep = bpe_jump_keep(bpe, valid, kappa=10.0, floor_px2=4.0, floor_sigma=3.0, sigma=0.0, min_gaps=3)
+    keep = bpe_jump_keep(
+        bpe, valid, kappa=10.0, floor_px2=4.0, floor_sigma=3.0, sigma=0.0, min_gaps=3
+    )
     np.testing.assert_array_equal(keep, [1, 1, 0, 1, 1, 1, 0, 0])
     # floor above the gap → no jump
-    keep = bpe_jump_keep(bpe, valid, kappa=10.0, floor_px2=4.0, floor_sigma=3.0, sigma=4.0, min_gaps=3)
+    keep = bpe_jump_keep(
+        bpe, valid, kappa=10.0, floor_px2=4.0, floor_sigma=3.0, sigma=4.0, min_gaps=3
+    )
     np.testing.assert_array_equal(keep, valid)
     # too few gaps before i = 4 → the next gap (20 > 10 · median(.1 .1 .05 .15 99.5)) jumps
-    keep = bpe_jump_keep(bpe, valid, kappa=10.0, floor_px2=4.0, floor_sigma=3.0, sigma=0.0, min_gaps=5)
+    keep = bpe_jump_keep(
+        bpe, valid, kappa=10.0, floor_px2=4.0, floor_sigma=3.0, sigma=0.0, min_gaps=5
+    )
     np.testing.assert_array_equal(keep, [1, 1, 1, 1, 1, 1, 0, 0])
-    keep = bpe_jump_keep(bpe, valid, kappa=10.0, floor_px2=4.0, floor_sigma=3.0, sigma=0.0, min_gaps=6)
+    keep = bpe_jump_keep(
+        bpe, valid, kappa=10.0, floor_px2=4.0, floor_sigma=3.0, sigma=0.0, min_gaps=6
+    )
     np.testing.assert_array_equal(keep, valid)
     # ties in BPE are sorted by group id; the first gap counting is i ≥ min_gaps
     bpe2 = np.array([1.0, 1.0, 1.0, 1.0, 50.0])
-    keep = bpe_jump_keep(bpe2, np.ones(5, bool), kappa=10.0, floor_px2=4.0, floor_sigma=0.0, sigma=0.0, min_gaps=3)
+    keep = bpe_jump_keep(
+        bpe2, np.ones(5, bool), kappa=10.0, floor_px2=4.0, floor_sigma=0.0, sigma=0.0, min_gaps=3
+    )
     np.testing.assert_array_equal(keep, [1, 1, 1, 1, 0])  # median of zeros = 0
 
 
@@ -308,7 +323,10 @@ def test_estimate_sigma_ballpark():
         d = epipolar_distance_table(K, R, t, xy, mask)
         est, fallback = estimate_sigma(d, mask, focal_scale(K))
         assert 0.5 * sigma < est < 1.5 * sigma and not fallback
-    assert estimate_sigma(np.full((2, 1, 2, 1), np.inf), np.zeros((2, 1), bool), 1000.0) == (1.0, True)
+    assert estimate_sigma(np.full((2, 1, 2, 1), np.inf), np.zeros((2, 1), bool), 1000.0) == (
+        1.0,
+        True,
+    )
 
 
 # ----------------------------------------------------------------------------- whole pipeline

@@ -23,9 +23,13 @@ def walk():
     sk = generate_skeleton_scenes(jax.random.PRNGKey(4), rig, K, 1.0, num_frames=F, max_people=K)
     xy, mask, cls = (np.asarray(a) for a in (sk.frames.xy, sk.frames.mask, sk.frames.class_id))
     person = np.asarray(sk.person)
-    order = np.stack([[np.random.default_rng(10 * f + m).permutation(K) for m in range(M)] for f in range(F)])
+    order = np.stack(
+        [[np.random.default_rng(10 * f + m).permutation(K) for m in range(M)] for f in range(F)]
+    )
     instances = np.where(person >= 0, np.take_along_axis(order, np.maximum(person, 0), axis=2), -1)
-    tracked = associate_sequence(rig, xy, mask, classes=np.where(mask, cls, 0), sigma=1.0, class_names=SKELETON_JOINTS)
+    tracked = associate_sequence(
+        rig, xy, mask, classes=np.where(mask, cls, 0), sigma=1.0, class_names=SKELETON_JOINTS
+    )
     return tracked, instances, person, np.asarray(sk.joints3d), cls
 
 
@@ -40,24 +44,37 @@ def test_people_keep_their_ids_and_their_joints(walk):
     np.testing.assert_array_equal(ids, np.broadcast_to(np.arange(K), (F, K)))
     for f in range(F):
         for n, pid in enumerate(people.person_id[f]):
-            err = np.linalg.norm(people.points[f, n][None] - joints3d[f], axis=-1).mean(axis=1)  # (K,) per true person
+            err = np.linalg.norm(people.points[f, n][None] - joints3d[f], axis=-1).mean(
+                axis=1
+            )  # (K,) per true person
             truth = int(np.argmin(err))
             assert err[truth] < 0.02
             first = np.flatnonzero(people.person_id[0] == pid)[0]
-            assert np.argmin(np.linalg.norm(people.points[0, first][None] - joints3d[0], axis=-1).mean(axis=1)) == truth
+            assert (
+                np.argmin(
+                    np.linalg.norm(people.points[0, first][None] - joints3d[0], axis=-1).mean(
+                        axis=1
+                    )
+                )
+                == truth
+            )
     # Every valid group's person id is its skeleton's, and the skeleton holds its point.
     a = tracked.association
     valid, gp = np.asarray(a.valid), people.group_person
     assert np.all(gp[valid] >= 0) and np.all(gp[~valid] == -1)
     for f, g in zip(*np.nonzero(valid)):
         n = np.flatnonzero(people.person_id[f] == gp[f, g])[0]
-        np.testing.assert_allclose(people.points[f, n, tracked.group_class[f, g]], np.asarray(a.points3d)[f, g], atol=1e-6)
+        np.testing.assert_allclose(
+            people.points[f, n, tracked.group_class[f, g]], np.asarray(a.points3d)[f, g], atol=1e-6
+        )
 
 
 def test_missing_joints_are_nan_and_unknown_instances_have_no_person(walk):
     tracked, instances, person, joints3d, cls = walk
     nose = SKELETON_JOINTS.index("nose")
-    people = identify_people(tracked, np.where(cls == nose, -1, instances))  # no nose has a known person
+    people = identify_people(
+        tracked, np.where(cls == nose, -1, instances)
+    )  # no nose has a known person
     assert np.isnan(people.points[:, :, nose]).all()
     assert np.isfinite(people.points[:, :, nose + 1]).all()
     gc = tracked.group_class
@@ -66,8 +83,12 @@ def test_missing_joints_are_nan_and_unknown_instances_have_no_person(walk):
 
 def test_ids_per_frame_without_tracks(walk):
     tracked, instances, *_ = walk
-    untracked = SimpleNamespace(association=tracked.association, group_class=tracked.group_class, num_classes=tracked.num_classes,
-                                class_names=None)  # fmt: skip
+    untracked = SimpleNamespace(
+        association=tracked.association,
+        group_class=tracked.group_class,
+        num_classes=tracked.num_classes,
+        class_names=None,
+    )
     people = identify_people(untracked, instances)
     assert people.num_people == F * K  # a new id for every person of every frame
     np.testing.assert_array_equal(people.person_id, np.arange(F * K).reshape(F, K))
@@ -77,10 +98,20 @@ def _one_frame(groups, group_class, instances):
     """A one-frame classed result from a group table (points: the group's row index)."""
     groups = np.asarray(groups)[None]
     G = groups.shape[1]
-    assoc = SimpleNamespace(labels=np.full((1, groups.shape[2], 8), -1), groups=groups, valid=np.ones((1, G), bool),
-                            points3d=np.arange(G, dtype=np.float32)[None, :, None].repeat(3, -1), n_views=(groups >= 0).sum(-1),
-                            err_px=np.zeros((1, G), np.float32))  # fmt: skip
-    return SimpleNamespace(association=assoc, group_class=np.asarray(group_class)[None], num_classes=3, class_names=None)
+    assoc = SimpleNamespace(
+        labels=np.full((1, groups.shape[2], 8), -1),
+        groups=groups,
+        valid=np.ones((1, G), bool),
+        points3d=np.arange(G, dtype=np.float32)[None, :, None].repeat(3, -1),
+        n_views=(groups >= 0).sum(-1),
+        err_px=np.zeros((1, G), np.float32),
+    )
+    return SimpleNamespace(
+        association=assoc,
+        group_class=np.asarray(group_class)[None],
+        num_classes=3,
+        class_names=None,
+    )
 
 
 def test_a_person_with_two_joints_of_one_class_is_flagged_merged():
@@ -115,7 +146,9 @@ def test_linker_flags_merges_and_splits():
     assert ids.tolist() == [0, 2] and split.tolist() == [True, True] and not merged.any()
     ids, merged, split = link.step(np.array([1, 1, 0, 0]), tracks)  # ids stay, no flag
     assert ids.tolist() == [0, 2] and not merged.any() and not split.any()
-    ids, _, _ = link.step(np.array([0, -1, 0, 1]), np.array([9, 0, 2, 10]))  # a new track joins a known person
+    ids, _, _ = link.step(
+        np.array([0, -1, 0, 1]), np.array([9, 0, 2, 10])
+    )  # a new track joins a known person
     assert ids.tolist() == [0, 3]
 
 
@@ -128,7 +161,13 @@ def test_bad_arguments_refused(walk):
 
 
 def test_writers_carry_the_people(walk, tmp_path):
-    from cdog_jax.io import load_trc, save_association_csv, save_association_npz, save_people_trc, save_trc
+    from cdog_jax.io import (
+        load_trc,
+        save_association_csv,
+        save_association_npz,
+        save_people_trc,
+        save_trc,
+    )
     from cdog_jax.io._trc import track_markers
 
     tracked, instances, *_ = walk
@@ -145,7 +184,11 @@ def test_writers_carry_the_people(walk, tmp_path):
     f, g = np.nonzero(np.asarray(a.valid))
     assert [int(r[-1]) for r in rows] == people.group_person[f, g].tolist()
     written = save_people_trc(tmp_path / "p.trc", people, rate=10)
-    assert [w.rsplit("/", 1)[-1] for w in written] == ["p_person0.trc", "p_person1.trc", "p_person2.trc"]
+    assert [w.rsplit("/", 1)[-1] for w in written] == [
+        "p_person0.trc",
+        "p_person1.trc",
+        "p_person2.trc",
+    ]
     for pid, w in enumerate(written):
         f, n = np.nonzero(people.person_id == pid)
         np.testing.assert_allclose(load_trc(w).markers[f], people.points[f, n], rtol=1e-6)
@@ -155,4 +198,8 @@ def test_writers_carry_the_people(walk, tmp_path):
     save_trc(tmp_path / "t.trc", markers, names, rate=10)
     assert load_trc(tmp_path / "t.trc").names == names
     with pytest.raises(ValueError, match="People of this result"):
-        save_association_csv(tmp_path / "x.csv", tracked, people=people._replace(group_person=people.group_person[:2]))
+        save_association_csv(
+            tmp_path / "x.csv",
+            tracked,
+            people=people._replace(group_person=people.group_person[:2]),
+        )

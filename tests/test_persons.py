@@ -8,8 +8,7 @@ import itertools
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 import cdog_jax
 from cdog_jax import PersonVote, associate_classes
@@ -58,12 +57,16 @@ def test_vote_puts_a_swapped_joint_group_right(swapped):
     plain = associate_classes(rig, xy, mask, classes, sigma=2.0, method="paper")
     mixed = [p for p in _people_in_groups(plain.association, person) if len(p) > 1]
     assert len(mixed) == 2  # geometry alone: both joint-2 groups join A and B
-    voted = associate_classes(rig, xy, mask, classes, sigma=2.0, method="paper", instances=instances, person_vote=True)
+    voted = associate_classes(
+        rig, xy, mask, classes, sigma=2.0, method="paper", instances=instances, person_vote=True
+    )
     a = voted.association
     people = _people_in_groups(a, person)
     assert all(len(p) == 1 for p in people) and len(people) == 2 * J
     assert np.all(np.asarray(a.n_views[0])[np.asarray(a.valid[0])] == M)
-    assert sorted(voted.group_class[0][voted.group_class[0] >= 0].tolist()) == sorted(list(range(J)) * 2)
+    assert sorted(voted.group_class[0][voted.group_class[0] >= 0].tolist()) == sorted(
+        list(range(J)) * 2
+    )
     # Every detection labelled, labels and groups agree, points re-triangulated from the new members.
     labels, groups = np.asarray(a.labels[0]), np.asarray(a.groups[0])
     assert np.all(labels >= 0)
@@ -72,10 +75,16 @@ def test_vote_puts_a_swapped_joint_group_right(swapped):
             assert groups[labels[m, s], m] == s
     assert np.all(np.asarray(a.err_px[0])[np.asarray(a.valid[0])] < 4.0)
     # On by default with instances; person_vote=False: the plain result.
-    default = associate_classes(rig, xy, mask, classes, sigma=2.0, method="paper", instances=instances)
+    default = associate_classes(
+        rig, xy, mask, classes, sigma=2.0, method="paper", instances=instances
+    )
     np.testing.assert_array_equal(np.asarray(default.association.labels), np.asarray(a.labels))
-    off = associate_classes(rig, xy, mask, classes, sigma=2.0, method="paper", instances=instances, person_vote=False)
-    np.testing.assert_array_equal(np.asarray(off.association.labels), np.asarray(plain.association.labels))
+    off = associate_classes(
+        rig, xy, mask, classes, sigma=2.0, method="paper", instances=instances, person_vote=False
+    )
+    np.testing.assert_array_equal(
+        np.asarray(off.association.labels), np.asarray(plain.association.labels)
+    )
 
 
 def test_consistent_groups_reattaches_within_the_gate_only():
@@ -85,7 +94,9 @@ def test_consistent_groups_reattaches_within_the_gate_only():
     in A's. Within the gate (5 px) they change groups; within 1 px they are only detached."""
     scale = np.array([400.0, 400.0, 4.0])
     height = np.arange(2 * J) // J  # the person of every slot is its height
-    xy = np.stack(np.broadcast_arrays(100.0 + scale[:, None] * height[None, :], 0.0), axis=-1)  # (M, 2·J, 2)
+    xy = np.stack(
+        np.broadcast_arrays(100.0 + scale[:, None] * height[None, :], 0.0), axis=-1
+    )  # (M, 2·J, 2)
     xy[2, [2, J + 2]] = xy[2, [J + 2, 2]]
     classes = np.broadcast_to(np.arange(2 * J) % J, (M, 2 * J))
     instances = INSTANCE[:, height]
@@ -102,14 +113,32 @@ def test_consistent_groups_reattaches_within_the_gate_only():
 
     valid = np.ones(2 * J, bool)
     gclass = np.arange(2 * J) % J
-    fixed = consistent_groups(groups, valid, gclass, classes, instances, xy, points, Flat(), 5.0, PersonVote(), 2)
+    fixed = consistent_groups(
+        groups, valid, gclass, classes, instances, xy, points, Flat(), 5.0, PersonVote(), 2
+    )
     assert fixed.groups[2, 2] == 2 and fixed.groups[J + 2, 2] == J + 2
     assert fixed.changed.tolist() == [s % J == 2 for s in range(2 * J)] and fixed.valid.all()
-    tight = consistent_groups(groups, valid, gclass, classes, instances, xy, points, Flat(), 1.0, PersonVote(), 2)
+    tight = consistent_groups(
+        groups, valid, gclass, classes, instances, xy, points, Flat(), 1.0, PersonVote(), 2
+    )
     assert tight.groups[2, 2] == -1 and tight.groups[J + 2, 2] == -1  # detached, beyond the gate
     assert tight.valid.all() and len(tight.valid) == 2 * J
-    np.testing.assert_array_equal(np.delete(tight.groups, [2, J + 2], axis=0), np.delete(groups, [2, J + 2], axis=0))
-    unknown = consistent_groups(groups, valid, gclass, classes, np.full_like(instances, -1), xy, points, Flat(), 5.0, PersonVote(), 2)
+    np.testing.assert_array_equal(
+        np.delete(tight.groups, [2, J + 2], axis=0), np.delete(groups, [2, J + 2], axis=0)
+    )
+    unknown = consistent_groups(
+        groups,
+        valid,
+        gclass,
+        classes,
+        np.full_like(instances, -1),
+        xy,
+        points,
+        Flat(),
+        5.0,
+        PersonVote(),
+        2,
+    )
     np.testing.assert_array_equal(unknown.groups, groups)  # no instance known: nothing moves
     assert not unknown.changed.any()
 
@@ -118,7 +147,9 @@ def test_a_group_of_two_weakly_linked_nodes_is_kept():
     """A person seen in views 0 and 1 with a single joint group: its two nodes get one
     vote, too few to merge, but they share no view, so nothing says they are two people:
     the group stays (it would be dissolved, both joints lost, if any two persons clashed)."""
-    instances = np.array([[0, 1], [0, 1], [0, -1]])  # person A: instance 0 everywhere; C: instance 1 in views 0, 1
+    instances = np.array(
+        [[0, 1], [0, 1], [0, -1]]
+    )  # person A: instance 0 everywhere; C: instance 1 in views 0, 1
     classes = np.array([[0, 1], [0, 1], [0, 0]])
     groups = np.array([[0, 0, 0], [1, 1, -1]])  # A's joint 0 in three views, C's joint 1 in two
     xy = np.zeros((M, 2, 2))
@@ -131,8 +162,19 @@ def test_a_group_of_two_weakly_linked_nodes_is_kept():
         def triangulate(self, xy_, rows):
             return np.zeros((len(rows), 3))
 
-    out = consistent_groups(groups, np.ones(2, bool), np.array([0, 1]), classes, instances, xy, points, Still(), 5.0,
-                            PersonVote(), 2)  # fmt: skip
+    out = consistent_groups(
+        groups,
+        np.ones(2, bool),
+        np.array([0, 1]),
+        classes,
+        instances,
+        xy,
+        points,
+        Still(),
+        5.0,
+        PersonVote(),
+        2,
+    )
     np.testing.assert_array_equal(out.groups, groups)
     assert out.valid.all() and not out.changed.any()
 
@@ -155,7 +197,9 @@ def _brute_force_people(votes, node_view, min_votes):
     for part in partitions(list(range(len(node_view)))):
         if any(len({int(node_view[n]) for n in c}) < len(c) for c in part):
             continue
-        score = sum(votes[a, b] - (min_votes - 0.5) for c in part for a, b in itertools.combinations(c, 2))
+        score = sum(
+            votes[a, b] - (min_votes - 0.5) for c in part for a, b in itertools.combinations(c, 2)
+        )
         if score > best_score:
             best, best_score = part, score
     label = np.full(len(node_view), -1)
@@ -172,7 +216,9 @@ def test_clustering_matches_brute_force(data):
     N = data.draw(st.integers(1, 7))
     node_view = np.array(data.draw(st.lists(st.integers(0, 2), min_size=N, max_size=N)))
     people = data.draw(st.lists(st.integers(0, 2), min_size=N, max_size=N))
-    for n in range(N):  # view-uniqueness of the plant: a repeated (person, view) gets a person of its own
+    for n in range(
+        N
+    ):  # view-uniqueness of the plant: a repeated (person, view) gets a person of its own
         if any(people[k] == people[n] and node_view[k] == node_view[n] for k in range(n)):
             people[n] = 3 + n
     votes = np.zeros((N, N), np.int64)
@@ -207,7 +253,16 @@ def test_nodes_and_votes():
 def test_bad_instances_refused(swapped, instances, person_vote, message):
     rig, xy, mask, classes, _, _ = swapped
     with pytest.raises(ValueError, match=message):
-        associate_classes(rig, xy, mask, classes, sigma=2.0, method="paper", instances=instances, person_vote=person_vote)
+        associate_classes(
+            rig,
+            xy,
+            mask,
+            classes,
+            sigma=2.0,
+            method="paper",
+            instances=instances,
+            person_vote=person_vote,
+        )
 
 
 def test_person_vote_numbers_checked():
@@ -224,16 +279,47 @@ def test_cli_person_vote_reads_the_instance_column(swapped, tmp_path, capsys):
     rig, xy, mask, classes, instances, person = swapped
     save_rig_json(tmp_path / "rig.json", rig)
     table = tmp_path / "points.csv"
-    rows = [f"0,{m},{classes[0, m, s]},{float(xy[0, m, s, 0])!r},{float(xy[0, m, s, 1])!r},1,{instances[0, m, s]}" for m in range(M) for s in range(2 * J)]
+    rows = [
+        f"0,{m},{classes[0, m, s]},{float(xy[0, m, s, 0])!r},{float(xy[0, m, s, 1])!r},1,{instances[0, m, s]}"
+        for m in range(M)
+        for s in range(2 * J)
+    ]
     table.write_text("frame,view,class,x,y,score,instance\n" + "\n".join(rows) + "\n")
     out = tmp_path / "out.npz"
-    args = ["associate", "--rig", str(tmp_path / "rig.json"), "--points", str(table), "--sigma", "2", "--method", "paper", "--out", str(out)]
+    args = [
+        "associate",
+        "--rig",
+        str(tmp_path / "rig.json"),
+        "--points",
+        str(table),
+        "--sigma",
+        "2",
+        "--method",
+        "paper",
+        "--out",
+        str(out),
+    ]
     assert main(args + ["--person-vote"]) == 0
     with np.load(out) as z:
         groups, valid = z["groups"][0], z["valid"][0]
-    assert all(len({int(person[s]) for s in g if s >= 0}) == 1 for g in groups[valid]) and valid.sum() == 2 * J
+    assert (
+        all(len({int(person[s]) for s in g if s >= 0}) == 1 for g in groups[valid])
+        and valid.sum() == 2 * J
+    )
     plain = tmp_path / "plain.csv"
     plain.write_text("frame,view,class,x,y\n" + "\n".join(r.rsplit(",", 2)[0] for r in rows) + "\n")
     capsys.readouterr()
-    assert main(["associate", "--rig", str(tmp_path / "rig.json"), "--points", str(plain), "--person-vote"]) == 2
+    assert (
+        main(
+            [
+                "associate",
+                "--rig",
+                str(tmp_path / "rig.json"),
+                "--points",
+                str(plain),
+                "--person-vote",
+            ]
+        )
+        == 2
+    )
     assert "--person-vote: the detections carry no per-view person index" in capsys.readouterr().err

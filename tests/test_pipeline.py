@@ -54,7 +54,9 @@ def test_batch_equals_loop_shared_and_per_scene_rig():
     the single scenes run the programs that test compiles; the per-scene rigs run in chunks
     of 2, the last padded."""
     rig = ring_rig(4)
-    scenes = [random_scene(rig, n, P, sigma=s, seed=10 + n) for n, s in [(3, 0.0), (8, 1.0), (12, 2.0)]]
+    scenes = [
+        random_scene(rig, n, P, sigma=s, seed=10 + n) for n, s in [(3, 0.0), (8, 1.0), (12, 2.0)]
+    ]
     xy = np.stack([s[0] for s in scenes])
     mask = np.stack([s[1] for s in scenes])
     sigmas = jnp.asarray([0.0, 1.0, 2.0], jnp.float32)
@@ -63,7 +65,9 @@ def test_batch_equals_loop_shared_and_per_scene_rig():
     per_scene = associate_batch(rigs, xy, mask, sigma=sigmas, batch_size=2)
     for b in range(3):
         single = associate(rig, xy[b], mask[b], sigma=float(sigmas[b]))
-        for f_single, f_batch, f_rigs in zip(jax.tree.leaves(single), jax.tree.leaves(batched), jax.tree.leaves(per_scene)):
+        for f_single, f_batch, f_rigs in zip(
+            jax.tree.leaves(single), jax.tree.leaves(batched), jax.tree.leaves(per_scene)
+        ):
             assert np.allclose(np.asarray(f_single), np.asarray(f_batch)[b], atol=1e-4)
             assert np.allclose(np.asarray(f_single), np.asarray(f_rigs)[b], atol=1e-4)
 
@@ -117,7 +121,9 @@ def test_float64_pipeline():
 def test_refinement_lowers_reprojection_error():
     xy, mask, _, _ = random_scene(RIG, 10, P, sigma=2.0, seed=8)
     plain = associate(RIG, xy, mask, sigma=2.0, method=Config.paper(bpe_filter=False))
-    refined = associate(RIG, xy, mask, sigma=2.0, method=Config.paper(bpe_filter=False, refine=True))
+    refined = associate(
+        RIG, xy, mask, sigma=2.0, method=Config.paper(bpe_filter=False, refine=True)
+    )
     assert np.array_equal(np.asarray(plain.labels), np.asarray(refined.labels))
     n = int(plain.num_groups)
     assert n > 0
@@ -129,7 +135,9 @@ def test_sigma_auto_is_reported_and_reasonable():
     xy, mask, _, _ = random_scene(RIG, 12, P, sigma=2.0, seed=9)
     res = associate(RIG, xy, mask, sigma="auto")
     assert 1.4 < float(res.sigma_px) < 2.8
-    assert float(res.tau_px) == pytest.approx(max(2 * np.sqrt(2) * float(res.sigma_px), 1.0), rel=1e-5)
+    assert float(res.tau_px) == pytest.approx(
+        max(2 * np.sqrt(2) * float(res.sigma_px), 1.0), rel=1e-5
+    )
 
 
 def test_sigma_fallback_is_flagged():
@@ -179,12 +187,20 @@ def test_bad_values_are_refused():
     K = np.array(RIG.K)
     K[2] = 0.0
     with pytest.raises(ValueError, match="K of view 2 is singular"):
-        associate(cdog_jax.Rig(jnp.asarray(K), RIG.R, RIG.t), np.zeros((M, P, 2), np.float32), np.zeros((M, P), bool))
+        associate(
+            cdog_jax.Rig(jnp.asarray(K), RIG.R, RIG.t),
+            np.zeros((M, P, 2), np.float32),
+            np.zeros((M, P), bool),
+        )
     R = np.array(RIG.R)
     R[1] *= 1.1
     with pytest.raises(ValueError, match="R of view 1 is not a rotation"):
-        associate(cdog_jax.Rig(RIG.K, jnp.asarray(R), RIG.t), np.zeros((M, P, 2), np.float32), np.zeros((M, P), bool))
-    with pytest.raises(ValueError, match='sigma must be a number'):
+        associate(
+            cdog_jax.Rig(RIG.K, jnp.asarray(R), RIG.t),
+            np.zeros((M, P, 2), np.float32),
+            np.zeros((M, P), bool),
+        )
+    with pytest.raises(ValueError, match="sigma must be a number"):
         associate(RIG, np.zeros((M, P, 2), np.float32), np.zeros((M, P), bool), sigma="guess")
 
 

@@ -21,11 +21,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from oracle import make_rig, make_scene, oracle_associate
 
 import cdog_jax
 from cdog_jax import Config
-
-from oracle import make_rig, make_scene, oracle_associate
 
 try:
     from cdog_jax.geometry import Rig
@@ -48,7 +47,9 @@ def _scenes(seed, count, M, sigmas, empty_views=(0,), drop=(0.0, 0.15, 0.3), one
         n = int(rng.integers(3, P_CAP - clutter - 2))
         sigma = sigmas[k % len(sigmas)]
         p_drop = float(drop[(k // len(sigmas)) % len(drop)])
-        xy, mask, _, _ = make_scene(K, R, t, n, rng, sigma=sigma, P=P_CAP, drop=p_drop, clutter=clutter)
+        xy, mask, _, _ = make_scene(
+            K, R, t, n, rng, sigma=sigma, P=P_CAP, drop=p_drop, clutter=clutter
+        )
         n_empty = empty_views[k % len(empty_views)]
         mask[M - n_empty :] = False
         extra = f",{M - n_empty} active views" if n_empty else ""
@@ -64,29 +65,44 @@ def _scenes(seed, count, M, sigmas, empty_views=(0,), drop=(0.0, 0.15, 0.3), one
 
 
 # float64 presets: 6-view rigs with 0–3 views emptied (3–6 active views).
-SCENES = _scenes(2024, 32, 6, (0.0, 0.5, 2.0, 4.0), empty_views=(0, 0, 1, 2, 3), one_point_view=True)
+SCENES = _scenes(
+    2024, 32, 6, (0.0, 0.5, 2.0, 4.0), empty_views=(0, 0, 1, 2, 3), one_point_view=True
+)
 # float64 variants: 4-view rigs, σ > 0 (sigma="auto" needs noise).
 VARIANT_SCENES = _scenes(77, 12, 4, (0.5, 2.0, 4.0), empty_views=(0,), drop=(0.2,))
 # float32 presets: 3-view rigs.
 F32_SCENES = _scenes(5, 24, 3, (0.0, 0.5, 2.0, 4.0), empty_views=(0,))
 
-PRESETS = {"paper": Config.paper(), "reference": Config.reference(), "extended": Config.extended(), "best": Config.best()}
+PRESETS = {
+    "paper": Config.paper(),
+    "reference": Config.reference(),
+    "extended": Config.extended(),
+    "best": Config.best(),
+}
 # Every structural branch the presets leave out, in as few compilations as possible.
 # (bpe_filter off is the reference preset; prune_scope "conflicts" too.)
 VARIANTS = {
-    "paper_union_prune_none_auto_sigma": Config.paper(adjacency="union", prune_scope="none", sigma_mode="auto"),
+    "paper_union_prune_none_auto_sigma": Config.paper(
+        adjacency="union", prune_scope="none", sigma_mode="auto"
+    ),
     "reference_union_bpe_filter": Config.reference(adjacency="union", bpe_filter=True),
     "paper_recover_only": Config.paper(recover=True),
     "paper_regroup_no_iqr": Config.paper(regroup=True, iqr=False),
     # seeding needs many leftovers (paper() leaves them), 3-member seeds, fewer rounds
-    "paper_seed3_reassign2": Config.paper(seed=True, seed_min_views=3, reassign=True, reassign_iters=2),
+    "paper_seed3_reassign2": Config.paper(
+        seed=True, seed_min_views=3, reassign=True, reassign_iters=2
+    ),
 }
 
 
 # Numeric thresholds are traced: these reuse the presets' compilations (same structure).
 NUMERIC_VARIANTS = {
-    "paper_no_iqr_floor_delta055_alpha3": Config.paper(iqr_floor_px=0.0, delta=0.55, alpha_tau=3.0, jump_kappa=5.0),
-    "reference_tau4_guards2_frac08": Config.reference(tau_min_px=4.0, iqr_alpha=2.0, iqr_min_px=2.0, second_frac=0.8),
+    "paper_no_iqr_floor_delta055_alpha3": Config.paper(
+        iqr_floor_px=0.0, delta=0.55, alpha_tau=3.0, jump_kappa=5.0
+    ),
+    "reference_tau4_guards2_frac08": Config.reference(
+        tau_min_px=4.0, iqr_alpha=2.0, iqr_min_px=2.0, second_frac=0.8
+    ),
     "best_seed15_reassign15": Config.best(seed_frac=1.5, reassign_frac=1.5),
 }
 
@@ -107,12 +123,33 @@ def run_jax(scene, cfg, dtype):
     associate = _associate_fn()
 
     def go():
-        rig = Rig(jnp.asarray(scene["K"], dtype), jnp.asarray(scene["R"], dtype), jnp.asarray(scene["t"], dtype))
-        res = associate(rig, jnp.asarray(scene["xy"], dtype), jnp.asarray(scene["mask"]), method=cfg,
-                        sigma=_sigma_arg(cfg, scene["sigma"]))
-        return {k: np.asarray(getattr(res, k)) for k in
-                ("labels", "groups", "valid", "points3d", "bpe", "err_px", "n_views", "num_groups", "sigma_px",
-                 "tau_px")}
+        rig = Rig(
+            jnp.asarray(scene["K"], dtype),
+            jnp.asarray(scene["R"], dtype),
+            jnp.asarray(scene["t"], dtype),
+        )
+        res = associate(
+            rig,
+            jnp.asarray(scene["xy"], dtype),
+            jnp.asarray(scene["mask"]),
+            method=cfg,
+            sigma=_sigma_arg(cfg, scene["sigma"]),
+        )
+        return {
+            k: np.asarray(getattr(res, k))
+            for k in (
+                "labels",
+                "groups",
+                "valid",
+                "points3d",
+                "bpe",
+                "err_px",
+                "n_views",
+                "num_groups",
+                "sigma_px",
+                "tau_px",
+            )
+        }
 
     if dtype == np.float64:
         with jax.enable_x64(True):
@@ -131,8 +168,16 @@ def run_oracle(scene, cfg):
 
 
 def _run_oracle(scene, cfg):
-    return oracle_associate(scene["K"], scene["R"], scene["t"], scene["xy"], scene["mask"], cfg,
-                            sigma=_sigma_arg(cfg, scene["sigma"]), return_stages=True)
+    return oracle_associate(
+        scene["K"],
+        scene["R"],
+        scene["t"],
+        scene["xy"],
+        scene["mask"],
+        cfg,
+        sigma=_sigma_arg(cfg, scene["sigma"]),
+        return_stages=True,
+    )
 
 
 def run_oracle_stages(scene, cfg):
@@ -160,18 +205,26 @@ def compare(jx, orc, tight=True):
     if int(jx["num_groups"]) != k:
         msgs.append(f"num_groups jax={int(jx['num_groups'])} oracle={k}")
     if not np.array_equal(jx["labels"], orc["labels"]):
-        how = "same partition, other numbering" if _same_partition(jx["labels"], orc["labels"]) else "partition"
+        how = (
+            "same partition, other numbering"
+            if _same_partition(jx["labels"], orc["labels"])
+            else "partition"
+        )
         diff = np.argwhere(jx["labels"] != orc["labels"])
         at = tuple(diff.T)
-        msgs.append(f"labels differ ({how}) at (view, slot) {diff.tolist()[:8]}: "
-                    f"jax={jx['labels'][at].tolist()[:8]} oracle={orc['labels'][at].tolist()[:8]}")
+        msgs.append(
+            f"labels differ ({how}) at (view, slot) {diff.tolist()[:8]}: "
+            f"jax={jx['labels'][at].tolist()[:8]} oracle={orc['labels'][at].tolist()[:8]}"
+        )
     for key in ("groups", "valid", "n_views"):
         if jx[key].shape != orc[key].shape:
             msgs.append(f"{key} shape jax={jx[key].shape} oracle={orc[key].shape}")
         elif not np.array_equal(jx[key], orc[key]):
             rows = np.flatnonzero((jx[key] != orc[key]).reshape(len(orc[key]), -1).any(1))
-            msgs.append(f"{key} differ at rows {rows.tolist()[:6]}: jax={jx[key][rows[:3]].tolist()} "
-                        f"oracle={orc[key][rows[:3]].tolist()}")
+            msgs.append(
+                f"{key} differ at rows {rows.tolist()[:6]}: jax={jx[key][rows[:3]].tolist()} "
+                f"oracle={orc[key][rows[:3]].tolist()}"
+            )
     if tight and not msgs:
         tols = dict(points3d=(1e-7, 1e-7), bpe=(1e-6, 1e-9), err_px=(1e-6, 1e-8))
         for key, (rtol, atol) in tols.items():
@@ -189,7 +242,9 @@ def stage_ladder(cfg):
     """Configs switching the later stages on one at a time (graph only, +IQR, +second, +BPE,
     +recovery and regrouping, +seeding and re-assignment)."""
     late = dict(recover=False, regroup=False, seed=False, reassign=False)
-    rungs = [("graph §1-5", cfg.replace(iqr=False, second_association=False, bpe_filter=False, **late))]
+    rungs = [
+        ("graph §1-5", cfg.replace(iqr=False, second_association=False, bpe_filter=False, **late))
+    ]
     if cfg.iqr:
         rungs.append(("+IQR §6", cfg.replace(second_association=False, bpe_filter=False, **late)))
     if cfg.second_association:
@@ -263,8 +318,14 @@ def test_float32_presets_mostly_match_oracle(preset):
     for scene in scenes:
         jx = run_jax(scene, cfg, np.float32)
         msgs = compare(jx, run_oracle(scene, cfg), tight=False)
-        if msgs and _roundoff_iqr(cfg, scene) and _groups_within(jx, run_oracle_stages(scene, cfg)["labels_split"]):
+        if (
+            msgs
+            and _roundoff_iqr(cfg, scene)
+            and _groups_within(jx, run_oracle_stages(scene, cfg)["labels_split"])
+        ):
             continue
         if msgs:
             bad.append(f"{scene['name']}: " + "; ".join(msgs))
-    assert len(bad) <= 0.05 * len(scenes), f"{len(bad)}/{len(scenes)} scenes differ in float32:\n" + "\n".join(bad)
+    assert len(bad) <= 0.05 * len(scenes), (
+        f"{len(bad)}/{len(scenes)} scenes differ in float32:\n" + "\n".join(bad)
+    )

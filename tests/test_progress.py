@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from cdog_jax._runtime import progress as _progress
-from cdog_jax.cli._associate_command import _associate_frames
 from cdog_jax.benchmark import SweepProgress
+from cdog_jax.cli._associate_command import _associate_frames
 
 
 @pytest.mark.parametrize("forced,expected", [("1", True), ("0", False)])
@@ -32,8 +32,16 @@ def test_terminal_shows_compiling_and_bars(monkeypatch, capsys):
     with _progress.compiling("a program"):
         pass
     callback, close = _progress.sweep_bar(10)
-    callback(SweepProgress(bucket=0, num_buckets=2, capacity=20, scenes_done=4, num_scenes=10, elapsed_s=1.0))
-    callback(SweepProgress(bucket=1, num_buckets=2, capacity=50, scenes_done=10, num_scenes=10, elapsed_s=2.0))
+    callback(
+        SweepProgress(
+            bucket=0, num_buckets=2, capacity=20, scenes_done=4, num_scenes=10, elapsed_s=1.0
+        )
+    )
+    callback(
+        SweepProgress(
+            bucket=1, num_buckets=2, capacity=50, scenes_done=10, num_scenes=10, elapsed_s=2.0
+        )
+    )
     close()
     err = capsys.readouterr().err
     assert "compiling a program" in err and "compiled a program in" in err

@@ -14,7 +14,7 @@ def _readme() -> str:
 
 def test_quickstart_block_runs(capsys):
     text = _readme()
-    quickstart = text[text.index("## Quickstart"):]
+    quickstart = text[text.index("## Quickstart") :]
     block = re.search(r"```python\n(.*?)```", quickstart, re.S).group(1)
     exec(compile(block, "README.md (quickstart)", "exec"), {"__name__": "__readme__"})
     lines = capsys.readouterr().out.splitlines()
@@ -27,6 +27,12 @@ def test_readme_links_exist_and_cite_no_outside_document():
     for target in re.findall(r"\]\(([^)#]+)\)", text):
         if not target.startswith("http"):
             assert os.path.exists(os.path.join(ROOT, target)), target
-    for path in ("docs/CONVENTIONS.md", "docs/BENCHMARK.md", "docs/ALGORITHM.md", "LICENSE", "examples/rig.json",
-                 "examples/detections.json"):
+    for path in (
+        "docs/CONVENTIONS.md",
+        "docs/BENCHMARK.md",
+        "docs/ALGORITHM.md",
+        "LICENSE",
+        "examples/rig.json",
+        "examples/detections.json",
+    ):
         assert path in text and os.path.exists(os.path.join(ROOT, path)), path

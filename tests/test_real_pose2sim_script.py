@@ -35,7 +35,9 @@ def _write_demo(root, rng):
         c = np.array([4 * np.cos(a), 4 * np.sin(a), 1.6])
         R = _look_at(c, np.array([0.0, 0.0, 1.0]))
         Q = np.diag([1.0, -1.0, -1.0]) @ R  # Qualisys camera axes (as Pose2Sim converts them)
-        transform = " ".join(f'r{i + 1}{j + 1}="{float(Q[i, j])!r}"' for i in range(3) for j in range(3))
+        transform = " ".join(
+            f'r{i + 1}{j + 1}="{float(Q[i, j])!r}"' for i in range(3) for j in range(3)
+        )
         transform += "".join(f' {n}="{float(v) * 1000!r}"' for n, v in zip("xyz", c))
         body += CAMERA.format(k=k + 1, transform=transform, cu=320 * 64, cv=240 * 64, f=900 * 64)
         cams.append((R, -R @ c))
@@ -45,11 +47,20 @@ def _write_demo(root, rng):
         f.write(f"<calibration><cameras>\n{body}</cameras></calibration>\n")
     pose = os.path.join(root, "S00_P01_MultiParticipants", "S00_P01_T02_Participants1-2", "pose")
     for frame in range(2):
-        X = np.stack([c + rng.uniform(-0.3, 0.3, (25, 3)) for c in ([-0.7, 0.0, 1.0], [0.7, 0.0, 1.0])])  # (2, 25, 3)
+        X = np.stack(
+            [c + rng.uniform(-0.3, 0.3, (25, 3)) for c in ([-0.7, 0.0, 1.0], [0.7, 0.0, 1.0])]
+        )  # (2, 25, 3)
         for k, (R, t) in enumerate(cams):
             h = (X @ R.T + t) @ K.T
             xy = h[..., :2] / h[..., 2:] + rng.normal(0, 0.3, (2, 25, 2))
-            people = [{"pose_keypoints_2d": np.concatenate([p, np.full((25, 1), 0.9)], 1).ravel().tolist()} for p in xy[:: 1 if k % 2 else -1]]
+            people = [
+                {
+                    "pose_keypoints_2d": np.concatenate([p, np.full((25, 1), 0.9)], 1)
+                    .ravel()
+                    .tolist()
+                }
+                for p in xy[:: 1 if k % 2 else -1]
+            ]
             folder = os.path.join(pose, f"cam{k + 1:02d}_json")
             os.makedirs(folder, exist_ok=True)
             with open(os.path.join(folder, f"cam{k + 1:02d}.{frame:04d}.json"), "w") as f:
@@ -61,7 +72,20 @@ def test_real_pose2sim_processing(tmp_path, capsys):
     _write_demo(str(demo), np.random.default_rng(0))
     script = runpy.run_path(os.path.join(HERE, "..", "experiments", "real_pose2sim.py"))
     figure, results = tmp_path / "frame.png", tmp_path / "RESULTS.md"
-    stats = script["main"](["--demo-dir", str(demo), "--presets", "paper", "--figure", str(figure), "--results", str(results), "--frame", "1"])
+    stats = script["main"](
+        [
+            "--demo-dir",
+            str(demo),
+            "--presets",
+            "paper",
+            "--figure",
+            str(figure),
+            "--results",
+            str(results),
+            "--frame",
+            "1",
+        ]
+    )
     s = stats["S00_P01_T02_Participants1-2", "paper"]
     assert s["frames"] == 2 and s["detections"] == 2 * 4 * 50
     assert s["points"] == 2 * 50 and s["exact"] == 1.0 and s["visible_exact"] == 1.0

@@ -18,13 +18,35 @@ score = runpy.run_path(os.path.join(REAL, "shelf_score.py"), run_name="shelf_sco
 
 SIZE = (1032, 776)
 # A standing person's BODY_25 joints (metres, z up; its right side at -x, so it faces -y).
-TEMPLATE = np.array([
-    (0, 0.1, 1.65), (0, 0, 1.5), (-0.2, 0, 1.45), (-0.25, 0, 1.2), (-0.28, 0.05, 0.95), (0.2, 0, 1.45),
-    (0.25, 0, 1.2), (0.28, 0.05, 0.95), (0, 0, 0.95), (-0.1, 0, 0.95), (-0.11, 0.02, 0.5), (-0.12, 0, 0.08),
-    (0.1, 0, 0.95), (0.11, 0.02, 0.5), (0.12, 0, 0.08), (-0.04, 0.09, 1.7), (0.04, 0.09, 1.7),
-    (-0.08, 0, 1.68), (0.08, 0, 1.68), (0.13, 0.15, 0.02), (0.17, 0.13, 0.02), (0.12, -0.05, 0.03),
-    (-0.13, 0.15, 0.02), (-0.17, 0.13, 0.02), (-0.12, -0.05, 0.03),
-]) * (1, -1, 1)  # fmt: skip
+TEMPLATE = np.array(
+    [
+        (0, 0.1, 1.65),
+        (0, 0, 1.5),
+        (-0.2, 0, 1.45),
+        (-0.25, 0, 1.2),
+        (-0.28, 0.05, 0.95),
+        (0.2, 0, 1.45),
+        (0.25, 0, 1.2),
+        (0.28, 0.05, 0.95),
+        (0, 0, 0.95),
+        (-0.1, 0, 0.95),
+        (-0.11, 0.02, 0.5),
+        (-0.12, 0, 0.08),
+        (0.1, 0, 0.95),
+        (0.11, 0.02, 0.5),
+        (0.12, 0, 0.08),
+        (-0.04, 0.09, 1.7),
+        (0.04, 0.09, 1.7),
+        (-0.08, 0, 1.68),
+        (0.08, 0, 1.68),
+        (0.13, 0.15, 0.02),
+        (0.17, 0.13, 0.02),
+        (0.12, -0.05, 0.03),
+        (-0.13, 0.15, 0.02),
+        (-0.17, 0.13, 0.02),
+        (-0.12, -0.05, 0.03),
+    ]
+) * (1, -1, 1)
 
 
 def _cameras(M=5):
@@ -52,8 +74,14 @@ def _people(frames=3):
 def _write_standin(folder, frames=3):
     K, R, t = _cameras()
     people = _people(frames)
-    cams = {str(m): {"K": K[m].reshape(-1).tolist(), "RT": np.c_[R[m], t[m]].reshape(-1).tolist(),
-                     "imgSize": list(SIZE)} for m in range(5)}  # fmt: skip
+    cams = {
+        str(m): {
+            "K": K[m].reshape(-1).tolist(),
+            "RT": np.c_[R[m], t[m]].reshape(-1).tolist(),
+            "imgSize": list(SIZE),
+        }
+        for m in range(5)
+    }
     os.makedirs(os.path.join(folder, "detection"))
     with open(os.path.join(folder, "calibration.json"), "w") as f:
         json.dump(cams, f)
@@ -70,8 +98,13 @@ def _write_standin(folder, frames=3):
             orders.append(order)
             for j in range(25):
                 xy = uv[order, j] / (np.array(SIZE) - 1)
-                lines += ["2", " ".join(map(str, xy[:, 0].tolist())), " ".join(map(str, xy[:, 1].tolist())), "0.9 0.8"]
-            for a, b in shelf["PAF_PAIRS"]:
+                lines += [
+                    "2",
+                    " ".join(map(str, xy[:, 0].tolist())),
+                    " ".join(map(str, xy[:, 1].tolist())),
+                    "0.9 0.8",
+                ]
+            for _a, _b in shelf["PAF_PAIRS"]:
                 same = np.equal.outer(order, order)
                 lines += [" ".join("0.85" if s else "0.05" for s in row) for row in same]
         order_by_view.append(orders)
@@ -116,7 +149,7 @@ def test_readers_give_back_what_was_written(standin):
 def test_people_are_parsed_from_the_paf_scores(standin):
     folder, people, orders, _ = standin
     frames = shelf["read_candidates"](os.path.join(folder, "detection", "2.txt"), SIZE)
-    for f, frame in enumerate(frames):
+    for _f, frame in enumerate(frames):
         parsed = shelf["parse_people"](frame)
         assert len(parsed) == 2
         # each parsed person holds one candidate index for every joint: the same person's
@@ -142,12 +175,16 @@ def test_partial_people_merge_and_small_ones_are_dropped():
 def test_the_command_runs_as_a_user_runs_it(standin, tmp_path):
     folder, people, _, _ = standin
     work = str(tmp_path / "work")
-    report = shelf["main"]([folder, "--work", work, "--split", "all", "--json", str(tmp_path / "s.json")])
+    report = shelf["main"](
+        [folder, "--work", work, "--split", "all", "--json", str(tmp_path / "s.json")]
+    )
     assert sorted(os.listdir(os.path.join(work, "pose"))) == ["0", "1", "2", "3", "4"]
     with open(os.path.join(work, "pose", "0", "000001_keypoints.json")) as f:
         assert len(json.load(f)["people"]) == 2
     assert report["frames"] == 3 and report["recall_10cm"] == 1.0
-    assert report["pcp_mean"] == 100.0 and report["mpjpe_mm"] < 5.0  # the people of the command's output
+    assert (
+        report["pcp_mean"] == 100.0 and report["mpjpe_mm"] < 5.0
+    )  # the people of the command's output
     with open(tmp_path / "s.json") as f:
         assert json.load(f)["recall_10cm"] == 1.0
 
@@ -198,7 +235,9 @@ def test_the_head_follows_the_4d_association_rule():
     ears = (body[17] + body[18]) / 2
     np.testing.assert_allclose(shelf15[12], shoulders + 0.5 * (ears - shoulders))
     face = np.cross(body[1] - body[8], body[2] - body[5])
-    np.testing.assert_allclose(shelf15[13], shelf15[12] + 0.125 * face / np.linalg.norm(face) + (0, 0, 0.145))
+    np.testing.assert_allclose(
+        shelf15[13], shelf15[12] + 0.125 * face / np.linalg.norm(face) + (0, 0, 0.145)
+    )
     assert np.allclose(face / np.linalg.norm(face), (0, -1, 0))  # it faces -y
     skel19 = body[list(score["BODY25_OF_SKEL19"])]
     body_again = score["body25_from_skel19"](skel19)
@@ -208,7 +247,12 @@ def test_the_head_follows_the_4d_association_rule():
 def test_joint_recall_counts_points_of_the_joint_type_within_10_cm():
     true = _truth()
     gt = [{0: true}]
-    points = [{score["BODY25_OF_SHELF"][s]: true[s][None] + (0.09 if s < 6 else 0.11, 0, 0) for s in range(12)}]
+    points = [
+        {
+            score["BODY25_OF_SHELF"][s]: true[s][None] + (0.09 if s < 6 else 0.11, 0, 0)
+            for s in range(12)
+        }
+    ]
     assert score["joint_recall"](points, gt, [0]) == 0.5
 
 
@@ -222,27 +266,56 @@ def test_openpose_folders_to_skeletons_in_one_command(standin, tmp_path):
 
     folder, people, _, _ = standin
     ready = shelf["prepare"](folder, str(tmp_path / "work"))
-    base = [sys.executable, "-m", "cdog_jax", "associate", "--rig", ready["rig"], "--points", ready["pose"], "--keypoints", "BODY_25"]
-    done = subprocess.run(base + ["--out", str(tmp_path / "people.trc"), "--fps", "25", "--z-up"], capture_output=True, text=True)
+    base = [
+        sys.executable,
+        "-m",
+        "cdog_jax",
+        "associate",
+        "--rig",
+        ready["rig"],
+        "--points",
+        ready["pose"],
+        "--keypoints",
+        "BODY_25",
+    ]
+    done = subprocess.run(
+        base + ["--out", str(tmp_path / "people.trc"), "--fps", "25", "--z-up"],
+        capture_output=True,
+        text=True,
+    )
     assert done.returncode == 0, done.stderr
-    assert "people: 2 id(s) over 3 frame(s), at most 2 per frame" in done.stdout and "warning" not in done.stdout
+    assert (
+        "people: 2 id(s) over 3 frame(s), at most 2 per frame" in done.stdout
+        and "warning" not in done.stdout
+    )
     files = sorted(p.name for p in tmp_path.glob("people_person*.trc"))
     assert files == ["people_person0.trc", "people_person1.trc"]
     truth = people[..., [1, 2, 0]]  # z up written as y up
     for name in files:
         trc = load_trc(tmp_path / name)
-        assert trc.names[:3] == ("Nose", "Neck", "RShoulder") and len(trc.names) == 25 and trc.rate == 25
+        assert (
+            trc.names[:3] == ("Nose", "Neck", "RShoulder")
+            and len(trc.names) == 25
+            and trc.rate == 25
+        )
         assert trc.markers.shape == (3, 25, 3)
         # the same true person in every frame (ids kept), within 1 cm
-        err = [[np.nanmean(np.linalg.norm(trc.markers[f] - truth[f, k], axis=-1)) for k in range(2)] for f in range(3)]
+        err = [
+            [np.nanmean(np.linalg.norm(trc.markers[f] - truth[f, k], axis=-1)) for k in range(2)]
+            for f in range(3)
+        ]
         k = int(np.argmin(err[0]))
         assert all(np.argmin(e) == k and min(e) < 0.01 for e in err)
-    done = subprocess.run(base + ["--out", str(tmp_path / "r.json")], capture_output=True, text=True)
+    done = subprocess.run(
+        base + ["--out", str(tmp_path / "r.json")], capture_output=True, text=True
+    )
     assert done.returncode == 0, done.stderr
     with open(tmp_path / "r.json") as f:
         frames = json.load(f)["frames"]
     assert all(sorted({g["person"] for g in fr["groups"]}) == [0, 1] for fr in frames)
-    assert [p["person"] for p in frames[0]["people"]] == [0, 1] and not any(g["mixed"] for g in frames[0]["groups"])
+    assert [p["person"] for p in frames[0]["people"]] == [0, 1] and not any(
+        g["mixed"] for g in frames[0]["groups"]
+    )
     done = subprocess.run(base + ["--out", str(tmp_path / "r.csv")], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     header = (tmp_path / "r.csv").read_text().splitlines()[1].split(",")
@@ -254,11 +327,29 @@ def test_the_table_of_settings(standin, tmp_path):
     here), the table in markdown."""
     folder, *_ = standin
     table = runpy.run_path(os.path.join(REAL, "shelf_table.py"), run_name="shelf_table")
-    rows = table["main"]([folder, "--work", str(tmp_path / "w"), "--split", "all", "--runs", "1",
-                          "--settings", "defaults (best),--person-vote", "--markdown", str(tmp_path / "t.md")])  # fmt: skip
-    assert [r["setting"] for r in rows] == ["defaults (best)", "--person-vote"]  # no skel.txt: no 4D row
+    rows = table["main"](
+        [
+            folder,
+            "--work",
+            str(tmp_path / "w"),
+            "--split",
+            "all",
+            "--runs",
+            "1",
+            "--settings",
+            "defaults (best),--person-vote",
+            "--markdown",
+            str(tmp_path / "t.md"),
+        ]
+    )
+    assert [r["setting"] for r in rows] == [
+        "defaults (best)",
+        "--person-vote",
+    ]  # no skel.txt: no 4D row
     assert all(r["pcp_mean"] == 100.0 and r["recall_10cm"] == 1.0 for r in rows)
     text = (tmp_path / "t.md").read_text().splitlines()
-    assert text[0].startswith("| setting (all frames of 3)") and text[2].startswith("| defaults (best) | 100.0 / 100.0 /")
+    assert text[0].startswith("| setting (all frames of 3)") and text[2].startswith(
+        "| defaults (best) | 100.0 / 100.0 /"
+    )
     with pytest.raises(SystemExit):
         table["main"]([folder, "--settings", "no such"])

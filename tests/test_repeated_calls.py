@@ -14,7 +14,9 @@ from cdog_jax import associate_classes
 from cdog_jax.synthetic import DEFAULT_BOX, default_rig
 
 M, C, K = 3, 4, 2  # views, classes, people
-LOWERING = "/jax/core/compile/jaxpr_to_mlir_module_duration"  # every new program, cached on disk or not
+LOWERING = (
+    "/jax/core/compile/jaxpr_to_mlir_module_duration"  # every new program, cached on disk or not
+)
 
 
 @pytest.fixture(scope="module")
@@ -69,7 +71,9 @@ def test_person_vote_and_lens_compile_once(frame, estimator):
     dist = np.zeros((M, 5), np.float32)
     dist[:, 0] = 1e-3
     method = cdog_jax.Config.paper().replace(sigma_mode=estimator)
-    call = lambda: associate_classes(rig, xy, mask, classes, instances=person, dist=dist, method=method)  # noqa: E731
+    call = lambda: associate_classes(
+        rig, xy, mask, classes, instances=person, dist=dist, method=method
+    )  # noqa: E731
     lowered, before, after = _loop(call, 20)
     assert lowered == 0
     if before is not None:

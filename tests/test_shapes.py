@@ -40,11 +40,24 @@ def _assert_same(got, want, float_rtol=0.0):
 
 
 def test_ladders():
-    assert [slot_capacity(p) for p in (1, 5, 7, 32, 33, 64, 65, 118, 129, 600)] == [4, 6, 8, 32, 48, 64, 96, 128, 192, 768]
+    assert [slot_capacity(p) for p in (1, 5, 7, 32, 33, 64, 65, 118, 129, 600)] == [
+        4,
+        6,
+        8,
+        32,
+        48,
+        64,
+        96,
+        128,
+        192,
+        768,
+    ]
     assert [chunk_size(b, 16) for b in (1, 2, 3, 5, 16, 17, 100)] == [1, 2, 3, 6, 16, 16, 16]
     assert chunk_size(9, 10) == 10
     rungs = [ladder_rung(n) for n in range(1, 4097)]
-    assert all(n <= r <= max(1.5 * n, 2) for n, r in enumerate(rungs, start=1))  # less than half padding
+    assert all(
+        n <= r <= max(1.5 * n, 2) for n, r in enumerate(rungs, start=1)
+    )  # less than half padding
     assert all(ladder_rung(r) == r for r in rungs)  # a rung pads to itself
     assert len(set(rungs)) == 24  # two programs per doubling: 1, 2, 3, 4, 6, …, 3072, 4096
 
@@ -65,7 +78,11 @@ def test_padded_capacity_is_bitwise_unpadded(config, sigma, seed):
     xy, mask = _scene(seed, clutter=1)
     # σ's estimate sums over all (padded) samples: its float sums may group terms differently.
     rtol = 1e-6 if sigma == "auto" else 0.0
-    _assert_same(associate(RIG, xy, mask, method=config, sigma=sigma), _unpadded(xy, mask, config, sigma), rtol)
+    _assert_same(
+        associate(RIG, xy, mask, method=config, sigma=sigma),
+        _unpadded(xy, mask, config, sigma),
+        rtol,
+    )
 
 
 def test_padded_capacity_with_dist_weights_min_views():
@@ -73,11 +90,16 @@ def test_padded_capacity_with_dist_weights_min_views():
     dist = np.tile(np.array([[1e-3, 0.0, 0.0, 0.0, 0.0]], np.float32), (RIG.num_views, 1))
     weights = np.random.default_rng(0).uniform(0.5, 1.0, mask.shape).astype(np.float32)
     kwargs = dict(dist=dist, weights=weights, min_views=3)
-    _assert_same(associate(RIG, xy, mask, method=Config.extended(), **kwargs), _unpadded(xy, mask, Config.extended(), **kwargs))
+    _assert_same(
+        associate(RIG, xy, mask, method=Config.extended(), **kwargs),
+        _unpadded(xy, mask, Config.extended(), **kwargs),
+    )
 
 
 def padded_batch_is_bitwise_one_scene_at_a_time():
-    scenes = [_scene(seed) for seed in range(5)]  # 5 scenes, batch_size 2: chunks of 2, one padded scene
+    scenes = [
+        _scene(seed) for seed in range(5)
+    ]  # 5 scenes, batch_size 2: chunks of 2, one padded scene
     xy, mask = np.stack([s[0] for s in scenes]), np.stack([s[1] for s in scenes])
     sigma = jnp.asarray([1.0, 0.8, 1.2, 1.0, 0.9], jnp.float32)
     batch = associate_batch(RIG, xy, mask, method=Config.extended(), sigma=sigma, batch_size=2)
@@ -104,8 +126,8 @@ def test_one_scene_batch_runs_the_single_scene_program():
 
 
 def test_capacity_falls_back_to_the_unpadded_shape_only_where_the_budget_needs_it():
-    from cdog_jax._runtime.memory import estimate_peak_bytes
     from cdog_jax._associate import _capacity
+    from cdog_jax._runtime.memory import estimate_peak_bytes
 
     config = Config.extended()
     at_33, at_48 = (estimate_peak_bytes(10, p, config) for p in (33, 48))
@@ -118,11 +140,18 @@ def test_capacity_falls_back_to_the_unpadded_shape_only_where_the_budget_needs_i
 
 def test_frames_within_one_rung_compile_one_program():
     compiles = []
-    listener = lambda name, secs, **kw: compiles.append(name) if name == "/jax/core/compile/backend_compile_duration" else None  # noqa: E731
+    listener = lambda name, secs, **kw: (
+        compiles.append(name) if name == "/jax/core/compile/backend_compile_duration" else None
+    )  # noqa: E731
     jax.monitoring.register_event_duration_secs_listener(listener)
     try:
         xy, mask = _scene(6)
-        for count in (9, 10, 11, 12):  # shapes no other test uses: any per-shape program would compile here
+        for count in (
+            9,
+            10,
+            11,
+            12,
+        ):  # shapes no other test uses: any per-shape program would compile here
             associate(RIG, xy[:, :count], mask[:, :count], method=Config.paper(), sigma=1.0)
     finally:
         jax.monitoring.unregister_event_duration_listener(listener)
@@ -136,17 +165,28 @@ def test_trailing_empty_slots_are_left_out(monkeypatch):
     import cdog_jax._associate as associate_module
 
     scenes = [_scene(seed, clutter=1) for seed in (6, 7)]
-    wide = [(np.pad(xy, ((0, 0), (0, 27), (0, 0))), np.pad(mask, ((0, 0), (0, 27)))) for xy, mask in scenes]
+    wide = [
+        (np.pad(xy, ((0, 0), (0, 27), (0, 0))), np.pad(mask, ((0, 0), (0, 27))))
+        for xy, mask in scenes
+    ]
     shapes = []
     program = associate_module._single_scene
     monkeypatch.setattr(
-        associate_module, "_single_scene", lambda rig, xy, *rest: shapes.append(np.shape(xy)) or program(rig, xy, *rest)
+        associate_module,
+        "_single_scene",
+        lambda rig, xy, *rest: shapes.append(np.shape(xy)) or program(rig, xy, *rest),
     )
     config = Config.paper()
     got = associate(RIG, *wide[0], method=config)
     assert shapes == [(RIG.num_views, 16, 2)]
     _assert_same(got, _unpadded(*wide[0], config))
-    batch = associate_batch(RIG, np.stack([w[0] for w in wide]), np.stack([w[1] for w in wide]), method=config, batch_size=1)
+    batch = associate_batch(
+        RIG,
+        np.stack([w[0] for w in wide]),
+        np.stack([w[1] for w in wide]),
+        method=config,
+        batch_size=1,
+    )
     for b, (xy, mask) in enumerate(wide):
         _assert_same(jax.tree.map(lambda a: a[b], batch), _unpadded(xy, mask, config))
     assert shapes[1:] == [(RIG.num_views, 16, 2)] * 2

@@ -13,7 +13,9 @@ HERE = os.path.dirname(__file__)
 
 
 def _load(name):
-    spec = importlib.util.spec_from_file_location(name, os.path.join(HERE, "..", "experiments", f"{name}.py"))
+    spec = importlib.util.spec_from_file_location(
+        name, os.path.join(HERE, "..", "experiments", f"{name}.py")
+    )
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -25,7 +27,12 @@ def test_bench_speed_quick_grid_in_a_fresh_process(capsys):
     text = capsys.readouterr().out
     head = "| grid (24 scenes) | cpu: 1 × cpu (1 process), median of 1 | cpu: 2 × cpu (1 process), median of 1 |"
     assert head in text, text
-    for row in ("| cold call (trace + compile + run) |", "| warm call |", "| peak RSS |", "scenes/s"):
+    for row in (
+        "| cold call (trace + compile + run) |",
+        "| warm call |",
+        "| peak RSS |",
+        "scenes/s",
+    ):
         assert row in text, row
     # The scenes sharded over two CPU devices score exactly as on one.
     f1_row = next(line for line in text.splitlines() if line.startswith("| mean PG-F1"))
@@ -42,9 +49,13 @@ def test_bench_speed_single_scene_rows():
 def test_tuning_search_ranks_every_combination(capsys):
     module = _load("tune_thresholds")
     grid = Grid(sigmas=(1.0,), counts=(6,), scenes=2, seed=1, views=(0, 1, 2, 3), capacity=8)
-    best, rows = module.search({"delta": (0.3, 0.5), "alpha_tau": (2.0, 3.0)}, Config.paper(), grid, (8,), top=2)
+    best, rows = module.search(
+        {"delta": (0.3, 0.5), "alpha_tau": (2.0, 3.0)}, Config.paper(), grid, (8,), top=2
+    )
     assert len(rows) == 4 and [r[0] for r in rows] == sorted((r[0] for r in rows), reverse=True)
     assert (best.delta, best.alpha_tau) == (rows[0][1]["delta"], rows[0][1]["alpha_tau"])
     assert all(0.0 <= r[0] <= 1.0 for r in rows)
     assert "the starting values {'delta': 0.5, 'alpha_tau': 2.0}" in capsys.readouterr().out
-    assert module.objective({"pg_f1": np.ones(3), "mp_f1": np.ones(3), "g_f1": np.zeros(3)}) == 2 / 3
+    assert (
+        module.objective({"pg_f1": np.ones(3), "mp_f1": np.ones(3), "g_f1": np.zeros(3)}) == 2 / 3
+    )

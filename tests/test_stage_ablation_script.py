@@ -8,7 +8,9 @@ HERE = os.path.dirname(__file__)
 
 
 def test_stage_ablation_tiny(tmp_path, capsys):
-    spec = importlib.util.spec_from_file_location("stage_ablation", os.path.join(HERE, "..", "experiments", "stage_ablation.py"))
+    spec = importlib.util.spec_from_file_location(
+        "stage_ablation", os.path.join(HERE, "..", "experiments", "stage_ablation.py")
+    )
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     out = tmp_path / "rows.json"

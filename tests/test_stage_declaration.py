@@ -11,8 +11,8 @@ import pytest
 from helpers import random_scene, ring_rig
 
 from cdog_jax import STAGES, Config, associate
-from cdog_jax.cdog._pipeline import make_config
 from cdog_jax.cdog._config import Number, Range, Switch
+from cdog_jax.cdog._pipeline import make_config
 from cdog_jax.cdog._stage import Stage
 
 TRACES = []
@@ -29,12 +29,20 @@ def error_gate_stage(scene, state, options):
     TRACES.append(options)  # once per trace: a number that changes must not add one
     error = state.fit.err_px * (2.0 if options.error_kind == "twice_mean" else 1.0)
     keep = state.table.valid & (error <= scene.th.error_gate_px)
-    return state._replace(table=state.table.keep(keep), fit=state.fit._replace(member=state.fit.member & keep[:, None]))
+    return state._replace(
+        table=state.table.keep(keep),
+        fit=state.fit._replace(member=state.fit.member & keep[:, None]),
+    )
 
 
 ERROR_GATE = Stage(
-    "error_gate", error_gate_stage, ErrorGateOptions, Switch("error_gate", False, "drop groups with a large error"),
-    numbers=(Number("error_gate_px", 5.0, Range(0.0, 100.0), "the largest mean error kept (pixels)"),),
+    "error_gate",
+    error_gate_stage,
+    ErrorGateOptions,
+    Switch("error_gate", False, "drop groups with a large error"),
+    numbers=(
+        Number("error_gate_px", 5.0, Range(0.0, 100.0), "the largest mean error kept (pixels)"),
+    ),
 )
 GATED_STAGES = (*STAGES[:-1], ERROR_GATE, STAGES[-1])  # after the fit, before the validity gate
 Gated = make_config(GATED_STAGES, base=Config)
@@ -53,14 +61,22 @@ def test_the_new_options_are_config_fields_with_their_defaults():
 
 
 def test_the_new_options_are_checked():
-    with pytest.raises(ValueError, match=r"Config.error_gate_px must be finite and in \[0, 100\]; got 200.0"):
+    with pytest.raises(
+        ValueError, match=r"Config.error_gate_px must be finite and in \[0, 100\]; got 200.0"
+    ):
         Gated(error_gate_px=200.0)
-    with pytest.raises(ValueError, match=r"Config.error_kind must be one of \('mean', 'twice_mean'\); got 'max'"):
+    with pytest.raises(
+        ValueError, match=r"Config.error_kind must be one of \('mean', 'twice_mean'\); got 'max'"
+    ):
         Gated().replace(error_kind="max")
     with pytest.raises(TypeError, match="Config.error_gate must be True or False; got 1"):
         Gated(error_gate=1)
-    twice = Stage("twice", error_gate_stage, None, Switch("twice", False), numbers=(Number("delta", 0.5),))
-    with pytest.raises(TypeError, match="option 'delta' is declared twice: by stage 'graph' and by stage 'twice'"):
+    twice = Stage(
+        "twice", error_gate_stage, None, Switch("twice", False), numbers=(Number("delta", 0.5),)
+    )
+    with pytest.raises(
+        TypeError, match="option 'delta' is declared twice: by stage 'graph' and by stage 'twice'"
+    ):
         make_config((*STAGES, twice))
 
 
@@ -71,8 +87,18 @@ def test_the_new_number_is_traced_and_its_thresholds_range_checked():
     th = method.thresholds(0.5)
     TRACES.clear()
     kept = associate(rig, xy.astype(np.float32), mask, method=method, thresholds=th)
-    dropped = associate(rig, xy.astype(np.float32), mask, method=method, thresholds=th._replace(error_gate_px=np.float32(0.0)))
+    dropped = associate(
+        rig,
+        xy.astype(np.float32),
+        mask,
+        method=method,
+        thresholds=th._replace(error_gate_px=np.float32(0.0)),
+    )
     assert len(TRACES) == 1, "changing a number recompiled"
     assert int(np.sum(kept.valid)) > 0 and int(np.sum(dropped.valid)) == 0
-    with pytest.raises(ValueError, match=r"thresholds.error_gate_px must be finite and in \[0, 100\]; got -1.0"):
-        associate(rig, xy, mask, method=method, thresholds=th._replace(error_gate_px=np.float32(-1.0)))
+    with pytest.raises(
+        ValueError, match=r"thresholds.error_gate_px must be finite and in \[0, 100\]; got -1.0"
+    ):
+        associate(
+            rig, xy, mask, method=method, thresholds=th._replace(error_gate_px=np.float32(-1.0))
+        )

@@ -15,7 +15,12 @@ XY, MASK = np.stack([_A[0], _B[0]]), np.stack([_A[1], _B[1]])
 
 
 def _status(config):
-    return [int(s) for s in np.asarray(associate_batch(RIG, XY, MASK, method=config, sigma=4.0, batch_size=2).status)]
+    return [
+        int(s)
+        for s in np.asarray(
+            associate_batch(RIG, XY, MASK, method=config, sigma=4.0, batch_size=2).status
+        )
+    ]
 
 
 def test_a_loop_stopped_at_its_bound_sets_its_flag_per_scene():
@@ -26,6 +31,8 @@ def test_a_loop_stopped_at_its_bound_sets_its_flag_per_scene():
     assert iqr_refine[1] == Status.REFINE_CAPPED  # two clean groups: one LM step is not enough
     default = _status(Config.reference(refine=True))
     assert default[0] & (Status.SPLIT_CAPPED | Status.IQR_CAPPED) == 0 and default[1] == 0
-    with pytest.raises(RuntimeError, match="scene 0: the view-uniqueness split stopped at its iteration bound"):
+    with pytest.raises(
+        RuntimeError, match="scene 0: the view-uniqueness split stopped at its iteration bound"
+    ):
         check_status(split)
     assert len(status_messages(split[0])) == 1 and status_messages(0) == []

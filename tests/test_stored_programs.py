@@ -14,8 +14,8 @@ from helpers import random_scene, ring_rig
 
 import cdog_jax
 from cdog_jax import Config
-from cdog_jax._runtime import stored_programs as stored
 from cdog_jax._associate import _associate_jit, _prepare
+from cdog_jax._runtime import stored_programs as stored
 
 RIG = ring_rig(4)
 P = 20  # padded to 32 slots
@@ -46,7 +46,9 @@ def _direct(xy, mask, sigma, method):
     static, th = _prepare(method, sigma, None, np.float32)
     padded_xy = np.pad(xy, ((0, 0), (0, 32 - P), (0, 0)))
     padded_mask = np.pad(mask, ((0, 0), (0, 32 - P)))
-    return cdog_jax._runtime.shapes.trim(_associate_jit(RIG, padded_xy, padded_mask, th, method=static), P)
+    return cdog_jax._runtime.shapes.trim(
+        _associate_jit(RIG, padded_xy, padded_mask, th, method=static), P
+    )
 
 
 def test_stored_program_is_written_then_loaded_without_tracing(fresh_store):
@@ -80,12 +82,18 @@ def test_a_corrupt_entry_is_exported_again(fresh_store):
 def test_every_input_that_changes_the_program_changes_the_key(fresh_store):
     xy, mask, _, _ = random_scene(RIG, 12, P, sigma=1.0, seed=5)
     cdog_jax.associate(RIG, xy, mask, sigma=1.0, method=Config.paper())
-    cdog_jax.associate(RIG, xy, mask, sigma=2.0, method=Config.paper(delta=0.7))  # numbers only: same program
+    cdog_jax.associate(
+        RIG, xy, mask, sigma=2.0, method=Config.paper(delta=0.7)
+    )  # numbers only: same program
     assert len(list(fresh_store.glob("*.jaxexport"))) == 1
-    cdog_jax.associate(RIG, xy, mask, sigma="auto", method=Config.paper())  # σ estimated: another structure
+    cdog_jax.associate(
+        RIG, xy, mask, sigma="auto", method=Config.paper()
+    )  # σ estimated: another structure
     xy40, mask40, _, _ = random_scene(RIG, 12, 40, sigma=1.0, seed=5)
     cdog_jax.associate(RIG, xy40, mask40, sigma=1.0, method=Config.paper())  # 64 slots
-    cdog_jax.associate(RIG, xy, mask, sigma=1.0, method=Config.paper(), min_views=3)  # the finishing program
+    cdog_jax.associate(
+        RIG, xy, mask, sigma=1.0, method=Config.paper(), min_views=3
+    )  # the finishing program
     assert len(list(fresh_store.glob("*.jaxexport"))) == 4
     stored._keys.clear()  # as a new process with edited source would start
     with mock.patch.object(stored, "_package_source_hash", return_value="edited source"):
@@ -138,7 +146,9 @@ def test_a_stored_batch_program_agrees_with_its_first_run(fresh_store):
     assert len(list(fresh_store.glob("*.jaxexport"))) == 1  # one program: chunks of 2 scenes
     stored._loaded.clear()
     with mock.patch.object(Config, "associate_scene", side_effect=AssertionError("traced again")):
-        again = cdog_jax.associate_batch(RIG, xy, mask, sigma=1.0, method=Config.paper(), batch_size=2)
+        again = cdog_jax.associate_batch(
+            RIG, xy, mask, sigma=1.0, method=Config.paper(), batch_size=2
+        )
     _assert_bitwise(first, again)
     assert first.labels.shape == (3, RIG.num_views, P)
 
@@ -156,16 +166,24 @@ def test_the_sigma_programs_are_stored_and_agree_bitwise(fresh_store, sigma_mode
     classes = rng.integers(0, 3, (F, M, Pv))
 
     def run():
-        return cdog_jax.associate_classes(RIG, xy, mask, classes, method=Config.best(sigma_mode=sigma_mode))
+        return cdog_jax.associate_classes(
+            RIG, xy, mask, classes, method=Config.best(sigma_mode=sigma_mode)
+        )
 
     first = run()
     assert len(list(fresh_store.glob("*.jaxexport"))) == 3  # samples, fit, association
     stored._loaded.clear()
     with (
-        mock.patch.object(_classes, "sigma_from_samples", side_effect=AssertionError("traced again")),
-        mock.patch.object(_classes, "robust_sigma_from_samples", side_effect=AssertionError("traced again")),
+        mock.patch.object(
+            _classes, "sigma_from_samples", side_effect=AssertionError("traced again")
+        ),
+        mock.patch.object(
+            _classes, "robust_sigma_from_samples", side_effect=AssertionError("traced again")
+        ),
         mock.patch.object(_classes, "nearest_samples", side_effect=AssertionError("traced again")),
-        mock.patch.object(_classes, "nearest_two_samples", side_effect=AssertionError("traced again")),
+        mock.patch.object(
+            _classes, "nearest_two_samples", side_effect=AssertionError("traced again")
+        ),
     ):
         again = run()
     _assert_bitwise(first.association, again.association)

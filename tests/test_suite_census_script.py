@@ -26,17 +26,42 @@ def test_census_counts_a_child_test(tmp_path, capsys):
         sys.path.remove(EXPERIMENTS)
     (tmp_path / "test_tiny.py").write_text(_TINY_TEST)
     out = tmp_path / "census"
-    env = dict(os.environ, PYTHONPATH=os.path.abspath(EXPERIMENTS), SUITE_CENSUS_OUT=str(out), CDOG_JAX_CACHE="0")
+    env = dict(
+        os.environ,
+        PYTHONPATH=os.path.abspath(EXPERIMENTS),
+        SUITE_CENSUS_OUT=str(out),
+        CDOG_JAX_CACHE="0",
+    )
     done = subprocess.run(
-        [sys.executable, "-m", "pytest", "-q", "-p", "suite_census", "-p", "no:cacheprovider", "test_tiny.py"],
-        cwd=tmp_path, env=env, capture_output=True, text=True,
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "-q",
+            "-p",
+            "suite_census",
+            "-p",
+            "no:cacheprovider",
+            "test_tiny.py",
+        ],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
     )
     assert done.returncode == 0, done.stdout + done.stderr
     totals, per_file = suite_census.summarise(out)
     assert list(per_file) == ["test_tiny.py"]
     assert totals["trace_n"] >= 1 and totals["lower_n"] >= 2  # the jitted function and cos
     assert totals["compile_small_n"] + totals["compile_program_n"] >= 2
-    assert 0 < totals["trace_s"] + totals["lower_s"] + totals["compile_small_s"] + totals["compile_program_s"] <= totals["wall_s"]
+    assert (
+        0
+        < totals["trace_s"]
+        + totals["lower_s"]
+        + totals["compile_small_s"]
+        + totals["compile_program_s"]
+        <= totals["wall_s"]
+    )
     suite_census.main([str(out)])
     text = capsys.readouterr().out
     assert "| all tests |" in text and "| test_tiny.py |" in text

@@ -13,9 +13,15 @@ def test_temporal_prior_quick(tmp_path, capsys):
     spec.loader.exec_module(script)
     out = script.main(["--quick", "--json", str(tmp_path / "t.json")])
     assert (tmp_path / "t.json").stat().st_size > 0
-    assert [(r["preset"], r["prior"], r["max_gap"]) for r in out["rows"]] == [("paper", p, g) for p, g in script.QUICK_CONDITIONS]
+    assert [(r["preset"], r["prior"], r["max_gap"]) for r in out["rows"]] == [
+        ("paper", p, g) for p, g in script.QUICK_CONDITIONS
+    ]
     for r in out["rows"]:
-        assert 0.0 <= r["recall"] <= 1.0 and 0.0 <= r["joined"] <= 1.0 and r["switches_per_track"] >= 0.0, r
+        assert (
+            0.0 <= r["recall"] <= 1.0
+            and 0.0 <= r["joined"] <= 1.0
+            and r["switches_per_track"] >= 0.0
+        ), r
         assert r["tracks_per_joint"] >= 1.0 and (r["prior"] or r["recovered"] == 0), r
     assert out["rows"][0]["recovered"] == 0 and 0.0 < out["dropped_share"] < 0.5
     assert "| paper | on | 1 |" in capsys.readouterr().out

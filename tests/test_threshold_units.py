@@ -5,7 +5,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from helpers import random_scene, ring_rig
-from oracle import epipolar_distance_table, estimate_sigma_robust as oracle_robust, focal_scale as oracle_focal
+from oracle import (
+    epipolar_distance_table,
+    estimate_sigma_robust as oracle_robust,
+    focal_scale as oracle_focal,
+)
 
 from cdog_jax import Config, associate, associate_classes
 from cdog_jax.cdog._config import tau_px, thresholds_in_pixels
@@ -24,7 +28,9 @@ def _scaled(rig, xy, s):
 
 
 def _run(rig, xy, mask, config, sigma):
-    res = associate(rig, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), method=config, sigma=sigma)
+    res = associate(
+        rig, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), method=config, sigma=sigma
+    )
     return np.asarray(res.labels), float(res.tau_px), float(res.sigma_px)
 
 
@@ -35,8 +41,12 @@ def test_focal_units_scale_every_length_threshold():
     scaled = thresholds_in_pixels(th, jnp.float32(f), Config.units)
     for name in th._fields:
         power = {"px": 1, "px2": 2}.get(Config.units[name], 0)
-        assert float(getattr(scaled, name)) == pytest.approx(float(getattr(th, name)) * (f / 1000.0) ** power, rel=1e-6), name
-    assert float(scaled.delta) == pytest.approx(0.6) and float(scaled.sigma_px) == pytest.approx(0.415)
+        assert float(getattr(scaled, name)) == pytest.approx(
+            float(getattr(th, name)) * (f / 1000.0) ** power, rel=1e-6
+        ), name
+    assert float(scaled.delta) == pytest.approx(0.6) and float(scaled.sigma_px) == pytest.approx(
+        0.415
+    )
 
 
 def test_focal_units_give_the_same_groups_at_any_resolution():
@@ -63,22 +73,30 @@ def test_focal_units_with_classes_and_pooled_sigma():
     runs = []
     for s in (1.0, 3.0):
         rig_s, xy_s = _scaled(RIG, xy, s)
-        out = associate_classes(rig_s, xy_s[None], mask[None], classes[None], method=config, sigma="auto", batch_size=4)
+        out = associate_classes(
+            rig_s, xy_s[None], mask[None], classes[None], method=config, sigma="auto", batch_size=4
+        )
         runs.append((np.asarray(out.association.labels), np.asarray(out.association.tau_px)))
     assert (runs[0][0] >= 0).any()
     np.testing.assert_array_equal(runs[1][0], runs[0][0])
-    np.testing.assert_allclose(runs[1][1], 3.0 * runs[0][1], rtol=1e-3)  # float32 EM: not to the last bit
+    np.testing.assert_allclose(
+        runs[1][1], 3.0 * runs[0][1], rtol=1e-3
+    )  # float32 EM: not to the last bit
 
 
 def test_fitted_gate_needs_the_robust_fit_and_per_scene_sigma_with_classes():
     xy, mask, _, _ = random_scene(RIG, 4, 6, seed=5)
     config = Config.paper(sigma_mode="robust", tau_mode="fitted")
     with pytest.raises(ValueError, match="tau_mode='fitted'.*sigma_pool='scene'"):
-        associate_classes(RIG, xy[None], mask[None], np.zeros((1,) + mask.shape, int), method=config)
+        associate_classes(
+            RIG, xy[None], mask[None], np.zeros((1,) + mask.shape, int), method=config
+        )
     with pytest.raises(ValueError, match="tau_mode='fitted'.*sigma_mode='robust'"):
         Config.paper(sigma_mode="auto", tau_mode="fitted")
     with pytest.raises(ValueError, match="tau_mode='fitted'.*sigma_mode='robust'"):
-        associate(RIG, xy, mask, method=Config.paper(tau_mode="fitted"), sigma="auto")  # given -> auto
+        associate(
+            RIG, xy, mask, method=Config.paper(tau_mode="fitted"), sigma="auto"
+        )  # given -> auto
 
 
 def test_fitted_gate_is_a_high_quantile_of_the_true_pairs():
@@ -87,13 +105,19 @@ def test_fitted_gate_is_a_high_quantile_of_the_true_pairs():
     # formula's α √2 σ̂ (both cover ≈ 95 %).
     xy, mask, _, _ = random_scene(RIG, 7, P, sigma=1.0, seed=6)
     config = Config.paper(sigma_mode="robust", tau_mode="fitted")
-    res = associate(RIG, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), method=config, sigma="auto")
+    res = associate(
+        RIG, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), method=config, sigma="auto"
+    )
     sigma, tau = float(res.sigma_px), float(res.tau_px)
     K, R, t = (np.asarray(a, np.float64) for a in (RIG.K, RIG.R, RIG.t))
     xy32 = np.asarray(xy, np.float32).astype(np.float64)
-    want_sigma, want_gate, fallback = oracle_robust(epipolar_distance_table(K, R, t, xy32, mask), mask, oracle_focal(K), with_gate=True)
+    want_sigma, want_gate, fallback = oracle_robust(
+        epipolar_distance_table(K, R, t, xy32, mask), mask, oracle_focal(K), with_gate=True
+    )
     assert not int(res.status) and not fallback and 0.7 < sigma < 1.4
-    assert sigma == pytest.approx(want_sigma, rel=1e-3) and tau == pytest.approx(want_gate, rel=1e-3)
+    assert sigma == pytest.approx(want_sigma, rel=1e-3) and tau == pytest.approx(
+        want_gate, rel=1e-3
+    )
     formula = 2.0 * np.sqrt(2.0) * sigma
     assert 0.7 < tau / formula < 1.4 and abs(tau - formula) > 1e-3 * formula
 
@@ -101,14 +125,25 @@ def test_fitted_gate_is_a_high_quantile_of_the_true_pairs():
 def test_gate_formula_without_a_fit():
     th = Config.paper().thresholds(1.0)
     assert float(tau_px(th, jnp.float32(1.0))) == pytest.approx(2.0 * np.sqrt(2.0))
-    assert float(tau_px(th, jnp.float32(1.0), jnp.float32(np.nan))) == pytest.approx(2.0 * np.sqrt(2.0))
+    assert float(tau_px(th, jnp.float32(1.0), jnp.float32(np.nan))) == pytest.approx(
+        2.0 * np.sqrt(2.0)
+    )
     assert float(tau_px(th, jnp.float32(1.0), jnp.float32(5.0))) == pytest.approx(5.0)
-    assert float(tau_px(th, jnp.float32(1.0), jnp.float32(0.5))) == pytest.approx(1.0)  # the floor tau_min_px
+    assert float(tau_px(th, jnp.float32(1.0), jnp.float32(0.5))) == pytest.approx(
+        1.0
+    )  # the floor tau_min_px
 
 
 def test_focal_units_scale_the_lengths_declared_in_pixels():
     # Exactly the numbers whose stage declares them in px (px² for jump_floor_px2).
-    assert {n for n, u in Config.units.items() if u} == {"sigma_px", "tau_min_px", "iqr_floor_px", "iqr_min_px", "iqr_force_px", "jump_floor_px2"}
+    assert {n for n, u in Config.units.items() if u} == {
+        "sigma_px",
+        "tau_min_px",
+        "iqr_floor_px",
+        "iqr_min_px",
+        "iqr_force_px",
+        "jump_floor_px2",
+    }
     assert Config.units["jump_floor_px2"] == "px2"
 
 

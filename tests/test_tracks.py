@@ -8,15 +8,13 @@ import json
 from types import SimpleNamespace
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
-
-import jax.numpy as jnp
+from helpers import project_np, ring_rig, x64
 
 from cdog_jax import associate_batch, associate_sequence, track_groups
 from cdog_jax.io import save_association_csv, save_association_json, save_association_npz
-
-from helpers import project_np, ring_rig, x64
 
 F, M = 3, 3
 STEP = np.array([0.05, 0.0, 0.0])  # per frame, scene units (≈ 13 px)
@@ -61,7 +59,13 @@ def _without_group(result, f, point, instance):
     g = int(np.unique(labels[f][instance[f] == point])[0])
     labels[f][labels[f] == g] = -1
     valid[f, g] = False
-    return SimpleNamespace(**{**{k: getattr(result, k) for k in result.__dataclass_fields__}, "labels": labels, "valid": valid})
+    return SimpleNamespace(
+        **{
+            **{k: getattr(result, k) for k in result.__dataclass_fields__},
+            "labels": labels,
+            "valid": valid,
+        }
+    )
 
 
 def test_ids_stay_with_their_points(seq):
@@ -76,7 +80,9 @@ def test_a_point_that_vanishes_returns_with_a_new_id(seq):
     mask = seq.mask.copy()
     mask[1, 1:][seq.instance[1, 1:] == 0] = False  # point 0 seen in view 0 only in frame 1
     for prior in (False, True):  # one view: nothing to recover
-        tracked = associate_sequence(seq.rig, seq.xy, mask, method="paper", sigma=1.0, temporal_prior=prior)
+        tracked = associate_sequence(
+            seq.rig, seq.xy, mask, method="paper", sigma=1.0, temporal_prior=prior
+        )
         ids = _ids_by_point(tracked, seq.instance)
         assert (1, 0) not in ids
         assert ids[0, 1] == ids[1, 1] == ids[2, 1]
@@ -97,21 +103,35 @@ def test_the_prior_recovers_a_missed_group_with_its_id(seq):
     assert rec.sum() == 1
     f, g = np.argwhere(rec)[0]
     assert f == 1 and int(tracked.association.n_views[f, g]) == M
-    np.testing.assert_allclose(np.asarray(tracked.association.points3d[f, g]), seq.truth[1, 0], atol=1e-3)
+    np.testing.assert_allclose(
+        np.asarray(tracked.association.points3d[f, g]), seq.truth[1, 0], atol=1e-3
+    )
     assert int(tracked.association.num_groups[1]) == 2 and int(tracked.unplaced.sum()) == 0
 
 
 def test_the_prior_respects_its_gates(seq):
     missed = _without_group(seq.result, 1, 0, seq.instance)
-    far = track_groups(seq.rig, missed, xy=seq.xy, mask=seq.mask, temporal_prior=True, max_step_px=2.0)  # the step is ≈ 13 px
+    far = track_groups(
+        seq.rig, missed, xy=seq.xy, mask=seq.mask, temporal_prior=True, max_step_px=2.0
+    )  # the step is ≈ 13 px
     assert not np.asarray(far.recovered).any()
     xy = seq.xy.copy()
     xy[1, 0][seq.instance[1, 0] == 0] += 8.0  # one view off by 11 px: dropped, the other two agree
     loose = track_groups(seq.rig, missed, xy=xy, mask=seq.mask, temporal_prior=True, max_err_px=3.0)
     f, g = np.argwhere(np.asarray(loose.recovered))[0]
     assert (f, int(loose.association.n_views[f, g])) == (1, 2)
-    lens = track_groups(seq.rig, missed, xy=xy, mask=seq.mask, temporal_prior=True, max_err_px=3.0, dist=np.zeros((M, 5), np.float32))
-    np.testing.assert_array_equal(lens.association.labels, loose.association.labels)  # a lens that does nothing changes nothing
+    lens = track_groups(
+        seq.rig,
+        missed,
+        xy=xy,
+        mask=seq.mask,
+        temporal_prior=True,
+        max_err_px=3.0,
+        dist=np.zeros((M, 5), np.float32),
+    )
+    np.testing.assert_array_equal(
+        lens.association.labels, loose.association.labels
+    )  # a lens that does nothing changes nothing
 
 
 def test_sequences_vmap_as_a_loop(seq):
@@ -122,16 +142,26 @@ def test_sequences_vmap_as_a_loop(seq):
     tau = np.asarray(seq.result.tau_px)
     a = seq.result
     frames = _Frame(
-        jnp.concatenate([a.points3d, jnp.zeros_like(a.points3d)], 1), jnp.concatenate([a.valid, jnp.zeros_like(a.valid)], 1),
-        jnp.zeros((F, 2 * G), jnp.int32), jnp.concatenate([a.groups, jnp.full_like(a.groups, -1)], 1),
-        jnp.zeros((F, 2 * G)), jnp.zeros((F, 2 * G)), a.labels, jnp.asarray(seq.xy), jnp.asarray(seq.mask),
-        jnp.zeros((F, M, P), jnp.int32), jnp.asarray(tau),
-    )  # fmt: skip
+        jnp.concatenate([a.points3d, jnp.zeros_like(a.points3d)], 1),
+        jnp.concatenate([a.valid, jnp.zeros_like(a.valid)], 1),
+        jnp.zeros((F, 2 * G), jnp.int32),
+        jnp.concatenate([a.groups, jnp.full_like(a.groups, -1)], 1),
+        jnp.zeros((F, 2 * G)),
+        jnp.zeros((F, 2 * G)),
+        a.labels,
+        jnp.asarray(seq.xy),
+        jnp.asarray(seq.mask),
+        jnp.zeros((F, M, P), jnp.int32),
+        jnp.asarray(tau),
+    )
     missed = frames._replace(  # group 0 of frame 1 removed, its detections unassigned
-        valid=frames.valid.at[1, 0].set(False), labels=frames.labels.at[1].set(jnp.where(frames.labels[1] == 0, -1, frames.labels[1]))
+        valid=frames.valid.at[1, 0].set(False),
+        labels=frames.labels.at[1].set(jnp.where(frames.labels[1] == 0, -1, frames.labels[1])),
     )
     both = jax.tree.map(lambda x, y: jnp.stack([x, y]), frames, missed)
-    run = lambda fr: track_sequence(seq.rig, fr, jnp.float32(np.nan), jnp.float32(60.0), prior=True, min_views=2, max_gap=0)  # noqa: E731
+    run = lambda fr: track_sequence(
+        seq.rig, fr, jnp.float32(np.nan), jnp.float32(60.0), prior=True, min_views=2, max_gap=0
+    )  # noqa: E731
     batched = jax.vmap(run)(both)
     for i, fr in enumerate((frames, missed)):
         jax.tree.map(lambda b, one: np.testing.assert_array_equal(b[i], one), batched, run(fr))
@@ -148,11 +178,13 @@ def _link_oracle(X, valid, cls, max_step, max_gap):
     for f in range(valid.shape[0]):
         pairs = sorted(
             (float(np.linalg.norm(x.astype(np.float64) - X[f, g])), t, g)
-            for t, (x, c, age) in alive.items() for g in np.flatnonzero(valid[f])
-            if c == cls[f, g] and np.linalg.norm(x.astype(np.float64) - X[f, g]) <= max_step * (age + 1)
-        )  # fmt: skip
+            for t, (x, c, age) in alive.items()
+            for g in np.flatnonzero(valid[f])
+            if c == cls[f, g]
+            and np.linalg.norm(x.astype(np.float64) - X[f, g]) <= max_step * (age + 1)
+        )
         taken_track, taken = set(), set()
-        for d, t, g in pairs:
+        for _d, t, g in pairs:
             if t not in taken_track and g not in taken:
                 ids[f, g] = t
                 taken_track.add(t)
@@ -160,7 +192,11 @@ def _link_oracle(X, valid, cls, max_step, max_gap):
         for g in np.flatnonzero(valid[f]):
             if ids[f, g] < 0:
                 ids[f, g], next_id = next_id, next_id + 1
-        alive = {t: (x, c, age + 1) for t, (x, c, age) in alive.items() if t not in taken_track and age + 1 <= max_gap}
+        alive = {
+            t: (x, c, age + 1)
+            for t, (x, c, age) in alive.items()
+            if t not in taken_track and age + 1 <= max_gap
+        }
         alive.update({int(ids[f, g]): (X[f, g], cls[f, g], 0) for g in np.flatnonzero(valid[f])})
     return ids
 
@@ -173,17 +209,27 @@ def test_linking_equals_the_numpy_oracle(seed, max_gap):
     count = rng.integers(0, G + 1, Fr)
     valid = np.arange(G)[None, :] < count[:, None]  # valid rows first, as every result has them
     X = rng.uniform(-0.5, 0.5, (Fr, G, 3)).astype(np.float32)
-    X[1:] = np.where(rng.random((Fr - 1, G, 1)) < 0.7, X[:-1] + rng.normal(0, 0.1, (Fr - 1, G, 3)), X[1:]).astype(np.float32)
+    X[1:] = np.where(
+        rng.random((Fr - 1, G, 1)) < 0.7, X[:-1] + rng.normal(0, 0.1, (Fr - 1, G, 3)), X[1:]
+    ).astype(np.float32)
     cls = rng.integers(0, 2, (Fr, G)).astype(np.int32)
     result = SimpleNamespace(
         association=SimpleNamespace(
-            labels=np.full((Fr, M, P), -1, np.int32), groups=np.full((Fr, G, M), -1, np.int32), valid=valid,
-            points3d=np.where(valid[..., None], X, np.nan), bpe=np.zeros((Fr, G), np.float32), err_px=np.zeros((Fr, G), np.float32),
-            n_views=np.zeros((Fr, G), np.int32), sigma_px=np.ones(Fr, np.float32), tau_px=np.ones(Fr, np.float32),
+            labels=np.full((Fr, M, P), -1, np.int32),
+            groups=np.full((Fr, G, M), -1, np.int32),
+            valid=valid,
+            points3d=np.where(valid[..., None], X, np.nan),
+            bpe=np.zeros((Fr, G), np.float32),
+            err_px=np.zeros((Fr, G), np.float32),
+            n_views=np.zeros((Fr, G), np.int32),
+            sigma_px=np.ones(Fr, np.float32),
+            tau_px=np.ones(Fr, np.float32),
             status=np.zeros(Fr, np.int32),
         ),
-        group_class=np.where(valid, cls, -1), class_names=None, num_classes=2,
-    )  # fmt: skip
+        group_class=np.where(valid, cls, -1),
+        class_names=None,
+        num_classes=2,
+    )
     tracked = track_groups(ring_rig(num_views=M), result, max_step=0.25, max_gap=max_gap)
     np.testing.assert_array_equal(tracked.track_id, _link_oracle(X, valid, cls, 0.25, max_gap))
     np.testing.assert_array_equal(tracked.group_class, np.where(valid, cls, -1))
@@ -195,14 +241,25 @@ def test_output_files_carry_track_ids(seq, tmp_path):
     save_association_json(tmp_path / "a.json", tracked, seq.xy, seq.mask)
     frames = json.loads((tmp_path / "a.json").read_text())["frames"]
     got = [[(g["id"], g["track"], g["recovered"]) for g in fr["groups"]] for fr in frames]
-    valid, tid, rec = (np.asarray(a) for a in (tracked.association.valid, tracked.track_id, tracked.recovered))
-    assert got == [[(int(g), int(tid[f, g]), bool(rec[f, g])) for g in np.flatnonzero(valid[f])] for f in range(F)]
+    valid, tid, rec = (
+        np.asarray(a) for a in (tracked.association.valid, tracked.track_id, tracked.recovered)
+    )
+    assert got == [
+        [(int(g), int(tid[f, g]), bool(rec[f, g])) for g in np.flatnonzero(valid[f])]
+        for f in range(F)
+    ]
     save_association_npz(tmp_path / "a.npz", tracked)
     with np.load(tmp_path / "a.npz") as z:
         np.testing.assert_array_equal(z["track_id"], tid)
         np.testing.assert_array_equal(z["recovered"], rec)
     save_association_csv(tmp_path / "a.csv", tracked)
-    rows = list(csv.reader(line for line in (tmp_path / "a.csv").read_text().splitlines() if not line.startswith("#")))
+    rows = list(
+        csv.reader(
+            line
+            for line in (tmp_path / "a.csv").read_text().splitlines()
+            if not line.startswith("#")
+        )
+    )
     assert rows[0][-1] == "track"
     assert [(int(r[0]), int(r[1]), int(r[-1])) for r in rows[1:]] == [
         (f, int(g), int(tid[f, g])) for f in range(F) for g in np.flatnonzero(valid[f])
@@ -217,7 +274,12 @@ def test_bad_input_is_refused_before_any_work(seq):
         track_groups(seq.rig, one)
     with pytest.raises(ValueError, match="rig has 4"):
         track_groups(ring_rig(num_views=4), seq.result)
-    for name, value in (("max_step", -1.0), ("max_step_px", float("nan")), ("max_err_px", 0.0), ("max_step_px", float("inf"))):
+    for name, value in (
+        ("max_step", -1.0),
+        ("max_step_px", float("nan")),
+        ("max_err_px", 0.0),
+        ("max_step_px", float("inf")),
+    ):
         with pytest.raises(ValueError, match=f"{name} must be a finite number > 0.*got {value!r}"):
             track_groups(seq.rig, seq.result, **{name: value})
     with pytest.raises(ValueError, match="max_gap must be an int >= 0; got -1"):
@@ -226,13 +288,31 @@ def test_bad_input_is_refused_before_any_work(seq):
         track_groups(seq.rig, seq.result, min_views=4)
     with pytest.raises(ValueError, match="temporal_prior=True needs the detections"):
         track_groups(seq.rig, seq.result, temporal_prior=True)
-    with pytest.raises(ValueError, match=r"xy and mask must have shapes \(3, 3, 2, 2\).*got xy \(3, 3, 3, 2\)"):
-        track_groups(seq.rig, seq.result, xy=np.zeros((F, M, 3, 2)), mask=seq.mask, temporal_prior=True)
-    classed = SimpleNamespace(association=seq.result, group_class=np.zeros((F, 2), np.int32), class_names=None, num_classes=1)
+    with pytest.raises(
+        ValueError, match=r"xy and mask must have shapes \(3, 3, 2, 2\).*got xy \(3, 3, 3, 2\)"
+    ):
+        track_groups(
+            seq.rig, seq.result, xy=np.zeros((F, M, 3, 2)), mask=seq.mask, temporal_prior=True
+        )
+    classed = SimpleNamespace(
+        association=seq.result,
+        group_class=np.zeros((F, 2), np.int32),
+        class_names=None,
+        num_classes=1,
+    )
     with pytest.raises(ValueError, match="needs the detections' classes"):
         track_groups(seq.rig, classed, xy=seq.xy, mask=seq.mask, temporal_prior=True)
-    with pytest.raises(ValueError, match=r"classes must be integer class ids of shape \(3, 3, 2\); got \(3, 3\)"):
-        track_groups(seq.rig, classed, xy=seq.xy, mask=seq.mask, classes=np.zeros((F, M), np.int32), temporal_prior=True)
+    with pytest.raises(
+        ValueError, match=r"classes must be integer class ids of shape \(3, 3, 2\); got \(3, 3\)"
+    ):
+        track_groups(
+            seq.rig,
+            classed,
+            xy=seq.xy,
+            mask=seq.mask,
+            classes=np.zeros((F, M), np.int32),
+            temporal_prior=True,
+        )
 
 
 def test_float64_links_and_recovers_alike(seq):
@@ -243,10 +323,20 @@ def test_float64_links_and_recovers_alike(seq):
     assert np.asarray(want.recovered).sum() == 1
     with x64():
         rig = jax.tree.map(lambda a: jnp.asarray(a, jnp.float64), seq.rig)
-        wide = SimpleNamespace(**{k: np.asarray(v, np.float64) if np.issubdtype(np.asarray(v).dtype, np.floating) else v
-                                  for k, v in vars(missed).items()})  # fmt: skip
-        got = track_groups(rig, wide, xy=seq.xy.astype(np.float64), mask=seq.mask, temporal_prior=True, max_gap=1)
+        wide = SimpleNamespace(
+            **{
+                k: np.asarray(v, np.float64)
+                if np.issubdtype(np.asarray(v).dtype, np.floating)
+                else v
+                for k, v in vars(missed).items()
+            }
+        )
+        got = track_groups(
+            rig, wide, xy=seq.xy.astype(np.float64), mask=seq.mask, temporal_prior=True, max_gap=1
+        )
         assert got.association.points3d.dtype == jnp.float64
     np.testing.assert_array_equal(got.track_id, want.track_id)
     np.testing.assert_array_equal(got.recovered, want.recovered)
-    np.testing.assert_allclose(np.asarray(got.association.points3d), np.asarray(want.association.points3d), atol=1e-4)
+    np.testing.assert_allclose(
+        np.asarray(got.association.points3d), np.asarray(want.association.points3d), atol=1e-4
+    )

@@ -19,11 +19,30 @@ def _load():
 def test_views_ablation_tiny(tmp_path, capsys):
     script = _load()
     subs = script.draw_subsets(10, 3, 4, np.random.default_rng(0))
-    assert len(subs) == 4 and len(set(subs)) == 4 and all(len(s) == 3 and len(set(s)) == 3 for s in subs)
+    assert (
+        len(subs) == 4
+        and len(set(subs)) == 4
+        and all(len(s) == 3 and len(set(s)) == 3 for s in subs)
+    )
     assert script.draw_subsets(10, 10, 3, np.random.default_rng(0)) == [tuple(range(10))]
 
-    script.main(["--views-range", "2", "3", "--counts", "10", "--scenes", "1", "--subsets", "1",
-                 "--methods", "paper,extended", "--out", str(tmp_path)])
+    script.main(
+        [
+            "--views-range",
+            "2",
+            "3",
+            "--counts",
+            "10",
+            "--scenes",
+            "1",
+            "--subsets",
+            "1",
+            "--methods",
+            "paper,extended",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     assert (tmp_path / "views_ablation.png").stat().st_size > 0
     out = json.loads((tmp_path / "views_ablation.json").read_text())
     assert [r["views"] for r in out["rows"]] == [2, 3]

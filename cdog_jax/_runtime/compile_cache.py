@@ -38,7 +38,11 @@ MIN_COMPILE_SECONDS = 0.1
 def default_cache_dir() -> Path:
     """The per-user cache folder of this platform for cdog_jax (not created here)."""
     if sys.platform == "win32":
-        base = Path(os.environ.get("LOCALAPPDATA", Path.home() / "AppData" / "Local")) / "cdog_jax" / "Cache"
+        base = (
+            Path(os.environ.get("LOCALAPPDATA", Path.home() / "AppData" / "Local"))
+            / "cdog_jax"
+            / "Cache"
+        )
     elif sys.platform == "darwin":
         base = Path.home() / "Library" / "Caches" / "cdog_jax"
     else:

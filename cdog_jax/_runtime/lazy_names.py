@@ -8,7 +8,9 @@ import types
 from collections.abc import Callable, Mapping
 
 
-def load_on_first_use(namespace: dict, later: Mapping[str, str]) -> tuple[Callable, Callable, list[str]]:
+def load_on_first_use(
+    namespace: dict, later: Mapping[str, str]
+) -> tuple[Callable, Callable, list[str]]:
     """``(__getattr__, __dir__, __all__)`` for the package whose globals are ``namespace``:
     each name of ``later`` (name → module, relative to the package) is imported from its
     module when first read, then kept in ``namespace``. ``__dir__`` and ``__all__`` list
@@ -26,6 +28,10 @@ def load_on_first_use(namespace: dict, later: Mapping[str, str]) -> tuple[Callab
     def __dir__() -> list[str]:
         return sorted(set(namespace) | set(later))
 
-    names = {name for name, value in namespace.items() if not name.startswith("_") and not isinstance(value, types.ModuleType)}
+    names = {
+        name
+        for name, value in namespace.items()
+        if not name.startswith("_") and not isinstance(value, types.ModuleType)
+    }
     public = sorted(names | set(later))
     return __getattr__, __dir__, public

@@ -41,7 +41,13 @@ def quadratic_bytes(M: int, method: Method, itemsize: int, batched: bool = False
 
 
 def estimate_peak_bytes(
-    M: int, P: int, method: Method, *, dtype=np.float32, batch_size: int = 1, vmapped: bool | None = None
+    M: int,
+    P: int,
+    method: Method,
+    *,
+    dtype=np.float32,
+    batch_size: int = 1,
+    vmapped: bool | None = None,
 ) -> int:
     """Estimated peak bytes of :func:`cdog_jax.associate` on ``M`` views of ``P`` slots, or
     of :func:`cdog_jax.associate_batch` (``vmapped``; default ``batch_size > 1``), which
@@ -50,7 +56,9 @@ def estimate_peak_bytes(
     itemsize = np.dtype(dtype).itemsize
     N = M * P
     vmapped = batch_size > 1 if vmapped is None else vmapped
-    per_scene = quadratic_bytes(M, method, itemsize, batched=vmapped) * N * N + 16.0 * itemsize * M * N
+    per_scene = (
+        quadratic_bytes(M, method, itemsize, batched=vmapped) * N * N + 16.0 * itemsize * M * N
+    )
     return int(_MARGIN * batch_size * per_scene)
 
 
@@ -95,10 +103,15 @@ def memory_budget_bytes(budget_gb: float | None = None) -> tuple[float, str]:
     return BUDGET_FRACTION * limit, f"{BUDGET_FRACTION:.0%} of {limit / 1e9:.1f} GB {where}"
 
 
-def largest_capacity(M: int, method: Method, dtype, batch_size: int, budget: float, vmapped: bool | None = None) -> int:
+def largest_capacity(
+    M: int, method: Method, dtype, batch_size: int, budget: float, vmapped: bool | None = None
+) -> int:
     """The largest ``P`` whose estimate fits ``budget`` bytes (0 if none)."""
     lo, hi = 0, 1
-    fits = lambda p: estimate_peak_bytes(M, p, method, dtype=dtype, batch_size=batch_size, vmapped=vmapped) <= budget  # noqa: E731
+    fits = lambda p: (
+        estimate_peak_bytes(M, p, method, dtype=dtype, batch_size=batch_size, vmapped=vmapped)
+        <= budget
+    )  # noqa: E731
     while fits(hi) and hi < 1 << 40:
         lo, hi = hi, 2 * hi
     while hi - lo > 1:
@@ -108,8 +121,14 @@ def largest_capacity(M: int, method: Method, dtype, batch_size: int, budget: flo
 
 
 def check_memory(
-    where: str, M: int, P: int, method: Method, dtype, batch_size: int = 1,
-    budget_gb: float | None = None, vmapped: bool | None = None,
+    where: str,
+    M: int,
+    P: int,
+    method: Method,
+    dtype,
+    batch_size: int = 1,
+    budget_gb: float | None = None,
+    vmapped: bool | None = None,
 ) -> int:
     """Raise ``MemoryError`` before compiling when the estimate for ``M`` views of ``P`` slots
     (``batch_size`` scenes at a time) exceeds the budget; return the estimate (bytes)."""
@@ -119,12 +138,18 @@ def check_memory(
         return need
     scenes = f", {batch_size} scenes at a time" if batch_size > 1 else ""
     fit = largest_capacity(M, method, dtype, batch_size, budget, vmapped)
-    changes = [f"a smaller capacity P (at most {fit} slots per view fits)" if fit else "a smaller capacity P", "fewer views"]
+    changes = [
+        f"a smaller capacity P (at most {fit} slots per view fits)"
+        if fit
+        else "a smaller capacity P",
+        "fewer views",
+    ]
     if batch_size > 1:
         changes.append("a smaller batch_size")
     raise MemoryError(
         f"{where}: {M} views × {P} slots{scenes} need about {need / 1e9:.1f} GB (estimated from the shapes: "
         f"dense tables over the N² = {(M * P) ** 2:.2g} slot pairs), more than the memory budget of "
-        f"{budget / 1e9:.1f} GB ({source}). Use " + ", ".join(changes)
+        f"{budget / 1e9:.1f} GB ({source}). Use "
+        + ", ".join(changes)
         + f", or raise the budget (memory_budget_gb=, or the {ENV_BUDGET} environment variable, in GB)."
     )

@@ -31,8 +31,16 @@ def bar(total: int | None, desc: str, unit: str = "it", **options: Any) -> Any:
     ``options`` go to ``tqdm``."""
     from tqdm import tqdm
 
-    return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, disable=not interactive(), leave=True,
-                dynamic_ncols=True, **options)
+    return tqdm(
+        total=total,
+        desc=desc,
+        unit=unit,
+        file=sys.stderr,
+        disable=not interactive(),
+        leave=True,
+        dynamic_ncols=True,
+        **options,
+    )
 
 
 @contextlib.contextmanager
@@ -69,7 +77,9 @@ def sweep_bar(num_scenes: int) -> tuple[Callable[[Any], None], Callable[[], None
     scenes = bar(num_scenes, "sweep: buckets of scenes", unit="scene")
 
     def callback(p: Any) -> None:
-        scenes.set_description_str(f"sweep: bucket {p.bucket + 1}/{p.num_buckets} (capacity {p.capacity}) done")
+        scenes.set_description_str(
+            f"sweep: bucket {p.bucket + 1}/{p.num_buckets} (capacity {p.capacity}) done"
+        )
         scenes.update(p.scenes_done - scenes.n)
 
     return callback, scenes.close

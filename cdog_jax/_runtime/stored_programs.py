@@ -38,9 +38,16 @@ import numpy as np
 
 from .compile_cache import cache_dir_from_environment
 
-_PACKAGE_ROOT = Path(__file__).resolve().parents[1]  # the package (this file is in its _runtime folder)
-_TRACING_OPTIONS = ("jax_enable_x64", "jax_default_matmul_precision", "jax_numpy_dtype_promotion",
-                    "jax_numpy_rank_promotion", "jax_default_prng_impl")
+_PACKAGE_ROOT = (
+    Path(__file__).resolve().parents[1]
+)  # the package (this file is in its _runtime folder)
+_TRACING_OPTIONS = (
+    "jax_enable_x64",
+    "jax_default_matmul_precision",
+    "jax_numpy_dtype_promotion",
+    "jax_numpy_rank_promotion",
+    "jax_default_prng_impl",
+)
 _source_hash: str | None = None
 _loaded: dict[str, tuple | None] = {}  # key → (output structure, jitted call), None: not storable
 _keys: dict[tuple, str] = {}  # call signature → key, this process
@@ -75,7 +82,9 @@ def call_stored(jitted: Callable, args: tuple, method=None, **static) -> Any:
     if method is not None:
         static = dict(static, method=method)
     folder = stored_programs_dir()
-    if folder is None or (method is not None and not type(method).__module__.startswith(f"{_PACKAGE_ROOT.name}.")):
+    if folder is None or (
+        method is not None and not type(method).__module__.startswith(f"{_PACKAGE_ROOT.name}.")
+    ):
         return jitted(*args, **static)
     fun = jitted.__wrapped__
     leaves, treedef = jax.tree.flatten(args)
@@ -106,8 +115,14 @@ def _key(fun: Callable, static: dict, treedef, avals, options: tuple) -> str:
     """A hash of everything that decides the traced program (``avals``: each argument
     leaf's shape and dtype; ``options``: the values of ``_TRACING_OPTIONS``)."""
     parts = [
-        _package_source_hash(), jax.__version__, _jaxlib_version(),
-        jax.default_backend(), repr(list(zip(_TRACING_OPTIONS, options))), f"{fun.__module__}.{fun.__qualname__}", repr(static), str(treedef),
+        _package_source_hash(),
+        jax.__version__,
+        _jaxlib_version(),
+        jax.default_backend(),
+        repr(list(zip(_TRACING_OPTIONS, options))),
+        f"{fun.__module__}.{fun.__qualname__}",
+        repr(static),
+        str(treedef),
         repr([(tuple(shape), str(dtype)) for shape, dtype in avals]),
     ]
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:40]
@@ -172,7 +187,9 @@ def _load_or_export(path: Path, fun: Callable, static: dict, treedef, specs):
             return None
         raise
     out_type, names = traced["type"], traced["fields"]
-    header = json.dumps({"output": f"{out_type.__module__}:{out_type.__qualname__}", "fields": names})
+    header = json.dumps(
+        {"output": f"{out_type.__module__}:{out_type.__qualname__}", "fields": names}
+    )
     _write_whole(path, header.encode() + b"\n" + bytes(blob))
     return dataclass_tree(out_type, names), jax.jit(exported.call)
 

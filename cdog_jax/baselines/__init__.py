@@ -4,6 +4,8 @@ every group-table method), so that they compare with C-DOG on equal terms. One p
 per method: its options are its fields, and :meth:`~cdog_jax.GroupTableMethod.group_table`
 gives its groups of one scene."""
 
+# isort: off
+# The order they register in: the order every list of methods shows them.
 from ._greedy import Greedy as Greedy
 from ._components import Components as Components
 from ._voting import Voting as Voting
@@ -13,3 +15,4 @@ from ._spectral_clustering import SpectralClustering as SpectralClustering
 from ._soft_ba import SoftBA as SoftBA
 from ._exact import Exact as Exact
 from ._st_cut import StCut as StCut
+# isort: on

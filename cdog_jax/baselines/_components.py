@@ -10,8 +10,7 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from .._method import register_method
-from .._method import GroupTableMethod
+from .._method import GroupTableMethod, register_method
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..graph._adjacency import nearest_neighbour_edges
@@ -72,7 +71,11 @@ def components_groups(
     # Cheapest first; among equal costs the pair that a cut would take last comes first.
     order = jnp.lexsort((-edges.dst, -edges.src, cost))
     labels = merge_in_order(
-        edges.src[order], edges.dst[order], jnp.sum(keep, dtype=jnp.int32), mask, freeze_on_conflict=True
+        edges.src[order],
+        edges.dst[order],
+        jnp.sum(keep, dtype=jnp.int32),
+        mask,
+        freeze_on_conflict=True,
     )
     groups, valid = groups_from_labels(labels, mask.reshape(N), M, P)
     return groups, valid, jnp.int32(0)

@@ -19,7 +19,10 @@ from .._types import Array, Bool, Float
 
 
 def epipolar_affinity(
-    d: Float[Array, "M P M P"], mask: Bool[Array, "M P"], tau: Float[Array, ""], width: Float[Array, ""]
+    d: Float[Array, "M P M P"],
+    mask: Bool[Array, "M P"],
+    tau: Float[Array, ""],
+    width: Float[Array, ""],
 ) -> Float[Array, "N N"]:
     """``W (N, N)``, symmetric, entries in ``[0, 1]``, zero diagonal: the gated Gaussian
     affinity ``exp(−½ (c / (width·τ))²)`` for ``c < τ``, else 0 (module docstring).

@@ -15,8 +15,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from .._method import HostGroupTableMethod
-from .._method import register_method
+from .._method import HostGroupTableMethod, register_method
 
 MAX_POINTS = 15
 """The largest scene (detections in any one view) the exact method accepts."""
@@ -37,7 +36,9 @@ def gated_cost(d: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return np.where(same_view, np.inf, c).reshape(M * P, M * P)
 
 
-def enumerate_cliques(cost: np.ndarray, tau: float, max_cliques: int = MAX_CLIQUES) -> list[tuple[int, ...]]:
+def enumerate_cliques(
+    cost: np.ndarray, tau: float, max_cliques: int = MAX_CLIQUES
+) -> list[tuple[int, ...]]:
     """Every clique of ≥ 2 nodes of the graph whose edges are ``cost < tau`` (px), as sorted
     node tuples. Within-view pairs cost ``+inf``, so a clique has at most one node per view."""
     adjacent = cost < tau
@@ -48,7 +49,9 @@ def enumerate_cliques(cost: np.ndarray, tau: float, max_cliques: int = MAX_CLIQU
             grown = clique + (int(v),)
             cliques.append(grown)
             if len(cliques) > max_cliques:
-                raise ValueError(f"exact: more than {max_cliques} cliques in the gated graph; the scene is too dense for the exact method")
+                raise ValueError(
+                    f"exact: more than {max_cliques} cliques in the gated graph; the scene is too dense for the exact method"
+                )
             rest = candidates[k + 1 :]
             extend(grown, rest[adjacent[v, rest]])
 
@@ -67,7 +70,9 @@ def clique_cost(cost: np.ndarray, clique, tau: float) -> float:
     return float(np.sum(cost[nodes[a], nodes[b]] - tau))
 
 
-def exact_groups(d: np.ndarray, mask: np.ndarray, tau: float) -> tuple[np.ndarray, np.ndarray, float]:
+def exact_groups(
+    d: np.ndarray, mask: np.ndarray, tau: float
+) -> tuple[np.ndarray, np.ndarray, float]:
     """The disjoint cliques of least total :func:`clique_cost` (each detection in at most
     one), by integer programming. ``d (M, P, M, P)`` epipolar distances (px), ``mask (M, P)``,
     ``tau`` the gate (px). Returns ``groups (G, M)`` int32 (slot per view or -1, ``G = M·P // 2``,

@@ -11,8 +11,7 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from .._method import register_method
-from .._method import GroupTableMethod
+from .._method import GroupTableMethod, register_method
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..graph._groups import groups_from_labels
@@ -64,7 +63,9 @@ def greedy_groups(
     M, P = mask.shape
     N = M * P
     if M < 2:
-        return groups_from_labels(jnp.arange(N, dtype=jnp.int32), jnp.zeros((N,), bool), M, P) + (jnp.int32(0),)
+        return groups_from_labels(jnp.arange(N, dtype=jnp.int32), jnp.zeros((N,), bool), M, P) + (
+            jnp.int32(0),
+        )
     c = symmetric_cost(d, mask)
     src, dst, cost, ok = nearest_candidates(c, tau, options.candidates_per_view)
     lo, hi = jnp.minimum(src, dst), jnp.maximum(src, dst)

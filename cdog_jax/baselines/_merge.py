@@ -31,7 +31,9 @@ def merge_in_order(
     M, P = mask.shape
     N = M * P
     node_view = jnp.arange(N, dtype=jnp.int32) // P
-    views_of = (node_view[:, None] == jnp.arange(M, dtype=jnp.int32)[None, :]) & mask.reshape(N, 1)  # (N, M)
+    views_of = (node_view[:, None] == jnp.arange(M, dtype=jnp.int32)[None, :]) & mask.reshape(
+        N, 1
+    )  # (N, M)
 
     def body(e, carry):
         labels, views_of, frozen = carry
@@ -41,7 +43,9 @@ def merge_in_order(
         merge = distinct & fits & ~frozen[a] & ~frozen[b]
         root, other = jnp.minimum(a, b), jnp.maximum(a, b)
         labels = jnp.where(merge & (labels == other), root, labels)
-        views_of = views_of.at[root].set(jnp.where(merge, views_of[a] | views_of[b], views_of[root]))
+        views_of = views_of.at[root].set(
+            jnp.where(merge, views_of[a] | views_of[b], views_of[root])
+        )
         if freeze_on_conflict:
             freeze = distinct & ~merge
             frozen = frozen.at[a].set(frozen[a] | freeze).at[b].set(frozen[b] | freeze)

@@ -14,8 +14,7 @@ from typing import ClassVar
 import jax
 import jax.numpy as jnp
 
-from .._method import register_method
-from .._method import GroupTableMethod
+from .._method import GroupTableMethod, register_method
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..geometry._projection import project_views_last
@@ -63,7 +62,12 @@ class SoftBAOptions:
     initial_temperature: float = 1.0
     final_temperature: float = 0.35
     slack_gate: float = 2.0
-    NUMBERS: ClassVar[tuple[str, ...]] = ("reprojection_gate", "initial_temperature", "final_temperature", "slack_gate")
+    NUMBERS: ClassVar[tuple[str, ...]] = (
+        "reprojection_gate",
+        "initial_temperature",
+        "final_temperature",
+        "slack_gate",
+    )
 
     def __post_init__(self):
         for name in ("rounds", "sinkhorn_iterations"):
@@ -72,7 +76,12 @@ class SoftBAOptions:
                 raise ValueError(f"SoftBAOptions.{name} must be an int >= 1; got {k!r}")
         for name in self.NUMBERS:
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+            if (
+                isinstance(v, bool)
+                or not isinstance(v, (int, float))
+                or not math.isfinite(v)
+                or v <= 0
+            ):
                 raise ValueError(f"SoftBAOptions.{name} must be a finite number > 0; got {v!r}")
 
 
@@ -114,11 +123,22 @@ def soft_ba_groups(
     M, P = mask.shape
     N = M * P
     if M < 2:
-        return groups_from_labels(jnp.arange(N, dtype=jnp.int32), jnp.zeros((N,), bool), M, P) + (jnp.int32(0),)
+        return groups_from_labels(jnp.arange(N, dtype=jnp.int32), jnp.zeros((N,), bool), M, P) + (
+            jnp.int32(0),
+        )
     xy = jnp.where(mask[..., None], xy, 0.0)
     dtype = xy.dtype
     gate = numbers["reprojection_gate"] * tau
-    seeds, alive, _ = voting_groups(rig, xy, mask, d, tau, sigma, {"reprojection_gate": numbers["reprojection_gate"]}, VotingOptions())
+    seeds, alive, _ = voting_groups(
+        rig,
+        xy,
+        mask,
+        d,
+        tau,
+        sigma,
+        {"reprojection_gate": numbers["reprojection_gate"]},
+        VotingOptions(),
+    )
     member = alive[:, None] & (seeds >= 0)
     X, ok = triangulate_views_last(rig, gather_groups(seeds, xy), member)
     alive = alive & ok
@@ -129,7 +149,9 @@ def soft_ba_groups(
         dx = xy_hat[:, :, None, 0] - xy[None, :, :, 0]
         dy = xy_hat[:, :, None, 1] - xy[None, :, :, 1]
         usable = alive[:, None, None] & front[:, :, None] & mask[None]
-        return jnp.where(usable, jnp.sqrt(jnp.where(usable, dx * dx + dy * dy, 0.0)), jnp.inf)  # (G, M, P)
+        return jnp.where(
+            usable, jnp.sqrt(jnp.where(usable, dx * dx + dy * dy, 0.0)), jnp.inf
+        )  # (G, M, P)
 
     t0 = numbers["initial_temperature"] * tau
     t_end = numbers["final_temperature"] * tau
@@ -138,7 +160,9 @@ def soft_ba_groups(
     def anneal(k, X):
         T = t0 * (t_end / t0) ** (jnp.asarray(k, dtype) / last)
         e = distances(X)
-        log_aff = jnp.where(jnp.isfinite(e), -0.5 * (jnp.where(jnp.isfinite(e), e, 0.0) / T) ** 2, -jnp.inf)
+        log_aff = jnp.where(
+            jnp.isfinite(e), -0.5 * (jnp.where(jnp.isfinite(e), e, 0.0) / T) ** 2, -jnp.inf
+        )
         log_slack = -0.5 * (numbers["slack_gate"] * tau / T) ** 2
         w = jnp.exp(_soft_assignment(log_aff, log_slack, options.sinkhorn_iterations))  # (G, M, P)
         X_new, solved = solve_normal_3x3(
@@ -149,8 +173,12 @@ def soft_ba_groups(
     X = jax.lax.fori_loop(0, options.rounds, anneal, X)
     e = distances(X)
     T = t_end
-    log_aff = jnp.where(jnp.isfinite(e), -0.5 * (jnp.where(jnp.isfinite(e), e, 0.0) / T) ** 2, -jnp.inf)
-    log_w = _soft_assignment(log_aff, -0.5 * (numbers["slack_gate"] * tau / T) ** 2, options.sinkhorn_iterations)
+    log_aff = jnp.where(
+        jnp.isfinite(e), -0.5 * (jnp.where(jnp.isfinite(e), e, 0.0) / T) ** 2, -jnp.inf
+    )
+    log_w = _soft_assignment(
+        log_aff, -0.5 * (numbers["slack_gate"] * tau / T) ** 2, options.sinkhorn_iterations
+    )
     choice = jnp.argmax(log_w, axis=0).astype(jnp.int32)  # (M, P): first of equals
     chosen_e = jnp.take_along_axis(e, choice[None], axis=0)[0]  # (M, P)
     assigned = mask & (chosen_e < gate)
@@ -164,7 +192,9 @@ def soft_ba_groups(
     kept = rows >= 0
     node = jnp.where(kept, views[None, :] * P + rows, N)
     root = jnp.min(node, axis=1)
-    labels = jnp.arange(N, dtype=jnp.int32).at[node.reshape(-1)].set(jnp.repeat(root, M), mode="drop")
+    labels = (
+        jnp.arange(N, dtype=jnp.int32).at[node.reshape(-1)].set(jnp.repeat(root, M), mode="drop")
+    )
     groups, valid = groups_from_labels(labels, mask.reshape(N), M, P)
     return groups, valid, jnp.int32(0)
 

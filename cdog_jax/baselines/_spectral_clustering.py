@@ -37,8 +37,7 @@ from typing import ClassVar
 import jax
 import jax.numpy as jnp
 
-from .._method import register_method
-from .._method import GroupTableMethod
+from .._method import GroupTableMethod, register_method
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..graph._groups import groups_from_labels
@@ -62,8 +61,12 @@ class SpectralClusteringOptions:
     NUMBERS: ClassVar[tuple[str, ...]] = ("affinity_width",)
 
     def __post_init__(self):
-        if self.max_clusters is not None and (not isinstance(self.max_clusters, int) or self.max_clusters < 1):
-            raise ValueError(f"SpectralClusteringOptions.max_clusters must be None or an int >= 1; got {self.max_clusters!r}")
+        if self.max_clusters is not None and (
+            not isinstance(self.max_clusters, int) or self.max_clusters < 1
+        ):
+            raise ValueError(
+                f"SpectralClusteringOptions.max_clusters must be None or an int >= 1; got {self.max_clusters!r}"
+            )
         if not isinstance(self.kmeans_iterations, int) or self.kmeans_iterations < 0:
             raise ValueError(
                 f"SpectralClusteringOptions.kmeans_iterations must be an int >= 0; got {self.kmeans_iterations!r}"
@@ -106,7 +109,9 @@ def _kmeans(points, active, centres, k, iterations):
         return jnp.argmin(jnp.where(used[None, :], dist, jnp.inf), axis=1).astype(jnp.int32)
 
     def body(_, centres):
-        member = (assign(centres)[:, None] == jnp.arange(K, dtype=jnp.int32)[None, :]) & active[:, None]
+        member = (assign(centres)[:, None] == jnp.arange(K, dtype=jnp.int32)[None, :]) & active[
+            :, None
+        ]
         count = jnp.sum(member, axis=0).astype(points.dtype)  # (K,)
         total = jnp.einsum("nk,nd->kd", member.astype(points.dtype), points)
         # An empty cluster keeps its centre.
@@ -143,7 +148,9 @@ def spectral_clustering_groups(
     # No view-unique partition has fewer clusters than the fullest view has detections.
     fewest = jnp.clip(jnp.max(jnp.sum(active.reshape(M, P), axis=1, dtype=jnp.int32)), 1, K)
     rank = jnp.arange(1, K + 1, dtype=jnp.int32)
-    k = (jnp.argmax(jnp.where(rank >= fewest, gaps, -jnp.inf)) + 1).astype(jnp.int32)  # first largest gap
+    k = (jnp.argmax(jnp.where(rank >= fewest, gaps, -jnp.inf)) + 1).astype(
+        jnp.int32
+    )  # first largest gap
     embedding = jnp.where(jnp.arange(K, dtype=jnp.int32)[None, :] < k, vectors[:, :K], 0.0)
     norm = jnp.sqrt(jnp.sum(embedding * embedding, axis=1))
     ok = active & (norm > 0)

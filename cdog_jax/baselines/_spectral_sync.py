@@ -41,8 +41,7 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from .._method import register_method
-from .._method import GroupTableMethod
+from .._method import GroupTableMethod, register_method
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ._epipolar_affinity import epipolar_affinity
@@ -66,11 +65,19 @@ class SpectralSyncOptions:
     affinity_width: float = 1.0
     eigen_threshold: float = 1.5
     similarity_threshold: float = 0.5
-    NUMBERS: ClassVar[tuple[str, ...]] = ("affinity_width", "eigen_threshold", "similarity_threshold")
+    NUMBERS: ClassVar[tuple[str, ...]] = (
+        "affinity_width",
+        "eigen_threshold",
+        "similarity_threshold",
+    )
 
     def __post_init__(self):
-        if self.max_objects is not None and (not isinstance(self.max_objects, int) or self.max_objects < 1):
-            raise ValueError(f"SpectralSyncOptions.max_objects must be None or an int >= 1; got {self.max_objects!r}")
+        if self.max_objects is not None and (
+            not isinstance(self.max_objects, int) or self.max_objects < 1
+        ):
+            raise ValueError(
+                f"SpectralSyncOptions.max_objects must be None or an int >= 1; got {self.max_objects!r}"
+            )
 
 
 def spectral_sync_groups(
@@ -100,7 +107,9 @@ def spectral_sync_groups(
     rank = jnp.arange(N, dtype=jnp.int32)
     used = (eigenvalues > eigen_threshold) & (rank < max_objects)
     # Rows of V_k Λ_k: their inner products are those of the rows of the rank-k W_k.
-    embedding = jnp.where(used[None, :max_objects], vectors[:, :max_objects] * eigenvalues[None, :max_objects], 0.0)
+    embedding = jnp.where(
+        used[None, :max_objects], vectors[:, :max_objects] * eigenvalues[None, :max_objects], 0.0
+    )
     norm = jnp.sqrt(jnp.sum(embedding * embedding, axis=1))
     ok = valid & (norm > jnp.sqrt(jnp.finfo(dtype).eps))
     unit = jnp.where(ok[:, None], embedding / jnp.where(ok, norm, 1.0)[:, None], 0.0)

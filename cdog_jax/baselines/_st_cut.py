@@ -21,8 +21,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from .._method import HostGroupTableMethod
-from .._method import register_method
+from .._method import HostGroupTableMethod, register_method
 from ..geometry._camera import Rig
 from ._exact import gated_cost
 
@@ -54,7 +53,9 @@ def candidate_edges(cost: np.ndarray, tau: float, M: int, P: int, per_view: int)
     return pairs.reshape(-1, 2).astype(np.int64)
 
 
-def _two_view_points(proj: np.ndarray, xy: np.ndarray, a: np.ndarray, b: np.ndarray, P: int) -> np.ndarray:
+def _two_view_points(
+    proj: np.ndarray, xy: np.ndarray, a: np.ndarray, b: np.ndarray, P: int
+) -> np.ndarray:
     """``(E, 3)`` DLT points of the node pairs ``(a, b)``; ``proj (M, 3, 4)``, ``xy (M, P, 2)`` px."""
     rows = []
     for node in (a, b):
@@ -73,7 +74,9 @@ def projection_matrices(rig: Rig) -> tuple[np.ndarray, np.ndarray, np.ndarray, n
     return K, R, t, K @ np.concatenate([R, t[:, :, None]], axis=2)
 
 
-def edge_points(rig: Rig, xy: np.ndarray, edges: np.ndarray, P: int) -> tuple[np.ndarray, np.ndarray]:
+def edge_points(
+    rig: Rig, xy: np.ndarray, edges: np.ndarray, P: int
+) -> tuple[np.ndarray, np.ndarray]:
     """``(E, 3)`` two-view DLT points of the edges and ``(E,)`` whether each is usable
     (finite and in front of both of its own cameras)."""
     _, R, t, proj = projection_matrices(rig)
@@ -81,7 +84,10 @@ def edge_points(rig: Rig, xy: np.ndarray, edges: np.ndarray, P: int) -> tuple[np
     X = _two_view_points(proj, xy, a, b, P)
     finite = np.all(np.isfinite(X), axis=1)
     X = np.where(finite[:, None], X, 0.0)
-    depth = np.einsum("ej,ej->e", R[a // P, 2], X) + t[a // P, 2], np.einsum("ej,ej->e", R[b // P, 2], X) + t[b // P, 2]
+    depth = (
+        np.einsum("ej,ej->e", R[a // P, 2], X) + t[a // P, 2],
+        np.einsum("ej,ej->e", R[b // P, 2], X) + t[b // P, 2],
+    )
     return X, finite & (depth[0] > 0) & (depth[1] > 0)
 
 
@@ -95,7 +101,13 @@ def _project(rig: Rig, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def backprojection_support(
-    rig: Rig, xy: np.ndarray, mask: np.ndarray, edges: np.ndarray, X: np.ndarray, usable: np.ndarray, radius: float
+    rig: Rig,
+    xy: np.ndarray,
+    mask: np.ndarray,
+    edges: np.ndarray,
+    X: np.ndarray,
+    usable: np.ndarray,
+    radius: float,
 ) -> np.ndarray:
     """``(E,)`` the support of each edge's two-view point ``X (E, 3)``: over the other views
     where it lies in front of the camera, ``Σ max(0, 1 − e / radius)`` with ``e`` the
@@ -141,7 +153,9 @@ def min_cut_source_side(capacity, sources: np.ndarray, sinks: np.ndarray) -> np.
     unbreakable = int(capacity.sum()) + 1
     rows = np.concatenate([capacity.tocoo().row, np.full(sources.size, n), sinks])
     cols = np.concatenate([capacity.tocoo().col, sources, np.full(sinks.size, n + 1)])
-    data = np.concatenate([capacity.tocoo().data, np.full(sources.size + sinks.size, unbreakable)]).astype(np.int32)
+    data = np.concatenate(
+        [capacity.tocoo().data, np.full(sources.size + sinks.size, unbreakable)]
+    ).astype(np.int32)
     graph = csr_array((data, (rows, cols)), shape=(n + 2, n + 2))
     flow = maximum_flow(graph, n, n + 1, method="dinic").flow
     residual = csr_array(graph - flow)
@@ -166,7 +180,13 @@ def _pick_terminals(nodes: np.ndarray, strength: np.ndarray, P: int) -> tuple[in
 
 
 def st_cut_groups(
-    rig: Rig, xy: np.ndarray, mask: np.ndarray, d: np.ndarray, tau: float, reprojection_gate: float, per_view: int
+    rig: Rig,
+    xy: np.ndarray,
+    mask: np.ndarray,
+    d: np.ndarray,
+    tau: float,
+    reprojection_gate: float,
+    per_view: int,
 ) -> tuple[np.ndarray, np.ndarray, int]:
     """The groups of the back-projection-weighted gated graph split by s-t minimum cuts
     (:class:`StCutOptions`).
@@ -197,13 +217,20 @@ def st_cut_groups(
     support = backprojection_support(rig, xy, mask, edges, X, usable, radius)
     edge_cost = cost[edges[:, 0], edges[:, 1]]
     weight = (1.0 - edge_cost / float(tau)) + support
-    scale = min(CAPACITY_SCALE, 2**29 / (2.0 * np.sum(1.0 + weight)))  # every sum stays within int32
+    scale = min(
+        CAPACITY_SCALE, 2**29 / (2.0 * np.sum(1.0 + weight))
+    )  # every sum stays within int32
     cap = 1 + np.round(scale * weight).astype(np.int64)
     ends = np.concatenate([edges, edges[:, ::-1]])
-    capacity = csr_array((np.concatenate([cap, cap]).astype(np.int32), (ends[:, 0], ends[:, 1])), shape=(N, N))
+    capacity = csr_array(
+        (np.concatenate([cap, cap]).astype(np.int32), (ends[:, 0], ends[:, 1])), shape=(N, N)
+    )
 
     def point_of(node: int, nodes: np.ndarray) -> np.ndarray | None:
-        mine = np.flatnonzero(((edges[:, 0] == node) & np.isin(edges[:, 1], nodes)) | ((edges[:, 1] == node) & np.isin(edges[:, 0], nodes)))
+        mine = np.flatnonzero(
+            ((edges[:, 0] == node) & np.isin(edges[:, 1], nodes))
+            | ((edges[:, 1] == node) & np.isin(edges[:, 0], nodes))
+        )
         mine = mine[usable[mine]]  # the point of a node: its edge of most support, then least cost
         return None if not mine.size else X[mine[np.lexsort((edge_cost[mine], -support[mine]))[0]]]
 
@@ -227,9 +254,14 @@ def st_cut_groups(
             continue
         source, sink = seeds(terminals[0], nodes), seeds(terminals[1], nodes)
         both = np.intersect1d(source, sink)  # claimed by both points: left to the cut
-        source, sink = np.setdiff1d(source, both[nodes[both] != terminals[0]]), np.setdiff1d(sink, both[nodes[both] != terminals[1]])
+        source, sink = (
+            np.setdiff1d(source, both[nodes[both] != terminals[0]]),
+            np.setdiff1d(sink, both[nodes[both] != terminals[1]]),
+        )
         side = min_cut_source_side(sub, source, sink)
-        if side[sink].any() or not side[source].all():  # pragma: no cover - max-flow / min-cut theorem
+        if (
+            side[sink].any() or not side[source].all()
+        ):  # pragma: no cover - max-flow / min-cut theorem
             raise RuntimeError("st_cut: a minimum cut failed to separate its terminals")
         cuts += 1
         todo += [p for part in (nodes[side], nodes[~side]) for p in pieces(part) if p.size >= 2]
@@ -276,7 +308,9 @@ class StCutOptions:
     def __post_init__(self):
         g, k = self.reprojection_gate, self.candidates_per_view
         if isinstance(g, bool) or not isinstance(g, (int, float)) or not math.isfinite(g) or g <= 0:
-            raise ValueError(f"StCutOptions.reprojection_gate must be a finite number > 0; got {g!r}")
+            raise ValueError(
+                f"StCutOptions.reprojection_gate must be a finite number > 0; got {g!r}"
+            )
         if not isinstance(k, int) or isinstance(k, bool) or k < 1:
             raise ValueError(f"StCutOptions.candidates_per_view must be an int >= 1; got {k!r}")
 

@@ -40,8 +40,7 @@ from typing import ClassVar
 import jax
 import jax.numpy as jnp
 
-from .._method import register_method
-from .._method import GroupTableMethod
+from .._method import GroupTableMethod, register_method
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ._epipolar_affinity import epipolar_affinity
@@ -72,11 +71,18 @@ class MatchSVTOptions:
     rank_weight: float = 10.0
     penalty: float = 4.0
     similarity_threshold: float = 0.5
-    NUMBERS: ClassVar[tuple[str, ...]] = ("affinity_width", "rank_weight", "penalty", "similarity_threshold")
+    NUMBERS: ClassVar[tuple[str, ...]] = (
+        "affinity_width",
+        "rank_weight",
+        "penalty",
+        "similarity_threshold",
+    )
 
     def __post_init__(self):
         if not isinstance(self.iterations, int) or self.iterations < 0:
-            raise ValueError(f"MatchSVTOptions.iterations must be an int >= 0; got {self.iterations!r}")
+            raise ValueError(
+                f"MatchSVTOptions.iterations must be an int >= 0; got {self.iterations!r}"
+            )
 
 
 def _project(A, allowed, diagonal):

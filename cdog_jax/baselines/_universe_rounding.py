@@ -71,7 +71,9 @@ def assign_per_view(
         flat = score.reshape(M, P * N)
         best = jnp.max(flat, axis=1)  # (M,)
         # Highest score, ties to the smallest (slot, anchor) index.
-        pick = jnp.min(jnp.where(flat == best[:, None], flat_index.reshape(1, P * N), P * N), axis=1)
+        pick = jnp.min(
+            jnp.where(flat == best[:, None], flat_index.reshape(1, P * N), P * N), axis=1
+        )
         found = best > -jnp.inf
         slot, anchor = pick // N, pick % N
         view = jnp.arange(M, dtype=jnp.int32)
@@ -94,13 +96,19 @@ def groups_from_anchors(
     node = jnp.arange(N, dtype=jnp.int32)
     assigned = anchor_of >= 0
     # Label each node by the smallest node of its anchor's set, as groups_from_labels expects.
-    smallest = jnp.full((N,), N, jnp.int32).at[jnp.where(assigned, anchor_of, N)].min(node, mode="drop")
+    smallest = (
+        jnp.full((N,), N, jnp.int32).at[jnp.where(assigned, anchor_of, N)].min(node, mode="drop")
+    )
     labels = jnp.where(assigned, smallest[jnp.maximum(anchor_of, 0)], node)
     return groups_from_labels(labels, assigned, num_views, num_slots)
 
 
 def round_to_groups(
-    S: Float[Array, "N N"], valid: Bool[Array, " N"], threshold: Float[Array, ""], num_views: int, num_slots: int
+    S: Float[Array, "N N"],
+    valid: Bool[Array, " N"],
+    threshold: Float[Array, ""],
+    num_views: int,
+    num_slots: int,
 ) -> tuple[Int[Array, "G M"], Bool[Array, " G"]]:
     """Steps 1–3 of the module docstring: the view-unique group table of ``S``."""
     N = S.shape[0]

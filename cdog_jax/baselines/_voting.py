@@ -14,8 +14,7 @@ from typing import ClassVar
 import jax
 import jax.numpy as jnp
 
-from .._method import register_method
-from .._method import GroupTableMethod
+from .._method import GroupTableMethod, register_method
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..geometry._triangulate import dlt_blocks
@@ -53,7 +52,9 @@ class VotingOptions:
     def __post_init__(self):
         g = self.reprojection_gate
         if isinstance(g, bool) or not isinstance(g, (int, float)) or not math.isfinite(g) or g <= 0:
-            raise ValueError(f"VotingOptions.reprojection_gate must be a finite number > 0; got {g!r}")
+            raise ValueError(
+                f"VotingOptions.reprojection_gate must be a finite number > 0; got {g!r}"
+            )
 
 
 def voting_groups(
@@ -74,7 +75,9 @@ def voting_groups(
     M, P = mask.shape
     N, G = M * P, max(M * P // 2, 1)
     if M < 2:  # no pair of views, no hypothesis
-        return groups_from_labels(jnp.arange(N, dtype=jnp.int32), jnp.zeros((N,), bool), M, P) + (jnp.int32(0),)
+        return groups_from_labels(jnp.arange(N, dtype=jnp.int32), jnp.zeros((N,), bool), M, P) + (
+            jnp.int32(0),
+        )
     views = jnp.arange(M, dtype=jnp.int32)
     slots = jnp.arange(P, dtype=jnp.int32)
     xy = jnp.where(mask[..., None], xy, 0.0)  # padding is neutral before any arithmetic
@@ -107,7 +110,9 @@ def voting_groups(
         found = k < num_ranked
         h = jnp.minimum(k, src.shape[0] - 1)
         a, b = src[h], dst[h]
-        dist = jnp.where(used, jnp.inf, voter_distances(xy, mask, xy_hat[h], vote_views[h]))  # (M, P)
+        dist = jnp.where(
+            used, jnp.inf, voter_distances(xy, mask, xy_hat[h], vote_views[h])
+        )  # (M, P)
         slot = jnp.argmin(dist, axis=-1).astype(jnp.int32)  # first of equals: smallest slot
         row = jnp.where(jnp.min(dist, axis=-1) < gate, slot, -1)
         row = row.at[a // P].set(a % P).at[b // P].set(b % P)
@@ -121,7 +126,9 @@ def voting_groups(
     member = (jnp.arange(G, dtype=jnp.int32) < num_groups)[:, None] & (groups >= 0)  # (G, M)
     node = jnp.where(member, views[None, :] * P + groups, N)  # N = no member
     root = jnp.min(node, axis=1)  # (G,)
-    labels = jnp.arange(N, dtype=jnp.int32).at[node.reshape(-1)].set(jnp.repeat(root, M), mode="drop")
+    labels = (
+        jnp.arange(N, dtype=jnp.int32).at[node.reshape(-1)].set(jnp.repeat(root, M), mode="drop")
+    )
     groups, valid = groups_from_labels(labels, mask.reshape(N), M, P)
     return groups, valid, jnp.int32(0)
 

@@ -2,19 +2,31 @@
 scored in one compiled program per capacity bucket, sharded over devices, saved to NPZ/CSV/JSON, summarised; the named
 configurations it compares. Its figures are in :mod:`cdog_jax.viz`."""
 
-from ._methods import DEFAULT_METHODS as DEFAULT_METHODS
-from ._methods import METHODS as METHODS
-from ._methods import ablation_stages as ablation_stages
 from .._runtime.lazy_names import load_on_first_use as _load_on_first_use
+from ._methods import (
+    DEFAULT_METHODS as DEFAULT_METHODS,
+    METHODS as METHODS,
+    ablation_stages as ablation_stages,
+)
 
 # The rest loads on first use: the command line lists the named methods in its help (above)
 # without loading the sweep, the grid and the file writers for every command.
 _LATER = {
-    "DRAW_CAPACITY": "._grid", "Grid": "._grid", "GridIndex": "._grid", "bucket_of": "._grid",
-    "compact_scene": "._grid", "scene_keys": "._grid",
-    "load_results": "._io", "save_results": "._io", "summary_table": "._io",
-    "SweepProgress": "._sweep", "SweepResult": "._sweep", "default_mesh": "._sweep", "metric_fields": "._sweep",
-    "print_progress": "._sweep", "sweep": "._sweep",
+    "DRAW_CAPACITY": "._grid",
+    "Grid": "._grid",
+    "GridIndex": "._grid",
+    "bucket_of": "._grid",
+    "compact_scene": "._grid",
+    "scene_keys": "._grid",
+    "load_results": "._io",
+    "save_results": "._io",
+    "summary_table": "._io",
+    "SweepProgress": "._sweep",
+    "SweepResult": "._sweep",
+    "default_mesh": "._sweep",
+    "metric_fields": "._sweep",
+    "print_progress": "._sweep",
+    "sweep": "._sweep",
     "use_cpu_cores": "._cpu_cores",
     "sweep_host": "._host_sweep",
 }

@@ -63,5 +63,7 @@ def _chosen_count() -> int | None:
     ``XLA_FLAGS=--xla_force_host_platform_device_count=N``), or None."""
     if int(jax.config.jax_num_cpu_devices) > 0:
         return int(jax.config.jax_num_cpu_devices)
-    match = re.search(r"xla_force_host_platform_device_count=(\d+)", os.environ.get("XLA_FLAGS", ""))
+    match = re.search(
+        r"xla_force_host_platform_device_count=(\d+)", os.environ.get("XLA_FLAGS", "")
+    )
     return int(match.group(1)) if match else None

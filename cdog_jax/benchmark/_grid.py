@@ -70,7 +70,9 @@ class Grid:
         if self.views is not None:
             object.__setattr__(self, "views", tuple(int(v) for v in self.views))
         if not self.sigmas or not self.counts:
-            raise ValueError(f"Grid needs at least one sigma and one count; got {self.sigmas} and {self.counts}")
+            raise ValueError(
+                f"Grid needs at least one sigma and one count; got {self.sigmas} and {self.counts}"
+            )
         if min(self.sigmas) < 0 or not np.all(np.isfinite(self.sigmas)):
             raise ValueError(f"Grid.sigmas must be finite and >= 0; got {self.sigmas}")
         milli = [_milli_px(s) for s in self.sigmas]
@@ -81,15 +83,21 @@ class Grid:
         if not isinstance(self.capacity, int) or self.capacity < 1:
             raise ValueError(f"Grid.capacity must be a positive int; got {self.capacity!r}")
         if min(self.counts) < 1 or max(self.counts) > self.capacity:
-            raise ValueError(f"Grid.counts must lie in [1, capacity={self.capacity}]; got {self.counts}")
+            raise ValueError(
+                f"Grid.counts must lie in [1, capacity={self.capacity}]; got {self.counts}"
+            )
         if not isinstance(self.scenes, int) or self.scenes < 1:
             raise ValueError(f"Grid.scenes must be a positive int; got {self.scenes!r}")
         views = self.views
-        if views is not None and (len(views) < 2 or len(set(views)) != len(views) or min(views) < 0):
-            raise ValueError(f"Grid.views must be None or >= 2 distinct view indices; got {self.views}")
+        if views is not None and (
+            len(views) < 2 or len(set(views)) != len(views) or min(views) < 0
+        ):
+            raise ValueError(
+                f"Grid.views must be None or >= 2 distinct view indices; got {self.views}"
+            )
 
     @classmethod
-    def paper(cls, **overrides) -> "Grid":
+    def paper(cls, **overrides) -> Grid:
         """docs/BENCHMARK.md §1: σ = 0, 0.25, …, 5 (21) × counts 1…20, 25…130 step 5 (42) × 5 scenes."""
         base = dict(
             sigmas=tuple(0.25 * i for i in range(21)),
@@ -100,13 +108,13 @@ class Grid:
         return cls(**base)
 
     @classmethod
-    def quick(cls, **overrides) -> "Grid":
+    def quick(cls, **overrides) -> Grid:
         """A tiny grid for smoke runs: σ ∈ {0, 1, 3, 5} × counts {5, 20, 60} × 2 scenes."""
         base = dict(sigmas=(0.0, 1.0, 3.0, 5.0), counts=(5, 20, 60), scenes=2)
         base.update(overrides)
         return cls(**base)
 
-    def replace(self, **changes) -> "Grid":
+    def replace(self, **changes) -> Grid:
         """A copy with some fields changed."""
         return dataclasses.replace(self, **changes)
 
@@ -154,7 +162,13 @@ def _fold_keys(base, milli, count, scene):
 def scene_keys(seed: int, sigma_milli_px, count, scene) -> jax.Array:
     """PRNG keys ``(S, 2)`` uint32 of grid scenes named by σ (integer milli-pixels,
     ``(S,)``), point count ``(S,)`` and scene index ``(S,)`` (see :meth:`Grid.keys`)."""
-    expect_args("scene_keys", seed=(seed, INT), sigma_milli_px=(sigma_milli_px, ARRAY), count=(count, ARRAY), scene=(scene, ARRAY))
+    expect_args(
+        "scene_keys",
+        seed=(seed, INT),
+        sigma_milli_px=(sigma_milli_px, ARRAY),
+        count=(count, ARRAY),
+        scene=(scene, ARRAY),
+    )
     base = jax.random.PRNGKey(seed)
     arrays = (jnp.asarray(np.asarray(a, np.int32)) for a in (sigma_milli_px, count, scene))
     return _fold_keys(base, *arrays)
@@ -187,11 +201,17 @@ def compact_scene(scene: Scene, *, capacity: int) -> Scene:
     view = jnp.broadcast_to(jnp.arange(M, dtype=jnp.int32)[:, None], (M, P))
     xy = jnp.zeros((M, capacity, 2), scene.xy.dtype).at[view, dest].set(scene.xy, mode="drop")
     new_mask = jnp.zeros((M, capacity), bool).at[view, dest].set(mask, mode="drop")
-    instance = jnp.full((M, capacity), -1, scene.instance.dtype).at[view, dest].set(scene.instance, mode="drop")
+    instance = (
+        jnp.full((M, capacity), -1, scene.instance.dtype)
+        .at[view, dest]
+        .set(scene.instance, mode="drop")
+    )
     points3d = scene.points3d[:capacity]
     if capacity > P:
         points3d = jnp.concatenate([points3d, jnp.zeros((capacity - P, 3), points3d.dtype)])
-    return Scene(xy=xy, mask=new_mask, instance=instance, points3d=points3d, num_points=scene.num_points)
+    return Scene(
+        xy=xy, mask=new_mask, instance=instance, points3d=points3d, num_points=scene.num_points
+    )
 
 
 def bucket_of(count, buckets: tuple[int, ...]) -> np.ndarray:
@@ -202,9 +222,15 @@ def bucket_of(count, buckets: tuple[int, ...]) -> np.ndarray:
     """
     expect_args("bucket_of", count=(count, ARRAY), buckets=(buckets, (tuple, list)))
     buckets = tuple(buckets)
-    if not buckets or any(not isinstance(b, int) or b < 1 for b in buckets) or list(buckets) != sorted(set(buckets)):
+    if (
+        not buckets
+        or any(not isinstance(b, int) or b < 1 for b in buckets)
+        or list(buckets) != sorted(set(buckets))
+    ):
         raise ValueError(f"buckets must be strictly increasing positive ints; got {buckets}")
     count = np.asarray(count)
     if count.size and count.max() > buckets[-1]:
-        raise ValueError(f"the largest bucket ({buckets[-1]}) is below the largest point count ({count.max()})")
+        raise ValueError(
+            f"the largest bucket ({buckets[-1]}) is below the largest point count ({count.max()})"
+        )
     return np.searchsorted(np.asarray(buckets), count, side="left").astype(np.int32)

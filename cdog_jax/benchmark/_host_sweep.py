@@ -25,12 +25,22 @@ from ..metrics._scores import scene_metrics
 from ..synthetic._rig import DEFAULT_BOX, IMAGE_SIZE
 from ..synthetic._scene import generate_scene
 from ._grid import Grid, bucket_of, compact_scene
-from ._sweep import EXTRA_FIELDS, SweepResult, _host_thresholds, describe_devices, default_mesh, metric_fields, versions
+from ._sweep import (
+    EXTRA_FIELDS,
+    SweepResult,
+    _host_thresholds,
+    default_mesh,
+    describe_devices,
+    metric_fields,
+    versions,
+)
 
 
 @functools.partial(jax.jit, static_argnames=("capacity", "draw_capacity", "image_size"))
 def _scene(rig, box, key, count, sigma, *, capacity, draw_capacity, image_size):
-    scene = generate_scene(key, rig, count, sigma, capacity=draw_capacity, box=box, image_size=image_size)
+    scene = generate_scene(
+        key, rig, count, sigma, capacity=draw_capacity, box=box, image_size=image_size
+    )
     return compact_scene(scene, capacity=capacity)
 
 
@@ -47,7 +57,9 @@ def _score(rig, result, scene):
 def _associate(rig, scene, th, method: Method):
     if method.jittable:
         return _associate_jit(rig, scene.xy, scene.mask, th, method=method)
-    return method.associate_scene(rig, Observations(np.asarray(scene.xy), np.asarray(scene.mask)), th)
+    return method.associate_scene(
+        rig, Observations(np.asarray(scene.xy), np.asarray(scene.mask)), th
+    )
 
 
 def sweep_host(
@@ -76,7 +88,9 @@ def sweep_host(
     """
     expect_args("sweep_host", rig=(rig, Rig), grid=(grid, Grid))
     if isinstance(methods, str):
-        raise TypeError(f"sweep_host: methods must be a mapping {{name: method}} or a list of registered names; got the string {methods!r}")
+        raise TypeError(
+            f"sweep_host: methods must be a mapping {{name: method}} or a list of registered names; got the string {methods!r}"
+        )
     if not isinstance(methods, Mapping):
         methods = {name: name for name in methods}
     if not methods:
@@ -85,7 +99,9 @@ def sweep_host(
     buckets = tuple(int(b) for b in buckets)
     if grid.views is not None:
         if max(grid.views) >= rig.num_views:
-            raise ValueError(f"grid.views {grid.views} out of range for a rig of {rig.num_views} views")
+            raise ValueError(
+                f"grid.views {grid.views} out of range for a rig of {rig.num_views} views"
+            )
         rig = rig.select(grid.views)
     dtype = rig.K.dtype
     box = np.asarray(jnp.asarray(box, dtype))
@@ -101,15 +117,23 @@ def sweep_host(
     for s in range(grid.num_scenes):
         scenes.append(
             _scene(
-                rig, jnp.asarray(box), jnp.asarray(keys[s]), jnp.asarray(idx.count[s], jnp.int32),
-                jnp.asarray(idx.sigma[s], dtype), capacity=int(capacity[s]), draw_capacity=grid.capacity, image_size=size,
+                rig,
+                jnp.asarray(box),
+                jnp.asarray(keys[s]),
+                jnp.asarray(idx.count[s], jnp.int32),
+                jnp.asarray(idx.sigma[s], dtype),
+                capacity=int(capacity[s]),
+                draw_capacity=grid.capacity,
+                image_size=size,
             )
         )
     per_method, time_s = {}, {}
     for name, method in methods.items():
         structure, base = method.structure(), _host_thresholds(method, dtype)
         for s in range(grid.num_scenes):
-            method.check_scene(np.asarray(scenes[s].mask), f"sweep_host (method {name!r}, scene {s})")
+            method.check_scene(
+                np.asarray(scenes[s].mask), f"sweep_host (method {name!r}, scene {s})"
+            )
         rows, times, warm = [], np.zeros(grid.num_scenes), set()
         for s, scene in enumerate(scenes):
             th = base._replace(sigma_px=np.asarray(idx.sigma[s], dtype))
@@ -120,8 +144,12 @@ def sweep_host(
             result = jax.block_until_ready(_associate(rig, scene, th, structure))
             times[s] = time.perf_counter() - t0
             rows.append(jax.device_get(_score(rig, result, scene)))
-        fields = {f: np.stack([np.asarray(getattr(r[0], f)) for r in rows]) for f in metric_fields()}
-        fields.update({f: np.stack([np.asarray(r[1][k]) for r in rows]) for k, f in enumerate(EXTRA_FIELDS)})
+        fields = {
+            f: np.stack([np.asarray(getattr(r[0], f)) for r in rows]) for f in metric_fields()
+        }
+        fields.update(
+            {f: np.stack([np.asarray(r[1][k]) for r in rows]) for k, f in enumerate(EXTRA_FIELDS)}
+        )
         per_method[name], time_s[name] = fields, times
     wall_s = time.perf_counter() - t_start
 

@@ -26,9 +26,18 @@ from ._sweep import SweepResult
 FORMAT_VERSION = 1
 _SCENE_ARRAYS = ("sigma", "count", "scene", "num_points", "capacity")
 _JSON_FIELDS = (
-    "configs", "wall_s", "compile_s", "timing_s", "config_repr", "versions", "device", "num_devices",
-    "buckets", "batch_size", "box",
-)  # fmt: skip
+    "configs",
+    "wall_s",
+    "compile_s",
+    "timing_s",
+    "config_repr",
+    "versions",
+    "device",
+    "num_devices",
+    "buckets",
+    "batch_size",
+    "box",
+)
 
 
 def save_results(result: SweepResult, directory: str | os.PathLike) -> None:
@@ -60,7 +69,9 @@ def save_results(result: SweepResult, directory: str | os.PathLike) -> None:
             cols = [result.metrics[name][k] for k in fields]
             for i in range(result.num_scenes):
                 scene = [_cell(getattr(result, k)[i]) for k in _SCENE_ARRAYS]
-                writer.writerow([name, *scene, *(_cell(c[i]) for c in cols), _cell(result.time_s[name][i])])
+                writer.writerow(
+                    [name, *scene, *(_cell(c[i]) for c in cols), _cell(result.time_s[name][i])]
+                )
 
 
 def _cell(v) -> str:
@@ -79,7 +90,9 @@ def load_results(directory: str | os.PathLike) -> SweepResult:
     with open(os.path.join(directory, "results.json")) as f:
         meta = json.load(f)
     if meta.get("format") != FORMAT_VERSION:
-        raise ValueError(f"unknown results format {meta.get('format')!r} in {directory}; expected {FORMAT_VERSION}")
+        raise ValueError(
+            f"unknown results format {meta.get('format')!r} in {directory}; expected {FORMAT_VERSION}"
+        )
     with np.load(os.path.join(directory, "results.npz"), allow_pickle=False) as npz:
         arrays = {k: npz[k] for k in npz.files}
     configs = tuple(meta["configs"])
@@ -88,7 +101,9 @@ def load_results(directory: str | os.PathLike) -> SweepResult:
         grid=Grid(**grid),
         configs=configs,
         **{k: arrays[k] for k in _SCENE_ARRAYS},
-        metrics={n: {f: arrays[f"metrics/{n}/{f}"] for f in meta["metric_order"][n]} for n in configs},
+        metrics={
+            n: {f: arrays[f"metrics/{n}/{f}"] for f in meta["metric_order"][n]} for n in configs
+        },
         time_s={n: arrays[f"time_s/{n}"] for n in configs},
         wall_s=float(meta["wall_s"]),
         compile_s=float(meta["compile_s"]),
@@ -100,7 +115,7 @@ def load_results(directory: str | os.PathLike) -> SweepResult:
         buckets=tuple(meta["buckets"]),
         batch_size=tuple(meta["batch_size"]),
         box=tuple(tuple(float(v) for v in corner) for corner in meta["box"]),
-        rig={k[len("rig/"):]: v for k, v in arrays.items() if k.startswith("rig/")},
+        rig={k[len("rig/") :]: v for k, v in arrays.items() if k.startswith("rig/")},
     )
 
 
@@ -132,6 +147,8 @@ def summary_table(result: SweepResult, *, sigmas: Sequence[float] = (0.0, 1.0, 3
         for name in result.configs:
             means = mean_metrics(result.metrics_of(name, where=where))
             means["time_ms"] = 1000.0 * float(np.mean(result.time_s[name][where]))
-            cells = ["–" if math.isnan(means[k]) else fmt.format(means[k]) for _, k, fmt in _COLUMNS]
+            cells = [
+                "–" if math.isnan(means[k]) else fmt.format(means[k]) for _, k, fmt in _COLUMNS
+            ]
             lines.append(f"| {float(sigma):g} | {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines)

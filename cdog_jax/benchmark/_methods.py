@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
 
-from ..cdog._pipeline import Config
 from .._method import Method, method_from, method_names
+from ..cdog._pipeline import Config
 
 ABLATIONS: dict[str, Callable[[], Method]] = {"no_iqr": lambda: Config.paper(iqr=False)}
 """Benchmark-only variants (not registered for :func:`cdog_jax.associate`)."""

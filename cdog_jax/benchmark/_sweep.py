@@ -46,14 +46,14 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from .._expect import expect_args
-from ..cdog._pipeline import Config
 from .._method import Method, Observations, method_from
 from .._runtime.memory import check_memory
+from .._runtime.progress import compiling, interactive, sweep_bar
+from ..cdog._pipeline import Config
 from ..geometry._camera import Rig
 from ..metrics._scores import Metrics, scene_metrics
 from ..synthetic._rig import DEFAULT_BOX, IMAGE_SIZE
 from ..synthetic._scene import generate_scene
-from .._runtime.progress import compiling, interactive, sweep_bar
 from ._grid import Grid, bucket_of, compact_scene
 
 AXIS = "scenes"
@@ -183,13 +183,17 @@ def _scene_outputs(rig, box, thresholds, plan, capacity, batch, args):
     in numbers share one traced pipeline, mapped over their thresholds like scenes are
     (``batch = 1``: a scan, ~9× faster on CPU than vmapped while loops; else vmapped)."""
     key, count, sigma = args
-    scene = generate_scene(key, rig, count, sigma, capacity=plan.draw_capacity, box=box, image_size=plan.image_size)
+    scene = generate_scene(
+        key, rig, count, sigma, capacity=plan.draw_capacity, box=box, image_size=plan.image_size
+    )
     scene = compact_scene(scene, capacity=capacity)
     per_group = []
     for th, (structure, members) in zip(thresholds, plan.groups):
 
         def run(th, structure=structure):
-            res = structure.associate_scene(rig, Observations(scene.xy, scene.mask), th._replace(sigma_px=sigma))
+            res = structure.associate_scene(
+                rig, Observations(scene.xy, scene.mask), th._replace(sigma_px=sigma)
+            )
             return scene_metrics(rig, res, scene), (res.sigma_px, res.tau_px, res.num_groups)
 
         if len(members) == 1:
@@ -247,7 +251,9 @@ def _compiled(plan: _Plan, bucket: int, args):
         return _COMPILED[cache_key], 0.0
     t0 = time.perf_counter()
     replicated = NamedSharding(plan.mesh, PartitionSpec())
-    fn = jax.jit(functools.partial(_bucket_body, plan=plan, bucket=bucket), out_shardings=replicated)
+    fn = jax.jit(
+        functools.partial(_bucket_body, plan=plan, bucket=bucket), out_shardings=replicated
+    )
     compiled = fn.lower(*args).compile()
     elapsed = time.perf_counter() - t0
     _COMPILED[cache_key] = compiled
@@ -347,7 +353,15 @@ def _check_memory(num_views: int, layout: _Layout, groups: dict, dtype) -> None:
     for capacity, batch in zip(layout.capacities, layout.batch_sizes):
         for structure, members in groups.items():
             at_once = batch * (len(members) if batch > 1 else 1)
-            check_memory(f"sweep (bucket {capacity})", num_views, capacity, structure, dtype, at_once, vmapped=batch > 1)
+            check_memory(
+                f"sweep (bucket {capacity})",
+                num_views,
+                capacity,
+                structure,
+                dtype,
+                at_once,
+                vmapped=batch > 1,
+            )
 
 
 def _check_methods(methods) -> dict[str, Method]:
@@ -356,7 +370,9 @@ def _check_methods(methods) -> dict[str, Method]:
     if methods is None:
         methods = {"paper": Config.paper()}
     elif isinstance(methods, str):
-        raise TypeError(f"sweep: methods must be a mapping {{name: method}} or a list of registered names; got the string {methods!r}")
+        raise TypeError(
+            f"sweep: methods must be a mapping {{name: method}} or a list of registered names; got the string {methods!r}"
+        )
     elif not isinstance(methods, Mapping):
         methods = {name: name for name in methods}
     methods = dict(methods)
@@ -365,7 +381,9 @@ def _check_methods(methods) -> dict[str, Method]:
     checked = {}
     for name, method in methods.items():
         if not isinstance(name, str) or not name or "/" in name or "," in name:
-            raise ValueError(f"sweep: method names must be non-empty strings without '/' or ','; got {name!r}")
+            raise ValueError(
+                f"sweep: method names must be non-empty strings without '/' or ','; got {name!r}"
+            )
         checked[name] = method_from(method, f"sweep (method {name!r})")
         if not checked[name].jittable:
             raise ValueError(
@@ -384,7 +402,9 @@ def _check_batch_size(batch_size, buckets, mesh: Mesh) -> tuple[int, ...]:
         batch_size = (batch_size,) * len(buckets)
     batch_size = tuple(int(b) for b in batch_size)
     if len(batch_size) != len(buckets) or min(batch_size) < 1:
-        raise ValueError(f"batch_size must be a positive int or one per bucket {buckets}; got {batch_size}")
+        raise ValueError(
+            f"batch_size must be a positive int or one per bucket {buckets}; got {batch_size}"
+        )
     return batch_size
 
 
@@ -437,31 +457,53 @@ def sweep(
     if isinstance(progress, bool):
         progress = "auto" if progress else None
     if isinstance(progress, str) and progress != "auto":
-        raise ValueError(f"sweep: progress must be a callable, None, a bool or 'auto'; got {progress!r}")
+        raise ValueError(
+            f"sweep: progress must be a callable, None, a bool or 'auto'; got {progress!r}"
+        )
     if progress is not None and not isinstance(progress, str) and not callable(progress):
-        raise TypeError(f"sweep: progress must be a callable, None, a bool or 'auto'; got {type(progress).__name__}")
+        raise TypeError(
+            f"sweep: progress must be a callable, None, a bool or 'auto'; got {type(progress).__name__}"
+        )
     methods = _check_methods(methods)
     close_bar = None
     if progress == "auto":
         progress, close_bar = sweep_bar(grid.num_scenes) if interactive() else (None, None)
     try:
-        return _sweep(rig, grid, methods, buckets, batch_size, box, image_size, mesh, timing, timing_runs, progress)
+        return _sweep(
+            rig,
+            grid,
+            methods,
+            buckets,
+            batch_size,
+            box,
+            image_size,
+            mesh,
+            timing,
+            timing_runs,
+            progress,
+        )
     finally:
         if close_bar is not None:
             close_bar()
 
 
-def _sweep(rig, grid, configs, buckets, batch_size, box, image_size, mesh, timing, timing_runs, progress) -> SweepResult:
+def _sweep(
+    rig, grid, configs, buckets, batch_size, box, image_size, mesh, timing, timing_runs, progress
+) -> SweepResult:
     """:func:`sweep` after its ``progress`` is resolved to a callable or ``None`` and its
     methods to ``{name: Method}`` (``configs``)."""
     mesh = default_mesh() if mesh is None else mesh
     if tuple(mesh.axis_names) != (AXIS,):
-        raise ValueError(f"mesh must have exactly one axis named {AXIS!r}; got {tuple(mesh.axis_names)}")
+        raise ValueError(
+            f"mesh must have exactly one axis named {AXIS!r}; got {tuple(mesh.axis_names)}"
+        )
     buckets = tuple(int(b) for b in buckets)
     batch_size = _check_batch_size(batch_size, buckets, mesh)
     if grid.views is not None:
         if max(grid.views) >= rig.num_views:
-            raise ValueError(f"grid.views {grid.views} out of range for a rig of {rig.num_views} views")
+            raise ValueError(
+                f"grid.views {grid.views} out of range for a rig of {rig.num_views} views"
+            )
         rig = rig.select(grid.views)
     if timing_runs < 1:
         raise ValueError(f"timing_runs must be >= 1; got {timing_runs}")
@@ -497,18 +539,27 @@ def _sweep(rig, grid, configs, buckets, batch_size, box, image_size, mesh, timin
     )
     replicated = NamedSharding(mesh, PartitionSpec())
     shared = jax.device_put((rig, box, thresholds), replicated)
-    bucket_args = [(*shared, jax.device_put(inputs, NamedSharding(mesh, PartitionSpec(AXIS)))) for inputs in layout.inputs]
+    bucket_args = [
+        (*shared, jax.device_put(inputs, NamedSharding(mesh, PartitionSpec(AXIS))))
+        for inputs in layout.inputs
+    ]
     with compiling(f"the sweep ({len(configs)} method(s), {len(layout.capacities)} bucket(s))"):
         programs = [_compiled(plan, b, args) for b, args in enumerate(bucket_args)]
     compile_s = sum(elapsed for _, elapsed in programs)
     t0 = time.perf_counter()
-    outputs = [program(*args) for (program, _), args in zip(programs, bucket_args)]  # all dispatched
+    outputs = [
+        program(*args) for (program, _), args in zip(programs, bucket_args)
+    ]  # all dispatched
     if progress is not None:
         done, total = 0, int(sum(m.size for m in layout.members))
         for b, out in enumerate(outputs):
             jax.block_until_ready(out)
             done += layout.members[b].size
-            progress(SweepProgress(b, len(outputs), layout.capacities[b], done, total, time.perf_counter() - t0))
+            progress(
+                SweepProgress(
+                    b, len(outputs), layout.capacities[b], done, total, time.perf_counter() - t0
+                )
+            )
     # Buckets side by side (padding included), then back to grid order.
     stacked = jax.tree.map(lambda *a: np.concatenate(a, axis=0), *jax.device_get(outputs))
     num_points, per_group = jax.tree.map(lambda a: a[layout.gather], stacked)
@@ -567,7 +618,8 @@ def _host_thresholds(config: Method, dtype):
 @functools.partial(jax.jit, static_argnames=("capacity", "draw_capacity", "image_size"))
 def _chunk_scenes(rig, box, keys, count, sigma, *, capacity, draw_capacity, image_size):
     one = lambda k, c, s: compact_scene(  # noqa: E731
-        generate_scene(k, rig, c, s, capacity=draw_capacity, box=box, image_size=image_size), capacity=capacity
+        generate_scene(k, rig, c, s, capacity=draw_capacity, box=box, image_size=image_size),
+        capacity=capacity,
     )
     return jax.vmap(one)(keys, count, sigma)
 
@@ -595,10 +647,17 @@ def _time_buckets(rig, box, configs, grid, layout, image_size, runs):
         sigma = np.asarray(idx.sigma[pick], dtype)
         args = (jnp.asarray(keys[pick]), jnp.asarray(idx.count[pick]), jnp.asarray(sigma))
         scenes = _chunk_scenes(
-            rig, jnp.asarray(box), *args, capacity=capacity, draw_capacity=grid.capacity, image_size=image_size
+            rig,
+            jnp.asarray(box),
+            *args,
+            capacity=capacity,
+            draw_capacity=grid.capacity,
+            image_size=image_size,
         )
         for name, config in configs.items():
-            th = jax.tree.map(lambda a: np.broadcast_to(a, pick.shape).copy(), _host_thresholds(config, dtype))
+            th = jax.tree.map(
+                lambda a: np.broadcast_to(a, pick.shape).copy(), _host_thresholds(config, dtype)
+            )
             th = th._replace(sigma_px=sigma)
             static = dict(config=config.structure(), batch=min(batch, pick.size))
             run = functools.partial(_associate_chunk, rig, scenes.xy, scenes.mask, th, **static)
@@ -618,7 +677,12 @@ def versions() -> dict[str, str]:
 
     from .._version import __version__
 
-    return {"jax": jax.__version__, "jaxlib": jaxlib.__version__, "cdog_jax": __version__, "numpy": np.__version__}
+    return {
+        "jax": jax.__version__,
+        "jaxlib": jaxlib.__version__,
+        "cdog_jax": __version__,
+        "numpy": np.__version__,
+    }
 
 
 def describe_devices(mesh: Mesh) -> str:
@@ -627,4 +691,6 @@ def describe_devices(mesh: Mesh) -> str:
     kinds = sorted({d.device_kind for d in devices})
     processes = len({d.process_index for d in devices})
     plural = "es" if processes > 1 else ""
-    return f"{devices[0].platform}: {len(devices)} × {', '.join(kinds)} ({processes} process{plural})"
+    return (
+        f"{devices[0].platform}: {len(devices)} × {', '.join(kinds)} ({processes} process{plural})"
+    )

@@ -4,11 +4,7 @@ alignment of rigs and their errors for evaluation, and the bundle projection err
 differentiable loss. Needs optimistix, a large import: ``import cdog_jax`` does not load
 this package."""
 
+from ._alignment import RigErrors as RigErrors, align_rigs as align_rigs, rig_errors as rig_errors
 from ._bpe_loss import bpe as bpe, group_bpe as group_bpe
-from ._alignment import RigErrors as RigErrors
-from ._alignment import align_rigs as align_rigs
-from ._alignment import rig_errors as rig_errors
-from ._calibrate import CalibrationHistory as CalibrationHistory
-from ._calibrate import calibrate as calibrate
-from ._refine_rig import RefineInfo as RefineInfo
-from ._refine_rig import refine_rig as refine_rig
+from ._calibrate import CalibrationHistory as CalibrationHistory, calibrate as calibrate
+from ._refine_rig import RefineInfo as RefineInfo, refine_rig as refine_rig

@@ -80,7 +80,10 @@ def _rig_errors(rig: Rig, reference: Rig, *, align: bool) -> RigErrors:
     rotation = so3_log(jnp.einsum("mij,mkj->mik", rig.R, reference.R))
     d_center = rig.centers - reference.centers
     K, K_ref = rig.K / rig.K[:, 2:3, 2:3], reference.K / reference.K[:, 2:3, 2:3]
-    f, f_ref = jnp.stack([K[:, 0, 0], K[:, 1, 1]], -1), jnp.stack([K_ref[:, 0, 0], K_ref[:, 1, 1]], -1)
+    f, f_ref = (
+        jnp.stack([K[:, 0, 0], K[:, 1, 1]], -1),
+        jnp.stack([K_ref[:, 0, 0], K_ref[:, 1, 1]], -1),
+    )
     d_principal = K[:, :2, 2] - K_ref[:, :2, 2]
     return RigErrors(
         rotation_deg=jnp.rad2deg(jnp.linalg.norm(rotation, axis=-1)),

@@ -49,10 +49,14 @@ def _group_terms(rig, xy, groups, valid, loss, scale_px, points3d):
     if loss not in _LOSSES:
         raise ValueError(f"loss must be one of {_LOSSES}; got {loss!r}")
     if rig.K.shape != (M, 3, 3):
-        raise ValueError(f"xy must have shape (M, P, 2) with M={rig.K.shape[0]} from the rig; got {xy.shape}")
+        raise ValueError(
+            f"xy must have shape (M, P, 2) with M={rig.K.shape[0]} from the rig; got {xy.shape}"
+        )
     G = groups.shape[0]
     if groups.shape != (G, M) or valid.shape != (G,):
-        raise ValueError(f"groups must have shape (G, M={M}) and valid (G,); got {groups.shape} and {valid.shape}")
+        raise ValueError(
+            f"groups must have shape (G, M={M}) and valid (G,); got {groups.shape} and {valid.shape}"
+        )
     if points3d is not None and points3d.shape != (G, 3):
         raise ValueError(f"points3d must have shape (G={G}, 3); got {points3d.shape}")
 
@@ -114,7 +118,9 @@ def group_bpe(
         ``(G,)`` per-group BPE; 0 for rows that are invalid, have fewer than 2 members, or
         (when triangulating) whose DLT is undetermined (near-parallel rays).
     """
-    expect_args("group_bpe", rig=(rig, Rig), xy=(xy, ARRAY), groups=(groups, ARRAY), valid=(valid, ARRAY))
+    expect_args(
+        "group_bpe", rig=(rig, Rig), xy=(xy, ARRAY), groups=(groups, ARRAY), valid=(valid, ARRAY)
+    )
     return _group_terms(rig, xy, groups, valid, loss=loss, scale_px=scale_px, points3d=points3d)[0]
 
 
@@ -136,6 +142,8 @@ def bpe(
     and ``vmap`` (e.g. ``jax.vmap(bpe, in_axes=(None, 0, 0, 0))`` over scenes).
     """
     expect_args("bpe", rig=(rig, Rig), xy=(xy, ARRAY), groups=(groups, ARRAY), valid=(valid, ARRAY))
-    per_group, active = _group_terms(rig, xy, groups, valid, loss=loss, scale_px=scale_px, points3d=points3d)
+    per_group, active = _group_terms(
+        rig, xy, groups, valid, loss=loss, scale_px=scale_px, points3d=points3d
+    )
     count = jnp.sum(active.astype(per_group.dtype))
     return jnp.sum(per_group) / jnp.maximum(count, 1.0)

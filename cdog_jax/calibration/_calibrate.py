@@ -9,8 +9,8 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .._method import Method, Observations, method_argument
 from .._expect import ARRAY, expect_args
+from .._method import Method, Observations, method_argument
 from .._result import Association
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
@@ -80,20 +80,28 @@ def calibrate(
     method = method_argument(method, "calibrate", default=None)
     kind = type(method.thresholds())
     if not isinstance(thresholds, kind):
-        raise TypeError(f"calibrate: thresholds must be {kind.__name__} (method.thresholds()); got {type(thresholds).__name__}")
+        raise TypeError(
+            f"calibrate: thresholds must be {kind.__name__} (method.thresholds()); got {type(thresholds).__name__}"
+        )
     if not isinstance(rounds, int) or rounds < 1:
         raise ValueError(f"rounds must be a Python int >= 1; got {rounds!r}")
     _check_xy(rig, xy)
     if mask.shape != xy.shape[:3]:
-        raise ValueError(f"mask must have shape (S, M, P) = {xy.shape[:3]} from xy; got {mask.shape}")
+        raise ValueError(
+            f"mask must have shape (S, M, P) = {xy.shape[:3]} from xy; got {mask.shape}"
+        )
     unknown = sorted(set(refine_options) - set(_STATIC) - {"scale_px"})
     if unknown:
-        raise TypeError(f"calibrate got unknown options {unknown}; refine_rig takes {_STATIC + ('scale_px',)}")
+        raise TypeError(
+            f"calibrate got unknown options {unknown}; refine_rig takes {_STATIC + ('scale_px',)}"
+        )
     th = []
     for name, v in zip(kind._fields, thresholds):
         v = jnp.asarray(v, xy.dtype)
         if v.shape not in ((), (rounds,)):
-            raise ValueError(f"thresholds.{name} must have shape () or (rounds,) = ({rounds},); got {v.shape}")
+            raise ValueError(
+                f"thresholds.{name} must have shape () or (rounds,) = ({rounds},); got {v.shape}"
+            )
         v = jnp.broadcast_to(v, (rounds,))
         th.append(jnp.concatenate([v, v[-1:]]))  # the final association reuses the last
     traced = {k: jnp.asarray(v, xy.dtype) for k, v in refine_options.items() if k == "scale_px"}
@@ -107,7 +115,9 @@ def _calibrate(rig, xy, mask, th, traced, *, config, options):
 
     def one_round(rig, step):
         i, th_i = step
-        assoc = jax.vmap(lambda x, m: config.associate_scene(rig, Observations(x, m), th_i))(xy, mask)
+        assoc = jax.vmap(lambda x, m: config.associate_scene(rig, Observations(x, m), th_i))(
+            xy, mask
+        )
         # The extra last step only associates (lax.cond runs one branch under jit).
         new_rig, info = jax.lax.cond(
             i < rounds,

@@ -30,9 +30,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..cdog._pipeline import Config
-from ..cdog._pipeline import associate_traced
 from .._runtime.progress import bar, compiling
+from ..cdog._pipeline import Config, associate_traced
 from ..geometry._camera import Rig
 from ..geometry._parameters import so3_exp
 from ..metrics._scores import scene_metrics
@@ -72,8 +71,12 @@ def perturb_rig(key: jax.Array, rig: Rig, level: Perturbation, scene_center) -> 
     w = jnp.deg2rad(level.rotation_deg) * jax.random.normal(k_rot, (M, 3), dtype)
     R = jnp.einsum("mij,mjk->mik", so3_exp(w), rig.R)
     centers = rig.centers
-    distance = jnp.mean(jnp.linalg.norm(centers - jnp.asarray(scene_center, dtype)[None, :], axis=-1))
-    centers = centers + level.translation_frac * distance * jax.random.normal(k_center, (M, 3), dtype)
+    distance = jnp.mean(
+        jnp.linalg.norm(centers - jnp.asarray(scene_center, dtype)[None, :], axis=-1)
+    )
+    centers = centers + level.translation_frac * distance * jax.random.normal(
+        k_center, (M, 3), dtype
+    )
     t = -jnp.einsum("mij,mj->mi", R, centers)
     scale = 1.0 + level.focal_frac * jax.random.normal(k_focal, (M,), dtype)
     K = rig.K.at[:, 0, 0].multiply(scale).at[:, 1, 1].multiply(scale)
@@ -102,13 +105,21 @@ def run_experiment(
     per gate in ``gates_px``, the fine stage ``rounds`` rounds (the last with free focal
     lengths)."""
     if rounds < 1 or not gates_px:
-        raise ValueError(f"need rounds >= 1 and at least one coarse gate; got rounds={rounds}, gates={gates_px}")
+        raise ValueError(
+            f"need rounds >= 1 and at least one coarse gate; got rounds={rounds}, gates={gates_px}"
+        )
     truth = default_rig()
     dtype = truth.K.dtype
     key_scenes, key_perturb, key_wand = jax.random.split(jax.random.PRNGKey(seed), 3)
 
     def draw(key, count, num):
-        return generate_scenes(key, truth, jnp.full((count,), num, jnp.int32), jnp.full((count,), sigma, dtype), capacity=num)
+        return generate_scenes(
+            key,
+            truth,
+            jnp.full((count,), num, jnp.int32),
+            jnp.full((count,), sigma, dtype),
+            capacity=num,
+        )
 
     batch, wand = draw(key_scenes, scenes, points), draw(key_wand, wand_frames, wand_points)
     paper = Config.paper()
@@ -117,7 +128,8 @@ def run_experiment(
     # recovery attaches within 1 gate (not 2) because the gate is already wide.
     coarse = Config.extended()
     th_coarse = coarse.thresholds(sigma)._replace(
-        tau_min_px=np.asarray(gates_px, np.dtype(dtype)), recover_frac=np.asarray(1.0, np.dtype(dtype))
+        tau_min_px=np.asarray(gates_px, np.dtype(dtype)),
+        recover_frac=np.asarray(1.0, np.dtype(dtype)),
     )
     # Fine: σ estimated from the detections (the drift left inflates epipolar distances).
     fine = Config.extended(sigma_mode="auto")
@@ -126,18 +138,36 @@ def run_experiment(
     @jax.jit
     def run(rig):
         common = dict(loss="huber", refine_intrinsics=False)
-        rig, h_coarse = calibrate(rig, wand.xy, wand.mask, thresholds=th_coarse, method=coarse.structure(), rounds=len(gates_px), **common)
+        rig, h_coarse = calibrate(
+            rig,
+            wand.xy,
+            wand.mask,
+            thresholds=th_coarse,
+            method=coarse.structure(),
+            rounds=len(gates_px),
+            **common,
+        )
         kwargs = dict(thresholds=th_fine, method=fine.structure(), loss="huber")
         history = [h_coarse.rigs]
         if rounds > 1:
-            rig, h_poses = calibrate(rig, batch.xy, batch.mask, rounds=rounds - 1, refine_intrinsics=False, **kwargs)
+            rig, h_poses = calibrate(
+                rig, batch.xy, batch.mask, rounds=rounds - 1, refine_intrinsics=False, **kwargs
+            )
             history.append(h_poses.rigs)
         # Focal lengths last: freed early, they trade against depth while groups are wrong.
-        rig, h_last = calibrate(rig, batch.xy, batch.mask, rounds=1, refine_intrinsics=True, **kwargs)
+        rig, h_last = calibrate(
+            rig, batch.xy, batch.mask, rounds=1, refine_intrinsics=True, **kwargs
+        )
         history.append(h_last.rigs)
-        per_round = jax.tree_util.tree_map(lambda *a: jnp.concatenate(a), *history)  # (rounds_total, M, ...)
+        per_round = jax.tree_util.tree_map(
+            lambda *a: jnp.concatenate(a), *history
+        )  # (rounds_total, M, ...)
         errors = jax.vmap(lambda r: rig_errors(r, truth))(per_round)
-        return rig, jnp.mean(errors.rotation_deg, axis=1), 100 * jnp.mean(jnp.abs(errors.focal_rel), axis=1)
+        return (
+            rig,
+            jnp.mean(errors.rotation_deg, axis=1),
+            100 * jnp.mean(jnp.abs(errors.focal_rel), axis=1),
+        )
 
     @jax.jit
     def scores(rig):
@@ -161,7 +191,11 @@ def run_experiment(
     for i, level in enumerate(levels):
         start = perturb_rig(jax.random.fold_in(key_perturb, i), truth, level, center)
         t0 = time.perf_counter()
-        with compiling("the calibration (with its first run)") if i == 0 else contextlib.nullcontext():
+        with (
+            compiling("the calibration (with its first run)")
+            if i == 0
+            else contextlib.nullcontext()
+        ):
             refined, rotation_rounds, focal_rounds = jax.block_until_ready(run(start))
         first = time.perf_counter() - t0
         times = []
@@ -175,9 +209,15 @@ def run_experiment(
         rows.append(
             dict(
                 level=level,
-                rotation_deg=(float(jnp.mean(before.rotation_deg)), float(jnp.mean(after.rotation_deg))),
+                rotation_deg=(
+                    float(jnp.mean(before.rotation_deg)),
+                    float(jnp.mean(after.rotation_deg)),
+                ),
                 center=(float(jnp.mean(before.center)), float(jnp.mean(after.center))),
-                focal_pct=(100 * float(jnp.mean(jnp.abs(before.focal_rel))), 100 * float(jnp.mean(jnp.abs(after.focal_rel)))),
+                focal_pct=(
+                    100 * float(jnp.mean(jnp.abs(before.focal_rel))),
+                    100 * float(jnp.mean(jnp.abs(after.focal_rel))),
+                ),
                 bpe=(float(bpe_before), float(bpe_after)),
                 pg_f1=(float(pg_before), float(pg_after)),
                 pg_f1_truth=pg_f1_truth,

@@ -154,7 +154,9 @@ class _SchurDampedNewton(optx.AbstractDescent):
         cam, points = y
         C, N = cam.shape[0], points.shape[0] * points.shape[1]
         zeros = functools.partial(jnp.zeros, dtype=cam.dtype)
-        return _SchurState(zeros((C, C)), zeros((N, C, 3)), zeros((N, 3, 3)), zeros((C,)), zeros(points.shape))
+        return _SchurState(
+            zeros((C, C)), zeros((N, C, 3)), zeros((N, 3, 3)), zeros((C,)), zeros(points.shape)
+        )
 
     def query(self, y, f_info, state):
         del state
@@ -162,7 +164,9 @@ class _SchurDampedNewton(optx.AbstractDescent):
         C, N = cam.shape[0], points.shape[0] * points.shape[1]
         mv = f_info.jac.mv
         J_c = jax.vmap(lambda e: mv((e, jnp.zeros_like(points))))(jnp.eye(C, dtype=cam.dtype))
-        J_p = jax.vmap(lambda e: mv((jnp.zeros_like(cam), jnp.broadcast_to(e, points.shape))))(jnp.eye(3, dtype=cam.dtype))
+        J_p = jax.vmap(lambda e: mv((jnp.zeros_like(cam), jnp.broadcast_to(e, points.shape))))(
+            jnp.eye(3, dtype=cam.dtype)
+        )
         J_c, J_p = J_c.reshape(C, N, -1), J_p.reshape(3, N, -1)  # (C | 3, N, 2M)
         r = f_info.residual.reshape(N, -1)
         return _SchurState(
@@ -207,7 +211,9 @@ def _select_groups(rig, xy, groups, valid, max_groups):
 
 def _check_options(M, max_groups, loss, refine_intrinsics, refine_principal, refine_skew):
     if M < 2:
-        raise ValueError(f"refinement needs at least 2 views (the gauge uses cameras 0 and 1); got M={M}")
+        raise ValueError(
+            f"refinement needs at least 2 views (the gauge uses cameras 0 and 1); got M={M}"
+        )
     if not isinstance(max_groups, int) or max_groups < 1:
         raise ValueError(f"max_groups must be a Python int >= 1; got {max_groups!r}")
     if loss not in _LOSSES:
@@ -264,7 +270,9 @@ def refine_rig(
         The refined :class:`Rig` and a :class:`RefineInfo`. Jit with these options static;
         ``jax.vmap`` over rigs (``in_axes=(0, None, None, None)``) works.
     """
-    expect_args("refine_rig", rig=(rig, Rig), xy=(xy, ARRAY), groups=(groups, ARRAY), valid=(valid, ARRAY))
+    expect_args(
+        "refine_rig", rig=(rig, Rig), xy=(xy, ARRAY), groups=(groups, ARRAY), valid=(valid, ARRAY)
+    )
     _check_xy(rig, xy)
     S, M = xy.shape[0], xy.shape[1]
     if groups.ndim != 3 or groups.shape[0] != S or groups.shape[2] != M:
@@ -287,18 +295,38 @@ def refine_rig(
     )
 
 
-_STATIC = ("max_groups", "refine_intrinsics", "refine_principal", "refine_skew", "loss", "max_steps")
+_STATIC = (
+    "max_groups",
+    "refine_intrinsics",
+    "refine_principal",
+    "refine_skew",
+    "loss",
+    "max_steps",
+)
 
 
 # Jitted here so that eager calls compile once; under an outer jit or vmap it is inlined.
 @functools.partial(jax.jit, static_argnames=_STATIC)
 def _refine_rig(
-    rig, xy, groups, valid, scale_px, *, max_groups, refine_intrinsics, refine_principal, refine_skew, loss, max_steps
+    rig,
+    xy,
+    groups,
+    valid,
+    scale_px,
+    *,
+    max_groups,
+    refine_intrinsics,
+    refine_principal,
+    refine_skew,
+    loss,
+    max_steps,
 ):
     M = rig.K.shape[-3]
     dtype = xy.dtype
     select = functools.partial(_select_groups, max_groups=min(max_groups, groups.shape[1]))
-    xy_g, member, X0 = jax.vmap(select, in_axes=(None, 0, 0, 0))(rig, xy, groups, valid)  # (S, K, ...)
+    xy_g, member, X0 = jax.vmap(select, in_axes=(None, 0, 0, 0))(
+        rig, xy, groups, valid
+    )  # (S, K, ...)
 
     start = _start(rig)
     zeros = functools.partial(jnp.zeros, dtype=dtype)
@@ -331,7 +359,9 @@ def _refine_rig(
     # Steps shrink quadratically near the optimum, so stopping once a step is below
     # sqrt(eps) (relative to the unknowns and the residuals) leaves the answer near eps.
     tol = float(jnp.finfo(dtype).eps) ** 0.5
-    solver = eqx.tree_at(lambda s: s.descent, optx.LevenbergMarquardt(rtol=tol, atol=tol), _SchurDampedNewton())
+    solver = eqx.tree_at(
+        lambda s: s.descent, optx.LevenbergMarquardt(rtol=tol, atol=tol), _SchurDampedNewton()
+    )
     sol = optx.least_squares(residuals, solver, y0, max_steps=max_steps, throw=False)
 
     finite = jnp.all(jnp.isfinite(sol.value[0])) & jnp.all(jnp.isfinite(sol.value[1]))

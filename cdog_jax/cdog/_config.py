@@ -48,7 +48,10 @@ class Range(NamedTuple):
         return np.asarray(np.isfinite(value) & above & below)
 
     def describe(self) -> str:
-        lo, hi = "(" if self.low_open else "[", ")" if self.high_open or self.high == float("inf") else "]"
+        lo, hi = (
+            "(" if self.low_open else "[",
+            ")" if self.high_open or self.high == float("inf") else "]",
+        )
         return f"finite and in {lo}{self.low:g}, {self.high:g}{hi}"
 
 
@@ -103,13 +106,19 @@ class Numbers(tuple):
 
 def check_number(value, name: str, where: str, allowed: Range) -> None:
     """Raise unless ``value`` is a real number in ``allowed``; names ``where.name``."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{where}.{name} must be a real number; got {type(value).__name__} {value!r}")
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+        value, (int, float, np.integer, np.floating)
+    ):
+        raise TypeError(
+            f"{where}.{name} must be a real number; got {type(value).__name__} {value!r}"
+        )
     if not allowed.ok(value):
         raise ValueError(f"{where}.{name} must be {allowed.describe()}; got {value!r}")
 
 
-def tau_px(th, sigma_px: Float[Array, ""], fitted_px: Float[Array, ""] | None = None) -> Float[Array, ""]:
+def tau_px(
+    th, sigma_px: Float[Array, ""], fitted_px: Float[Array, ""] | None = None
+) -> Float[Array, ""]:
     """Epipolar gate ``τ = max(alpha_tau · √2 · σ, tau_min)`` in pixels (docs/ALGORITHM.md §1–2);
     ``th`` holds ``alpha_tau`` and ``tau_min_px``. With ``fitted_px`` (the fitted quantile of
     the true-pair distance, NaN when there is none) ``τ = max(fitted_px, tau_min)`` where it
@@ -132,7 +141,13 @@ def thresholds_in_pixels(th, focal_px: Float[Array, ""], units: dict[str, str]):
     length, pixels); ``units`` maps a field to ``"px"``, ``"px2"`` or anything else (kept)."""
     scale = focal_px / REFERENCE_FOCAL_PX
     power = {"px": 1, "px2": 2}
-    return th._replace(**{name: getattr(th, name) * scale ** power[unit] for name, unit in units.items() if unit in power})
+    return th._replace(
+        **{
+            name: getattr(th, name) * scale ** power[unit]
+            for name, unit in units.items()
+            if unit in power
+        }
+    )
 
 
 def gauss_coverage(alpha_tau: Float[Array, ""]) -> Float[Array, ""]:

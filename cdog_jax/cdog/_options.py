@@ -19,8 +19,8 @@ from typing import Literal, NamedTuple
 import jax
 import numpy as np
 
-from ._config import AtLeast, Number, Numbers, Range, Switch, check_number
 from .._types import Array, Float
+from ._config import AtLeast, Number, Numbers, Range, Switch, check_number
 
 STRUCTURAL, NUMERIC = "structural", "numeric"
 
@@ -82,7 +82,9 @@ def _structural(name: str, owner: str, hint, default) -> OptionSpec:
         low = next(m.low for m in typing.get_args(hint)[1:] if isinstance(m, AtLeast))
         check, described, hint = _check_positive_int(name, low), f"int >= {low}", int
     else:
-        raise TypeError(f"stage {owner!r}: option {name} has type {hint!r}; use a Literal, bool or int (or a Number)")
+        raise TypeError(
+            f"stage {owner!r}: option {name} has type {hint!r}; use a Literal, bool or int (or a Number)"
+        )
     check(default, f"stage {owner!r} default")
     return OptionSpec(name, owner, default, STRUCTURAL, hint, check, described)
 
@@ -90,20 +92,44 @@ def _structural(name: str, owner: str, hint, default) -> OptionSpec:
 def _numeric(number: Number, owner: str) -> OptionSpec:
     check = _check_range(number.name, number.range)
     check(number.default, f"stage {owner!r} default")
-    return OptionSpec(number.name, owner, number.default, NUMERIC, float, check, number.doc, number.range, number.unit)
+    return OptionSpec(
+        number.name,
+        owner,
+        number.default,
+        NUMERIC,
+        float,
+        check,
+        number.doc,
+        number.range,
+        number.unit,
+    )
 
 
 def _declared(group) -> list[OptionSpec]:
     specs = []
     when = getattr(group, "when", None)
     if isinstance(when, Switch):
-        specs.append(OptionSpec(when.name, group.name, when.default, STRUCTURAL, bool, _check_bool(when.name), f"bool. {when.doc}".strip(" .")))
+        specs.append(
+            OptionSpec(
+                when.name,
+                group.name,
+                when.default,
+                STRUCTURAL,
+                bool,
+                _check_bool(when.name),
+                f"bool. {when.doc}".strip(" ."),
+            )
+        )
     if group.options is not None and getattr(group, "options_from", None) is None:
         hints = typing.get_type_hints(group.options, include_extras=True)
         for name in group.options._fields:
             if name not in group.options._field_defaults:
-                raise TypeError(f"stage {group.name!r}: option {name} of {group.options.__name__} needs a default")
-            specs.append(_structural(name, group.name, hints[name], group.options._field_defaults[name]))
+                raise TypeError(
+                    f"stage {group.name!r}: option {name} of {group.options.__name__} needs a default"
+                )
+            specs.append(
+                _structural(name, group.name, hints[name], group.options._field_defaults[name])
+            )
     specs.extend(_numeric(number, group.name) for number in group.numbers)
     return specs
 
@@ -120,14 +146,26 @@ def declared_options(groups) -> dict[str, OptionSpec]:
             if spec.name not in found:
                 found[spec.name], declarer[spec.name] = spec, declaration
             elif declarer[spec.name] != declaration:
-                raise TypeError(f"option {spec.name!r} is declared twice: by stage {found[spec.name].owner!r} and by stage {spec.owner!r}")
-    ordered = [s for s in found.values() if s.kind == STRUCTURAL] + [s for s in found.values() if s.kind == NUMERIC]
+                raise TypeError(
+                    f"option {spec.name!r} is declared twice: by stage {found[spec.name].owner!r} and by stage {spec.owner!r}"
+                )
+    ordered = [s for s in found.values() if s.kind == STRUCTURAL] + [
+        s for s in found.values() if s.kind == NUMERIC
+    ]
     return {spec.name: spec for spec in ordered}
 
 
-SIGMA = OptionSpec("sigma_px", "scene", 0.0, NUMERIC, float, _check_range("sigma_px", Range()),
-                   "2D noise std (pixels); set per scene, ignored when σ is estimated (sigma_mode 'auto' or 'robust')",
-                   Range(), "px")
+SIGMA = OptionSpec(
+    "sigma_px",
+    "scene",
+    0.0,
+    NUMERIC,
+    float,
+    _check_range("sigma_px", Range()),
+    "2D noise std (pixels); set per scene, ignored when σ is estimated (sigma_mode 'auto' or 'robust')",
+    Range(),
+    "px",
+)
 
 
 def thresholds_type(specs: dict[str, OptionSpec], module: str, name: str = "Thresholds") -> type:
@@ -152,25 +190,36 @@ def units(specs: dict[str, OptionSpec]) -> dict[str, str]:
 
 def ranges(specs: dict[str, OptionSpec]) -> dict[str, Range]:
     """The allowed range of every number (``sigma_px`` included)."""
-    return {SIGMA.name: SIGMA.range, **{s.name: s.range for s in specs.values() if s.kind == NUMERIC}}
+    return {
+        SIGMA.name: SIGMA.range,
+        **{s.name: s.range for s in specs.values() if s.kind == NUMERIC},
+    }
 
 
-def check_thresholds(th, kind: type, allowed: dict[str, Range], *, skip: tuple[str, ...] = ("sigma_px",)) -> None:
+def check_thresholds(
+    th, kind: type, allowed: dict[str, Range], *, skip: tuple[str, ...] = ("sigma_px",)
+) -> None:
     """Raise if a concrete value of ``th`` (scalars or arrays) is outside its range; names
     the field, the value and, for arrays, the index. Traced values are not checked."""
     if not isinstance(th, kind):
-        raise TypeError(f"thresholds must be a {kind.__name__} (from Config.thresholds()); got {type(th).__name__}")
+        raise TypeError(
+            f"thresholds must be a {kind.__name__} (from Config.thresholds()); got {type(th).__name__}"
+        )
     for name, value in zip(th._fields, th):
         if name in skip or isinstance(value, jax.core.Tracer):
             continue
         host = np.asarray(value)
-        if host.dtype == np.bool_ or not (np.issubdtype(host.dtype, np.floating) or np.issubdtype(host.dtype, np.integer)):
+        if host.dtype == np.bool_ or not (
+            np.issubdtype(host.dtype, np.floating) or np.issubdtype(host.dtype, np.integer)
+        ):
             raise TypeError(f"thresholds.{name} must be real numbers; got dtype {host.dtype}")
         ok = allowed[name].ok(host)
         if not ok.all():
             where = tuple(int(i) for i in np.argwhere(~ok)[0])
             at = f" at index {where}" if where else ""
-            raise ValueError(f"thresholds.{name} must be {allowed[name].describe()}; got {host[where].item()!r}{at}")
+            raise ValueError(
+                f"thresholds.{name} must be {allowed[name].describe()}; got {host[where].item()!r}{at}"
+            )
 
 
 def describe(specs: dict[str, OptionSpec], groups) -> str:
@@ -182,7 +231,11 @@ def describe(specs: dict[str, OptionSpec], groups) -> str:
         if not own:
             continue
         declares = group.options is not None and getattr(group, "options_from", None) is None
-        summary = " ".join((group.options.__doc__ or "").split()).split(". ")[0].rstrip(".") if declares else ""
+        summary = (
+            " ".join((group.options.__doc__ or "").split()).split(". ")[0].rstrip(".")
+            if declares
+            else ""
+        )
         lines.append(f"    {group.name}: {summary}" if summary else f"    {group.name}:")
         for s in own:
             kind = "traced" if s.kind == NUMERIC else "static"

@@ -15,16 +15,13 @@ from __future__ import annotations
 import dataclasses
 from typing import ClassVar, NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
-import jax
 
-from ._config import Number, Numbers, OptionGroup, SigmaMode, Switch, TauMode, ThresholdUnit, gauss_coverage, tau_px, thresholds_in_pixels
 from .._expect import expect_args
 from .._method import Method, Observations, register_method
-from ._options import NUMERIC, check_thresholds, declared_options, describe, ranges, thresholds_type, units
 from .._result import Association, association_from_groups
-from ._stage import GroupTable, Scene, Stage, State, raise_flag
 from .._status import Status
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
@@ -46,7 +43,28 @@ from ..refine._second_association import SECOND_ASSOCIATION
 from ..refine._seed import SEED
 from ..refine._support import SUPPORT
 from ..refine._validity import VALIDITY
-
+from ._config import (
+    Number,
+    Numbers,
+    OptionGroup,
+    SigmaMode,
+    Switch,
+    TauMode,
+    ThresholdUnit,
+    gauss_coverage,
+    tau_px,
+    thresholds_in_pixels,
+)
+from ._options import (
+    NUMERIC,
+    check_thresholds,
+    declared_options,
+    describe,
+    ranges,
+    thresholds_type,
+    units,
+)
+from ._stage import GroupTable, Scene, Stage, State, raise_flag
 
 # --------------------------------------------------------------------------- the stages
 
@@ -74,12 +92,16 @@ def _merge_groups(a: GroupTable, b: GroupTable) -> GroupTable:
 def regroup_stage(scene: Scene, state: State, options: RegroupOptions) -> State:
     """Alg. 1–3 again on the detections in no valid group; the new groups join the table."""
     left = leftover_nodes(*state.table, scene.mask)
-    again = run_plan(options.plan, scene._replace(node_valid=left), state._replace(status=jnp.int32(0)))
+    again = run_plan(
+        options.plan, scene._replace(node_valid=left), state._replace(status=jnp.int32(0))
+    )
     return State(_merge_groups(state.table, again.table), None, state.status | again.status)
 
 
 REGROUP = Stage(
-    "regroup", regroup_stage, RegroupOptions,
+    "regroup",
+    regroup_stage,
+    RegroupOptions,
     Switch("regroup", False, "run Alg. 1–3 again on what is left (beyond the paper)"),
     options_from=lambda config: RegroupOptions(plan(config, ASSOCIATION)),
 )
@@ -97,7 +119,9 @@ STAGES: tuple[Stage, ...] = (
     REASSIGN,
     SEED._replace(name="seed_again", when=lambda config: config.seed and config.reassign),
     FIT._replace(name="refit", when=_REFIT_WHEN),
-    SUPPORT._replace(name="support_again", when=lambda config: config.support_filter and _REFIT_WHEN(config)),
+    SUPPORT._replace(
+        name="support_again", when=lambda config: config.support_filter and _REFIT_WHEN(config)
+    ),
     AMBIGUITY,
     REFINE,
     VALIDITY,
@@ -122,7 +146,8 @@ class SceneOptions(NamedTuple):
 
 
 SCENE = OptionGroup(
-    "scene", SceneOptions,
+    "scene",
+    SceneOptions,
     numbers=(
         Number("alpha_tau", 2.0, doc="gate τ = max(alpha_tau · √2 · σ, tau_min_px)"),
         Number("tau_min_px", 1.0, doc="the gate's lower bound (pixels)", unit="px"),
@@ -131,7 +156,7 @@ SCENE = OptionGroup(
 """The options :func:`associate_traced` reads itself, before the stages."""
 
 
-def stage_options(stage: Stage, config: "Config"):
+def stage_options(stage: Stage, config: Config):
     """The stage's own options, read from ``config`` by name (``None`` for a stage without
     any; made by ``stage.options_from`` when it has one)."""
     if stage.options_from is not None:
@@ -141,7 +166,9 @@ def stage_options(stage: Stage, config: "Config"):
     return stage.options(**{name: getattr(config, name) for name in stage.options._fields})
 
 
-def plan(config: "Config", stages: tuple[Stage, ...] | None = None) -> tuple[tuple[Stage, object], ...]:
+def plan(
+    config: Config, stages: tuple[Stage, ...] | None = None
+) -> tuple[tuple[Stage, object], ...]:
     """The stages of ``stages`` (default: the config's own, :data:`STAGES`) that run under
     ``config``, each with its options (static)."""
     stages = type(config).stages if stages is None else stages
@@ -193,7 +220,9 @@ class _StageStep(NamedTuple):
 
     def __call__(self, scene: Scene, machine: _Machine) -> _Machine:
         out = self.run(scene._replace(node_valid=machine.node_valid), machine.state, self.options)
-        return machine._replace(state=out._replace(fit=machine.state.fit if out.fit is None else out.fit))
+        return machine._replace(
+            state=out._replace(fit=machine.state.fit if out.fit is None else out.fit)
+        )
 
 
 def _set_aside(scene: Scene, machine: _Machine) -> _Machine:
@@ -218,7 +247,9 @@ def _flat_steps(steps) -> list:
         if stage.run is regroup_stage:
             inner = _flat_steps(options.plan)
             if _set_aside in inner:
-                raise ValueError(f"stage {stage.name!r}: regrouping inside regrouping is not supported")
+                raise ValueError(
+                    f"stage {stage.name!r}: regrouping inside regrouping is not supported"
+                )
             flat += [_set_aside, *inner, _merge_aside]
         else:
             flat.append(_StageStep(stage.run, options))
@@ -227,7 +258,9 @@ def _flat_steps(steps) -> list:
 
 def _split_at_last_fit(steps) -> tuple[tuple, tuple]:
     """The plan before its last fit stage, and from it on."""
-    last_fit = max((i for i, (stage, _) in enumerate(steps) if stage.run is FIT.run), default=len(steps))
+    last_fit = max(
+        (i for i, (stage, _) in enumerate(steps) if stage.run is FIT.run), default=len(steps)
+    )
     return tuple(steps[:last_fit]), tuple(steps[last_fit:])
 
 
@@ -245,10 +278,14 @@ def run_plan_shared(steps, scene: Scene, state: State) -> State:
     which = np.asarray([distinct.index(step) for step in flat], np.int32)
     fit = state.fit
     if fit is None:  # a fit of the right shapes, never read before a fit stage replaces it
-        fit = jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype), jax.eval_shape(fit_groups, scene, state.table))
+        fit = jax.tree.map(
+            lambda a: jnp.zeros(a.shape, a.dtype), jax.eval_shape(fit_groups, scene, state.table)
+        )
     machine = _Machine(state._replace(fit=fit), scene.node_valid, (state.table, state.status))
     branches = [lambda m, step=step: step(scene, m) for step in distinct]
-    machine = jax.lax.fori_loop(0, len(flat), lambda k, m: jax.lax.switch(jnp.asarray(which)[k], branches, m), machine)
+    machine = jax.lax.fori_loop(
+        0, len(flat), lambda k, m: jax.lax.switch(jnp.asarray(which)[k], branches, m), machine
+    )
     return machine.state
 
 
@@ -277,16 +314,28 @@ def associate_traced(
             do not read them. ``None``: one class.
     """
     kind = type(config).numbers_type if isinstance(config, Config) else Thresholds
-    expect_args("associate_traced", rig=(rig, Rig), thresholds=(thresholds, kind), config=(config, Config))
+    expect_args(
+        "associate_traced", rig=(rig, Rig), thresholds=(thresholds, kind), config=(config, Config)
+    )
     scene, fallback = scene_tables(rig, xy, mask, thresholds, config, classes=classes)
     M, P = mask.shape
     G = max(M * P // 2, 1)
     empty = GroupTable(jnp.full((G, M), -1, jnp.int32), jnp.zeros((G,), bool))
-    state = run_plan(plan(config), scene, State(empty, None, raise_flag(fallback, Status.SIGMA_FALLBACK)))
+    state = run_plan(
+        plan(config), scene, State(empty, None, raise_flag(fallback, Status.SIGMA_FALLBACK))
+    )
     fit = state.fit
     return association_from_groups(
-        state.table.groups, state.table.valid, fit.member, fit.X, fit.bpe, fit.err_px, P,
-        jnp.asarray(scene.sigma, xy.dtype), jnp.asarray(scene.tau, xy.dtype), state.status,
+        state.table.groups,
+        state.table.valid,
+        fit.member,
+        fit.X,
+        fit.bpe,
+        fit.err_px,
+        P,
+        jnp.asarray(scene.sigma, xy.dtype),
+        jnp.asarray(scene.tau, xy.dtype),
+        state.status,
     )
 
 
@@ -314,7 +363,9 @@ def scene_tables(
     if config.sigma_mode == "auto":
         sigma, fallback = estimate_sigma(d, mask, focal_scale(rig.K))
     elif config.sigma_mode == "robust":
-        sigma, fitted, fallback = estimate_noise(d, mask, focal_scale(rig.K), gauss_coverage(th.alpha_tau))
+        sigma, fitted, fallback = estimate_noise(
+            d, mask, focal_scale(rig.K), gauss_coverage(th.alpha_tau)
+        )
     else:
         sigma, fallback = th.sigma_px, jnp.asarray(False)
     tau = tau_px(th, sigma, fitted if config.tau_mode == "fitted" else None)
@@ -338,15 +389,17 @@ class ConfigMethods(Method):
         for name, spec in type(self).options.items():
             spec.check(getattr(self, name), type(self).__name__)
         if self.tau_mode == "fitted" and self.sigma_mode == "auto":
-            raise ValueError(f"{type(self).__name__}.tau_mode='fitted' reads the robust fit: it needs sigma_mode='robust' (or 'given'); got sigma_mode='auto'")
+            raise ValueError(
+                f"{type(self).__name__}.tau_mode='fitted' reads the robust fit: it needs sigma_mode='robust' (or 'given'); got sigma_mode='auto'"
+            )
 
     @classmethod
-    def paper(cls, **overrides) -> "Config":
+    def paper(cls, **overrides) -> Config:
         """The paper's C-DOG (Alg. 1–3 and §IV-E) with noise-matched τ."""
         return cls(**overrides)
 
     @classmethod
-    def extended(cls, **overrides) -> "Config":
+    def extended(cls, **overrides) -> Config:
         """Beyond the paper: union adjacency, then leftover detections are attached to groups
         by reprojection (``recover``) and what is still left is associated again
         (``regroup``). Recovers most points the paper's pruning loses (2-view points above all)."""
@@ -355,7 +408,7 @@ class ConfigMethods(Method):
         return cls(**base)
 
     @classmethod
-    def best(cls, **overrides) -> "Config":
+    def best(cls, **overrides) -> Config:
         """Our most accurate C-DOG, the default: :meth:`extended`, then groups seeded from
         two-view hypotheses on what is still left (``seed``; a pair whose point another
         view sees with no detection near is refused), rounds of nearest-point
@@ -366,14 +419,22 @@ class ConfigMethods(Method):
         (``support_filter`` at 1.5 τ, ``support_alpha`` 0.07) and each group of ≥ 3 detaches
         a member that another detection fits as well (``detach_ambiguous``; §8d, §8h)."""
         base = dict(
-            adjacency="union", recover=True, recover_frac=2.0, regroup=True, seed=True, reassign=True,
-            support_filter=True, support_frac=1.5, support_alpha=0.07, detach_ambiguous=True,
+            adjacency="union",
+            recover=True,
+            recover_frac=2.0,
+            regroup=True,
+            seed=True,
+            reassign=True,
+            support_filter=True,
+            support_frac=1.5,
+            support_alpha=0.07,
+            detach_ambiguous=True,
         )
         base.update(overrides)
         return cls(**base)
 
     @classmethod
-    def reference(cls, **overrides) -> "Config":
+    def reference(cls, **overrides) -> Config:
         """The original public code's choices (docs/BENCHMARK.md §5): fixed τ = 10 px, δ-pruning only of
         view-conflicting components, IQR α = 1.5 on positive scores with own errors and the
         10/50 px guards, no BPE filter, then the second association."""
@@ -393,11 +454,11 @@ class ConfigMethods(Method):
         base.update(overrides)
         return cls(**base)
 
-    def replace(self, **changes) -> "Config":
+    def replace(self, **changes) -> Config:
         """A copy with ``changes`` applied; checked like a new Config."""
         return dataclasses.replace(self, **changes)
 
-    def thresholds(self, sigma_px=0.0, *, dtype=None) -> "Thresholds":
+    def thresholds(self, sigma_px=0.0, *, dtype=None) -> Thresholds:
         """The numeric fields (and σ) as a :class:`Thresholds` of scalar arrays.
 
         NumPy scalars (cheap to pass to a jitted function), except that a JAX ``sigma_px``
@@ -405,14 +466,20 @@ class ConfigMethods(Method):
         """
         dtype = np.dtype(jax.dtypes.canonicalize_dtype(dtype or jnp.float32))
         values = {name: np.asarray(getattr(self, name), dtype) for name in _numbers(type(self))}
-        sigma = jnp.asarray(sigma_px, dtype) if isinstance(sigma_px, jax.Array) else np.asarray(sigma_px, dtype)
+        sigma = (
+            jnp.asarray(sigma_px, dtype)
+            if isinstance(sigma_px, jax.Array)
+            else np.asarray(sigma_px, dtype)
+        )
         return type(self).numbers_type(sigma_px=sigma, **values)
 
-    def structure(self) -> "Config":
+    def structure(self) -> Config:
         """This config with its numeric fields reset to the defaults: the part a jit key needs."""
-        return dataclasses.replace(self, **{name: type(self).options[name].default for name in _numbers(type(self))})
+        return dataclasses.replace(
+            self, **{name: type(self).options[name].default for name in _numbers(type(self))}
+        )
 
-    def check_thresholds(self, thresholds: "Thresholds") -> None:
+    def check_thresholds(self, thresholds: Thresholds) -> None:
         """Raise for a concrete threshold outside its range (:data:`RANGES`)."""
         check_thresholds(thresholds, type(self).numbers_type, type(self).ranges)
 
@@ -465,14 +532,18 @@ paper), :meth:`best` (the most accurate; the default method of ``associate``) an
 """
 
 
-def make_config(stages: tuple[Stage, ...], *, name: str = "Config", base: type = ConfigMethods) -> type:
+def make_config(
+    stages: tuple[Stage, ...], *, name: str = "Config", base: type = ConfigMethods
+) -> type:
     """The frozen, hashable dataclass of C-DOG run as ``stages``: one field per option the
     stages (and :data:`SCENE`) declare, with its default and its check, and the
     ``Thresholds`` type of its numbers. :class:`Config` is ``make_config(STAGES)``; a
     variant with one more stage is ``make_config(stages, base=Config)``."""
     groups = (SCENE, *stages)
     options = declared_options(groups)
-    fields = [(n, spec.type, dataclasses.field(default=spec.default)) for n, spec in options.items()]
+    fields = [
+        (n, spec.type, dataclasses.field(default=spec.default)) for n, spec in options.items()
+    ]
     namespace = {
         "__module__": __name__,
         "__qualname__": name,

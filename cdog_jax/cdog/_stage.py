@@ -19,10 +19,10 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from ._config import Number, Numbers
 from .._status import Status
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
+from ._config import Number, Numbers
 
 
 class Scene(NamedTuple):
@@ -52,7 +52,7 @@ class GroupTable(NamedTuple):
     groups: Int[Array, "G M"]
     valid: Bool[Array, " G"]
 
-    def keep(self, valid: Bool[Array, " G"]) -> "GroupTable":
+    def keep(self, valid: Bool[Array, " G"]) -> GroupTable:
         """Only the groups of ``valid`` (a subset of ``self.valid``), their rows cleared."""
         return GroupTable(jnp.where(valid[:, None], self.groups, -1), valid)
 
@@ -76,7 +76,7 @@ class State(NamedTuple):
     fit: Fit | None
     status: Int[Array, ""]
 
-    def flag(self, condition: Bool[Array, ""], flag: Status) -> "State":
+    def flag(self, condition: Bool[Array, ""], flag: Status) -> State:
         """This state with ``flag`` raised where ``condition`` holds."""
         return self._replace(status=self.status | raise_flag(condition, flag))
 

@@ -29,12 +29,18 @@ import time
 
 import numpy as np
 
-from ._common import _FIGURE_EXTENSIONS, _emit, add_method_argument, _positive_int, check_sigma_fits, int_at_least
-from ._paths import check_distinct, check_input, check_output, input_files
-from ._paths import write_output as _write
 from ..io._errors import InputError
 from ..io._keypoints import SKELETONS
 from ..io._rig_files import FORMATS
+from ._common import (
+    _FIGURE_EXTENSIONS,
+    _emit,
+    _positive_int,
+    add_method_argument,
+    check_sigma_fits,
+    int_at_least,
+)
+from ._paths import check_distinct, check_input, check_output, input_files, write_output as _write
 
 _POINT_FORMATS = ("auto", "detections", "openpose", "table")
 _OUT_FORMATS = (".json", ".npz", ".csv", ".trc")
@@ -47,9 +53,13 @@ def _sigma(text: str) -> float | str:
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f'must be a number of pixels >= 0, "auto" or "robust"; got {text!r}') from None
+        raise argparse.ArgumentTypeError(
+            f'must be a number of pixels >= 0, "auto" or "robust"; got {text!r}'
+        ) from None
     if not (value >= 0.0 and math.isfinite(value)):
-        raise argparse.ArgumentTypeError(f'must be a finite number of pixels >= 0, "auto" or "robust"; got {text!r}')
+        raise argparse.ArgumentTypeError(
+            f'must be a finite number of pixels >= 0, "auto" or "robust"; got {text!r}'
+        )
     return value
 
 
@@ -68,7 +78,9 @@ def _positive_float(text: str) -> float:
 
 def _units(text: str) -> str:
     if not text or any(c.isspace() for c in text):
-        raise argparse.ArgumentTypeError(f"must be a unit's name without spaces, such as m or mm; got {text!r}")
+        raise argparse.ArgumentTypeError(
+            f"must be a unit's name without spaces, such as m or mm; got {text!r}"
+        )
     return text
 
 
@@ -102,7 +114,12 @@ def add_parsers(subparsers) -> None:
         description=_ASSOCIATE_DESCRIPTION,
     )
     p.add_argument("--rig", required=True, help="rig file or folder")
-    p.add_argument("--rig-format", default="auto", choices=("auto", *FORMATS), help="rig format (default: from the path)")
+    p.add_argument(
+        "--rig-format",
+        default="auto",
+        choices=("auto", *FORMATS),
+        help="rig format (default: from the path)",
+    )
     p.add_argument(
         "--points",
         required=True,
@@ -118,7 +135,9 @@ def add_parsers(subparsers) -> None:
     p.add_argument(
         "--keypoints",
         default=None,
-        help="names of the OpenPose keypoint types: " + ", ".join(SKELETONS) + " (default: ids only)",
+        help="names of the OpenPose keypoint types: "
+        + ", ".join(SKELETONS)
+        + " (default: ids only)",
     )
     p.add_argument(
         "--sigma",
@@ -128,7 +147,12 @@ def add_parsers(subparsers) -> None:
         "estimates it allowing heavy tails (keypoint detectors, where far-off detections are common)",
     )
     add_method_argument(p)
-    p.add_argument("--min-views", type=_min_views, default=2, help="report only groups seen in at least K views (default 2)")
+    p.add_argument(
+        "--min-views",
+        type=_min_views,
+        default=2,
+        help="report only groups seen in at least K views (default 2)",
+    )
     p.add_argument(
         "--confidence-weights",
         action="store_true",
@@ -140,7 +164,12 @@ def add_parsers(subparsers) -> None:
         help="keypoints with a per-view person index (OpenPose, or a table's instance column): make each frame's "
         "joint groups consistent with the people (a person-level vote, then re-association of the joints that disagree)",
     )
-    p.add_argument("--capacity", type=_positive_int, default=None, help="slots per view (default: the largest view); refuse if exceeded")
+    p.add_argument(
+        "--capacity",
+        type=_positive_int,
+        default=None,
+        help="slots per view (default: the largest view); refuse if exceeded",
+    )
     p.add_argument(
         "--out",
         default=None,
@@ -148,11 +177,32 @@ def add_parsers(subparsers) -> None:
         "trajectories for OpenSim/Pose2Sim: one file per person, <stem>_person<id>.trc, with per-view people; else one "
         "marker per track); with per-view people every group carries its person id",
     )
-    p.add_argument("--fps", type=_positive_float, default=30.0, help="frame rate written in a .trc file (default 30)")
-    p.add_argument("--units", type=_units, default="m", help="the rig's length unit, written in a .trc file (default m)")
-    p.add_argument("--z-up", action="store_true", help="the world's up axis is Z: write a .trc file with Y up, as OpenSim expects")
-    p.add_argument("--plot", default=None, help="figure of the first frame's groups (.png, .pdf, .svg, .jpg)")
-    p.add_argument("--batch-size", type=_positive_int, default=16, help="frames associated at once (memory bound)")
+    p.add_argument(
+        "--fps",
+        type=_positive_float,
+        default=30.0,
+        help="frame rate written in a .trc file (default 30)",
+    )
+    p.add_argument(
+        "--units",
+        type=_units,
+        default="m",
+        help="the rig's length unit, written in a .trc file (default m)",
+    )
+    p.add_argument(
+        "--z-up",
+        action="store_true",
+        help="the world's up axis is Z: write a .trc file with Y up, as OpenSim expects",
+    )
+    p.add_argument(
+        "--plot", default=None, help="figure of the first frame's groups (.png, .pdf, .svg, .jpg)"
+    )
+    p.add_argument(
+        "--batch-size",
+        type=_positive_int,
+        default=16,
+        help="frames associated at once (memory bound)",
+    )
     p.add_argument(
         "--temporal-prior",
         action="store_true",
@@ -166,11 +216,26 @@ def add_parsers(subparsers) -> None:
     )
     p.set_defaults(func=run_associate)
 
-    r = subparsers.add_parser("rig", help="describe a rig file: centres, directions, baselines, warnings", description=_RIG_DESCRIPTION)
+    r = subparsers.add_parser(
+        "rig",
+        help="describe a rig file: centres, directions, baselines, warnings",
+        description=_RIG_DESCRIPTION,
+    )
     r.add_argument("rig", help="rig file or folder")
-    r.add_argument("--rig-format", default="auto", choices=("auto", *FORMATS), help="rig format (default: from the path)")
-    r.add_argument("--points", default=None, help="detections file: check the cameras look at their triangulated centroid")
-    r.add_argument("--plot", default=None, help="figure of the camera frusta (.png, .pdf, .svg, .jpg)")
+    r.add_argument(
+        "--rig-format",
+        default="auto",
+        choices=("auto", *FORMATS),
+        help="rig format (default: from the path)",
+    )
+    r.add_argument(
+        "--points",
+        default=None,
+        help="detections file: check the cameras look at their triangulated centroid",
+    )
+    r.add_argument(
+        "--plot", default=None, help="figure of the camera frusta (.png, .pdf, .svg, .jpg)"
+    )
     r.set_defaults(func=run_rig)
 
 
@@ -202,8 +267,16 @@ def _associate_frames(call, xy, mask, weights, batch_size: int):
     parts = []
     for start in range(0, F + pad, chunk):
         part = slice(start, start + chunk)
-        with compiling(f"the association of {chunk} frames (with its first run)") if start == 0 else contextlib.nullcontext():
-            parts.append(jax.block_until_ready(call(xy[part], mask[part], None if weights is None else weights[part])))
+        with (
+            compiling(f"the association of {chunk} frames (with its first run)")
+            if start == 0
+            else contextlib.nullcontext()
+        ):
+            parts.append(
+                jax.block_until_ready(
+                    call(xy[part], mask[part], None if weights is None else weights[part])
+                )
+            )
         frames.update(min(chunk, F - start))
     frames.close()
     return jax.tree.map(lambda *a: jnp.concatenate(a)[:F], *parts)
@@ -213,12 +286,26 @@ def _check_paths(args, outputs: dict[str, tuple[str | None, tuple[str, ...]]]) -
     """Inputs exist with the right kind; every output (flag → (path, extensions)) can be
     written, differs from the others and from every input file. Before any reading."""
     folder_formats = ("easyvis", "colmap", "easymocap")
-    kind = "folder" if args.rig_format == "easyvis" else "file" if args.rig_format in ("json", "npz", "anipose") else "any"
+    kind = (
+        "folder"
+        if args.rig_format == "easyvis"
+        else "file"
+        if args.rig_format in ("json", "npz", "anipose")
+        else "any"
+    )
     check_input(args.rig, "--rig", kind=kind)
-    inputs = {"--rig": input_files(args.rig) if args.rig_format in ("auto", *folder_formats) else [args.rig]}
+    inputs = {
+        "--rig": input_files(args.rig)
+        if args.rig_format in ("auto", *folder_formats)
+        else [args.rig]
+    }
     if getattr(args, "points", None):
         fmt = getattr(args, "points_format", "auto")
-        named_file = os.path.splitext(args.points)[1].lower() in (".json", ".npz", ".csv")  # a folder "x.json" is a mistake
+        named_file = os.path.splitext(args.points)[1].lower() in (
+            ".json",
+            ".npz",
+            ".csv",
+        )  # a folder "x.json" is a mistake
         folder_ok = fmt == "openpose" or (fmt == "auto" and not named_file)
         check_input(args.points, "--points", kind="any" if folder_ok else "file")
         inputs["--points"] = _point_files(args.points)
@@ -258,14 +345,22 @@ def _load(args):
     rig_file = load_rig(args.rig, format=args.rig_format)
     detections = None
     if getattr(args, "points", None):
-        checks = dict(num_views=rig_file.rig.num_views, capacity=getattr(args, "capacity", None), image_size=rig_file.image_size)
+        checks = dict(
+            num_views=rig_file.rig.num_views,
+            capacity=getattr(args, "capacity", None),
+            image_size=rig_file.image_size,
+        )
         fmt = _points_format(args.points, getattr(args, "points_format", "auto"))
         keypoints = getattr(args, "keypoints", None)
         if keypoints is not None and fmt != "openpose":
-            raise InputError(f"{args.points}: --keypoints names OpenPose keypoints; the detections are not an OpenPose folder")
+            raise InputError(
+                f"{args.points}: --keypoints names OpenPose keypoints; the detections are not an OpenPose folder"
+            )
         if fmt == "openpose":
             if keypoints is not None and keypoints not in SKELETONS:
-                raise InputError(f"--keypoints: expected one of {', '.join(SKELETONS)}; got {keypoints!r}")
+                raise InputError(
+                    f"--keypoints: expected one of {', '.join(SKELETONS)}; got {keypoints!r}"
+                )
             detections = load_openpose(args.points, keypoints=keypoints, **checks)
         elif fmt == "table":
             detections = load_keypoint_table(args.points, **checks)
@@ -282,7 +377,9 @@ def _image_diagonal(rig_file) -> tuple[float, str]:
         return float(np.max(np.hypot(w, h))), "image size of the rig file"
     K = np.asarray(rig_file.rig.K, np.float64)
     K = K / K[:, 2:3, 2:3]
-    return float(np.max(np.hypot(2 * K[:, 0, 2], 2 * K[:, 1, 2]))), "twice the principal point; the rig file has no image size"
+    return float(
+        np.max(np.hypot(2 * K[:, 0, 2], 2 * K[:, 1, 2]))
+    ), "twice the principal point; the rig file has no image size"
 
 
 def run_associate(args: argparse.Namespace) -> int:
@@ -290,25 +387,45 @@ def run_associate(args: argparse.Namespace) -> int:
     import jax
     import jax.numpy as jnp
 
-    from .. import Status, associate_batch, associate_classes, identify_people, method_from, track_groups
-    from ..graph._sigma import FALLBACK_SIGMA_PX
+    from .. import (
+        Status,
+        associate_batch,
+        associate_classes,
+        identify_people,
+        method_from,
+        track_groups,
+    )
     from ..geometry._distortion import Fisheye
+    from ..graph._sigma import FALLBACK_SIGMA_PX
     from ..io import save_association_csv, save_association_json, save_association_npz
     from ..io._detections_checks import check_float_range
 
-    _check_paths(args, {"--out": (args.out, _OUT_FORMATS), "--plot": (args.plot, _FIGURE_EXTENSIONS)})
+    _check_paths(
+        args, {"--out": (args.out, _OUT_FORMATS), "--plot": (args.plot, _FIGURE_EXTENSIONS)}
+    )
     rig_file, det = _load(args)
     if args.confidence_weights and det.confidence is None:
-        raise InputError(f"{args.points}: --confidence-weights: the file has no confidences (entries [x, y, c])")
+        raise InputError(
+            f"{args.points}: --confidence-weights: the file has no confidences (entries [x, y, c])"
+        )
     if args.person_vote and (det.classes is None or det.instances is None):
-        raise InputError(f"{args.points}: --person-vote: the detections carry no per-view person index "
-                         "(an OpenPose folder, or a table with an instance column)")  # fmt: skip
+        raise InputError(
+            f"{args.points}: --person-vote: the detections carry no per-view person index "
+            "(an OpenPose folder, or a table with an instance column)"
+        )
     rig = rig_file.rig
     dtype = rig.K.dtype
     trc = args.out is not None and os.path.splitext(args.out)[1].lower() == ".trc"
-    if trc and not det.frames and det.mask.shape[0] == 1 and (det.classes is None or det.instances is None):
-        raise InputError(f"{args.out}: --out .trc: marker trajectories need a sequence of frames or per-view people "
-                         "(an OpenPose folder); one scene has neither")  # fmt: skip
+    if (
+        trc
+        and not det.frames
+        and det.mask.shape[0] == 1
+        and (det.classes is None or det.instances is None)
+    ):
+        raise InputError(
+            f"{args.out}: --out .trc: marker trajectories need a sequence of frames or per-view people "
+            "(an OpenPose folder); one scene has neither"
+        )
     check_float_range(det, dtype, args.points)
     if not isinstance(args.sigma, str):
         diagonal, source = _image_diagonal(rig_file)
@@ -319,12 +436,16 @@ def run_associate(args: argparse.Namespace) -> int:
         try:
             method = method.replace(sigma_mode="robust")
         except (TypeError, ValueError) as error:
-            raise InputError(f"--sigma robust: the method {args.method!r} has no robust σ estimator ({error})") from None
+            raise InputError(
+                f"--sigma robust: the method {args.method!r} has no robust σ estimator ({error})"
+            ) from None
         args.sigma = "auto"
     F, M, P = det.mask.shape
     lines = [
-        f"Rig: {args.rig} ({M} views" + (f", {rig_file.image_size[0]}×{rig_file.image_size[1]} px" if rig_file.image_size else "")
-        + (", with lens distortion" if _has_lens(rig_file.dist) else "") + ")",
+        f"Rig: {args.rig} ({M} views"
+        + (f", {rig_file.image_size[0]}×{rig_file.image_size[1]} px" if rig_file.image_size else "")
+        + (", with lens distortion" if _has_lens(rig_file.dist) else "")
+        + ")",
         f"Detections: {args.points}: {F} frame(s), {int(det.mask.sum())} detections, at most {P} per view",
     ]
     lines += [f"  note: {n}" for n in det.notes[:_NOTES_SHOWN]]
@@ -332,32 +453,63 @@ def run_associate(args: argparse.Namespace) -> int:
         lines.append(f"  … and {len(det.notes) - _NOTES_SHOWN} more notes")
     dist = None
     if _has_lens(rig_file.dist):
-        dist = Fisheye(jnp.asarray(rig_file.dist.coeffs, dtype)) if isinstance(rig_file.dist, Fisheye) else jnp.asarray(rig_file.dist, dtype)
+        dist = (
+            Fisheye(jnp.asarray(rig_file.dist.coeffs, dtype))
+            if isinstance(rig_file.dist, Fisheye)
+            else jnp.asarray(rig_file.dist, dtype)
+        )
     weights = jnp.asarray(det.confidence, dtype) if args.confidence_weights else None
 
     t0 = time.perf_counter()
     classed = None
     if det.classes is not None:
         classed = associate_classes(
-            rig, np.asarray(det.xy, dtype), det.mask, det.classes, class_names=det.class_names, method=method,
-            sigma=args.sigma, dist=dist, weights=weights, min_views=args.min_views, batch_size=max(args.batch_size, 64),
-            instances=det.instances if args.person_vote else None, person_vote=args.person_vote,
-        )  # fmt: skip
+            rig,
+            np.asarray(det.xy, dtype),
+            det.mask,
+            det.classes,
+            class_names=det.class_names,
+            method=method,
+            sigma=args.sigma,
+            dist=dist,
+            weights=weights,
+            min_views=args.min_views,
+            batch_size=max(args.batch_size, 64),
+            instances=det.instances if args.person_vote else None,
+            person_vote=args.person_vote,
+        )
         result = classed.association
     else:
         result = _associate_frames(
             lambda xy, mask, w: associate_batch(
-                rig, xy, mask, method=method, sigma=args.sigma, dist=dist, weights=w, min_views=args.min_views,
+                rig,
+                xy,
+                mask,
+                method=method,
+                sigma=args.sigma,
+                dist=dist,
+                weights=w,
+                min_views=args.min_views,
                 batch_size=args.batch_size,
             ),
-            jnp.asarray(det.xy, dtype), jnp.asarray(det.mask), weights, args.batch_size,
+            jnp.asarray(det.xy, dtype),
+            jnp.asarray(det.mask),
+            weights,
+            args.batch_size,
         )
     tracked = None
     if det.frames or F > 1:  # a sequence: every group gets a track id
         tracked = track_groups(
-            rig, classed if classed is not None else result, xy=np.asarray(det.xy, dtype), mask=det.mask, classes=det.classes,
-            temporal_prior=args.temporal_prior, max_step_px=args.track_step_px, min_views=args.min_views, dist=dist,
-        )  # fmt: skip
+            rig,
+            classed if classed is not None else result,
+            xy=np.asarray(det.xy, dtype),
+            mask=det.mask,
+            classes=det.classes,
+            temporal_prior=args.temporal_prior,
+            max_step_px=args.track_step_px,
+            min_views=args.min_views,
+            dist=dist,
+        )
         result = tracked.association
     people = None
     if classed is not None and det.instances is not None:
@@ -370,7 +522,9 @@ def run_associate(args: argparse.Namespace) -> int:
     lines += [
         f"Associated with {args.method} (σ {'estimated' + (' (robust)' if estimator == 'robust' else '') if args.sigma == 'auto' else f'= {args.sigma:g} px'}, "
         f"min views {args.min_views}) in {elapsed:.2f} s including compilation",
-        f"  3D points: {int(num_groups.sum())} ({num_groups.min()}–{num_groups.max()} per frame)" if F > 1 else f"  3D points: {int(num_groups.sum())}",
+        f"  3D points: {int(num_groups.sum())} ({num_groups.min()}–{num_groups.max()} per frame)"
+        if F > 1
+        else f"  3D points: {int(num_groups.sum())}",
         f"  detections assigned: {assigned} of {int(det.mask.sum())}",
     ]
     if classed is not None:
@@ -378,32 +532,54 @@ def run_associate(args: argparse.Namespace) -> int:
     if people is not None:
         lines.append(_people_summary(people))
     if tracked is None and args.temporal_prior:
-        lines.append("  note: --temporal-prior needs a sequence of frames; one scene has nothing to carry over")
+        lines.append(
+            "  note: --temporal-prior needs a sequence of frames; one scene has nothing to carry over"
+        )
     if tracked is not None:
         lines.append(
             f"  tracks: {tracked.num_tracks} over {F} frame(s)"
-            + (f"; {int(np.asarray(tracked.recovered).sum())} point(s) recovered by the temporal prior" if args.temporal_prior else "")
+            + (
+                f"; {int(np.asarray(tracked.recovered).sum())} point(s) recovered by the temporal prior"
+                if args.temporal_prior
+                else ""
+            )
         )
         if int(tracked.unplaced.sum()):
-            lines.append(f"  warning: the temporal prior found {int(tracked.unplaced.sum())} point(s) it had no room to store")
+            lines.append(
+                f"  warning: the temporal prior found {int(tracked.unplaced.sum())} point(s) it had no room to store"
+            )
     if n_views.size:
         counts = np.bincount(n_views, minlength=M + 1)
-        lines.append("  views per point: " + ", ".join(f"{k}: {counts[k]}" for k in range(2, M + 1) if counts[k]))
+        lines.append(
+            "  views per point: "
+            + ", ".join(f"{k}: {counts[k]}" for k in range(2, M + 1) if counts[k])
+        )
         lines.append(
             f"  reprojection error err_px (mean distance over a group's views): mean {err.mean():.2f} px, "
             f"median {np.median(err):.2f}, max {err.max():.2f}"
         )
     fallback = np.flatnonzero(np.asarray(result.status) & int(Status.SIGMA_FALLBACK))
     lines.append(
-        "  σ used: " + ", ".join(f"{s:.2f}" for s in np.asarray(result.sigma_px)[:8]) + (" …" if F > 8 else "") + " px"
-        + (f" (the fallback {FALLBACK_SIGMA_PX:g} px in {len(fallback)} of {F} frame(s), e.g. frame {fallback[0]}: "
-           "too little evidence to estimate σ; pass --sigma)" if fallback.size else "")
+        "  σ used: "
+        + ", ".join(f"{s:.2f}" for s in np.asarray(result.sigma_px)[:8])
+        + (" …" if F > 8 else "")
+        + " px"
+        + (
+            f" (the fallback {FALLBACK_SIGMA_PX:g} px in {len(fallback)} of {F} frame(s), e.g. frame {fallback[0]}: "
+            "too little evidence to estimate σ; pass --sigma)"
+            if fallback.size
+            else ""
+        )
     )
     from .._status import status_messages
 
     status = np.asarray(result.status).reshape(-1)
     for flag in Status:  # the σ fallback is said on the line above
-        hit = int(np.count_nonzero(status & int(flag))) if flag not in (Status.OK, Status.SIGMA_FALLBACK) else 0
+        hit = (
+            int(np.count_nonzero(status & int(flag)))
+            if flag not in (Status.OK, Status.SIGMA_FALLBACK)
+            else 0
+        )
         if hit:
             lines.append(f"  warning: {hit} of {F} frame(s): {status_messages(int(flag))[0]}")
     if args.out is not None:
@@ -419,9 +595,21 @@ def run_associate(args: argparse.Namespace) -> int:
             assoc = classed._replace(association=assoc, group_class=frame(classed.group_class))
         ext = os.path.splitext(args.out)[1].lower()
         if ext == ".json":
-            _write(args.out, "--out", lambda: save_association_json(args.out, assoc, xy, mask, confidence=conf, classes=cls, people=people))
+            _write(
+                args.out,
+                "--out",
+                lambda: save_association_json(
+                    args.out, assoc, xy, mask, confidence=conf, classes=cls, people=people
+                ),
+            )
         elif ext == ".npz":
-            _write(args.out, "--out", lambda: save_association_npz(args.out, assoc, xy=xy, mask=mask, confidence=conf, classes=cls, people=people))
+            _write(
+                args.out,
+                "--out",
+                lambda: save_association_npz(
+                    args.out, assoc, xy=xy, mask=mask, confidence=conf, classes=cls, people=people
+                ),
+            )
         elif ext == ".csv":
             _write(args.out, "--out", lambda: save_association_csv(args.out, assoc, people=people))
         else:
@@ -429,14 +617,24 @@ def run_associate(args: argparse.Namespace) -> int:
         if ext != ".trc":
             lines.append(f"Wrote {args.out}")
     if args.plot is not None:
-        from ..viz import plot_association
         from ..synthetic import intrinsics_image_size
+        from ..viz import plot_association
 
         first = jax.tree_util.tree_map(lambda a: a[0], result)
         size = rig_file.image_size or intrinsics_image_size(rig.K)
-        _write(args.plot, "--plot", lambda: plot_association(
-            rig, det.xy[0], det.mask[0], first, image_size=size, title=f"{args.points}, frame 0", path=args.plot
-        ))  # fmt: skip
+        _write(
+            args.plot,
+            "--plot",
+            lambda: plot_association(
+                rig,
+                det.xy[0],
+                det.mask[0],
+                first,
+                image_size=size,
+                title=f"{args.points}, frame 0",
+                path=args.plot,
+            ),
+        )
         lines.append(f"Figure: {args.plot}")
     _emit(lines)
     return 0
@@ -447,7 +645,10 @@ def _people_summary(people) -> str:
     present = np.asarray(people.person_id) >= 0
     F = present.shape[0]
     text = f"  people: {people.num_people} id(s) over {F} frame(s), at most {int(present.sum(axis=1).max())} per frame"
-    flags = [(np.asarray(people.merged).any(axis=1), "two people merged into one"), (np.asarray(people.split).any(axis=1), "a person split in two")]
+    flags = [
+        (np.asarray(people.merged).any(axis=1), "two people merged into one"),
+        (np.asarray(people.split).any(axis=1), "a person split in two"),
+    ]
     for hit, what in flags:
         if hit.any():
             text += f"; warning: {what} in {int(hit.sum())} frame(s) (first: frame {int(np.argmax(hit))})"
@@ -471,7 +672,9 @@ def _write_trc(args, people, tracked) -> str:
         for pid in person_markers(people):
             check_output(f"{stem}_person{pid}.trc", "--out", (".trc",), inputs)
         written = []
-        _write(args.out, "--out", lambda: written.extend(save_people_trc(args.out, people, **options)))
+        _write(
+            args.out, "--out", lambda: written.extend(save_people_trc(args.out, people, **options))
+        )
         shown = ", ".join(written[:4]) + (f", … ({len(written)} files)" if len(written) > 4 else "")
         return f"Wrote {shown or 'no file (no person was found)'}: one .trc file per person, {args.fps:g} frames/s"
     markers, names = track_markers(tracked)
@@ -511,7 +714,12 @@ def run_rig(args: argparse.Namespace) -> int:
     if det is not None:
         xy, mask = det.xy[0], det.mask[0]
     text = describe_rig(
-        rig_file.rig, xy=xy, mask=mask, image_size=rig_file.image_size, names=rig_file.names, dist=rig_file.dist
+        rig_file.rig,
+        xy=xy,
+        mask=mask,
+        image_size=rig_file.image_size,
+        names=rig_file.names,
+        dist=rig_file.dist,
     ).format()
     lines = [f"Rig: {args.rig}", text]
     if args.plot is not None:

@@ -17,7 +17,6 @@ from ._associate_command import _RIG_FORMATS_TEXT
 from ._common import _nonnegative_float, _nonnegative_int, _positive_int
 
 
-
 def _method_list(text: str) -> tuple[str, ...]:
     """Names from ``a,b,c``; ``all`` is every named method that the compiled sweep runs
     (registered ones and the ablation; host methods, ``jittable`` False, are left out)."""
@@ -26,7 +25,9 @@ def _method_list(text: str) -> tuple[str, ...]:
         return tuple(n for n in METHODS if METHODS[n]().jittable)
     unknown = [n for n in names if n not in METHODS]
     if unknown or not names:
-        raise argparse.ArgumentTypeError(f"methods must be 'all' or a comma list of {', '.join(METHODS)}; got {text!r}")
+        raise argparse.ArgumentTypeError(
+            f"methods must be 'all' or a comma list of {', '.join(METHODS)}; got {text!r}"
+        )
     return names
 
 
@@ -48,29 +49,69 @@ def add_parser(subparsers) -> None:
         help="run the noise x density benchmark grid, print tables, write figures",
         description=_DESCRIPTION,
     )
-    p.add_argument("--quick", action="store_true", help="tiny grid (σ 0,1,3,5 × counts 5,20,60 × 2 scenes)")
-    p.add_argument("--out", default="benchmark_results", help="output folder (default: %(default)s)")
-    p.add_argument("--methods", type=_method_list, default=DEFAULT_METHODS, help="'all' or a comma list of the named methods (default " + ",".join(DEFAULT_METHODS) + "); registered: " + ", ".join(METHODS))
-    p.add_argument("--sigmas", type=_nonnegative_float, nargs="+", help="noise levels σ in px (default: the grid's)")
-    p.add_argument("--counts", type=_positive_int, nargs="+", help="point counts (default: the grid's)")
-    p.add_argument("--scenes", type=_positive_int, help="scenes per (σ, count) cell")
-    p.add_argument("--views", type=_nonnegative_int, nargs="+", help="rig view indices to use (default: all)")
-    p.add_argument("--seed", type=int, default=0, help="PRNG seed of the scenes (default 0)")
-    p.add_argument("--buckets", type=_positive_int, nargs="+", help="slot capacities (default: fitted to the counts)")
-    p.add_argument("--rig", help="run on this rig instead of the built-in one: " + _RIG_FORMATS_TEXT)
-    p.add_argument("--rig-format", default="auto", choices=("auto", *FORMATS), help="rig file format (default: from the path)")
     p.add_argument(
-        "--box", type=float, nargs=6, metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"),
+        "--quick", action="store_true", help="tiny grid (σ 0,1,3,5 × counts 5,20,60 × 2 scenes)"
+    )
+    p.add_argument(
+        "--out", default="benchmark_results", help="output folder (default: %(default)s)"
+    )
+    p.add_argument(
+        "--methods",
+        type=_method_list,
+        default=DEFAULT_METHODS,
+        help="'all' or a comma list of the named methods (default "
+        + ",".join(DEFAULT_METHODS)
+        + "); registered: "
+        + ", ".join(METHODS),
+    )
+    p.add_argument(
+        "--sigmas",
+        type=_nonnegative_float,
+        nargs="+",
+        help="noise levels σ in px (default: the grid's)",
+    )
+    p.add_argument(
+        "--counts", type=_positive_int, nargs="+", help="point counts (default: the grid's)"
+    )
+    p.add_argument("--scenes", type=_positive_int, help="scenes per (σ, count) cell")
+    p.add_argument(
+        "--views", type=_nonnegative_int, nargs="+", help="rig view indices to use (default: all)"
+    )
+    p.add_argument("--seed", type=int, default=0, help="PRNG seed of the scenes (default 0)")
+    p.add_argument(
+        "--buckets",
+        type=_positive_int,
+        nargs="+",
+        help="slot capacities (default: fitted to the counts)",
+    )
+    p.add_argument(
+        "--rig", help="run on this rig instead of the built-in one: " + _RIG_FORMATS_TEXT
+    )
+    p.add_argument(
+        "--rig-format",
+        default="auto",
+        choices=("auto", *FORMATS),
+        help="rig file format (default: from the path)",
+    )
+    p.add_argument(
+        "--box",
+        type=float,
+        nargs=6,
+        metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"),
         help="3D sampling box (scene units; default: the built-in rig's, or for --rig the region ≥ 2 views see)",
     )
     p.add_argument(
-        "--image-size", type=_positive_int, nargs=2, metavar=("W", "H"),
+        "--image-size",
+        type=_positive_int,
+        nargs=2,
+        metavar=("W", "H"),
         help="image size in px (default: the built-in rig's, or the rig file's, or guessed from K)",
     )
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--no-timing", action="store_true", help="skip the per-scene time estimates")
     p.add_argument(
-        "--no-progress", action="store_true",
+        "--no-progress",
+        action="store_true",
         help="no progress bar or per-bucket lines (e.g. for a log of several runs)",
     )
     p.set_defaults(func=run)
@@ -118,7 +159,9 @@ def _scene_setup(args, grid):
     loaded = load_rig(args.rig, format=args.rig_format)
     rig = loaded.rig
     if grid.views is not None and max(grid.views) >= rig.num_views:
-        raise ValueError(f"--views {list(grid.views)} out of range for {args.rig} ({rig.num_views} views)")
+        raise ValueError(
+            f"--views {list(grid.views)} out of range for {args.rig} ({rig.num_views} views)"
+        )
     if args.image_size:
         image_size, source = tuple(args.image_size), "--image-size"
     elif loaded.image_size is not None:
@@ -147,7 +190,13 @@ def _check_paths(args) -> None:
     if args.rig:
         check_input(args.rig, "--rig", kind="any")
         inputs["--rig"] = input_files(args.rig)
-    names = ["results.npz", "results.csv", "results.json", "metrics_vs_sigma.png", "time_vs_count.png"]
+    names = [
+        "results.npz",
+        "results.csv",
+        "results.json",
+        "metrics_vs_sigma.png",
+        "time_vs_count.png",
+    ]
     names += [f"{kind}_{name}.png" for name in args.methods for kind in ("heatmaps", "surfaces")]
     check_output_folder(args.out, "--out", names, inputs)
 
@@ -155,9 +204,9 @@ def _check_paths(args) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark; returns the exit code."""
     from .. import viz as figures
-    from ..benchmark._io import save_results, summary_table
     from .._runtime.progress import interactive, sweep_bar
     from ..benchmark._cpu_cores import use_cpu_cores
+    from ..benchmark._io import save_results, summary_table
     from ..benchmark._sweep import print_progress, sweep
 
     use_cpu_cores()  # before JAX's first operation; the sweep then shards its scenes over the cores
@@ -172,12 +221,17 @@ def run(args: argparse.Namespace) -> int:
         f"methods: {', '.join(configs)}; buckets {buckets}",
         flush=True,
     )
-    print("Generating, associating and scoring every scene, one compiled program per bucket (compiling first) …", flush=True)
+    print(
+        "Generating, associating and scoring every scene, one compiled program per bucket (compiling first) …",
+        flush=True,
+    )
     # A live bar in a terminal; in a log, one line per finished bucket.
     if args.no_progress:
         progress, close_bar = None, lambda: None
     else:
-        progress, close_bar = sweep_bar(grid.num_scenes) if interactive() else (print_progress, lambda: None)
+        progress, close_bar = (
+            sweep_bar(grid.num_scenes) if interactive() else (print_progress, lambda: None)
+        )
     t0 = time.perf_counter()
     try:
         result = sweep(
@@ -205,7 +259,11 @@ def run(args: argparse.Namespace) -> int:
 
     from ._paths import write_output
 
-    write_output(args.out, "--out", lambda: (os.makedirs(args.out, exist_ok=True), save_results(result, args.out)))
+    write_output(
+        args.out,
+        "--out",
+        lambda: (os.makedirs(args.out, exist_ok=True), save_results(result, args.out)),
+    )
     print(f"Results: {args.out}/ (NPZ, CSV, JSON)")
     if not args.no_figures:
         write_output(args.out, "--out", lambda: _figures(figures, result, args))
@@ -220,15 +278,36 @@ def _figures(figures, result, args) -> None:
     metrics = {name: result.metrics[name] for name in result.configs}
     for name in result.configs:
         figures.heatmaps(
-            result.sigma, result.count, metrics, method=name, path=os.path.join(args.out, f"heatmaps_{name}.png")
+            result.sigma,
+            result.count,
+            metrics,
+            method=name,
+            path=os.path.join(args.out, f"heatmaps_{name}.png"),
         )
         figures.surfaces(
-            result.sigma, result.count, metrics, method=name, path=os.path.join(args.out, f"surfaces_{name}.png")
+            result.sigma,
+            result.count,
+            metrics,
+            method=name,
+            path=os.path.join(args.out, f"surfaces_{name}.png"),
         )
     full = Grid.paper()
     grid = result.grid
-    full_grid = (grid.sigmas, grid.counts, grid.views) == (full.sigmas, full.counts, None) and grid.scenes >= full.scenes
-    figures.metrics_vs_sigma(result.sigma, metrics, full_grid=full_grid, path=os.path.join(args.out, "metrics_vs_sigma.png"))
+    full_grid = (grid.sigmas, grid.counts, grid.views) == (
+        full.sigmas,
+        full.counts,
+        None,
+    ) and grid.scenes >= full.scenes
+    figures.metrics_vs_sigma(
+        result.sigma,
+        metrics,
+        full_grid=full_grid,
+        path=os.path.join(args.out, "metrics_vs_sigma.png"),
+    )
     if not args.no_timing:
-        figures.time_vs_count(result.count, result.time_s, capacity=result.capacity,
-                              path=os.path.join(args.out, "time_vs_count.png"))
+        figures.time_vs_count(
+            result.count,
+            result.time_s,
+            capacity=result.capacity,
+            path=os.path.join(args.out, "time_vs_count.png"),
+        )

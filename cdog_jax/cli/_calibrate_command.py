@@ -27,7 +27,13 @@ def format_table(rows: list[dict]) -> str:
             f"| {r['focal_pct'][0]:.2f} → {r['focal_pct'][1]:.3f} "
             f"| {r['bpe'][0]:.1f} → {r['bpe'][1]:.2f} "
             f"| {r['pg_f1'][0]:.3f} → {r['pg_f1'][1]:.3f} ({r['pg_f1_truth']:.3f}) "
-            + (f"| first call {r['first_s']:.1f} |" if np.isnan(r["warm_s"]) else f"| {r['warm_s']:.2f} / " + ("–" if np.isnan(r["compile_s"]) else f"{r['compile_s']:.1f}") + " |")
+            + (
+                f"| first call {r['first_s']:.1f} |"
+                if np.isnan(r["warm_s"])
+                else f"| {r['warm_s']:.2f} / "
+                + ("–" if np.isnan(r["compile_s"]) else f"{r['compile_s']:.1f}")
+                + " |"
+            )
         )
     return "\n".join(out)
 
@@ -46,17 +52,34 @@ _DESCRIPTION = (
 
 def add_parser(subparsers) -> None:
     """Declare ``calibrate`` and its flags."""
-    p = subparsers.add_parser("calibrate", help="refine a perturbed built-in rig from detections", description=_DESCRIPTION)
-    p.add_argument("--quick", action="store_true", help="one level (large), 2 scenes of 30 points, 16 wand frames, 2 + 1 rounds, no timing")
+    p = subparsers.add_parser(
+        "calibrate",
+        help="refine a perturbed built-in rig from detections",
+        description=_DESCRIPTION,
+    )
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="one level (large), 2 scenes of 30 points, 16 wand frames, 2 + 1 rounds, no timing",
+    )
     p.add_argument("--scenes", type=_positive_int, default=4, help="dense scenes (fine stage)")
     p.add_argument("--points", type=_positive_int, default=60, help="points per dense scene")
-    p.add_argument("--wand-frames", type=_positive_int, default=48, help="sparse frames (coarse stage)")
+    p.add_argument(
+        "--wand-frames", type=_positive_int, default=48, help="sparse frames (coarse stage)"
+    )
     p.add_argument("--wand-points", type=_positive_int, default=2, help="points per sparse frame")
     p.add_argument("--sigma", type=_nonnegative_float, default=1.0, help="detection noise σ (px)")
     # Fine rounds: all but the last refine the poses only; the last frees the focal lengths too.
-    p.add_argument("--rounds", type=_positive_int, default=3, help="fine rounds (after one coarse round per gate)")
+    p.add_argument(
+        "--rounds",
+        type=_positive_int,
+        default=3,
+        help="fine rounds (after one coarse round per gate)",
+    )
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", default="calibration.png", help="convergence figure, .png/.pdf/.svg/.jpg")
+    p.add_argument(
+        "--out", default="calibration.png", help="convergence figure, .png/.pdf/.svg/.jpg"
+    )
     p.set_defaults(func=run)
 
 
@@ -70,11 +93,31 @@ def run(args: argparse.Namespace) -> int:
     from ._paths import check_output, write_output
 
     check_output(str(args.out), "--out", _FIGURE_EXTENSIONS, {})
-    check_sigma_fits(args.sigma, math.hypot(*IMAGE_SIZE), f"the built-in rig ({IMAGE_SIZE[0]}×{IMAGE_SIZE[1]} px)")
+    check_sigma_fits(
+        args.sigma,
+        math.hypot(*IMAGE_SIZE),
+        f"the built-in rig ({IMAGE_SIZE[0]}×{IMAGE_SIZE[1]} px)",
+    )
     if args.quick:
-        levels, scenes, points, rounds, frames, gates, timing = (LEVELS[2],), 2, 30, 1, 16, (120.0, 30.0), 0
+        levels, scenes, points, rounds, frames, gates, timing = (
+            (LEVELS[2],),
+            2,
+            30,
+            1,
+            16,
+            (120.0, 30.0),
+            0,
+        )
     else:
-        levels, scenes, points, rounds, frames, gates, timing = (NO_DRIFT, *LEVELS), args.scenes, args.points, args.rounds, args.wand_frames, COARSE_GATES_PX, 3
+        levels, scenes, points, rounds, frames, gates, timing = (
+            (NO_DRIFT, *LEVELS),
+            args.scenes,
+            args.points,
+            args.rounds,
+            args.wand_frames,
+            COARSE_GATES_PX,
+            3,
+        )
     gate_text = " → ".join(f"{g:g}" for g in gates)
     print(
         f"Built-in rig, σ = {args.sigma:g} px. Coarse: {frames} frames × {args.wand_points} points, gate {gate_text} px. "
@@ -82,8 +125,16 @@ def run(args: argparse.Namespace) -> int:
         flush=True,
     )
     rows = run_experiment(
-        levels, scenes=scenes, points=points, sigma=args.sigma, rounds=rounds, wand_frames=frames,
-        wand_points=args.wand_points, gates_px=gates, seed=args.seed, timing_runs=timing,
+        levels,
+        scenes=scenes,
+        points=points,
+        sigma=args.sigma,
+        rounds=rounds,
+        wand_frames=frames,
+        wand_points=args.wand_points,
+        gates_px=gates,
+        seed=args.seed,
+        timing_runs=timing,
     )
     print(format_table(rows))
     from ..viz._calibration_plot import convergence_figure  # matplotlib's figure, on first use

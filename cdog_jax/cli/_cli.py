@@ -36,10 +36,21 @@ import sys
 from collections.abc import Sequence
 
 from .._version import __version__
-from . import _associate_command, _benchmark_command, _calibrate_command, _demo_command, _track_command
+from . import (
+    _associate_command,
+    _benchmark_command,
+    _calibrate_command,
+    _demo_command,
+    _track_command,
+)
 
-_SUBCOMMANDS = (_demo_command.add_parser, _benchmark_command.add_parser, _calibrate_command.add_parser,
-                _associate_command.add_parsers, _track_command.add_parser)
+_SUBCOMMANDS = (
+    _demo_command.add_parser,
+    _benchmark_command.add_parser,
+    _calibrate_command.add_parser,
+    _associate_command.add_parsers,
+    _track_command.add_parser,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -55,8 +66,12 @@ def build_parser() -> argparse.ArgumentParser:
     for add in _SUBCOMMANDS:
         add(subparsers)
     for sub in subparsers.choices.values():  # also accepted after the command's name
-        sub.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=_DEBUG_HELP)
-        sub.add_argument("--no-cache", action="store_true", default=argparse.SUPPRESS, help=_NO_CACHE_HELP)
+        sub.add_argument(
+            "--debug", action="store_true", default=argparse.SUPPRESS, help=_DEBUG_HELP
+        )
+        sub.add_argument(
+            "--no-cache", action="store_true", default=argparse.SUPPRESS, help=_NO_CACHE_HELP
+        )
     return parser
 
 

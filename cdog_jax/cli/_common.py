@@ -43,11 +43,12 @@ def check_sigma_fits(sigma: float, diagonal: float, where: str) -> None:
     """Refuse a noise σ (px) larger than the image diagonal (px): no detection noise is
     that large, and the thresholds it sets would accept every pairing."""
     if sigma > diagonal:
-        raise InputError(f"{where}: --sigma {sigma:g} px is larger than the image diagonal ({diagonal:.0f} px)")
+        raise InputError(
+            f"{where}: --sigma {sigma:g} px is larger than the image diagonal ({diagonal:.0f} px)"
+        )
 
 
 _FIGURE_EXTENSIONS = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
-
 
 
 def _emit(lines: list[str]) -> None:
@@ -66,14 +67,20 @@ def _method_name(text: str) -> str:
     from .._method import method_names
 
     if text not in method_names():
-        raise argparse.ArgumentTypeError(f"unknown method {text!r}; registered: {', '.join(method_names())}")
+        raise argparse.ArgumentTypeError(
+            f"unknown method {text!r}; registered: {', '.join(method_names())}"
+        )
     return text
 
 
 def add_method_argument(parser: argparse.ArgumentParser) -> None:
     """``--method NAME``: a registered method, default best."""
     parser.add_argument(
-        "--method", dest="method", type=_method_name, default="best", metavar="NAME",
+        "--method",
+        dest="method",
+        type=_method_name,
+        default="best",
+        metavar="NAME",
         help="a registered method: best (default, the most accurate), extended (ours beyond the paper), paper (the "
         "paper's C-DOG), reference (the original code's), or any other registered one",
     )

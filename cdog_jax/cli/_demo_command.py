@@ -9,7 +9,14 @@ import math
 import os
 import time
 
-from ._common import _FIGURE_EXTENSIONS, _emit, add_method_argument, _nonnegative_float, _positive_int, check_sigma_fits
+from ._common import (
+    _FIGURE_EXTENSIONS,
+    _emit,
+    _nonnegative_float,
+    _positive_int,
+    add_method_argument,
+    check_sigma_fits,
+)
 
 # Rows of the metrics table: (Metrics field, docs/BENCHMARK.md §2 name, format, unit / meaning).
 _METRIC_ROWS = (
@@ -38,8 +45,12 @@ def add_parser(subparsers) -> None:
             "figure. --save-scene DIR also writes the scene as files that 'cdog-jax associate' reads."
         ),
     )
-    p.add_argument("--points", type=_positive_int, default=60, help="3D points in the scene (default 60)")
-    p.add_argument("--sigma", type=_nonnegative_float, default=1.0, help="pixel noise std σ (default 1.0)")
+    p.add_argument(
+        "--points", type=_positive_int, default=60, help="3D points in the scene (default 60)"
+    )
+    p.add_argument(
+        "--sigma", type=_nonnegative_float, default=1.0, help="pixel noise std σ (default 1.0)"
+    )
     add_method_argument(p)
     p.add_argument("--seed", type=int, default=0, help="PRNG seed of the scene (default 0)")
     p.add_argument(
@@ -47,8 +58,14 @@ def add_parser(subparsers) -> None:
         action="store_true",
         help="estimate σ from the detections instead of using --sigma (which still sets the scene noise)",
     )
-    p.add_argument("--out", default="cdog_demo.png", help="output figure, .png/.pdf/.svg/.jpg (default cdog_demo.png)")
-    p.add_argument("--capacity", type=_positive_int, default=None, help="slots per view P (default: --points)")
+    p.add_argument(
+        "--out",
+        default="cdog_demo.png",
+        help="output figure, .png/.pdf/.svg/.jpg (default cdog_demo.png)",
+    )
+    p.add_argument(
+        "--capacity", type=_positive_int, default=None, help="slots per view P (default: --points)"
+    )
     p.add_argument(
         "--save-scene",
         metavar="DIR",
@@ -97,10 +114,9 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from .. import associate, method_from
-    from ..viz import plot_association
     from ..metrics import scene_metrics
     from ..synthetic import IMAGE_SIZE, default_rig, generate_scene
-
+    from ..viz import plot_association
     from ._paths import check_output, write_output
 
     capacity = args.points if args.capacity is None else args.capacity
@@ -125,12 +141,33 @@ def run(args: argparse.Namespace) -> int:
         return out
 
     rig = default_rig()
-    scene = timed("generate scene (incl. compile)", generate_scene,
-                  jax.random.PRNGKey(args.seed), rig, args.points, args.sigma, capacity=capacity)
-    result = timed("associate, 1st call (compile + run)", associate,
-                   rig, scene.xy, scene.mask, method=config, sigma=sigma_arg)
-    result = timed("associate, 2nd call (warm)", associate,
-                   rig, scene.xy, scene.mask, method=config, sigma=sigma_arg)
+    scene = timed(
+        "generate scene (incl. compile)",
+        generate_scene,
+        jax.random.PRNGKey(args.seed),
+        rig,
+        args.points,
+        args.sigma,
+        capacity=capacity,
+    )
+    result = timed(
+        "associate, 1st call (compile + run)",
+        associate,
+        rig,
+        scene.xy,
+        scene.mask,
+        method=config,
+        sigma=sigma_arg,
+    )
+    result = timed(
+        "associate, 2nd call (warm)",
+        associate,
+        rig,
+        scene.xy,
+        scene.mask,
+        method=config,
+        sigma=sigma_arg,
+    )
     metrics = timed("metrics (incl. compile)", jax.jit(scene_metrics), rig, result, scene)
 
     mask = np.asarray(scene.mask)
@@ -175,12 +212,23 @@ def run(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     caption = "vs ground truth:   " + "   ".join(
-        f"{name} {values[f]:{fmt}}" + (" px" if f == "bpe_px" else "") for f, name, fmt, _ in _METRIC_ROWS
+        f"{name} {values[f]:{fmt}}" + (" px" if f == "bpe_px" else "")
+        for f, name, fmt, _ in _METRIC_ROWS
     )
-    write_output(args.out, "--out", lambda: plot_association(
-        rig, scene.xy, scene.mask, result, points3d_gt=np.asarray(scene.points3d)[:n_inst],
-        instance=scene.instance, title=caption, path=args.out
-    ))  # fmt: skip
+    write_output(
+        args.out,
+        "--out",
+        lambda: plot_association(
+            rig,
+            scene.xy,
+            scene.mask,
+            result,
+            points3d_gt=np.asarray(scene.points3d)[:n_inst],
+            instance=scene.instance,
+            title=caption,
+            path=args.out,
+        ),
+    )
     timings.append(("figure (draw + save)", time.perf_counter() - t0))
 
     lines += ["", "Timings (wall clock, this process, JAX on " + jax.default_backend() + "):"]
@@ -188,10 +236,16 @@ def run(args: argparse.Namespace) -> int:
     lines += [f"  {label:<{width}}  {_seconds(s):>9}" for label, s in timings]
     lines += ["", f"Figure  {args.out}"]
     if args.save_scene is not None:
-        write_output(args.save_scene, "--save-scene", lambda: _save_scene(args.save_scene, rig, scene, args.sigma, args.seed))
+        write_output(
+            args.save_scene,
+            "--save-scene",
+            lambda: _save_scene(args.save_scene, rig, scene, args.sigma, args.seed),
+        )
         files = ", ".join(os.path.join(args.save_scene, name) for name in _SCENE_FILES)
-        lines += [f"Scene   {files}",
-                  f"        try: cdog-jax associate --rig {os.path.join(args.save_scene, 'rig.json')} "
-                  f"--points {os.path.join(args.save_scene, 'detections.json')} --out groups.json"]
+        lines += [
+            f"Scene   {files}",
+            f"        try: cdog-jax associate --rig {os.path.join(args.save_scene, 'rig.json')} "
+            f"--points {os.path.join(args.save_scene, 'detections.json')} --out groups.json",
+        ]
     _emit(lines)
     return 0

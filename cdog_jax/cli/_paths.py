@@ -44,26 +44,36 @@ def input_files(path: str) -> list[str]:
     return [os.path.join(folder, name) for name in sorted(os.listdir(folder))]
 
 
-def check_output(path: str, flag: str, extensions: Iterable[str], inputs: Mapping[str, Iterable[str]]) -> None:
+def check_output(
+    path: str, flag: str, extensions: Iterable[str], inputs: Mapping[str, Iterable[str]]
+) -> None:
     """``path`` can be written as ``flag`` (one of ``extensions``, lower case with the dot)
     and is none of the files of ``inputs`` (flag → files)."""
     extensions = tuple(extensions)
     ext = os.path.splitext(path)[1].lower()
     if ext not in extensions:
-        raise InputError(f"{path}: {flag}: the extension must be one of {', '.join(extensions)}; got {ext or 'none'!r}")
+        raise InputError(
+            f"{path}: {flag}: the extension must be one of {', '.join(extensions)}; got {ext or 'none'!r}"
+        )
     if os.path.isdir(path):
         raise InputError(f"{path}: {flag}: is a folder; expected a file name")
     _check_folder_writable(path, flag, os.path.dirname(os.path.abspath(path)))
     if os.path.exists(path) and not os.access(path, os.W_OK):
-        raise InputError(f"{path}: {flag}: the file exists and is read-only; it is kept (choose another name)")
+        raise InputError(
+            f"{path}: {flag}: the file exists and is read-only; it is kept (choose another name)"
+        )
     for in_flag, files in inputs.items():
         for file in files:
             if _same_file(path, file):
                 same = "" if os.path.abspath(file) == os.path.abspath(path) else f" ({file})"
-                raise InputError(f"{path}: {flag} is the same file as the input {in_flag}{same}; refusing to overwrite an input")
+                raise InputError(
+                    f"{path}: {flag} is the same file as the input {in_flag}{same}; refusing to overwrite an input"
+                )
 
 
-def check_output_folder(folder: str, flag: str, names: Iterable[str], inputs: Mapping[str, Iterable[str]]) -> None:
+def check_output_folder(
+    folder: str, flag: str, names: Iterable[str], inputs: Mapping[str, Iterable[str]]
+) -> None:
     """``folder`` is a folder that exists and is writable, or can be created in a writable
     folder; none of the files ``names`` it will get is an input."""
     if os.path.exists(folder):
@@ -77,7 +87,9 @@ def check_output_folder(folder: str, flag: str, names: Iterable[str], inputs: Ma
         path = os.path.join(folder, name)
         for in_flag, files in inputs.items():
             if any(_same_file(path, file) for file in files):
-                raise InputError(f"{path}: {flag} would overwrite {name}, the input {in_flag}; choose another folder")
+                raise InputError(
+                    f"{path}: {flag} would overwrite {name}, the input {in_flag}; choose another folder"
+                )
 
 
 def check_distinct(outputs: Mapping[str, str | None]) -> None:
@@ -86,7 +98,9 @@ def check_distinct(outputs: Mapping[str, str | None]) -> None:
     for k, (flag, path) in enumerate(given):
         for other_flag, other in given[k + 1 :]:
             if _same_file(path, other):
-                raise InputError(f"{path}: {flag} and {other_flag} are the same file; give two names")
+                raise InputError(
+                    f"{path}: {flag} and {other_flag} are the same file; give two names"
+                )
 
 
 def write_output(path: str, flag: str, write: Callable[[], object]) -> None:
@@ -96,7 +110,9 @@ def write_output(path: str, flag: str, write: Callable[[], object]) -> None:
     try:
         write()
     except OSError as e:
-        raise InputError(f"{path}: {flag}: could not write it ({e.strerror or e}); any previous file is unchanged") from e
+        raise InputError(
+            f"{path}: {flag}: could not write it ({e.strerror or e}); any previous file is unchanged"
+        ) from e
 
 
 def _check_folder_writable(path: str, flag: str, folder: str) -> None:

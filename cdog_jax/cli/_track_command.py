@@ -16,11 +16,11 @@ import argparse
 import json
 import sys
 
-from ._associate_command import _has_lens
-from ._common import _positive_int, add_method_argument
 from ..io._errors import InputError
 from ..io._keypoints import SKELETONS
 from ..io._rig_files import FORMATS
+from ._associate_command import _has_lens
+from ._common import _positive_int, add_method_argument
 
 _DESCRIPTION = """Associate and track frames as they arrive: one JSON object per line on standard input
 ({"views": [[[x, y], ...], ...], "classes": [[c, ...], ...]}), one JSON line per frame on standard output,
@@ -30,18 +30,55 @@ flushed at once (groups with their track id, class, 3D point and members). A bad
 
 def add_parser(subparsers) -> None:
     """Declare ``track``."""
-    p = subparsers.add_parser("track", help="associate and track frames streamed as JSON lines", description=_DESCRIPTION)
+    p = subparsers.add_parser(
+        "track", help="associate and track frames streamed as JSON lines", description=_DESCRIPTION
+    )
     p.add_argument("--rig", required=True, help="rig file or folder")
-    p.add_argument("--rig-format", default="auto", choices=("auto", *FORMATS), help="rig format (default: from the path)")
+    p.add_argument(
+        "--rig-format",
+        default="auto",
+        choices=("auto", *FORMATS),
+        help="rig format (default: from the path)",
+    )
     classes = p.add_mutually_exclusive_group()
-    classes.add_argument("--classes", type=_positive_int, default=None, help="the detections carry class ids 0 … N-1")
-    classes.add_argument("--class-names", default=None, help="the detections carry these classes: comma-separated names")
-    classes.add_argument("--keypoints", default=None, choices=tuple(SKELETONS), help="the classes are these keypoint types")
-    p.add_argument("--sigma", type=float, default=None, help="detection noise σ in px (default: estimated in every frame)")
+    classes.add_argument(
+        "--classes", type=_positive_int, default=None, help="the detections carry class ids 0 … N-1"
+    )
+    classes.add_argument(
+        "--class-names",
+        default=None,
+        help="the detections carry these classes: comma-separated names",
+    )
+    classes.add_argument(
+        "--keypoints",
+        default=None,
+        choices=tuple(SKELETONS),
+        help="the classes are these keypoint types",
+    )
+    p.add_argument(
+        "--sigma",
+        type=float,
+        default=None,
+        help="detection noise σ in px (default: estimated in every frame)",
+    )
     add_method_argument(p)
-    p.add_argument("--temporal-prior", action="store_true", help="recover a tracked point missed in a frame near its last point")
-    p.add_argument("--max-gap", type=int, default=0, help="frames a track may go unseen and still continue (default 0)")
-    p.add_argument("--slots", type=_positive_int, default=8, help="detections of one class in one view to compile for (default 8)")
+    p.add_argument(
+        "--temporal-prior",
+        action="store_true",
+        help="recover a tracked point missed in a frame near its last point",
+    )
+    p.add_argument(
+        "--max-gap",
+        type=int,
+        default=0,
+        help="frames a track may go unseen and still continue (default 0)",
+    )
+    p.add_argument(
+        "--slots",
+        type=_positive_int,
+        default=8,
+        help="detections of one class in one view to compile for (default 8)",
+    )
     p.set_defaults(func=run_track)
 
 
@@ -54,7 +91,9 @@ def run_track(args: argparse.Namespace) -> int:
     if args.class_names is not None:
         names = tuple(n.strip() for n in args.class_names.split(","))
         if not all(names) or len(set(names)) != len(names):
-            raise InputError(f"--class-names: expected distinct non-empty names separated by commas; got {args.class_names!r}")
+            raise InputError(
+                f"--class-names: expected distinct non-empty names separated by commas; got {args.class_names!r}"
+            )
     elif args.keypoints is not None:
         names = SKELETONS[args.keypoints]
     if args.sigma is not None and not (args.sigma > 0 and args.sigma < float("inf")):
@@ -63,10 +102,16 @@ def run_track(args: argparse.Namespace) -> int:
         raise InputError(f"--max-gap: expected an integer >= 0; got {args.max_gap}")
     rig_file = load_rig(args.rig, format=args.rig_format)
     live = LiveAssociator(
-        rig_file.rig, num_classes=args.classes, class_names=names, method=method_from(args.method, "cdog-jax track"),
-        sigma="auto" if args.sigma is None else args.sigma, dist=rig_file.dist if _has_lens(rig_file.dist) else None,
-        temporal_prior=args.temporal_prior, max_gap=args.max_gap, slots=args.slots,
-    )  # fmt: skip
+        rig_file.rig,
+        num_classes=args.classes,
+        class_names=names,
+        method=method_from(args.method, "cdog-jax track"),
+        sigma="auto" if args.sigma is None else args.sigma,
+        dist=rig_file.dist if _has_lens(rig_file.dist) else None,
+        temporal_prior=args.temporal_prior,
+        max_gap=args.max_gap,
+        slots=args.slots,
+    )
     ids = None if names is None else {n: i for i, n in enumerate(names)}
     for n, line in enumerate(sys.stdin, start=1):
         if not line.strip():
@@ -77,7 +122,10 @@ def run_track(args: argparse.Namespace) -> int:
             record = _record(out, frame_id, names)
         except (ValueError, TypeError) as error:  # a bad frame: say so and go on
             message = " ".join(str(error).split())
-            record = {"line": n, "error": message if message.startswith(f"line {n}") else f"line {n}: {message}"}
+            record = {
+                "line": n,
+                "error": message if message.startswith(f"line {n}") else f"line {n}: {message}",
+            }
         sys.stdout.write(json.dumps(record) + "\n")
         sys.stdout.flush()
     return 0
@@ -103,20 +151,29 @@ def _parse(line: str, n: int, live, ids):
     classes = None
     if live.classed:
         if labels is None:
-            raise ValueError(f'{where}: the detections need classes ("classes": one list per view, or "by_class")')
+            raise ValueError(
+                f'{where}: the detections need classes ("classes": one list per view, or "by_class")'
+            )
         classes = np.zeros(mask.shape, np.int64)
         for m, view in enumerate(labels):
             if not isinstance(view, list) or len(view) != len(views[m]):
-                raise ValueError(f'{where}: "classes" of view {m} must list one class per detection')
+                raise ValueError(
+                    f'{where}: "classes" of view {m} must list one class per detection'
+                )
             for i, label in enumerate(view):
-                classes[m, i] = _class_id(label, ids, live.num_classes, f"{where}, view {m}, detection {i}")
+                classes[m, i] = _class_id(
+                    label, ids, live.num_classes, f"{where}, view {m}, detection {i}"
+                )
     return obj.get("frame"), xy, mask, classes
 
 
 def _class_id(label, ids, count: int, where: str) -> int:
     if isinstance(label, str):
         if ids is None or label not in ids:
-            raise ValueError(f"{where}: unknown class {label!r}" + ("" if ids is None else f" (known: {', '.join(ids)})"))
+            raise ValueError(
+                f"{where}: unknown class {label!r}"
+                + ("" if ids is None else f" (known: {', '.join(ids)})")
+            )
         return ids[label]
     if isinstance(label, bool) or not isinstance(label, int) or not 0 <= label < count:
         raise ValueError(f"{where}: a class must be an id in [0, {count}) or a name; got {label!r}")
@@ -128,13 +185,21 @@ def _record(out, frame_id, names) -> dict:
     groups = []
     for g in range(len(out.groups)):
         members = [[m, int(s)] for m, s in enumerate(out.groups[g]) if s >= 0]
-        group = {"track": int(out.track_id[g]), "point": [round(float(v), 6) for v in out.points3d[g]], "members": members,
-                 "err_px": round(float(out.err_px[g]), 4)}  # fmt: skip
+        group = {
+            "track": int(out.track_id[g]),
+            "point": [round(float(v), 6) for v in out.points3d[g]],
+            "members": members,
+            "err_px": round(float(out.err_px[g]), 4),
+        }
         if out.group_class is not None:
             c = int(out.group_class[g])
             group["class"] = c if names is None else names[c]
         if out.recovered[g]:
             group["recovered"] = True
         groups.append(group)
-    return {"frame": out.frame if frame_id is None else frame_id, "groups": groups, "sigma_px": round(out.sigma_px, 4), "status": out.status}
-
+    return {
+        "frame": out.frame if frame_id is None else frame_id,
+        "groups": groups,
+        "sigma_px": round(out.sigma_px, 4),
+        "status": out.status,
+    }

@@ -34,7 +34,9 @@ class Rig(eqx.Module):
     @property
     def proj(self) -> Float[Array, "M 3 4"]:
         """Projection matrices ``K [R | t]``, ``(M, 3, 4)``."""
-        return jnp.einsum("...ij,...jk->...ik", self.K, jnp.concatenate([self.R, self.t[..., None]], -1))
+        return jnp.einsum(
+            "...ij,...jk->...ik", self.K, jnp.concatenate([self.R, self.t[..., None]], -1)
+        )
 
     @property
     def centers(self) -> Float[Array, "M 3"]:
@@ -53,7 +55,7 @@ class Rig(eqx.Module):
         R, t = np.asarray(self.R, dtype=np.float64), np.asarray(self.t, dtype=np.float64)
         return -np.einsum("...ji,...j->...i", R, t), R[..., 2, :]
 
-    def select(self, views) -> "Rig":
+    def select(self, views) -> Rig:
         """The sub-rig of the given view indices (a sequence or an int array; negative
         indices count from the end). Raises ``ValueError`` for an index out of range (JAX
         would clamp it to the last view)."""
@@ -63,7 +65,9 @@ class Rig(eqx.Module):
             raise ValueError(f"Rig.select: view indices must be integers; got dtype {views.dtype}")
         out = (views < -M) | (views >= M)
         if out.any():
-            raise ValueError(f"Rig.select: view index {int(views[out].flat[0])} is out of range for a rig of {M} views")
+            raise ValueError(
+                f"Rig.select: view index {int(views[out].flat[0])} is out of range for a rig of {M} views"
+            )
         return Rig(self.K[..., views, :, :], self.R[..., views, :, :], self.t[..., views, :])
 
 
@@ -79,7 +83,9 @@ def rig_from_arrays(K, R, t, *, dtype=None) -> Rig:
     expect_args("rig_from_arrays", K=(K, ARRAY), R=(R, ARRAY), t=(t, ARRAY))
     dtype = np.dtype(dtype or jnp.asarray(0.0).dtype)
     if dtype not in (np.dtype(np.float32), np.dtype(np.float64)):
-        raise ValueError(f"rig_from_arrays: dtype must be float32 or float64; got {dtype} (too few digits for pixels at a distance)")
+        raise ValueError(
+            f"rig_from_arrays: dtype must be float32 or float64; got {dtype} (too few digits for pixels at a distance)"
+        )
     K, R, t = (np.asarray(a, dtype=np.float64) for a in (K, R, t))
     if K.ndim != 3 or K.shape[1:] != (3, 3):
         raise ValueError(f"K must have shape (M, 3, 3); got {K.shape}")
@@ -109,13 +115,17 @@ def check_rig_values(K: np.ndarray, R: np.ndarray, t: np.ndarray) -> None:
     lower = below > 1e-9 * size
     if lower.any():
         m = int(np.argmax(lower))
-        raise ValueError(f"K of view {m} is not upper-triangular (below the diagonal: {K[m][1, 0]:.6g}, {K[m][2, 0]:.6g}, "
-                         f"{K[m][2, 1]:.6g}); a transposed K? (MATLAB's IntrinsicMatrix is Kᵀ)")  # fmt: skip
+        raise ValueError(
+            f"K of view {m} is not upper-triangular (below the diagonal: {K[m][1, 0]:.6g}, {K[m][2, 0]:.6g}, "
+            f"{K[m][2, 1]:.6g}); a transposed K? (MATLAB's IntrinsicMatrix is Kᵀ)"
+        )
     mirrored = (K[:, 0, 0] * K[:, 2, 2] <= 0) | (K[:, 1, 1] * K[:, 2, 2] <= 0)
     if mirrored.any():
         m = int(np.argmax(mirrored))
-        raise ValueError(f"K of view {m} has a focal length that is not positive (fx = {K[m][0, 0]:.6g}, fy = {K[m][1, 1]:.6g}, "
-                         f"K[2, 2] = {K[m][2, 2]:.6g}); a mirrored camera cannot be right")  # fmt: skip
+        raise ValueError(
+            f"K of view {m} has a focal length that is not positive (fx = {K[m][0, 0]:.6g}, fy = {K[m][1, 1]:.6g}, "
+            f"K[2, 2] = {K[m][2, 2]:.6g}); a mirrored camera cannot be right"
+        )
     ortho_err = np.abs(np.einsum("mji,mjk->mik", R, R) - np.eye(3)).max(axis=(1, 2))
     det_R = np.linalg.det(R)
     bad = (ortho_err > 1e-3) | (det_R < 0)
@@ -126,7 +136,9 @@ def check_rig_values(K: np.ndarray, R: np.ndarray, t: np.ndarray) -> None:
         )
 
 
-def affine_per_view(A: Float[Array, "M R 3"], b: Float[Array, "M R"], X: Float[Array, "*S 3"]) -> Float[Array, "*S M R"]:
+def affine_per_view(
+    A: Float[Array, "M R 3"], b: Float[Array, "M R"], X: Float[Array, "*S 3"]
+) -> Float[Array, "*S M R"]:
     """``A_m X + b_m`` for every view m, ``(*S, M, R)`` (R output rows, e.g. 3).
 
     Written as three broadcast multiply-adds rather than an einsum: with a contraction of
@@ -147,7 +159,7 @@ def camera_points(rig: Rig, X_world: Float[Array, "*S 3"]) -> Float[Array, "M *S
     return jnp.moveaxis(affine_per_view(rig.R, rig.t, X_world), -2, 0)
 
 
-def in_front(rig: Rig, X_world: Float[Array, "*S 3"]) -> Bool[Array, "M *S"]:
+def in_front(rig: Rig, X_world: Float[Array, "*S 3"]) -> Bool[Array, M * S]:
     """Whether each point lies in front of each camera, ``(R X + t)_z > 0``, ``(M, *S)``."""
     expect_args("in_front", rig=(rig, Rig), X_world=(X_world, ARRAY))
     return camera_points(rig, X_world)[..., 2] > 0

@@ -18,8 +18,8 @@ import dataclasses
 import jax.numpy as jnp
 import numpy as np
 
-from ..cdog._config import DEFAULT_MIN_PARALLAX_DEG
 from .._expect import expect_args
+from ..cdog._config import DEFAULT_MIN_PARALLAX_DEG
 from ._camera import Rig
 from ._distortion import Fisheye, undistort_pixels
 
@@ -78,7 +78,9 @@ class RigDescription:
         return _format(self)
 
 
-def describe_rig(rig: Rig, *, xy=None, mask=None, image_size=None, names=None, dist=None) -> RigDescription:
+def describe_rig(
+    rig: Rig, *, xy=None, mask=None, image_size=None, names=None, dist=None
+) -> RigDescription:
     """Centres, viewing directions, intrinsics, baselines and sanity warnings of one rig.
 
     Args:
@@ -106,7 +108,9 @@ def describe_rig(rig: Rig, *, xy=None, mask=None, image_size=None, names=None, d
     if pointing:
         # Try the other convention: if R, t were camera→world, world→camera is (Rᵀ, −Rᵀ t).
         R_inv = np.swapaxes(R, 1, 2)
-        inv, pointing_inv = _describe(K, R_inv, -np.einsum("mij,mj->mi", R_inv, t), xy, mask, sizes, names)
+        inv, pointing_inv = _describe(
+            K, R_inv, -np.einsum("mij,mj->mi", R_inv, t), xy, mask, sizes, names
+        )
         checked = inv.centroid is not None or inv.axes_point is not None  # else nothing was tested
         if checked and not pointing_inv:
             desc.warnings.append(
@@ -121,7 +125,9 @@ def _undistorted(K, xy, mask, dist, dtype) -> np.ndarray:
     """Detections ``(M, P, 2)`` undistorted on the device, as float64 host data."""
     xy = np.asarray(xy, dtype=np.float64)
     if mask is not None:
-        xy = np.where(np.asarray(mask, dtype=bool)[..., None], xy, 0.0)  # padded slots may hold garbage
+        xy = np.where(
+            np.asarray(mask, dtype=bool)[..., None], xy, 0.0
+        )  # padded slots may hold garbage
     if isinstance(dist, Fisheye):
         lens = Fisheye(jnp.asarray(dist.coeffs, dtype))  # undistort_pixels checks its shape
     else:
@@ -193,7 +199,9 @@ def _describe(K, R, t, xy, mask, sizes, names) -> tuple[RigDescription, int]:
     pixel = np.full((M, 2), np.nan)
     if xy is not None:
         centroid, centroid_views = _detections_centroid(K, R, centers, xy, mask)
-    target, target_name = (centroid, "the detections' centroid") if centroid is not None else (None, "")
+    target, target_name = (
+        (centroid, "the detections' centroid") if centroid is not None else (None, "")
+    )
     if target is None and axes_converge:
         target, target_name = axes_point, "the point the optical axes converge to"
     if target is not None:
@@ -203,7 +211,9 @@ def _describe(K, R, t, xy, mask, sizes, names) -> tuple[RigDescription, int]:
         target_angle = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
         h = np.einsum("mij,mj->mi", K, np.einsum("mij,j->mi", R, target) + t)
         front = _in_front(R, t, target)
-        target_pixel = np.where(front[:, None], h[:, :2] / np.where(front, h[:, 2], 1.0)[:, None], np.nan)
+        target_pixel = np.where(
+            front[:, None], h[:, :2] / np.where(front, h[:, 2], 1.0)[:, None], np.nan
+        )
         if centroid is not None:
             angle, pixel = target_angle, target_pixel
         for m in range(M):
@@ -290,7 +300,9 @@ def image_sizes(image_size, M: int) -> np.ndarray | None:
     if sizes.shape == (2,):
         sizes = np.broadcast_to(sizes, (M, 2))
     if sizes.shape != (M, 2):
-        raise ValueError(f"image_size must be (width, height) or shape (M, 2) with M={M}; got {sizes.shape}")
+        raise ValueError(
+            f"image_size must be (width, height) or shape (M, 2) with M={M}; got {sizes.shape}"
+        )
     return sizes
 
 
@@ -329,7 +341,11 @@ def _detections_centroid(K, R, centers, xy, mask):
     if views.sum() < 2:
         return None, views
     mean_px = np.where(mask[..., None], xy, 0.0).sum(axis=1)[views] / count[views, None]  # (V, 2)
-    ray_cam = np.einsum("vij,vj->vi", np.linalg.inv(K[views]), np.concatenate([mean_px, np.ones_like(mean_px[:, :1])], -1))
+    ray_cam = np.einsum(
+        "vij,vj->vi",
+        np.linalg.inv(K[views]),
+        np.concatenate([mean_px, np.ones_like(mean_px[:, :1])], -1),
+    )
     # The pixel fixes the ray only up to sign (K[2,2] may be -1): take the half in front.
     ray_cam = ray_cam * np.sign(ray_cam[:, 2:3])
     ray_world = np.einsum("vji,vj->vi", R[views], ray_cam)
@@ -343,7 +359,9 @@ def _vec(v, fmt: str = ".4g") -> str:
 
 def _format(d: RigDescription) -> str:
     M = len(d.names)
-    lines = [f"Rig: {M} view{'s' if M != 1 else ''} (world→camera X_cam = R X + t; lengths in scene units)"]
+    lines = [
+        f"Rig: {M} view{'s' if M != 1 else ''} (world→camera X_cam = R X + t; lengths in scene units)"
+    ]
     width = max(4, *(len(n) for n in d.names))
     header = f"  {'view':<{width}}  {'centre':>28}  {'viewing direction':>24}  {'fx, fy (px)':>17}  {'cx, cy (px)':>17}"
     if d.image_size is not None:

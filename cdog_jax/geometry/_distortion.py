@@ -48,7 +48,9 @@ class Fisheye(eqx.Module):
 
     def __check_init__(self):
         if np.ndim(self.coeffs) < 2 or np.shape(self.coeffs)[-1] != 4:
-            raise ValueError(f"Fisheye.coeffs must have shape (M, 4) = (k1, k2, k3, k4) per view; got {np.shape(self.coeffs)}")
+            raise ValueError(
+                f"Fisheye.coeffs must have shape (M, 4) = (k1, k2, k3, k4) per view; got {np.shape(self.coeffs)}"
+            )
 
 
 def _check(K, dist, xy) -> None:
@@ -61,7 +63,9 @@ def _check(K, dist, xy) -> None:
                 f"Fisheye.coeffs must have shape (M, 4) = (k1, k2, k3, k4) per view with M={M}; got {np.shape(dist.coeffs)}"
             )
     elif dist.shape[-2:] != (M, 5):
-        raise ValueError(f"dist must have shape (M, 5) = (k1, k2, p1, p2, k3) per view with M={M}; got {dist.shape}")
+        raise ValueError(
+            f"dist must have shape (M, 5) = (k1, k2, p1, p2, k3) per view with M={M}; got {dist.shape}"
+        )
     if xy.ndim < 3 or xy.shape[-3] != M or xy.shape[-1] != 2:
         raise ValueError(f"xy must have shape (M, P, 2) with M={M} from K; got {xy.shape}")
 
@@ -136,7 +140,9 @@ def _newton_step(dist, xd, yd, ox, oy):
 
 
 def distort_pixels(
-    K: Float[Array, "*B M 3 3"], dist: Float[Array, "*B M 5"] | Fisheye, xy: Float[Array, "*B M P 2"]
+    K: Float[Array, "*B M 3 3"],
+    dist: Float[Array, "*B M 5"] | Fisheye,
+    xy: Float[Array, "*B M P 2"],
 ) -> Float[Array, "*B M P 2"]:
     """Ideal (undistorted) pixels → distorted pixels, OpenCV's model, per view.
 
@@ -155,7 +161,9 @@ def distort_pixels(
     _check(K, dist, xy)
     x, y = _normalise(K, xy)
     if isinstance(dist, Fisheye):
-        return _shift_pixels(K, xy, *_fisheye_displacement(jnp.asarray(dist.coeffs, xy.dtype), x, y))
+        return _shift_pixels(
+            K, xy, *_fisheye_displacement(jnp.asarray(dist.coeffs, xy.dtype), x, y)
+        )
     return _shift_pixels(K, xy, *_displacement(dist, x, y))
 
 
@@ -190,7 +198,11 @@ def undistort_pixels(
         raise ValueError(f"iterations must be a non-negative Python int; got {iterations!r}")
     xd, yd = _normalise(K, xy)
     if isinstance(dist, Fisheye):
-        return _shift_pixels(K, xy, *_fisheye_undistort_offset(jnp.asarray(dist.coeffs, xy.dtype), xd, yd, iterations))
+        return _shift_pixels(
+            K,
+            xy,
+            *_fisheye_undistort_offset(jnp.asarray(dist.coeffs, xy.dtype), xd, yd, iterations),
+        )
 
     # Newton with the 2×2 Jacobian rather than OpenCV's fixed point x ← (x_d − tangential) /
     # radial: the fixed point converges linearly with the factor |r ρ'(r) / ρ(r)| (ρ = radial),
@@ -279,12 +291,17 @@ def _fisheye_undistort_offset(k, xd, yd, iterations: int):
 
 
 def undistorted(
-    rig: Rig, xy: Float[Array, "M P 2"], mask: Bool[Array, "M P"], dist: Float[Array, "M 5"] | Fisheye
+    rig: Rig,
+    xy: Float[Array, "M P 2"],
+    mask: Bool[Array, "M P"],
+    dist: Float[Array, "M 5"] | Fisheye,
 ) -> Float[Array, "M P 2"]:
     """Detections ``xy (M, P, 2)`` (pixels, as the lens saw them) mapped to the ideal pinhole
     pixels of ``rig`` through OpenCV distortion ``dist (M, 5)`` or a :class:`Fisheye`;
     padding stays 0."""
-    return jnp.where(mask[..., None], undistort_pixels(rig.K, dist, jnp.where(mask[..., None], xy, 0.0)), 0.0)
+    return jnp.where(
+        mask[..., None], undistort_pixels(rig.K, dist, jnp.where(mask[..., None], xy, 0.0)), 0.0
+    )
 
 
 undistorted_frames = jax.jit(jax.vmap(undistorted, in_axes=(None, 0, 0, None)))

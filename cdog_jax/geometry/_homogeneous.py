@@ -6,7 +6,9 @@ from .._expect import ARRAY, expect_args
 from .._types import Array, Bool, Float
 
 
-def points_from_homogeneous(h: Float[Array, "*S 3"]) -> tuple[Float[Array, "*S 2"], Bool[Array, "*S"]]:
+def points_from_homogeneous(
+    h: Float[Array, "*S 3"],
+) -> tuple[Float[Array, "*S 2"], Bool[Array, "*S"]]:
     """``(x/w, y/w)`` of ``h (*S, 3)`` as ``(*S, 2)``, and a flag ``(*S,)`` that ``w != 0``;
     where ``w == 0`` the point is 0 and the flag False.
 

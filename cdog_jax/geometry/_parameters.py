@@ -41,7 +41,10 @@ def _hat(w: Float[Array, "*S 3"]) -> Float[Array, "*S 3 3"]:
     """The skew matrix ``[w]×`` with ``[w]× v = w × v``."""
     x, y, z = w[..., 0], w[..., 1], w[..., 2]
     zero = jnp.zeros_like(x)
-    return jnp.stack([jnp.stack([zero, -z, y], -1), jnp.stack([z, zero, -x], -1), jnp.stack([-y, x, zero], -1)], -2)
+    return jnp.stack(
+        [jnp.stack([zero, -z, y], -1), jnp.stack([z, zero, -x], -1), jnp.stack([-y, x, zero], -1)],
+        -2,
+    )
 
 
 def so3_exp(rotvec: Float[Array, "*S 3"]) -> Float[Array, "*S 3 3"]:
@@ -58,7 +61,9 @@ def so3_exp(rotvec: Float[Array, "*S 3"]) -> Float[Array, "*S 3 3"]:
     B = 0.5 * half * half
     W = _hat(rotvec)
     eye = jnp.broadcast_to(jnp.eye(3, dtype=rotvec.dtype), W.shape)
-    return eye + A[..., None, None] * W + B[..., None, None] * jnp.einsum("...ij,...jk->...ik", W, W)
+    return (
+        eye + A[..., None, None] * W + B[..., None, None] * jnp.einsum("...ij,...jk->...ik", W, W)
+    )
 
 
 def _so3_log_one(R: Float[Array, "3 3"]) -> Float[Array, "3"]:
@@ -145,7 +150,9 @@ def _params_from_rig(rig: Rig) -> CameraParams:
     K = rig.K / rig.K[..., 2:3, 2:3]
     focal = jnp.stack([K[..., 0, 0], K[..., 1, 1]], axis=-1)
     principal = jnp.stack([K[..., 0, 2], K[..., 1, 2]], axis=-1)
-    return CameraParams(rotvec=so3_log(rig.R), t=rig.t, focal=focal, principal=principal, skew=K[..., 0, 1])
+    return CameraParams(
+        rotvec=so3_log(rig.R), t=rig.t, focal=focal, principal=principal, skew=K[..., 0, 1]
+    )
 
 
 def rig_from_params(params: CameraParams) -> Rig:
@@ -164,6 +171,11 @@ def _rig_from_params(params: CameraParams) -> Rig:
     zero = jnp.zeros_like(fx)
     one = jnp.ones_like(fx)
     K = jnp.stack(
-        [jnp.stack([fx, params.skew, cx], -1), jnp.stack([zero, fy, cy], -1), jnp.stack([zero, zero, one], -1)], -2
+        [
+            jnp.stack([fx, params.skew, cx], -1),
+            jnp.stack([zero, fy, cy], -1),
+            jnp.stack([zero, zero, one], -1),
+        ],
+        -2,
     )
     return Rig(K, so3_exp(params.rotvec), params.t)

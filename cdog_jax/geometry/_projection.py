@@ -26,26 +26,36 @@ def project(
     """
     expect_args("project", rig=(rig, Rig), X_world=(X_world, ARRAY))
     if np.ndim(X_world) < 1 or np.shape(X_world)[-1] != 3:
-        raise ValueError(f"project: X_world must have shape (..., 3), world points; got {np.shape(X_world)}")
+        raise ValueError(
+            f"project: X_world must have shape (..., 3), world points; got {np.shape(X_world)}"
+        )
     xy, ok = project_views_last(rig, X_world)
     xy, ok = jnp.moveaxis(xy, -2, 0), jnp.moveaxis(ok, -1, 0)
     if dist is not None:
         from ._distortion import as_lens, distort_pixels
 
-        xy = distort_pixels(rig.K, as_lens(dist, xy.dtype), xy.reshape(xy.shape[0], -1, 2)).reshape(xy.shape)
+        xy = distort_pixels(rig.K, as_lens(dist, xy.dtype), xy.reshape(xy.shape[0], -1, 2)).reshape(
+            xy.shape
+        )
     return xy, ok
 
 
-def project_views_last(rig: Rig, X_world: Float[Array, "*S 3"]) -> tuple[Float[Array, "*S M 2"], Bool[Array, "*S M"]]:
+def project_views_last(
+    rig: Rig, X_world: Float[Array, "*S 3"]
+) -> tuple[Float[Array, "*S M 2"], Bool[Array, "*S M"]]:
     """:func:`project` with the view axis last but one: ``(*S, M, 2)`` and ``(*S, M)``."""
-    proj = jnp.einsum("mij,mjk->mik", rig.K, jnp.concatenate([rig.R, rig.t[:, :, None]], axis=-1))  # (M, 3, 4)
+    proj = jnp.einsum(
+        "mij,mjk->mik", rig.K, jnp.concatenate([rig.R, rig.t[:, :, None]], axis=-1)
+    )  # (M, 3, 4)
     h = affine_per_view(proj[:, :, :3], proj[:, :, 3], X_world)  # (*S, M, 3)
     depth = affine_per_view(rig.R[:, 2:3, :], rig.t[:, 2:3], X_world)[..., 0]  # X_cam z, (*S, M)
     xy, ok = points_from_homogeneous(h)
     return xy, ok & (depth > 0)
 
 
-def pixel_distances(pix: Float[Array, "*S M 2"], xy: Float[Array, "M P 2"]) -> Float[Array, "*S M P"]:
+def pixel_distances(
+    pix: Float[Array, "*S M 2"], xy: Float[Array, "M P 2"]
+) -> Float[Array, "*S M P"]:
     """Pixel distance ``(*S, M, P)`` from a pixel per view ``pix (*S, M, 2)`` to every slot of
     that view's detections ``xy (M, P, 2)``. With x and y apart and no gather, XLA vectorises
     the table along the slots (a trailing axis of length 2 would keep it from doing so)."""
@@ -65,12 +75,16 @@ def distances_to_detections(
     return pixel_distances(pix, xy), in_front
 
 
-def reprojection_errors(rig: Rig, X_world: Float[Array, "*S 3"], xy: Float[Array, "M *S 2"]) -> Float[Array, "M *S"]:
+def reprojection_errors(
+    rig: Rig, X_world: Float[Array, "*S 3"], xy: Float[Array, "M *S 2"]
+) -> Float[Array, "M *S"]:
     """Pixel distance ``‖π_m(X) − x_m‖`` in every view, ``(M, *S)``, of points ``X (*S, 3)``
     and their pixels ``xy (M, *S, 2)``; finite even where the point projects badly (such
     entries are meaningful only where the caller masks them)."""
     expect_args("reprojection_errors", rig=(rig, Rig), X_world=(X_world, ARRAY), xy=(xy, ARRAY))
-    return jnp.moveaxis(reprojection_errors_views_last(rig, X_world, jnp.moveaxis(xy, 0, -2)), -1, 0)
+    return jnp.moveaxis(
+        reprojection_errors_views_last(rig, X_world, jnp.moveaxis(xy, 0, -2)), -1, 0
+    )
 
 
 def reprojection_errors_views_last(

@@ -127,10 +127,14 @@ def triangulate(
         from ._distortion import as_lens, undistort_pixels
 
         xy = jnp.where(mask[..., None], xy, 0.0)
-        xy = undistort_pixels(rig.K, as_lens(dist, xy.dtype), xy.reshape(xy.shape[0], -1, 2)).reshape(xy.shape)
+        xy = undistort_pixels(
+            rig.K, as_lens(dist, xy.dtype), xy.reshape(xy.shape[0], -1, 2)
+        ).reshape(xy.shape)
     if weights is not None:
         weights = jnp.moveaxis(weights, 0, -1)
-    return triangulate_views_last(rig, jnp.moveaxis(xy, 0, -2), jnp.moveaxis(mask, 0, -1), weights=weights)
+    return triangulate_views_last(
+        rig, jnp.moveaxis(xy, 0, -2), jnp.moveaxis(mask, 0, -1), weights=weights
+    )
 
 
 def triangulate_views_last(
@@ -166,5 +170,3 @@ def triangulate_pairs(
     X, ok = solve_normal_3x3(N[:, None] + N[None, :], r[:, None] + r[None, :])
     ok = ok & ~jnp.eye(N.shape[0], dtype=bool)
     return X + lift(origin, X.ndim), ok
-
-

@@ -11,8 +11,8 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from ..cdog._config import Adjacency
 from .._types import Array, Bool, Float, Int
+from ..cdog._config import Adjacency
 
 
 class EdgeTable(NamedTuple):
@@ -24,7 +24,9 @@ class EdgeTable(NamedTuple):
     ok: Bool[Array, " E"]
 
 
-def min_and_first_index(x: Float[Array, "..."], axis: int) -> tuple[Float[Array, "..."], Int[Array, "..."]]:
+def min_and_first_index(
+    x: Float[Array, "..."], axis: int
+) -> tuple[Float[Array, "..."], Int[Array, "..."]]:
     """The smallest entry of ``x`` along ``axis`` and the first index attaining it, as
     ``jnp.min`` and ``jnp.argmin`` give them (a row of +inf gives index 0), from two plain
     reductions, which XLA vectorises: argmin's variadic reduce is several times slower on a
@@ -56,8 +58,10 @@ def _first_proposals(edges: EdgeTable, num_nodes: int) -> Int[Array, "N N"]:
     where there is none. Read at ``(v, u)`` by a gather, it answers what a transpose would,
     and a transpose of an ``(N, N)`` matrix is slow on a CPU (see :func:`adjacency_from_edges`)."""
     E, N = edges.src.shape[0], num_nodes
-    return jnp.full((N, N), E, jnp.int32).at[jnp.where(edges.ok, edges.src, N), edges.dst].min(
-        jnp.arange(E, dtype=jnp.int32), mode="drop"
+    return (
+        jnp.full((N, N), E, jnp.int32)
+        .at[jnp.where(edges.ok, edges.src, N), edges.dst]
+        .min(jnp.arange(E, dtype=jnp.int32), mode="drop")
     )
 
 

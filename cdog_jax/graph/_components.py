@@ -45,7 +45,9 @@ def connected_components_capped(
         return new, jnp.any(new != labels), it + 1
 
     labels0 = jnp.arange(num_nodes, dtype=jnp.int32)
-    labels, changed, _ = jax.lax.while_loop(cond, body, (labels0, jnp.bool_(num_nodes > 0), jnp.int32(0)))
+    labels, changed, _ = jax.lax.while_loop(
+        cond, body, (labels0, jnp.bool_(num_nodes > 0), jnp.int32(0))
+    )
     return labels, changed
 
 
@@ -57,7 +59,9 @@ def connected_components(
     return connected_components_capped(edges, alive, num_nodes, max_rounds=max_rounds)[0]
 
 
-def component_view_counts(labels: Int[Array, " N"], node_view: Int[Array, " N"], valid: Bool[Array, " N"], num_views: int) -> Int[Array, "N M"]:
+def component_view_counts(
+    labels: Int[Array, " N"], node_view: Int[Array, " N"], valid: Bool[Array, " N"], num_views: int
+) -> Int[Array, "N M"]:
     """``counts[c, m]``: how many valid nodes of view m carry label c."""
     N = labels.shape[0]
     return jnp.zeros((N, num_views), jnp.int32).at[labels, node_view].add(valid.astype(jnp.int32))

@@ -9,10 +9,10 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from ..cdog._config import Adjacency, Number, Numbers, PruneScope, Range
-from ..cdog._stage import GroupTable, Scene, Stage, State, always, raise_flag
 from .._status import Status
 from .._types import Array, Bool, Float, Int
+from ..cdog._config import Adjacency, Number, Numbers, PruneScope, Range
+from ..cdog._stage import GroupTable, Scene, Stage, State, always, raise_flag
 from ._adjacency import adjacency_from_edges, alive_edges, nearest_neighbour_edges
 from ._components import component_view_counts, connected_components_capped
 from ._groups import groups_from_labels
@@ -33,7 +33,11 @@ class GraphOptions(NamedTuple):
 # lowered once and the second call reuses it.
 @partial(jax.jit, static_argnames=("options",))
 def graph_groups(
-    d: Float[Array, "M P M P"], valid: Bool[Array, " N"], tau: Float[Array, ""], th: Numbers, options: GraphOptions
+    d: Float[Array, "M P M P"],
+    valid: Bool[Array, " N"],
+    tau: Float[Array, ""],
+    th: Numbers,
+    options: GraphOptions,
 ) -> tuple[Int[Array, "G M"], Bool[Array, " G"], Int[Array, ""]]:
     """Alg. 1–2 on the valid nodes: epipolar graph, δ-pruning, view-unique components;
     returns the group table ``(G, M)``, its validity ``(G,)`` and an int32 status ``()``."""
@@ -56,7 +60,9 @@ def graph_groups(
     elif options.prune_scope == "none":
         weak = jnp.zeros_like(weak)
     A = remove_edges(A, edges, weak)
-    _, labels, split_status = split_conflicts(A, edges, theta, edge_dist, node_view, valid, M, options.max_split_iters)
+    _, labels, split_status = split_conflicts(
+        A, edges, theta, edge_dist, node_view, valid, M, options.max_split_iters
+    )
     return (*groups_from_labels(labels, valid, M, P), status | split_status)
 
 
@@ -68,7 +74,10 @@ def graph_stage(scene: Scene, state: State, options: GraphOptions) -> State:
 
 
 GRAPH = Stage(
-    "graph", graph_stage, GraphOptions, always,
+    "graph",
+    graph_stage,
+    GraphOptions,
+    always,
     # θ ≥ δ keeps an edge; δ = 0 would keep all.
     numbers=(Number("delta", 0.5, Range(0.0, 1.0, low_open=True), "δ-overlap threshold (Alg. 2)"),),
 )

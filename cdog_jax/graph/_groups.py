@@ -18,14 +18,18 @@ def groups_from_labels(
     group_of_root = jnp.cumsum(is_root, dtype=jnp.int32) - 1
     node_group = jnp.where(valid & is_root[labels], group_of_root[labels], G)  # G = dropped
     node = jnp.arange(N, dtype=jnp.int32)
-    groups = jnp.full((G, num_views), -1, jnp.int32).at[node_group, node // num_slots].set(
-        (node % num_slots).astype(jnp.int32), mode="drop"
+    groups = (
+        jnp.full((G, num_views), -1, jnp.int32)
+        .at[node_group, node // num_slots]
+        .set((node % num_slots).astype(jnp.int32), mode="drop")
     )
     group_valid = jnp.arange(G, dtype=jnp.int32) < jnp.sum(is_root, dtype=jnp.int32)
     return groups, group_valid
 
 
-def labels_from_groups(groups: Int[Array, "G M"], valid: Bool[Array, " G"], num_slots: int) -> Int[Array, "M P"]:
+def labels_from_groups(
+    groups: Int[Array, "G M"], valid: Bool[Array, " G"], num_slots: int
+) -> Int[Array, "M P"]:
     """``labels (M, P)`` from ``groups (G, M)``: the group holding slot i of view m, or -1."""
     G, M = groups.shape
     member = valid[:, None] & (groups >= 0)
@@ -35,7 +39,9 @@ def labels_from_groups(groups: Int[Array, "G M"], valid: Bool[Array, " G"], num_
     return jnp.full((M, num_slots), -1, jnp.int32).at[view, slot].set(gid, mode="drop")
 
 
-def compact_groups(groups: Int[Array, "G M"], valid: Bool[Array, " G"]) -> tuple[Int[Array, "G M"], Bool[Array, " G"], Int[Array, " G"]]:
+def compact_groups(
+    groups: Int[Array, "G M"], valid: Bool[Array, " G"]
+) -> tuple[Int[Array, "G M"], Bool[Array, " G"], Int[Array, " G"]]:
     """Move valid groups to the front, keeping their order; returns the permutation too
     (``order[k]`` = old index of new group k)."""
     order = jnp.argsort(jnp.where(valid, 0, 1), stable=True).astype(jnp.int32)

@@ -24,7 +24,9 @@ def pack_rows(A: Bool[Array, "N N"]) -> UInt[Array, "N W"]:
     return jnp.sum(bits << shifts, axis=-1, dtype=jnp.uint32)
 
 
-def edge_overlap(edges: EdgeTable, A: Bool[Array, "N N"], *, dtype=jnp.float32) -> Float[Array, " E"]:
+def edge_overlap(
+    edges: EdgeTable, A: Bool[Array, "N N"], *, dtype=jnp.float32
+) -> Float[Array, " E"]:
     """``θ (E,)`` of every proposal's edge (defined where the proposal is an edge of the
     ``(N, N)`` graph ``A``), in (0, 1], as ``dtype``."""
     rows = pack_rows(A)  # (N, W)
@@ -35,7 +37,9 @@ def edge_overlap(edges: EdgeTable, A: Bool[Array, "N N"], *, dtype=jnp.float32) 
     return overlap / jnp.maximum(deg_closed[edges.src], deg_closed[edges.dst]).astype(dtype)
 
 
-def remove_edges(A: Bool[Array, "N N"], edges: EdgeTable, remove: Bool[Array, " E"]) -> Bool[Array, "N N"]:
+def remove_edges(
+    A: Bool[Array, "N N"], edges: EdgeTable, remove: Bool[Array, " E"]
+) -> Bool[Array, "N N"]:
     """``A (N, N)`` without the (undirected) edges of the flagged proposals ``remove (E,)``."""
     keep = ~remove
     A = A.at[edges.src, edges.dst].min(keep)

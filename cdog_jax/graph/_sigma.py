@@ -33,7 +33,9 @@ START_QUANTILES = (0.1, 0.25, 0.5)  # the half-normal scale starts from these sa
 MIN_MATCHES = 2.5  # expected true-match pairs needed to use σ̂ (three pairs that fit well)
 MAX_SIGMA_PER_FOCAL = 0.01  # a plausible σ is at most 1 % of the focal length
 UNIFORM_PER_FOCAL = 0.1  # the uniform spans at least 10 % of the focal length
-SPREAD_PER_FOCAL = 0.05  # 1/κ (a point's mean nearest distance to a line when alone) is at least this
+SPREAD_PER_FOCAL = (
+    0.05  # 1/κ (a point's mean nearest distance to a line when alone) is at least this
+)
 FALLBACK_SIGMA_PX = 1.0
 TIE_RELATIVE = 1e-5  # log-likelihoods this close (relative) count as equal
 MIN_SCALE_PX = 1e-3  # the half-normal scale's floor (noise-free data: every distance ≈ 0)
@@ -64,7 +66,14 @@ def _log_parts(x, count, c, inv_kappa, pi, width):
     hidden = jnp.where(has_other, log_lam_true - lam_true * x + log_t_beyond, -jnp.inf)
     none = jnp.log(lam_none) - lam_none * x
     uniform = jnp.broadcast_to(-jnp.log(width), x.shape)
-    return jnp.stack([match + jnp.log(pi[0]), hidden + jnp.log(pi[0]), none + jnp.log(pi[1]), uniform + jnp.log(pi[2])])
+    return jnp.stack(
+        [
+            match + jnp.log(pi[0]),
+            hidden + jnp.log(pi[0]),
+            none + jnp.log(pi[1]),
+            uniform + jnp.log(pi[2]),
+        ]
+    )
 
 
 def _em(x, w, count, c0, inv_kappa0, width, spread_min):
@@ -84,7 +93,9 @@ def _em(x, w, count, c0, inv_kappa0, width, spread_min):
         mills = jnp.clip(mills, a, a + 1.0 / jnp.maximum(a, MIN_SCALE_PX))
         t2_beyond = c * c * (1.0 + a * mills)
         n_true = jnp.sum(match + hidden)
-        c_new = jnp.sqrt(jnp.sum(match * x * x + hidden * t2_beyond) / jnp.maximum(n_true, MIN_SCALE_PX))
+        c_new = jnp.sqrt(
+            jnp.sum(match * x * x + hidden * t2_beyond) / jnp.maximum(n_true, MIN_SCALE_PX)
+        )
         # (count − 1)·U is exponential with mean 1/κ; beside a match it is only known to exceed x.
         others = jnp.where(count > 1.0, count - 1.0, 0.0)
         censored = jnp.where(count > 1.0, match, 0.0)
@@ -118,8 +129,13 @@ def estimate_sigma(
 
 
 def em_start(
-    x: Float[Array, " S"], w: Float[Array, " S"], count: Float[Array, " S"], focal_px: Float[Array, ""]
-) -> tuple[Float[Array, ""], Float[Array, ""], Float[Array, " Q"], Float[Array, ""], Float[Array, ""]]:
+    x: Float[Array, " S"],
+    w: Float[Array, " S"],
+    count: Float[Array, " S"],
+    focal_px: Float[Array, ""],
+) -> tuple[
+    Float[Array, ""], Float[Array, ""], Float[Array, " Q"], Float[Array, ""], Float[Array, ""]
+]:
     """What every EM over nearest distances starts from (flat samples ``x, w, count``, px):
     ``(focal_px, width, c0, scaled_mean, spread_min)``: the focal length made usable (1 px
     when not finite or positive), the width of the uniform part, the half-normal scales
@@ -142,7 +158,10 @@ def em_start(
 
 
 def sigma_from_samples(
-    x: Float[Array, "*S"], w: Float[Array, "*S"], count: Float[Array, "*S"], focal_px: Float[Array, ""]
+    x: Float[Array, "*S"],
+    w: Float[Array, "*S"],
+    count: Float[Array, "*S"],
+    focal_px: Float[Array, ""],
 ) -> tuple[Float[Array, ""], Bool[Array, ""]]:
     """:func:`estimate_sigma` from the samples of :func:`nearest_samples` (any shape, e.g.
     those of several scenes pooled; weight 0 marks an unused entry)."""
@@ -158,14 +177,22 @@ def sigma_from_samples(
     # Starts that reach one optimum differ only by round-off: near-ties go to the first.
     best = jnp.argmax(log_lik >= top - TIE_RELATIVE * (1.0 + jnp.abs(top)))
     sigma = c[best] / jnp.sqrt(2.0)
-    fallback = ~((n_match[best] >= MIN_MATCHES) & (sigma <= MAX_SIGMA_PER_FOCAL * focal_px) & jnp.isfinite(sigma))
+    fallback = ~(
+        (n_match[best] >= MIN_MATCHES)
+        & (sigma <= MAX_SIGMA_PER_FOCAL * focal_px)
+        & jnp.isfinite(sigma)
+    )
     return jnp.where(fallback, FALLBACK_SIGMA_PX, sigma).astype(dtype), fallback
 
 
-def focal_scale(K: Float[Array, "M 3 3"] | Float[np.ndarray, "M 3 3"]) -> Float[Array, ""] | Float[np.ndarray, ""]:
+def focal_scale(
+    K: Float[Array, "M 3 3"] | Float[np.ndarray, "M 3 3"],
+) -> Float[Array, ""] | Float[np.ndarray, ""]:
     """The rig's focal length ``()`` (pixels) from ``K (M, 3, 3)``: the median over views of
     ``(|f_x| + |f_y|) / 2``. A NumPy ``K`` gives a NumPy scalar, bitwise the same: outside
     ``jit`` the host computes it (as eager JAX operations, each a program compiled in every
     process)."""
     xp = np if isinstance(K, np.ndarray) else jnp
-    return xp.asarray(xp.median(xp.asarray(0.5, K.dtype) * (xp.abs(K[..., 0, 0]) + xp.abs(K[..., 1, 1]))))
+    return xp.asarray(
+        xp.median(xp.asarray(0.5, K.dtype) * (xp.abs(K[..., 0, 0]) + xp.abs(K[..., 1, 1])))
+    )

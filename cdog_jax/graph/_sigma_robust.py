@@ -48,7 +48,9 @@ GAUSS_COVERAGE = 0.9544997361036416  # P(|Z| < 2): what α_τ = 2 covers of Gaus
 
 def nearest_two_samples(
     d: Float[Array, "M P M P"], mask: Bool[Array, "M P"]
-) -> tuple[Float[Array, "M P M"], Float[Array, "M P M"], Float[Array, "M P M"], Float[Array, "M P M"]]:
+) -> tuple[
+    Float[Array, "M P M"], Float[Array, "M P M"], Float[Array, "M P M"], Float[Array, "M P M"]
+]:
     """:func:`~cdog_jax.graph._sigma.nearest_samples` ``(x, w, count)`` (pixels, weights,
     counts) and the second-nearest distance ``x2 >= x`` (pixels; ``x`` where view ``n`` has
     one point or the second is not finite)."""
@@ -105,7 +107,12 @@ def _log_match(a, c, nu):
     """``(log density of T at x, log P(T > x))`` for the half-normal (``ν = inf``) or half-t."""
     if math.isinf(nu):
         return 0.5 * jnp.log(2.0 / jnp.pi) - jnp.log(c) - 0.5 * a * a, jnp.log(2.0) + log_ndtr(-a)
-    log_norm = math.log(2.0) + math.lgamma(0.5 * (nu + 1.0)) - math.lgamma(0.5 * nu) - 0.5 * math.log(nu * math.pi)
+    log_norm = (
+        math.log(2.0)
+        + math.lgamma(0.5 * (nu + 1.0))
+        - math.lgamma(0.5 * nu)
+        - 0.5 * math.log(nu * math.pi)
+    )
     return log_norm - jnp.log(c) - 0.5 * (nu + 1.0) * jnp.log1p(a * a / nu), _log_t_tail(a, nu)[0]
 
 
@@ -123,7 +130,14 @@ def _log_parts(x, x2, count, c, inv_kappa, pi, width, nu):
     hidden = jnp.where(has_other, log_lam_true - lam_true * x + log_t_beyond, -jnp.inf)
     none = jnp.log(lam_none) - lam_none * x
     uniform = jnp.broadcast_to(-jnp.log(width), x.shape)
-    return jnp.stack([match + jnp.log(pi[0]), hidden + jnp.log(pi[0]), none + jnp.log(pi[1]), uniform + jnp.log(pi[2])])
+    return jnp.stack(
+        [
+            match + jnp.log(pi[0]),
+            hidden + jnp.log(pi[0]),
+            none + jnp.log(pi[1]),
+            uniform + jnp.log(pi[2]),
+        ]
+    )
 
 
 def _second_moments(x, c, nu):
@@ -148,12 +162,16 @@ def _em(x, x2, w, count, c0, inv_kappa0, width, spread_min, nu):
 
     def step(_, state):
         c, inv_kappa, pi = state
-        resp = jax.nn.softmax(_log_parts(x, x2, count, c, inv_kappa, pi, width, nu), axis=0) * w[None]
+        resp = (
+            jax.nn.softmax(_log_parts(x, x2, count, c, inv_kappa, pi, width, nu), axis=0) * w[None]
+        )
         match, hidden, none, uniform = resp
         t2_match = _second_moments(x, c, nu)[0]
         t2_beyond = _second_moments(x2, c, nu)[1]
         n_true = jnp.sum(match + hidden)
-        c_new = jnp.sqrt(jnp.sum(match * t2_match + hidden * t2_beyond) / jnp.maximum(n_true, MIN_SCALE_PX))
+        c_new = jnp.sqrt(
+            jnp.sum(match * t2_match + hidden * t2_beyond) / jnp.maximum(n_true, MIN_SCALE_PX)
+        )
         # (count − 1)·U is exponential with mean 1/κ; beside a match it is only known to exceed x.
         others = jnp.where(count > 1.0, count - 1.0, 0.0)
         censored = jnp.where(count > 1.0, match, 0.0)
@@ -188,7 +206,9 @@ def _true_quantiles(q, x, x2, w, count, c, inv_kappa, pi, width, nu):
     def cdf(t):
         log_beyond_t = _log_match(t / c, c, nu)[1]
         passed = -jnp.expm1(jnp.minimum(log_beyond_t - log_beyond_x, 0.0))  # P(T ≤ t | T > x2)
-        return jnp.sum(jnp.where(x <= t, match, 0.0) + hidden * passed) / jnp.maximum(n_true, MIN_SCALE_PX)
+        return jnp.sum(jnp.where(x <= t, match, 0.0) + hidden * passed) / jnp.maximum(
+            n_true, MIN_SCALE_PX
+        )
 
     def step(_, bounds):
         lo, hi = bounds
@@ -196,7 +216,9 @@ def _true_quantiles(q, x, x2, w, count, c, inv_kappa, pi, width, nu):
         below = jax.vmap(cdf)(mid.reshape(-1)).reshape(mid.shape) < q
         return jnp.where(below, mid, lo), jnp.where(below, hi, mid)
 
-    lo, hi = jax.lax.fori_loop(0, QUANTILE_ITERS, step, (jnp.zeros_like(q), jnp.full_like(q, width)))
+    lo, hi = jax.lax.fori_loop(
+        0, QUANTILE_ITERS, step, (jnp.zeros_like(q), jnp.full_like(q, width))
+    )
     return 0.5 * (lo + hi), n_true
 
 
@@ -223,7 +245,11 @@ def estimate_noise(
 
 
 def robust_sigma_from_samples(
-    x: Float[Array, "*S"], w: Float[Array, "*S"], count: Float[Array, "*S"], x2: Float[Array, "*S"], focal_px: Float[Array, ""]
+    x: Float[Array, "*S"],
+    w: Float[Array, "*S"],
+    count: Float[Array, "*S"],
+    x2: Float[Array, "*S"],
+    focal_px: Float[Array, ""],
 ) -> tuple[Float[Array, ""], Bool[Array, ""]]:
     """:func:`estimate_sigma_robust` from the samples of :func:`nearest_two_samples` (any
     shape, e.g. those of several scenes pooled; weight 0 marks an unused entry)."""
@@ -248,7 +274,9 @@ def fit_noise(
     # The spread starts from the second-nearest distances (mostly unrelated points: the
     # nearest of count − 1 of them has mean 1/κ / (count − 1)); without any, the nearest.
     w_other = jnp.where(count > 1.0, w, 0.0)
-    second_mean = jnp.sum(w_other * (count - 1.0) * x2) / jnp.maximum(jnp.sum(w_other), MIN_SCALE_PX)
+    second_mean = jnp.sum(w_other * (count - 1.0) * x2) / jnp.maximum(
+        jnp.sum(w_other), MIN_SCALE_PX
+    )
     spread0 = jnp.where(jnp.sum(w_other) > 0, second_mean, scaled_mean)
     inv_kappa0 = jnp.clip(spread0, spread_min, width * jnp.maximum(jnp.max(count), 1.0))
 
@@ -267,11 +295,16 @@ def fit_noise(
     best = jnp.argmax(log_lik >= top - TIE_RELATIVE * (1.0 + jnp.abs(top)))
     levels = jnp.stack([jnp.asarray(0.5, dtype), jnp.asarray(coverage, dtype)])
     branches = [
-        lambda c, k, p, nu=nu: _true_quantiles(levels, x, x2, w, count, c, k, p, width, nu) for nu in NU_GRID
-    ]  # fmt: skip
-    (median, gate), n_match = jax.lax.switch(best // len(START_QUANTILES), branches, c[best], inv_kappa[best], pi[best])
+        lambda c, k, p, nu=nu: _true_quantiles(levels, x, x2, w, count, c, k, p, width, nu)
+        for nu in NU_GRID
+    ]
+    (median, gate), n_match = jax.lax.switch(
+        best // len(START_QUANTILES), branches, c[best], inv_kappa[best], pi[best]
+    )
     # The Gaussian σ of the same median: a true pair's distance is |N(0, 2σ²)|.
     sigma = median / (jnp.sqrt(2.0) * MEDIAN_Z)
-    fallback = ~((n_match >= MIN_MATCHES) & (sigma <= MAX_SIGMA_PER_FOCAL * focal_px) & jnp.isfinite(sigma))
+    fallback = ~(
+        (n_match >= MIN_MATCHES) & (sigma <= MAX_SIGMA_PER_FOCAL * focal_px) & jnp.isfinite(sigma)
+    )
     gate = jnp.where(fallback, jnp.nan, gate)
     return jnp.where(fallback, FALLBACK_SIGMA_PX, sigma).astype(dtype), gate.astype(dtype), fallback

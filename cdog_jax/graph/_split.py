@@ -94,7 +94,9 @@ def split_conflicts(
     alive, labels, any_conflict, comp_capped, _ = jax.lax.while_loop(cond, body, carry)
     alive, labels, last_capped = jax.lax.cond(
         any_conflict,
-        lambda: _detach_last_resort(alive, labels, edges, edge_dist, pair, node_view, valid, num_views),
+        lambda: _detach_last_resort(
+            alive, labels, edges, edge_dist, pair, node_view, valid, num_views
+        ),
         lambda: (alive, labels, jnp.bool_(False)),
     )
     # The graph: A without every proposal-edge that was removed (edges of A that are not
@@ -102,7 +104,14 @@ def split_conflicts(
     removed = edges.ok & A[edges.src, edges.dst] & ~alive
     A = remove_edges(A, edges, removed)
     status = jnp.where(any_conflict, jnp.int32(int(Status.SPLIT_CAPPED)), jnp.int32(0))
-    return A, labels, status | jnp.where(comp_capped | last_capped, jnp.int32(int(Status.COMPONENTS_CAPPED)), jnp.int32(0))
+    return (
+        A,
+        labels,
+        status
+        | jnp.where(
+            comp_capped | last_capped, jnp.int32(int(Status.COMPONENTS_CAPPED)), jnp.int32(0)
+        ),
+    )
 
 
 def _detach_last_resort(alive, labels, edges, edge_dist, pair, node_view, valid, num_views):
@@ -116,12 +125,24 @@ def _detach_last_resort(alive, labels, edges, edge_dist, pair, node_view, valid,
     counted = alive & (pair == jnp.arange(pair.shape[0], dtype=jnp.int32))
     other_end = counted & (edges.src != edges.dst)
     dist = edge_dist.dtype
-    pair_dist = jnp.zeros(edge_dist.shape, dist).at[pair].max(jnp.where(alive, edge_dist, 0.0), mode="drop")
-    pair_dist = pair_dist.at[pair].get(mode="fill", fill_value=0.0)
-    total = jnp.zeros((N,), dist).at[edges.src].add(jnp.where(counted, pair_dist, 0.0)).at[edges.dst].add(
-        jnp.where(other_end, pair_dist, 0.0)
+    pair_dist = (
+        jnp.zeros(edge_dist.shape, dist).at[pair].max(jnp.where(alive, edge_dist, 0.0), mode="drop")
     )
-    deg = jnp.zeros((N,), dist).at[edges.src].add(counted.astype(dist)).at[edges.dst].add(other_end.astype(dist))
+    pair_dist = pair_dist.at[pair].get(mode="fill", fill_value=0.0)
+    total = (
+        jnp.zeros((N,), dist)
+        .at[edges.src]
+        .add(jnp.where(counted, pair_dist, 0.0))
+        .at[edges.dst]
+        .add(jnp.where(other_end, pair_dist, 0.0))
+    )
+    deg = (
+        jnp.zeros((N,), dist)
+        .at[edges.src]
+        .add(counted.astype(dist))
+        .at[edges.dst]
+        .add(other_end.astype(dist))
+    )
     mean_dist = total / jnp.maximum(deg, 1.0)
     over_full = conflict[labels] & (counts[labels, node_view] >= 2) & valid  # (N,)
     # Winner per (label, view): smallest mean distance, then smallest node index.

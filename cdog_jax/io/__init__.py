@@ -17,42 +17,57 @@ content raises :class:`InputError` (a ``ValueError``) naming the file.
 """
 
 from ._anipose import save_rig_anipose as save_rig_anipose
-from ._interop_aniposelib import aniposelib_from_rig as aniposelib_from_rig
-from ._interop_aniposelib import rig_from_aniposelib as rig_from_aniposelib
-from ._interop_pycolmap import pycolmap_from_rig as pycolmap_from_rig
-from ._interop_pycolmap import rig_from_pycolmap as rig_from_pycolmap
-from ._nerfstudio import save_rig_nerfstudio as save_rig_nerfstudio
-from ._opencv_arrays import OpenCVCameras as OpenCVCameras
-from ._opencv_arrays import opencv_from_rig as opencv_from_rig
-from ._opencv_arrays import rig_from_opencv as rig_from_opencv
-from ._rotations import quaternion_from_rotation as quaternion_from_rotation
-from ._rotations import rodrigues_from_rotation as rodrigues_from_rotation
-from ._rotations import rotation_from_quaternion as rotation_from_quaternion
-from ._rotations import rotation_from_rodrigues as rotation_from_rodrigues
+from ._association_files import (
+    association_records as association_records,
+    load_association_json as load_association_json,
+    save_association_csv as save_association_csv,
+    save_association_json as save_association_json,
+    save_association_npz as save_association_npz,
+)
 from ._atomic import atomic_savefig as atomic_savefig
-from ._association_files import association_records as association_records
-from ._association_files import load_association_json as load_association_json
-from ._association_files import save_association_csv as save_association_csv
-from ._association_files import save_association_json as save_association_json
-from ._association_files import save_association_npz as save_association_npz
 from ._colmap import save_rig_colmap as save_rig_colmap
-from ._detections import Detections as Detections
-from ._detections import detections_from_array as detections_from_array
-from ._detections import detections_from_lists as detections_from_lists
-from ._detections import load_detections as load_detections
+from ._detections import (
+    Detections as Detections,
+    detections_from_array as detections_from_array,
+    detections_from_lists as detections_from_lists,
+    load_detections as load_detections,
+)
 from ._detections_out import save_detections_json as save_detections_json
 from ._easymocap import save_rig_easymocap as save_rig_easymocap
-from ._keypoints import SKELETONS as SKELETONS
-from ._keypoints import load_keypoint_table as load_keypoint_table
-from ._keypoints import load_openpose as load_openpose
 from ._errors import InputError as InputError
-from ._rig_files import FORMATS as FORMATS
-from ._rig_files import RigFile as RigFile
+from ._interop_aniposelib import (
+    aniposelib_from_rig as aniposelib_from_rig,
+    rig_from_aniposelib as rig_from_aniposelib,
+)
+from ._interop_pycolmap import (
+    pycolmap_from_rig as pycolmap_from_rig,
+    rig_from_pycolmap as rig_from_pycolmap,
+)
+from ._keypoints import (
+    SKELETONS as SKELETONS,
+    load_keypoint_table as load_keypoint_table,
+    load_openpose as load_openpose,
+)
 from ._load_rig import load_rig as load_rig
+from ._nerfstudio import save_rig_nerfstudio as save_rig_nerfstudio
+from ._opencv_arrays import (
+    OpenCVCameras as OpenCVCameras,
+    opencv_from_rig as opencv_from_rig,
+    rig_from_opencv as rig_from_opencv,
+)
 from ._rig_easyvis import save_rig_easyvis as save_rig_easyvis
+from ._rig_files import FORMATS as FORMATS, RigFile as RigFile
 from ._rig_json import save_rig_json as save_rig_json
 from ._rig_npz import save_rig_npz as save_rig_npz
-from ._trc import Trc as Trc
-from ._trc import load_trc as load_trc
-from ._trc import save_people_trc as save_people_trc
-from ._trc import save_trc as save_trc
+from ._rotations import (
+    quaternion_from_rotation as quaternion_from_rotation,
+    rodrigues_from_rotation as rodrigues_from_rotation,
+    rotation_from_quaternion as rotation_from_quaternion,
+    rotation_from_rodrigues as rotation_from_rodrigues,
+)
+from ._trc import (
+    Trc as Trc,
+    load_trc as load_trc,
+    save_people_trc as save_people_trc,
+    save_trc as save_trc,
+)

@@ -34,9 +34,9 @@ import numpy as np
 
 from .._expect import PATH, expect_args
 from ..geometry._camera import Rig
+from ..geometry._distortion import Fisheye
 from ._atomic import atomic_write
 from ._errors import InputError, read_text
-from ..geometry._distortion import Fisheye
 from ._rig_files import PathLike, _Views
 from ._rig_values import (
     _check_dist,
@@ -82,18 +82,26 @@ def read_anipose(path: str) -> _Views:
         if match:
             sections.append((int(match.group(1)), key, section))
     if not sections:
-        raise ValueError(f"{path}: no [cam_N] sections (zero cameras); found sections {sorted(data)}")
+        raise ValueError(
+            f"{path}: no [cam_N] sections (zero cameras); found sections {sorted(data)}"
+        )
     sections.sort(key=lambda s: s[0])
     for (n0, key0, _), (n1, key1, _) in itertools.pairwise(sections):
         if n0 == n1:
-            raise ValueError(f"{path}: sections [{key0}] and [{key1}] have the same camera number {n0}")
+            raise ValueError(
+                f"{path}: sections [{key0}] and [{key1}] have the same camera number {n0}"
+            )
     Ks, Rs, ts, dists, sizes, names = [], [], [], [], [], []
     for m, (_, key, section) in enumerate(sections):
         if not isinstance(section, dict):
-            raise ValueError(f"{path}: view {m}, [{key}]: expected a table; got {type(section).__name__}")  # noqa: TRY004
+            raise ValueError(
+                f"{path}: view {m}, [{key}]: expected a table; got {type(section).__name__}"
+            )  # noqa: TRY004
         name = section.get("name", key)
         if isinstance(name, bool) or not isinstance(name, (str, int)):
-            raise ValueError(f'{path}: view {m}, [{key}], key "name": expected a string; got {name!r}')  # noqa: TRY004
+            raise ValueError(
+                f'{path}: view {m}, [{key}], key "name": expected a string; got {name!r}'
+            )  # noqa: TRY004
         name = str(name)
         where = f"{path}: view {m} (camera {name!r}, section [{key}])"
         fisheye = section.get("fisheye", False)
@@ -101,25 +109,49 @@ def read_anipose(path: str) -> _Views:
             raise ValueError(f'{where}, key "fisheye": expected true or false; got {fisheye!r}')  # noqa: TRY004
         for k in ("matrix", "distortions", "rotation", "translation"):
             if k not in section:
-                raise ValueError(f'{where}: missing key "{k}" (expected matrix, distortions, rotation, translation)')
+                raise ValueError(
+                    f'{where}: missing key "{k}" (expected matrix, distortions, rotation, translation)'
+                )
         Ks.append(_to_array(section["matrix"], (3, 3), f'{where}, key "matrix"'))
         dist = section["distortions"]
         length = len(dist) if isinstance(dist, list) else 1
         if fisheye:
-            dists.append(("fisheye", _to_array(dist, (4,), f'{where}, key "distortions" (fisheye: k1, k2, k3, k4)')))
+            dists.append(
+                (
+                    "fisheye",
+                    _to_array(dist, (4,), f'{where}, key "distortions" (fisheye: k1, k2, k3, k4)'),
+                )
+            )
         else:
-            dists.append(_opencv_dist(_to_array(dist, (length,), f'{where}, key "distortions"'), f'{where}, key "distortions"'))
-        Rs.append(rotation_from_rodrigues(_to_array(section["rotation"], (3,), f'{where}, key "rotation"')))
+            dists.append(
+                _opencv_dist(
+                    _to_array(dist, (length,), f'{where}, key "distortions"'),
+                    f'{where}, key "distortions"',
+                )
+            )
+        Rs.append(
+            rotation_from_rodrigues(
+                _to_array(section["rotation"], (3,), f'{where}, key "rotation"')
+            )
+        )
         ts.append(_to_array(section["translation"], (3,), f'{where}, key "translation"'))
-        sizes.append(_check_image_size(section["size"], f'{where}, key "size"') if "size" in section else None)
+        sizes.append(
+            _check_image_size(section["size"], f'{where}, key "size"')
+            if "size" in section
+            else None
+        )
         names.append(name)
     view_sizes = None
     if any(s is not None for s in sizes):
         missing = [m for m, s in enumerate(sizes) if s is None]
         if missing:
-            raise ValueError(f'{path}: view {missing[0]} (camera {names[missing[0]]!r}): missing key "size" (other cameras give one)')
+            raise ValueError(
+                f'{path}: view {missing[0]} (camera {names[missing[0]]!r}): missing key "size" (other cameras give one)'
+            )
         view_sizes = np.array(sizes, dtype=np.int64)
-    return _Views(np.stack(Ks), np.stack(Rs), np.stack(ts), view_sizes, stack_dists(dists, path), tuple(names))
+    return _Views(
+        np.stack(Ks), np.stack(Rs), np.stack(ts), view_sizes, stack_dists(dists, path), tuple(names)
+    )
 
 
 def save_rig_anipose(
@@ -176,7 +208,15 @@ def _toml_floats(a: np.ndarray) -> str:
 
 def _toml_string(s: str) -> str:
     """A TOML basic string: quote, backslash and control characters escaped."""
-    escapes = {'"': '\\"', "\\": "\\\\", "\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f", "\r": "\\r"}
+    escapes = {
+        '"': '\\"',
+        "\\": "\\\\",
+        "\b": "\\b",
+        "\t": "\\t",
+        "\n": "\\n",
+        "\f": "\\f",
+        "\r": "\\r",
+    }
     out = []
     for c in s:
         if c in escapes:

@@ -46,9 +46,24 @@ from ._read_files import read_json
 PathLike = str | os.PathLike  # a file name
 
 # Every field of cdog_jax.Association, as written to NPZ.
-ASSOCIATION_FIELDS = ("labels", "groups", "valid", "points3d", "bpe", "err_px", "n_views", "num_groups", "sigma_px", "tau_px", "status")
+ASSOCIATION_FIELDS = (
+    "labels",
+    "groups",
+    "valid",
+    "points3d",
+    "bpe",
+    "err_px",
+    "n_views",
+    "num_groups",
+    "sigma_px",
+    "tau_px",
+    "status",
+)
 # Any object with an Association's fields will do (e.g. one frame of a batch).
-_ASSOCIATION = Kind("an Association (or an object with its fields)", lambda v: all(hasattr(v, f) for f in ("groups", "valid", "points3d")))
+_ASSOCIATION = Kind(
+    "an Association (or an object with its fields)",
+    lambda v: all(hasattr(v, f) for f in ("groups", "valid", "points3d")),
+)
 CSV_COLUMNS = ("frame", "group", "x", "y", "z", "err_px", "bpe_px2", "n_views")
 CSV_NOTE = (
     "# err_px: mean reprojection distance over the group's member views (pixels); "
@@ -101,15 +116,21 @@ def association_records(
         [[view, slot, x, y], …], "num_views", "capacity", "sigma_px", "tau_px"}``. Only
         ``valid`` groups are listed; ``id`` is the group's row in ``assoc.groups``.
     """
-    expect_args("association_records", assoc=(assoc, _ASSOCIATION), xy=(xy, ARRAY), mask=(mask, ARRAY))
+    expect_args(
+        "association_records", assoc=(assoc, _ASSOCIATION), xy=(xy, ARRAY), mask=(mask, ARRAY)
+    )
     a = _host(assoc)
     xy, mask = np.asarray(xy, np.float64), np.asarray(mask, bool)
     conf = None if confidence is None else np.asarray(confidence, np.float64)
     if a["labels"].ndim != 2:
-        raise ValueError(f"expected the Association of one scene, labels (M, P); got labels {a['labels'].shape}")
+        raise ValueError(
+            f"expected the Association of one scene, labels (M, P); got labels {a['labels'].shape}"
+        )
     M, P = a["labels"].shape
     if xy.shape != (M, P, 2) or mask.shape != (M, P):
-        raise ValueError(f"xy and mask must have shapes {(M, P, 2)} and {(M, P)} like assoc.labels; got {xy.shape}, {mask.shape}")
+        raise ValueError(
+            f"xy and mask must have shapes {(M, P, 2)} and {(M, P)} like assoc.labels; got {xy.shape}, {mask.shape}"
+        )
     if conf is not None and conf.shape != (M, P):
         raise ValueError(f"confidence must have shape {(M, P)}; got {conf.shape}")
 
@@ -123,7 +144,9 @@ def association_records(
         views = np.flatnonzero(a["groups"][g] >= 0)
         slots = a["groups"][g, views]
         if (slots >= P).any() or not mask[views, slots].all():
-            raise ValueError(f"group {g} has a member in a slot where mask is False; are assoc and xy from the same scene?")
+            raise ValueError(
+                f"group {g} has a member in a slot where mask is False; are assoc and xy from the same scene?"
+            )
         used[views, slots] = True
         X = a["points3d"][g]
         record = {
@@ -135,7 +158,9 @@ def association_records(
             "n_views": int(a["n_views"][g]),
         }
         if cams is not None:
-            record["member_err_px"] = [_num(e) for e in _member_errors(cams, X, views, xy[views, slots])]
+            record["member_err_px"] = [
+                _num(e) for e in _member_errors(cams, X, views, xy[views, slots])
+            ]
         if group_class is not None:
             record.update(_class_fields(int(np.asarray(group_class)[g]), class_names))
         if track_id is not None:
@@ -195,19 +220,31 @@ def _people(people: Any, F: int | None) -> tuple[Any, Any, Any]:
         return None, None, None
     gp, ids = np.asarray(people.group_person), np.asarray(people.person_id)
     if gp.ndim != 2 or (F is not None and gp.shape[0] != F) or (F is None and gp.shape[0] != 1):
-        raise ValueError(f"people must be the People of this result ({F or 1} frame(s)); got group_person {gp.shape}")
+        raise ValueError(
+            f"people must be the People of this result ({F or 1} frame(s)); got group_person {gp.shape}"
+        )
     merged, split = np.asarray(people.merged), np.asarray(people.split)
     lists = [
-        [{"person": int(ids[f, n]), "merged": bool(merged[f, n]), "split": bool(split[f, n])} for n in np.flatnonzero(ids[f] >= 0)]
+        [
+            {"person": int(ids[f, n]), "merged": bool(merged[f, n]), "split": bool(split[f, n])}
+            for n in np.flatnonzero(ids[f] >= 0)
+        ]
         for f in range(ids.shape[0])
     ]
     return gp, np.asarray(people.mixed), lists
 
 
 def save_association_json(
-    path: PathLike, assoc: Any, xy: Any, mask: Any, *, confidence: Any = None, rig: Any = None, classes: Any = None,
+    path: PathLike,
+    assoc: Any,
+    xy: Any,
+    mask: Any,
+    *,
+    confidence: Any = None,
+    rig: Any = None,
+    classes: Any = None,
     people: Any = None,
-) -> None:  # fmt: skip
+) -> None:
     """Write :func:`association_records` as JSON: one scene (``labels (M, P)``, ``xy (M, P, 2)``),
     or a batch (``labels (B, M, P)``, ``xy (B, M, P, 2)``, ``mask (B, M, P)``, from
     :func:`cdog_jax.associate_batch`) as ``{"frames": [one object per scene, …]}``.
@@ -218,13 +255,21 @@ def save_association_json(
     frame ``"people"``."""
     tracks, recovered = _tracks(assoc)
     assoc, group_class, names = _unpack(assoc)
-    expect_args("save_association_json", path=(path, PATH), assoc=(assoc, _ASSOCIATION), xy=(xy, ARRAY), mask=(mask, ARRAY))
+    expect_args(
+        "save_association_json",
+        path=(path, PATH),
+        assoc=(assoc, _ASSOCIATION),
+        xy=(xy, ARRAY),
+        mask=(mask, ARRAY),
+    )
     labels = np.asarray(assoc.labels)
     if labels.ndim == 3:
         B = labels.shape[0]
         xy, mask = np.asarray(xy), np.asarray(mask)
         if xy.shape[:1] != (B,) or mask.shape[:1] != (B,):
-            raise ValueError(f"a batch of {B} results needs xy (B, M, P, 2) and mask (B, M, P); got {xy.shape}, {mask.shape}")
+            raise ValueError(
+                f"a batch of {B} results needs xy (B, M, P, 2) and mask (B, M, P); got {xy.shape}, {mask.shape}"
+            )
         conf = [None] * B if confidence is None else np.asarray(confidence)
         gc = [None] * B if group_class is None else group_class
         cls = [None] * B if classes is None else np.asarray(classes)
@@ -235,16 +280,36 @@ def save_association_json(
         data: dict = {
             "frames": [
                 association_records(
-                    _scene(assoc, b), xy[b], mask[b], confidence=conf[b], rig=rig, group_class=gc[b], class_names=names,
-                    classes=cls[b], track_id=tid[b], recovered=rec[b], person=gp[b], mixed=mixed[b], people=plist[b],
-                )  # fmt: skip
+                    _scene(assoc, b),
+                    xy[b],
+                    mask[b],
+                    confidence=conf[b],
+                    rig=rig,
+                    group_class=gc[b],
+                    class_names=names,
+                    classes=cls[b],
+                    track_id=tid[b],
+                    recovered=rec[b],
+                    person=gp[b],
+                    mixed=mixed[b],
+                    people=plist[b],
+                )
                 for b in range(B)
             ]
         }
     else:
         data = association_records(
-            assoc, xy, mask, confidence=confidence, rig=rig, group_class=group_class, class_names=names, classes=classes,
-            track_id=tracks, recovered=recovered, **_one_scene_people(people),
+            assoc,
+            xy,
+            mask,
+            confidence=confidence,
+            rig=rig,
+            group_class=group_class,
+            class_names=names,
+            classes=classes,
+            track_id=tracks,
+            recovered=recovered,
+            **_one_scene_people(people),
         )
     if names is not None:
         data["class_names"] = list(names)
@@ -279,9 +344,15 @@ def load_association_json(path: PathLike) -> dict:
 
 
 def save_association_npz(
-    path: PathLike, assoc: Any, *, xy: Any = None, mask: Any = None, confidence: Any = None, classes: Any = None,
+    path: PathLike,
+    assoc: Any,
+    *,
+    xy: Any = None,
+    mask: Any = None,
+    confidence: Any = None,
+    classes: Any = None,
     people: Any = None,
-) -> None:  # fmt: skip
+) -> None:
     """Write every :class:`cdog_jax.Association` field as an array (``labels``, ``groups``,
     ``valid``, ``points3d``, ``bpe`` (px²), ``err_px``, ``n_views``, ``num_groups``,
     ``sigma_px``, ``tau_px``; with a leading ``B`` for a batch), plus ``xy``, ``mask``,
@@ -305,9 +376,17 @@ def save_association_npz(
     if people is not None:
         labels = arrays["labels"]
         gp, mixed, _ = _people(people, labels.shape[0] if labels.ndim == 3 else None)
-        arrays["person_id"], arrays["mixed"] = (gp, mixed) if labels.ndim == 3 else (gp[0], mixed[0])
-        arrays["people_points"], arrays["people_id"] = np.asarray(people.points), np.asarray(people.person_id)
-        arrays["people_merged"], arrays["people_split"] = np.asarray(people.merged), np.asarray(people.split)
+        arrays["person_id"], arrays["mixed"] = (
+            (gp, mixed) if labels.ndim == 3 else (gp[0], mixed[0])
+        )
+        arrays["people_points"], arrays["people_id"] = (
+            np.asarray(people.points),
+            np.asarray(people.person_id),
+        )
+        arrays["people_merged"], arrays["people_split"] = (
+            np.asarray(people.merged),
+            np.asarray(people.split),
+        )
     for name, v in (("xy", xy), ("mask", mask), ("confidence", confidence), ("classes", classes)):
         if v is not None:
             arrays[name] = np.asarray(v)
@@ -337,7 +416,12 @@ def save_association_csv(path: PathLike, assoc: Any, *, people: Any = None) -> N
     with atomic_write(path, "w", newline="") as f:
         f.write(CSV_NOTE + "\n")
         writer = csv.writer(f)
-        writer.writerow(CSV_COLUMNS + (("class", "class_name") if group_class is not None else ()) + (("track",) if tracks is not None else ()) + (("person",) if person is not None else ()))
+        writer.writerow(
+            CSV_COLUMNS
+            + (("class", "class_name") if group_class is not None else ())
+            + (("track",) if tracks is not None else ())
+            + (("person",) if person is not None else ())
+        )
         for b in range(a["labels"].shape[0] if batch else 1):
             valid = a["valid"][b] if batch else a["valid"]
             for g in np.flatnonzero(valid):
@@ -371,7 +455,9 @@ def _class_columns(group_class: np.ndarray | None, at: tuple, names: Any) -> lis
 def _host(assoc: Any) -> dict[str, np.ndarray]:
     missing = [k for k in ASSOCIATION_FIELDS if not hasattr(assoc, k)]
     if missing:
-        raise ValueError(f"expected a cdog_jax.Association; {type(assoc).__name__} has no {', '.join(missing)}")
+        raise ValueError(
+            f"expected a cdog_jax.Association; {type(assoc).__name__} has no {', '.join(missing)}"
+        )
     return {k: np.asarray(getattr(assoc, k)) for k in ASSOCIATION_FIELDS}
 
 
@@ -388,7 +474,9 @@ def _num(v: Any) -> float | None:
 def _host_rig(rig: Any, M: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     K, R, t = (np.asarray(x, np.float64) for x in (rig.K, rig.R, rig.t))
     if K.shape != (M, 3, 3) or R.shape != (M, 3, 3) or t.shape != (M, 3):
-        raise ValueError(f"rig must have K, R (M, 3, 3) and t (M, 3) with M={M} like the result; got K {K.shape}")
+        raise ValueError(
+            f"rig must have K, R (M, 3, 3) and t (M, 3) with M={M} like the result; got K {K.shape}"
+        )
     return K, R, t
 
 
@@ -412,7 +500,11 @@ def _check_records(obj: Any, where: str) -> None:
             raise ValueError(f'{where}, group {g}: "point3d" must be [X, Y, Z]')
         for k, r in enumerate(group["members"]):
             if not isinstance(r, list) or len(r) not in (4, 5):
-                raise ValueError(f"{where}, group {g}, member {k}: expected [view, slot, x, y(, confidence)]; got {r!r}")
+                raise ValueError(
+                    f"{where}, group {g}, member {k}: expected [view, slot, x, y(, confidence)]; got {r!r}"
+                )
     for k, r in enumerate(obj["unassigned"]):
         if not isinstance(r, list) or len(r) not in (4, 5):
-            raise ValueError(f"{where}, unassigned {k}: expected [view, slot, x, y(, confidence)]; got {r!r}")
+            raise ValueError(
+                f"{where}, unassigned {k}: expected [view, slot, x, y(, confidence)]; got {r!r}"
+            )

@@ -21,7 +21,9 @@ PathLike = str | os.PathLike  # a file name
 
 
 @contextlib.contextmanager
-def atomic_write(path: PathLike, mode: str = "w", *, encoding: str | None = None, newline: str | None = None) -> Iterator[IO[Any]]:
+def atomic_write(
+    path: PathLike, mode: str = "w", *, encoding: str | None = None, newline: str | None = None
+) -> Iterator[IO[Any]]:
     """Open a temporary file for writing that replaces ``path`` when the block ends without
     an exception; ``mode`` is ``"w"`` (text, ``encoding`` default UTF-8) or ``"wb"``."""
     if mode not in ("w", "wb"):

@@ -31,22 +31,32 @@ def views_and_labels(obj: dict, where: str) -> tuple[Any, list | None]:
     if "by_class" not in obj:
         return obj["views"], obj.get("classes")
     if "views" in obj or "classes" in obj:
-        raise ValueError(f'{where}: give either "by_class" or "views" (with optional "classes"), not both')
+        raise ValueError(
+            f'{where}: give either "by_class" or "views" (with optional "classes"), not both'
+        )
     by = obj["by_class"]
     if not isinstance(by, dict) or not by:
-        raise ValueError(f'{where}: "by_class" must be a non-empty object {{class name: [[[x, y], …] per view], …}}')
+        raise ValueError(
+            f'{where}: "by_class" must be a non-empty object {{class name: [[[x, y], …] per view], …}}'
+        )
     views: list[list] | None = None
     labels: list[list] = []
     for name, per_view in by.items():
         if not isinstance(per_view, list):
-            raise ValueError(f'{where}: class "{name}": expected one list of detections per view; got {type(per_view).__name__}')
+            raise ValueError(
+                f'{where}: class "{name}": expected one list of detections per view; got {type(per_view).__name__}'
+            )
         if views is None:
             views, labels = [[] for _ in per_view], [[] for _ in per_view]
         if len(per_view) != len(views):
-            raise ValueError(f'{where}: class "{name}" has {len(per_view)} views; the first class has {len(views)}')
+            raise ValueError(
+                f'{where}: class "{name}" has {len(per_view)} views; the first class has {len(views)}'
+            )
         for m, view in enumerate(per_view):
             if not isinstance(view, list):
-                raise ValueError(f'{where}: class "{name}", view {m}: expected a list of detections; got {type(view).__name__}')
+                raise ValueError(
+                    f'{where}: class "{name}", view {m}: expected a list of detections; got {type(view).__name__}'
+                )
             views[m] += view
             labels[m] += [name] * len(view)
     return views, labels
@@ -67,29 +77,59 @@ def class_array(
     """
     names = check_names(names, error)
     if all(lab is None for lab in labels):
-        raise error('"class_names" without classes (give "classes" beside "views", or "by_class")', None, None, None)
+        raise error(
+            '"class_names" without classes (give "classes" beside "views", or "by_class")',
+            None,
+            None,
+            None,
+        )
     if any(lab is None for lab in labels):
         f = next(f for f, lab in enumerate(labels) if lab is None)
-        raise error('no "classes" in this frame while other frames have them (give classes in every frame or none)', f, None, None)
+        raise error(
+            'no "classes" in this frame while other frames have them (give classes in every frame or none)',
+            f,
+            None,
+            None,
+        )
     ids = np.full(shape, -1, np.int64)
     kind = None  # "id" or "name", the same for the whole file
     by_name = {} if names is None else {n: k for k, n in enumerate(names)}
     for f, (per_view, views) in enumerate(zip(labels, frames_views)):
         if not isinstance(per_view, list) or len(per_view) != len(views):
             got = len(per_view) if isinstance(per_view, list) else type(per_view).__name__
-            raise error(f'"classes" must hold one list per view ({len(views)}); got {got}', f, None, None)
+            raise error(
+                f'"classes" must hold one list per view ({len(views)}); got {got}', f, None, None
+            )
         for m, (labs, view) in enumerate(zip(per_view, views)):
             if not isinstance(labs, list) or len(labs) != len(view):
                 got = len(labs) if isinstance(labs, list) else type(labs).__name__
-                raise error(f'"classes" must hold one class per detection ({len(view)}); got {got}', f, m, None)
+                raise error(
+                    f'"classes" must hold one class per detection ({len(view)}); got {got}',
+                    f,
+                    m,
+                    None,
+                )
             for i, c in enumerate(labs):
-                this = "name" if isinstance(c, str) else "id" if isinstance(c, (int, np.integer)) and not isinstance(c, bool) else None
+                this = (
+                    "name"
+                    if isinstance(c, str)
+                    else "id"
+                    if isinstance(c, (int, np.integer)) and not isinstance(c, bool)
+                    else None
+                )
                 if this is None or (this == "id" and c < 0):
-                    raise error(f"class {c!r} is neither an int >= 0 nor a name (a string)", f, m, i)
+                    raise error(
+                        f"class {c!r} is neither an int >= 0 nor a name (a string)", f, m, i
+                    )
                 if kind is None:
                     kind = this
                 elif this != kind:
-                    raise error(f"class {c!r}: the file mixes class ids and class names; use one kind", f, m, i)
+                    raise error(
+                        f"class {c!r}: the file mixes class ids and class names; use one kind",
+                        f,
+                        m,
+                        i,
+                    )
                 if this == "name":
                     if c not in by_name:
                         if names is not None:
@@ -98,7 +138,12 @@ def class_array(
                     ids[f, m, i] = by_name[c]
                 else:
                     if names is not None and c >= len(names):
-                        raise error(f"class id {c} has no name: class_names has {len(names)} entries", f, m, i)
+                        raise error(
+                            f"class id {c} has no name: class_names has {len(names)} entries",
+                            f,
+                            m,
+                            i,
+                        )
                     ids[f, m, i] = c
     if names is None and kind == "name":
         names = tuple(by_name)
@@ -110,7 +155,9 @@ def check_names(names: Any, error) -> tuple[str, ...] | None:
     if names is None:
         return None
     if not isinstance(names, (list, tuple)) or not all(isinstance(n, str) and n for n in names):
-        raise error(f"class_names must be a list of non-empty strings; got {names!r}", None, None, None)
+        raise error(
+            f"class_names must be a list of non-empty strings; got {names!r}", None, None, None
+        )
     seen = set()
     for n in names:
         if n in seen:

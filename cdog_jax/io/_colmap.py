@@ -28,9 +28,9 @@ import numpy as np
 
 from .._expect import PATH, expect_args
 from ..geometry._camera import Rig
+from ..geometry._distortion import Fisheye
 from ._atomic import atomic_write
 from ._errors import read_text
-from ..geometry._distortion import Fisheye
 from ._rig_files import PathLike, _Views
 from ._rig_values import (
     _check_dist,
@@ -69,7 +69,9 @@ def read_colmap(path: str) -> _Views:
     images_file = os.path.join(folder, "images.txt")
     for file in (cameras_file, images_file):
         if not os.path.isfile(file):
-            raise ValueError(f"{path}: missing {file} (a COLMAP text model is cameras.txt + images.txt)")
+            raise ValueError(
+                f"{path}: missing {file} (a COLMAP text model is cameras.txt + images.txt)"
+            )
     cameras = _read_cameras(cameras_file)
     images = _read_images(images_file)
     if not images:
@@ -78,10 +80,14 @@ def read_colmap(path: str) -> _Views:
     for m, (image_id, (q, T, camera_id, name, lineno)) in enumerate(sorted(images.items())):
         where = f"{images_file}, line {lineno}: view {m} (image {image_id} {name!r})"
         if camera_id not in cameras:
-            raise ValueError(f"{where}: CAMERA_ID {camera_id} is not in {cameras_file} (ids: {sorted(cameras)})")
+            raise ValueError(
+                f"{where}: CAMERA_ID {camera_id} is not in {cameras_file} (ids: {sorted(cameras)})"
+            )
         norm = float(np.sqrt(q @ q))
         if abs(norm - 1.0) > _QUATERNION_NORM_TOL:
-            raise ValueError(f"{where}: quaternion (QW, QX, QY, QZ) = {q.tolist()} has norm {norm:.6g}; expected 1")
+            raise ValueError(
+                f"{where}: quaternion (QW, QX, QY, QZ) = {q.tolist()} has norm {norm:.6g}; expected 1"
+            )
         Kc, size, dist = cameras[camera_id]
         K.append(Kc)
         R.append(rotation_from_quaternion(q / norm))
@@ -90,7 +96,9 @@ def read_colmap(path: str) -> _Views:
         dists.append(dist)
         names.append(name)
     dist = stack_dists(dists, images_file)
-    return _Views(np.stack(K), np.stack(R), np.stack(t), np.array(sizes, dtype=np.int64), dist, tuple(names))
+    return _Views(
+        np.stack(K), np.stack(R), np.stack(t), np.array(sizes, dtype=np.int64), dist, tuple(names)
+    )
 
 
 def _data_lines(file: str):
@@ -103,7 +111,9 @@ def _numbers(fields: list[str], where: str, what: str) -> np.ndarray:
     try:
         a = np.array([float(x) for x in fields], dtype=np.float64)
     except ValueError:
-        raise ValueError(f"{where}: expected numbers for {what}; got {' '.join(fields)!r}") from None
+        raise ValueError(
+            f"{where}: expected numbers for {what}; got {' '.join(fields)!r}"
+        ) from None
     if not np.isfinite(a).all():
         raise ValueError(f"{where}: non-finite {what}: {' '.join(fields)!r}")
     return a
@@ -129,7 +139,9 @@ def _read_cameras(file: str) -> dict[int, tuple[np.ndarray, tuple[int, int], Any
             continue
         where = f"{file}, line {lineno}"
         if len(fields) < 4:
-            raise ValueError(f"{where}: expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]; got {line.strip()!r}")
+            raise ValueError(
+                f"{where}: expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]; got {line.strip()!r}"
+            )
         camera_id = _int(fields[0], where, "CAMERA_ID", 0)
         where = f"{file}, line {lineno}, camera {camera_id}"
         model = fields[1]
@@ -143,7 +155,9 @@ def _read_cameras(file: str) -> dict[int, tuple[np.ndarray, tuple[int, int], Any
             raise ValueError(
                 f"{where}: model {model} takes {len(names)} parameters ({', '.join(names)}); got {len(fields) - 4}"
             )
-        K, dist = camera_from_params(model, _numbers(fields[4:], where, f"{model} parameters"), where)
+        K, dist = camera_from_params(
+            model, _numbers(fields[4:], where, f"{model} parameters"), where
+        )
         cameras[camera_id] = (K, size, dist)
     return cameras
 
@@ -158,7 +172,9 @@ def camera_from_params(model: str, params: np.ndarray, where: str) -> tuple[np.n
         )
     values = np.asarray(params, dtype=np.float64).reshape(-1)
     if values.size != len(_MODELS[model]):
-        raise ValueError(f"{where}: model {model} takes {len(_MODELS[model])} parameters ({', '.join(_MODELS[model])}); got {values.size}")
+        raise ValueError(
+            f"{where}: model {model} takes {len(_MODELS[model])} parameters ({', '.join(_MODELS[model])}); got {values.size}"
+        )
     p = dict(zip(_MODELS[model], values.tolist()))
     fx, fy = (p["f"], p["f"]) if "f" in p else (p["fx"], p["fy"])
     # COLMAP's pixel centres are at +0.5: shift the principal point to OpenCV's convention.
@@ -204,7 +220,9 @@ def _read_images(file: str) -> dict[int, tuple[np.ndarray, np.ndarray, int, str,
         name = fields[9].strip()
         where = f"{where}, image {image_id} {name!r}"
         if image_id in images:
-            raise ValueError(f"{where}: IMAGE_ID {image_id} defined twice (also on line {images[image_id][4]})")
+            raise ValueError(
+                f"{where}: IMAGE_ID {image_id} defined twice (also on line {images[image_id][4]})"
+            )
         pose = _numbers(fields[1:8], where, "QW QX QY QZ TX TY TZ")
         camera_id = _int(fields[8], where, "CAMERA_ID", 0)
         points = next(lines, None)
@@ -243,9 +261,13 @@ def save_rig_colmap(
     for m in range(M):
         scale = np.abs(K[m]).max()
         if abs(K[m, 0, 1]) > 1e-12 * scale:
-            raise ValueError(f"view {m}: K has skew K[0,1] = {float(K[m, 0, 1])!r} (after K / K[2,2]); COLMAP's camera models cannot hold it")
+            raise ValueError(
+                f"view {m}: K has skew K[0,1] = {float(K[m, 0, 1])!r} (after K / K[2,2]); COLMAP's camera models cannot hold it"
+            )
         if np.abs(K[m][np.tril_indices(3, -1)]).max() > 0:
-            raise ValueError(f"view {m}: K is not upper triangular; COLMAP's camera models cannot hold it")
+            raise ValueError(
+                f"view {m}: K is not upper triangular; COLMAP's camera models cannot hold it"
+            )
     camera_lines, image_lines = [], []
     for m in range(M):
         fx, fy, cx, cy = K[m, 0, 0], K[m, 1, 1], K[m, 0, 2] + 0.5, K[m, 1, 2] + 0.5
@@ -261,9 +283,13 @@ def save_rig_colmap(
             model = "OPENCV"
             params += list(dist[m, :4])
         w, h = sizes[m]
-        camera_lines.append(f"{m + 1} {model} {int(w)} {int(h)} " + " ".join(repr(float(x)) for x in params))
+        camera_lines.append(
+            f"{m + 1} {model} {int(w)} {int(h)} " + " ".join(repr(float(x)) for x in params)
+        )
         pose = list(quaternion_from_rotation(R[m])) + list(t[m])
-        image_lines.append(f"{m + 1} " + " ".join(repr(float(x)) for x in pose) + f" {m + 1} {names[m]}")
+        image_lines.append(
+            f"{m + 1} " + " ".join(repr(float(x)) for x in pose) + f" {m + 1} {names[m]}"
+        )
         image_lines.append("")  # no POINTS2D
     folder = os.fspath(folder)
     os.makedirs(folder, exist_ok=True)
@@ -276,8 +302,14 @@ def save_rig_colmap(
         "#   POINTS2D[] as (X, Y, POINT3D_ID)\n"
     )
     with atomic_write(os.path.join(folder, "images.txt"), "w") as f:
-        f.write(header + f"# Number of images: {M}, mean observations per image: 0\n" + "\n".join(image_lines) + "\n")
+        f.write(
+            header
+            + f"# Number of images: {M}, mean observations per image: 0\n"
+            + "\n".join(image_lines)
+            + "\n"
+        )
     with atomic_write(os.path.join(folder, "points3D.txt"), "w") as f:
-        f.write("# 3D point list with one line of data per point:\n#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[]\n")
+        f.write(
+            "# 3D point list with one line of data per point:\n#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[]\n"
+        )
         f.write("# Number of points: 0, mean track length: 0\n")
-

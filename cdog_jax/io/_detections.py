@@ -94,7 +94,19 @@ def load_detections(
         classes = None
         if any(lab is not None for lab in labels) or names is not None:
             classes, names = class_array(labels, frames_views, present.shape, names, where.error)
-        return _from_rows(a, present, frames, where, missing, -1.0, num_views, capacity, image_size, classes, names)
+        return _from_rows(
+            a,
+            present,
+            frames,
+            where,
+            missing,
+            -1.0,
+            num_views,
+            capacity,
+            image_size,
+            classes,
+            names,
+        )
     if suffix == ".npz":
         return _read_npz(path, num_views, capacity, image_size, missing)
     raise ValueError(f"{path}: cannot tell the detections format; expected a .json or .npz file")
@@ -151,4 +163,14 @@ def detections_from_array(
     _check_options(missing, capacity, num_views, image_size)
     where = _Where(None, np.ndim(a) == 4)
     rows, frames = _rows_from_array(a, where, "array")
-    return _from_rows(rows, np.ones(rows.shape[:3], bool), frames, where, missing, sentinel, num_views, capacity, image_size)
+    return _from_rows(
+        rows,
+        np.ones(rows.shape[:3], bool),
+        frames,
+        where,
+        missing,
+        sentinel,
+        num_views,
+        capacity,
+        image_size,
+    )

@@ -13,8 +13,20 @@ from ._errors import _Where
 from ._scores import clip_scores
 
 
-def _finish(xy, mask, conf, frames, where, notes, capacity, image_size, classes=None, names=None, frame_ids=None,
-            instances=None) -> Detections:  # fmt: skip
+def _finish(
+    xy,
+    mask,
+    conf,
+    frames,
+    where,
+    notes,
+    capacity,
+    image_size,
+    classes=None,
+    names=None,
+    frame_ids=None,
+    instances=None,
+) -> Detections:
     xy = np.where(mask[..., None], xy, 0.0)
     if conf is not None:
         conf, note = clip_scores(conf, mask, where.error)
@@ -25,17 +37,23 @@ def _finish(xy, mask, conf, frames, where, notes, capacity, image_size, classes=
         instances = np.where(mask, instances, -1)
     counts = mask.sum(axis=-1).astype(np.int64)
     if capacity is not None:
-        xy, mask, conf, classes, instances = _fit_capacity(xy, mask, conf, counts, capacity, where, notes, classes, instances)
+        xy, mask, conf, classes, instances = _fit_capacity(
+            xy, mask, conf, counts, capacity, where, notes, classes, instances
+        )
     _check_duplicates(xy, mask, where, classes)
     if image_size is not None:
         _check_in_image(xy, mask, image_size, where)
     _check_groups_possible(counts, frames, where, notes)
     for f, m in np.argwhere(counts == 0):
         notes.append(f"{where.loc(int(f), int(m))}: empty view")
-    return Detections(xy, mask, conf, bool(frames), counts, notes, classes, names, frame_ids, instances)
+    return Detections(
+        xy, mask, conf, bool(frames), counts, notes, classes, names, frame_ids, instances
+    )
 
 
-def _check_groups_possible(counts: np.ndarray, frames: bool, where: _Where, notes: list[str]) -> None:
+def _check_groups_possible(
+    counts: np.ndarray, frames: bool, where: _Where, notes: list[str]
+) -> None:
     """A group needs detections in 2 views. One scene without that is refused (nothing to
     associate: most likely the wrong file); so is a list of frames none of which has it.
     Frames without it among others (a subject out of view) are kept, with a note: they
@@ -45,11 +63,17 @@ def _check_groups_possible(counts: np.ndarray, frames: bool, where: _Where, note
     if not frames and hopeless.size:
         seen = np.flatnonzero(counts[0] > 0)
         which = f" (view {int(seen[0])})" if len(seen) else ""
-        raise where.error(f"{len(seen)} view(s) with detections{which}; association needs at least 2")
+        raise where.error(
+            f"{len(seen)} view(s) with detections{which}; association needs at least 2"
+        )
     if hopeless.size == counts.shape[0]:
-        raise where.error(f"no frame has detections in 2 views (of {counts.shape[0]} frames); association needs at least 2")
+        raise where.error(
+            f"no frame has detections in 2 views (of {counts.shape[0]} frames); association needs at least 2"
+        )
     if hopeless.size:
-        shown = ", ".join(str(int(f)) for f in hopeless[:10]) + (", …" if hopeless.size > 10 else "")
+        shown = ", ".join(str(int(f)) for f in hopeless[:10]) + (
+            ", …" if hopeless.size > 10 else ""
+        )
         notes.append(
             f"frame{'s' if hopeless.size > 1 else ''} {shown} ({hopeless.size} of {counts.shape[0]}): fewer than 2 views "
             "with detections; they get zero groups"
@@ -67,8 +91,10 @@ def check_float_range(det: Detections, dtype: Any, source: str | None = None) ->
         x, y = det.xy[f, m, i]
         raise _Where(source, det.frames).error(
             f"({x:g}, {y:g}) is out of {np.dtype(dtype).name} range (largest {largest:.4g}); these cannot be pixels",
-            f, m, i,
-        )  # fmt: skip
+            f,
+            m,
+            i,
+        )
 
 
 def _fit_capacity(xy, mask, conf, counts, capacity, where, notes, classes=None, instances=None):
@@ -80,8 +106,9 @@ def _fit_capacity(xy, mask, conf, counts, capacity, where, notes, classes=None, 
         raise where.error(
             f"{counts[f, m]} detections exceed the capacity of {capacity} slots per view "
             "(pass a larger capacity, or None to fit the fullest view)",
-            f, m,
-        )  # fmt: skip
+            f,
+            m,
+        )
     P = mask.shape[-1]
     if P <= capacity:
         pad = ((0, 0), (0, 0), (0, capacity - P))
@@ -98,7 +125,9 @@ def _fit_capacity(xy, mask, conf, counts, capacity, where, notes, classes=None, 
             classes[f, m] = classes[f, m, order]
         if instances is not None:
             instances[f, m] = instances[f, m, order]
-        notes.append(f"{where.loc(int(f), int(m))}: detections moved to slots 0…{counts[f, m] - 1} to fit capacity {capacity}")
+        notes.append(
+            f"{where.loc(int(f), int(m))}: detections moved to slots 0…{counts[f, m] - 1} to fit capacity {capacity}"
+        )
     conf = None if conf is None else conf[..., :capacity]
     classes = None if classes is None else classes[..., :capacity]
     instances = None if instances is None else instances[..., :capacity]
@@ -115,11 +144,21 @@ def _check_duplicates(xy, mask, where, classes=None) -> None:
     c = np.zeros_like(f) if classes is None else classes[f, m, i]
     order = np.lexsort((i, y, x, c, m, f))
     f, m, i, x, y, c = f[order], m[order], i[order], x[order], y[order], c[order]
-    same = (f[1:] == f[:-1]) & (m[1:] == m[:-1]) & (c[1:] == c[:-1]) & (x[1:] == x[:-1]) & (y[1:] == y[:-1])
+    same = (
+        (f[1:] == f[:-1])
+        & (m[1:] == m[:-1])
+        & (c[1:] == c[:-1])
+        & (x[1:] == x[:-1])
+        & (y[1:] == y[:-1])
+    )
     if same.any():
         # Report the pair earliest in (frame, view, first index) order.
         k = min(np.flatnonzero(same), key=lambda k: (f[k], m[k], i[k]))
-        raise where.error(f"detections {i[k]} and {i[k + 1]} are duplicates (both at ({x[k]}, {y[k]}))", int(f[k]), int(m[k]))
+        raise where.error(
+            f"detections {i[k]} and {i[k + 1]} are duplicates (both at ({x[k]}, {y[k]}))",
+            int(f[k]),
+            int(m[k]),
+        )
 
 
 def _check_in_image(xy, mask, image_size, where) -> None:
@@ -139,16 +178,25 @@ def _check_in_image(xy, mask, image_size, where) -> None:
         raise where.error(
             f"({xf:g}, {yf:g}) lies {' and '.join(how)} the {w:g}×{h:g} image, beyond the margin of half the "
             f"image size ({w / 2:g} px in x, {h / 2:g} px in y)",
-            f, m, i,
-        )  # fmt: skip
+            f,
+            m,
+            i,
+        )
 
 
 def _image_size(image_size: Any) -> tuple[float, float]:
     ok = (
         isinstance(image_size, (list, tuple))
         and len(image_size) == 2
-        and all(not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating)) and v > 0 for v in image_size)
+        and all(
+            not isinstance(v, bool)
+            and isinstance(v, (int, float, np.integer, np.floating))
+            and v > 0
+            for v in image_size
+        )
     )
     if not ok:
-        raise ValueError(f"image_size must be (width, height), two positive numbers; got {image_size!r}")
+        raise ValueError(
+            f"image_size must be (width, height), two positive numbers; got {image_size!r}"
+        )
     return float(image_size[0]), float(image_size[1])

@@ -22,7 +22,9 @@ from ._atomic import atomic_write
 PathLike = str | os.PathLike  # a file name
 
 
-def _frames(xy: Any, mask: Any, confidence: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, bool]:
+def _frames(
+    xy: Any, mask: Any, confidence: Any
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, bool]:
     """``(xy (F, M, P, 2), mask (F, M, P), confidence (F, M, P) or None, had_frames)``, checked."""
     xy = np.asarray(xy, dtype=np.float64)
     mask = np.asarray(mask)
@@ -41,16 +43,21 @@ def _frames(xy: Any, mask: Any, confidence: Any) -> tuple[np.ndarray, np.ndarray
         conf = np.asarray(confidence, dtype=np.float64)
         conf = conf if had_frames else conf[None]
         if conf.shape != mask.shape:
-            raise ValueError(f"save_detections_json: confidence must have the shape of mask {mask.shape[int(not had_frames):]}; "
-                             f"got {np.shape(confidence)}")
+            raise ValueError(
+                f"save_detections_json: confidence must have the shape of mask {mask.shape[int(not had_frames) :]}; "
+                f"got {np.shape(confidence)}"
+            )
     bad = mask & ~np.isfinite(xy).all(axis=-1)
     if conf is not None:
         bad |= mask & ~((conf >= 0) & (conf <= 1))
     if bad.any():
         f, m, i = (int(v) for v in np.argwhere(bad)[0])
         where = (f"frame {f}, " if had_frames else "") + f"view {m}, slot {i}"
-        raise ValueError(f"save_detections_json: {where}: a detection must be finite with a confidence in [0, 1]; "
-                         f"got xy {xy[f, m, i].tolist()}" + ("" if conf is None else f", confidence {conf[f, m, i]!r}"))
+        raise ValueError(
+            f"save_detections_json: {where}: a detection must be finite with a confidence in [0, 1]; "
+            f"got xy {xy[f, m, i].tolist()}"
+            + ("" if conf is None else f", confidence {conf[f, m, i]!r}")
+        )
     return xy, mask, conf, had_frames
 
 

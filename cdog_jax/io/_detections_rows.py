@@ -16,18 +16,26 @@ _LARGEST_FLOAT = int(np.finfo(np.float64).max)
 _ENTRY = "expected [x, y] or [x, y, confidence]"
 
 
-def _check_options(missing: str, capacity: int | None, num_views: int | None, image_size: Any) -> None:
+def _check_options(
+    missing: str, capacity: int | None, num_views: int | None, image_size: Any
+) -> None:
     if image_size is not None:
         _image_size(image_size)
     if missing not in MISSING:
         raise ValueError(f"missing must be one of {MISSING}; got {missing!r}")
-    if capacity is not None and (isinstance(capacity, bool) or not isinstance(capacity, (int, np.integer)) or capacity < 1):
+    if capacity is not None and (
+        isinstance(capacity, bool) or not isinstance(capacity, (int, np.integer)) or capacity < 1
+    ):
         raise ValueError(f"capacity must be a positive int or None; got {capacity!r}")
-    if num_views is not None and (isinstance(num_views, bool) or not isinstance(num_views, (int, np.integer)) or num_views < 1):
+    if num_views is not None and (
+        isinstance(num_views, bool) or not isinstance(num_views, (int, np.integer)) or num_views < 1
+    ):
         raise ValueError(f"num_views must be a positive int or None; got {num_views!r}")
 
 
-def _array_from_lists(frames_views: list, where: _Where, num_views: int | None) -> tuple[np.ndarray, np.ndarray]:
+def _array_from_lists(
+    frames_views: list, where: _Where, num_views: int | None
+) -> tuple[np.ndarray, np.ndarray]:
     """Ragged lists of every frame as NaN-padded rows ``(F, M, L, C)`` and which rows exist
     ``(F, M, L)``, with ``L`` the longest list and ``C`` 2 or 3 (the same for all entries)."""
     width = None  # entries of the whole file have 2 or 3 numbers, not a mix
@@ -35,7 +43,9 @@ def _array_from_lists(frames_views: list, where: _Where, num_views: int | None) 
     M = None
     for f, views in enumerate(frames_views):
         if not isinstance(views, list):
-            raise where.error(f'"views" must be a list of per-view lists; got {type(views).__name__}', f)
+            raise where.error(
+                f'"views" must be a list of per-view lists; got {type(views).__name__}', f
+            )
         if not views:
             raise where.error("no views (an empty list)", f)
         if M is not None and len(views) != M:
@@ -55,15 +65,19 @@ def _array_from_lists(frames_views: list, where: _Where, num_views: int | None) 
                     if isinstance(v, int) and abs(v) > _LARGEST_FLOAT:
                         raise where.error(too_large(v), f, m, i)
                 if len(entry) not in (2, 3):
-                    raise where.error(f"entry {list(entry)!r} has {len(entry)} numbers; {_ENTRY}", f, m, i)
+                    raise where.error(
+                        f"entry {list(entry)!r} has {len(entry)} numbers; {_ENTRY}", f, m, i
+                    )
                 if width is None:
                     width, first = len(entry), where.loc(f, m, i)
                 elif len(entry) != width:
                     raise where.error(
                         f"entry has {len(entry)} numbers but {first} has {width}; use [x, y] or [x, y, confidence] "
                         "for every entry",
-                        f, m, i,
-                    )  # fmt: skip
+                        f,
+                        m,
+                        i,
+                    )
     F = len(frames_views)
     L = max(len(view) for views in frames_views for view in views)
     a = np.full((F, M, L, width or 2), np.nan)
@@ -78,7 +92,9 @@ def _array_from_lists(frames_views: list, where: _Where, num_views: int | None) 
 
 def _numeric(a: Any, where: _Where, name: str) -> np.ndarray:
     a = np.asarray(a)
-    if a.dtype == np.bool_ or not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer)):
+    if a.dtype == np.bool_ or not (
+        np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer)
+    ):
         raise where.error(f"{name}: non-numeric entries (dtype {a.dtype}); expected real numbers")
     return a.astype(np.float64)
 
@@ -111,7 +127,10 @@ def _check_coordinates(xy: np.ndarray, rows: np.ndarray, where: _Where, why: str
     inf = rows & np.isinf(xy).any(axis=-1)
     both = rows & nan.all(axis=-1)
     for bad, text in (
-        (half, "one NaN coordinate and one finite: a malformed row (a missing detection has both NaN)"),
+        (
+            half,
+            "one NaN coordinate and one finite: a malformed row (a missing detection has both NaN)",
+        ),
         (inf, "an infinite coordinate"),
         (both, f"NaN coordinates {why}"),
     ):
@@ -121,7 +140,19 @@ def _check_coordinates(xy: np.ndarray, rows: np.ndarray, where: _Where, why: str
             raise where.error(f"({x}, {y}) has {text}", f, m, i)
 
 
-def _from_rows(rows, present, frames, where, missing, sentinel, num_views, capacity, image_size, classes=None, names=None) -> Detections:
+def _from_rows(
+    rows,
+    present,
+    frames,
+    where,
+    missing,
+    sentinel,
+    num_views,
+    capacity,
+    image_size,
+    classes=None,
+    names=None,
+) -> Detections:
     """Rows ``(F, M, L, 2|3)`` of which ``present (F, M, L)`` exist, "missing" decoded."""
     _check_views(rows.shape[1], where, num_views)
     coords = rows[..., :2]
@@ -140,12 +171,21 @@ def _from_rows(rows, present, frames, where, missing, sentinel, num_views, capac
         gone = np.zeros_like(present)
         for name in used:
             gone |= by[name]
-        labels = {"nan": "NaN coordinates", "sentinel": f"sentinel [{sentinel:g}, {sentinel:g}]", "confidence": "confidence 0"}
+        labels = {
+            "nan": "NaN coordinates",
+            "sentinel": f"sentinel [{sentinel:g}, {sentinel:g}]",
+            "confidence": "confidence 0",
+        }
         if used:
-            notes.append(f"missing='auto': {int(gone.sum())} missing rows, encoded as " + " and ".join(labels[n] for n in used))
+            notes.append(
+                f"missing='auto': {int(gone.sum())} missing rows, encoded as "
+                + " and ".join(labels[n] for n in used)
+            )
     else:
         if missing == "confidence" and conf is None:
-            raise where.error("missing='confidence' needs a confidence column (rows [x, y, confidence])")
+            raise where.error(
+                "missing='confidence' needs a confidence column (rows [x, y, confidence])"
+            )
         gone = by[missing]
     mask = present & ~gone
     _check_coordinates(coords, mask, where, f"where they do not mean missing (missing={missing!r})")

@@ -28,9 +28,9 @@ import numpy as np
 
 from .._expect import PATH, expect_args
 from ..geometry._camera import Rig
+from ..geometry._distortion import Fisheye
 from ._atomic import atomic_write
 from ._errors import read_text
-from ..geometry._distortion import Fisheye
 from ._rig_files import PathLike, _Views
 from ._rig_values import (
     _check_dist,
@@ -79,9 +79,13 @@ def read_easymocap(path: str) -> _Views:
             f"differs from {intri_file}'s {list(names)}"
         )
     if not names:
-        raise ValueError(f'{intri_file}, line {intri["names"].line}: key "names" is empty (zero cameras)')
+        raise ValueError(
+            f'{intri_file}, line {intri["names"].line}: key "names" is empty (zero cameras)'
+        )
     if len(set(names)) != len(names):
-        raise ValueError(f'{intri_file}, line {intri["names"].line}: key "names" repeats a camera: {list(names)}')
+        raise ValueError(
+            f'{intri_file}, line {intri["names"].line}: key "names" repeats a camera: {list(names)}'
+        )
     Ks, Rs, ts, dists, sizes = [], [], [], [], []
     for m, name in enumerate(names):
         cam = f"view {m} (camera {name!r})"
@@ -94,7 +98,9 @@ def read_easymocap(path: str) -> _Views:
             d = _matrix(intri, dist_key, intri_file, cam, None)
             where = f'{intri_file}, line {intri[dist_key].line}: {cam}, key "{dist_key}"'
             if min(d.shape) != 1:
-                raise ValueError(f"{where}: expected a 1×N or N×1 matrix; got {d.shape[0]}×{d.shape[1]}")
+                raise ValueError(
+                    f"{where}: expected a 1×N or N×1 matrix; got {d.shape[0]}×{d.shape[1]}"
+                )
             dists.append(_opencv_dist(d, where))
         rvec_key, rot_key = f"R_{name}", f"Rot_{name}"
         if rot_key not in extri and rvec_key not in extri:
@@ -120,8 +126,10 @@ def read_easymocap(path: str) -> _Views:
     if any(s is not None for s in sizes):
         missing = [m for m, s in enumerate(sizes) if s is None]
         if missing:
-            raise ValueError(f'{intri_file}: view {missing[0]} (camera {names[missing[0]]!r}): missing "H_{names[missing[0]]}" / '
-                             f'"W_{names[missing[0]]}" (other cameras give their image size)')
+            raise ValueError(
+                f'{intri_file}: view {missing[0]} (camera {names[missing[0]]!r}): missing "H_{names[missing[0]]}" / '
+                f'"W_{names[missing[0]]}" (other cameras give their image size)'
+            )
         view_sizes = np.array(sizes, dtype=np.int64)
     return _Views(np.stack(Ks), np.stack(Rs), np.stack(ts), view_sizes, dist, names)
 
@@ -133,7 +141,9 @@ def _size(intri: dict[str, _Entry], name: str, file: str, cam: str) -> tuple[int
     if not any(given):
         return None
     if not all(given):
-        raise ValueError(f'{file}: {cam}: "{keys[given.index(True)]}" without "{keys[given.index(False)]}"')
+        raise ValueError(
+            f'{file}: {cam}: "{keys[given.index(True)]}" without "{keys[given.index(False)]}"'
+        )
     values = []
     for key in keys:
         entry = intri[key]
@@ -144,18 +154,24 @@ def _size(intri: dict[str, _Entry], name: str, file: str, cam: str) -> tuple[int
         except ValueError:
             number = float("nan")
         if not (number >= 1 and number.is_integer()):
-            raise ValueError(f'{file}, line {entry.line}: {cam}, key "{key}": expected a positive integer; got {text!r}')
+            raise ValueError(
+                f'{file}, line {entry.line}: {cam}, key "{key}": expected a positive integer; got {text!r}'
+            )
         values.append(int(number))
     return values[0], values[1]
 
 
 def _names(entry: _Entry, file: str) -> tuple[str, ...]:
     if not isinstance(entry.value, list):
-        raise ValueError(f'{file}, line {entry.line}: key "names": expected a list of strings; got {entry.value!r}')  # noqa: TRY004
+        raise ValueError(
+            f'{file}, line {entry.line}: key "names": expected a list of strings; got {entry.value!r}'
+        )  # noqa: TRY004
     return tuple(entry.value)
 
 
-def _matrix(entries: dict[str, _Entry], key: str, file: str, cam: str, shape: tuple[int, int] | None) -> np.ndarray:
+def _matrix(
+    entries: dict[str, _Entry], key: str, file: str, cam: str, shape: tuple[int, int] | None
+) -> np.ndarray:
     """``entries[key]`` as a float64 matrix of ``shape`` (a vector ``(3, 1)`` may be ``(1, 3)``)."""
     if key not in entries:
         raise ValueError(f'{file}: {cam}: missing key "{key}"')
@@ -167,7 +183,9 @@ def _matrix(entries: dict[str, _Entry], key: str, file: str, cam: str, shape: tu
     if shape == (3, 1) and a.shape == (1, 3):
         a = a.T
     if shape is not None and a.shape != shape:
-        raise ValueError(f"{where}: expected a {shape[0]}×{shape[1]} matrix; got {a.shape[0]}×{a.shape[1]}")
+        raise ValueError(
+            f"{where}: expected a {shape[0]}×{shape[1]} matrix; got {a.shape[0]}×{a.shape[1]}"
+        )
     return a
 
 
@@ -185,16 +203,24 @@ def _parse(file: str) -> dict[str, _Entry]:
             continue
         match = _TOP_KEY.match(line)
         if line[0].isspace() or not match:
-            raise ValueError(f"{file}, line {lineno}: expected a top-level 'key: value' line; got {line!r}")
+            raise ValueError(
+                f"{file}, line {lineno}: expected a top-level 'key: value' line; got {line!r}"
+            )
         key, rest = match.group(1), (match.group(2) or "").strip()
         body = []  # the indented lines (or a "- item" list) that belong to this key
-        while i < len(lines) and (lines[i][:1].isspace() or lines[i].startswith("-") or not lines[i].strip()):
+        while i < len(lines) and (
+            lines[i][:1].isspace() or lines[i].startswith("-") or not lines[i].strip()
+        ):
             if lines[i].strip() and not lines[i].strip().startswith("#"):
                 body.append(lines[i].strip())
             i += 1
         if key in entries:
-            raise ValueError(f'{file}, line {lineno}: key "{key}" defined twice (also on line {entries[key].line})')
-        entries[key] = _Entry(_value(rest, body, f'{file}, line {lineno}, key "{key}"', lineno), lineno)
+            raise ValueError(
+                f'{file}, line {lineno}: key "{key}" defined twice (also on line {entries[key].line})'
+            )
+        entries[key] = _Entry(
+            _value(rest, body, f'{file}, line {lineno}, key "{key}"', lineno), lineno
+        )
     return entries
 
 
@@ -214,12 +240,16 @@ def _value(rest: str, body: list[str], where: str, lineno: int) -> Any:
         try:
             data = np.array([float(x) for x in items], dtype=np.float64)
         except ValueError:
-            raise ValueError(f"{where}: 'data' must hold numbers; got [{match.group(1).strip()}]") from None
+            raise ValueError(
+                f"{where}: 'data' must hold numbers; got [{match.group(1).strip()}]"
+            ) from None
         if not np.isfinite(data).all():
             raise ValueError(f"{where}: 'data' has non-finite entries")
         rows, cols = fields["rows"], fields["cols"]
         if data.size != rows * cols:
-            raise ValueError(f"{where}: rows × cols = {rows} × {cols} but 'data' holds {data.size} numbers")
+            raise ValueError(
+                f"{where}: rows × cols = {rows} × {cols} but 'data' holds {data.size} numbers"
+            )
         return _Matrix(data.reshape(rows, cols), lineno)
     if not rest and body and all(b.startswith("-") for b in body):
         return [_scalar(b[1:].strip()) for b in body]
@@ -263,10 +293,18 @@ def save_rig_easymocap(
     K = _K_over_K22(K)
     dist = _check_dist(dist, M)
     if isinstance(dist, Fisheye):
-        raise ValueError("save_rig_easymocap: EasyMocap has no fisheye lens model; write another format or undistort first")
+        raise ValueError(
+            "save_rig_easymocap: EasyMocap has no fisheye lens model; write another format or undistort first"
+        )
     dist = np.zeros((M, 5)) if dist is None else dist
     sizes = _check_view_sizes(image_size, M)
-    names = _check_names(names, M, "{:02d}", r"[A-Za-z0-9_\-]+", "EasyMocap camera names must be letters, digits, _ or -")
+    names = _check_names(
+        names,
+        M,
+        "{:02d}",
+        r"[A-Za-z0-9_\-]+",
+        "EasyMocap camera names must be letters, digits, _ or -",
+    )
     head = "%YAML:1.0\n---\nnames:\n" + "".join(f'   - "{n}"\n' for n in names)
     intri, extri = [head], [head]
     for m, name in enumerate(names):

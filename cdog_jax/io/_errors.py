@@ -31,7 +31,9 @@ class _Where(NamedTuple):
             parts.append(f"detection {i}")
         return ", ".join(parts)
 
-    def error(self, text: str, f: int | None = None, m: int | None = None, i: int | None = None) -> ValueError:
+    def error(
+        self, text: str, f: int | None = None, m: int | None = None, i: int | None = None
+    ) -> ValueError:
         head = [s for s in (self.source, self.loc(f, m, i)) if s]
         return InputError(": ".join([*head, text]))
 
@@ -55,4 +57,6 @@ def read_text(path: str | os.PathLike) -> str:
 def too_large(value: int) -> str:
     """How to say that the integer ``value`` does not fit a float64."""
     digits = len(str(abs(value)))
-    return f"the integer {str(value)[:12]}… ({digits} digits) is too large for a floating-point number"
+    return (
+        f"the integer {str(value)[:12]}… ({digits} digits) is too large for a floating-point number"
+    )

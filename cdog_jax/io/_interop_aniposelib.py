@@ -12,7 +12,6 @@ from __future__ import annotations
 
 from typing import Any
 
-
 from ..geometry._camera import Rig
 from ._opencv_arrays import opencv_from_rig, rig_from_opencv
 from ._rig_files import RigFile
@@ -29,14 +28,20 @@ def rig_from_aniposelib(camera_group: Any, *, dtype: Any = None) -> RigFile:
     """
     cameras = list(getattr(camera_group, "cameras", None) or [])
     if not cameras:
-        raise ValueError(f"camera_group: expected an aniposelib CameraGroup with cameras; got {type(camera_group).__name__}")
+        raise ValueError(
+            f"camera_group: expected an aniposelib CameraGroup with cameras; got {type(camera_group).__name__}"
+        )
     fisheye = [type(c).__name__ == "FisheyeCamera" for c in cameras]
     if any(fisheye) and not all(fisheye):
-        raise ValueError(f"camera_group: cameras {[m for m, f in enumerate(fisheye) if f]} are FisheyeCamera and the others are not; a rig has one lens model")
+        raise ValueError(
+            f"camera_group: cameras {[m for m, f in enumerate(fisheye) if f]} are FisheyeCamera and the others are not; a rig has one lens model"
+        )
     sizes = [c.get_size() for c in cameras]
     if any(s is None for s in sizes) and not all(s is None for s in sizes):
         m = next(m for m, s in enumerate(sizes) if s is None)
-        raise ValueError(f"camera_group: camera {m} ({cameras[m].get_name()!r}) has no size and others have one")
+        raise ValueError(
+            f"camera_group: camera {m} ({cameras[m].get_name()!r}) has no size and others have one"
+        )
     names = [c.get_name() for c in cameras]
     return rig_from_opencv(
         [c.get_camera_matrix() for c in cameras],
@@ -63,7 +68,9 @@ def aniposelib_from_rig(rig: Rig, *, image_size: Any, dist: Any = None, names: A
     except ImportError as e:
         raise ImportError("aniposelib_from_rig needs aniposelib: pip install aniposelib") from e
     if image_size is None:
-        raise ValueError("aniposelib_from_rig: image_size is required (aniposelib cannot save or load a camera without a size)")
+        raise ValueError(
+            "aniposelib_from_rig: image_size is required (aniposelib cannot save or load a camera without a size)"
+        )
     cams = opencv_from_rig(rig, dist=dist, image_size=image_size)
     M = cams.K.shape[0]
     if names is None:
@@ -71,7 +78,14 @@ def aniposelib_from_rig(rig: Rig, *, image_size: Any, dist: Any = None, names: A
     names = _check_names(names, M, "cam_{}")
     kind = FisheyeCamera if cams.fisheye else Camera
     cameras = [
-        kind(matrix=cams.K[m], dist=cams.dist[m], size=[int(v) for v in cams.image_size[m]], rvec=cams.rvec[m], tvec=cams.tvec[m], name=names[m])
+        kind(
+            matrix=cams.K[m],
+            dist=cams.dist[m],
+            size=[int(v) for v in cams.image_size[m]],
+            rvec=cams.rvec[m],
+            tvec=cams.tvec[m],
+            name=names[m],
+        )
         for m in range(M)
     ]
     return CameraGroup(cameras)

@@ -34,12 +34,18 @@ def rig_from_pycolmap(reconstruction: Any, *, dtype: Any = None) -> RigFile:
     check_rig_dtype(dtype, "rig_from_pycolmap")
     K, R, t, sizes, dists, names = [], [], [], [], [], []
     for image_id, image in sorted(dict(reconstruction.images).items()):
-        if hasattr(image, "has_pose") and not (image.has_pose() if callable(image.has_pose) else image.has_pose):
+        if hasattr(image, "has_pose") and not (
+            image.has_pose() if callable(image.has_pose) else image.has_pose
+        ):
             continue
         where = f"reconstruction: image {image_id} ({image.name!r})"
         camera = reconstruction.cameras[image.camera_id]
         model = getattr(camera, "model_name", None) or getattr(camera.model, "name", camera.model)
-        Kc, dist = camera_from_params(str(model), np.asarray(camera.params, dtype=np.float64), f"{where}, camera {image.camera_id}")
+        Kc, dist = camera_from_params(
+            str(model),
+            np.asarray(camera.params, dtype=np.float64),
+            f"{where}, camera {image.camera_id}",
+        )
         pose = image.cam_from_world() if callable(image.cam_from_world) else image.cam_from_world
         Rt = np.asarray(pose.matrix(), dtype=np.float64)
         K.append(Kc)
@@ -50,7 +56,14 @@ def rig_from_pycolmap(reconstruction: Any, *, dtype: Any = None) -> RigFile:
         names.append(str(image.name))
     if not K:
         raise ValueError("reconstruction: no images with a pose (zero views)")
-    views = _Views(np.stack(K), np.stack(R), np.stack(t), np.array(sizes, dtype=np.int64), stack_dists(dists, "reconstruction"), tuple(names))
+    views = _Views(
+        np.stack(K),
+        np.stack(R),
+        np.stack(t),
+        np.array(sizes, dtype=np.int64),
+        stack_dists(dists, "reconstruction"),
+        tuple(names),
+    )
     return rig_file_from_views(views, dtype, "reconstruction")
 
 

@@ -50,21 +50,79 @@ PathLike = str | os.PathLike
 # Keypoint names by id of the common skeletons (OpenPose's and COCO's orders).
 SKELETONS: dict[str, tuple[str, ...]] = {
     "BODY_25": (
-        "Nose", "Neck", "RShoulder", "RElbow", "RWrist", "LShoulder", "LElbow", "LWrist", "MidHip", "RHip",
-        "RKnee", "RAnkle", "LHip", "LKnee", "LAnkle", "REye", "LEye", "REar", "LEar", "LBigToe", "LSmallToe",
-        "LHeel", "RBigToe", "RSmallToe", "RHeel",
+        "Nose",
+        "Neck",
+        "RShoulder",
+        "RElbow",
+        "RWrist",
+        "LShoulder",
+        "LElbow",
+        "LWrist",
+        "MidHip",
+        "RHip",
+        "RKnee",
+        "RAnkle",
+        "LHip",
+        "LKnee",
+        "LAnkle",
+        "REye",
+        "LEye",
+        "REar",
+        "LEar",
+        "LBigToe",
+        "LSmallToe",
+        "LHeel",
+        "RBigToe",
+        "RSmallToe",
+        "RHeel",
     ),
     "BODY_25B": (
-        "Nose", "LEye", "REye", "LEar", "REar", "LShoulder", "RShoulder", "LElbow", "RElbow", "LWrist", "RWrist",
-        "LHip", "RHip", "LKnee", "RKnee", "LAnkle", "RAnkle", "Neck", "Head", "LBigToe", "LSmallToe", "LHeel",
-        "RBigToe", "RSmallToe", "RHeel",
+        "Nose",
+        "LEye",
+        "REye",
+        "LEar",
+        "REar",
+        "LShoulder",
+        "RShoulder",
+        "LElbow",
+        "RElbow",
+        "LWrist",
+        "RWrist",
+        "LHip",
+        "RHip",
+        "LKnee",
+        "RKnee",
+        "LAnkle",
+        "RAnkle",
+        "Neck",
+        "Head",
+        "LBigToe",
+        "LSmallToe",
+        "LHeel",
+        "RBigToe",
+        "RSmallToe",
+        "RHeel",
     ),
     "COCO_17": (
-        "nose", "left_eye", "right_eye", "left_ear", "right_ear", "left_shoulder", "right_shoulder", "left_elbow",
-        "right_elbow", "left_wrist", "right_wrist", "left_hip", "right_hip", "left_knee", "right_knee", "left_ankle",
+        "nose",
+        "left_eye",
+        "right_eye",
+        "left_ear",
+        "right_ear",
+        "left_shoulder",
+        "right_shoulder",
+        "left_elbow",
+        "right_elbow",
+        "left_wrist",
+        "right_wrist",
+        "left_hip",
+        "right_hip",
+        "left_knee",
+        "right_knee",
+        "left_ankle",
         "right_ankle",
     ),
-}  # fmt: skip
+}
 TABLE_COLUMNS = ("frame", "view", "class", "x", "y", "score", "instance")
 _DIGITS = re.compile(r"\d+")
 
@@ -105,7 +163,9 @@ def load_openpose(
     _check_options("auto", capacity, num_views, image_size)
     source = os.fspath(path) if isinstance(path, (str, os.PathLike)) else os.fspath(cameras[0])
     if num_views is not None and len(cameras) != num_views:
-        raise InputError(f"{source}: {len(cameras)} camera folders; the rig has {num_views} views (num_views)")
+        raise InputError(
+            f"{source}: {len(cameras)} camera folders; the rig has {num_views} views (num_views)"
+        )
     files = [_frame_files(folder) for folder in cameras]  # per camera: {frame number: file}
     frame_ids = np.array(sorted(set().union(*(f.keys() for f in files))), np.int64)
     row_of = {int(n): k for k, n in enumerate(frame_ids)}
@@ -119,11 +179,15 @@ def load_openpose(
                 if flat.size == 0:
                     continue
                 if flat.size % 3:
-                    raise InputError(f"{file}: person {p}: pose_keypoints_2d has {flat.size} numbers; expected [x, y, score] × J")
+                    raise InputError(
+                        f"{file}: person {p}: pose_keypoints_2d has {flat.size} numbers; expected [x, y, score] × J"
+                    )
                 if J is None:
                     J, first = flat.size // 3, file
                 elif flat.size != 3 * J:
-                    raise InputError(f"{file}: person {p}: {flat.size // 3} keypoints; {first} has {J}")
+                    raise InputError(
+                        f"{file}: person {p}: {flat.size // 3} keypoints; {first} has {J}"
+                    )
             people[row_of[number], m] = persons
     if J is None:
         raise InputError(f"{source}: no person with keypoints in any file")
@@ -137,9 +201,13 @@ def load_openpose(
             rows[f, m, : len(kept) * J] = np.concatenate(kept).reshape(-1, 3)
     classes = np.broadcast_to(np.arange(most * J) % J, (F, M, most * J)).copy()
     instances = np.broadcast_to(np.arange(most * J) // J, (F, M, most * J)).copy()
-    notes = [f"{len(cameras)} cameras {', '.join(os.path.basename(os.path.normpath(c)) for c in cameras)}; {J} keypoint types"]
+    notes = [
+        f"{len(cameras)} cameras {', '.join(os.path.basename(os.path.normpath(c)) for c in cameras)}; {J} keypoint types"
+    ]
     where = _Where(source, True)
-    return _keypoint_detections(rows, classes, names, frame_ids, where, notes, capacity, image_size, instances)
+    return _keypoint_detections(
+        rows, classes, names, frame_ids, where, notes, capacity, image_size, instances
+    )
 
 
 def load_keypoint_table(
@@ -177,14 +245,26 @@ def _camera_folders(path: Any) -> list[str]:
     if isinstance(path, (str, os.PathLike)):
         path = os.fspath(path)
         if not os.path.isdir(path):
-            raise InputError(f"{path}: not a folder (expected a folder of camera folders of OpenPose JSON files)")
-        subs = [os.path.join(path, d) for d in os.listdir(path) if os.path.isdir(os.path.join(path, d))]
-        cameras = sorted((d for d in subs if _json_names(d)), key=lambda d: natural_key(os.path.basename(d)))
+            raise InputError(
+                f"{path}: not a folder (expected a folder of camera folders of OpenPose JSON files)"
+            )
+        subs = [
+            os.path.join(path, d) for d in os.listdir(path) if os.path.isdir(os.path.join(path, d))
+        ]
+        cameras = sorted(
+            (d for d in subs if _json_names(d)), key=lambda d: natural_key(os.path.basename(d))
+        )
         if len(cameras) < 2:
-            raise InputError(f"{path}: {len(cameras)} sub-folder(s) with .json files; expected one folder per camera (at least 2)")
+            raise InputError(
+                f"{path}: {len(cameras)} sub-folder(s) with .json files; expected one folder per camera (at least 2)"
+            )
         return cameras
-    if not isinstance(path, (list, tuple)) or not all(isinstance(p, (str, os.PathLike)) for p in path):
-        raise TypeError(f"load_openpose: path must be a folder or a list of camera folders; got {type(path).__name__}")
+    if not isinstance(path, (list, tuple)) or not all(
+        isinstance(p, (str, os.PathLike)) for p in path
+    ):
+        raise TypeError(
+            f"load_openpose: path must be a folder or a list of camera folders; got {type(path).__name__}"
+        )
     cameras = [os.fspath(p) for p in path]
     for c in cameras:
         if not os.path.isdir(c):
@@ -207,7 +287,9 @@ def _frame_files(folder: str) -> dict[int, str]:
         digits = _DIGITS.findall(os.path.splitext(name)[0])
         file = os.path.join(folder, name)
         if not digits:
-            raise InputError(f"{file}: no frame number in the file name (expected digits, as in cam01.0012.json)")
+            raise InputError(
+                f"{file}: no frame number in the file name (expected digits, as in cam01.0012.json)"
+            )
         number = int(digits[-1])
         if number in out:
             raise InputError(f"{file}: frame number {number} again (also {out[number]})")
@@ -218,7 +300,9 @@ def _frame_files(folder: str) -> dict[int, str]:
 def _read_people(file: str) -> list[np.ndarray]:
     data = read_json(file)
     if not isinstance(data, dict) or not isinstance(data.get("people"), list):
-        raise InputError(f'{file}: expected an OpenPose object {{"people": [{{"pose_keypoints_2d": […]}}, …]}}')
+        raise InputError(
+            f'{file}: expected an OpenPose object {{"people": [{{"pose_keypoints_2d": […]}}, …]}}'
+        )
     out = []
     for p, person in enumerate(data["people"]):
         flat = person.get("pose_keypoints_2d") if isinstance(person, dict) else None
@@ -226,7 +310,9 @@ def _read_people(file: str) -> list[np.ndarray]:
             raise InputError(f'{file}: person {p}: no list "pose_keypoints_2d"')
         for k, v in enumerate(flat):
             if isinstance(v, bool) or not isinstance(v, (int, float)):
-                raise InputError(f"{file}: person {p}: pose_keypoints_2d[{k}] = {v!r} is not a number")
+                raise InputError(
+                    f"{file}: person {p}: pose_keypoints_2d[{k}] = {v!r} is not a number"
+                )
         out.append(np.asarray(flat, np.float64))
     return out
 
@@ -236,16 +322,22 @@ def _keypoint_names(keypoints: Any, J: int, source: str) -> tuple[str, ...] | No
         return None
     if isinstance(keypoints, str):
         if keypoints not in SKELETONS:
-            raise ValueError(f"keypoints must be one of {tuple(SKELETONS)} or a list of names; got {keypoints!r}")
+            raise ValueError(
+                f"keypoints must be one of {tuple(SKELETONS)} or a list of names; got {keypoints!r}"
+            )
         names = SKELETONS[keypoints]
     else:
         names = check_names(list(keypoints), lambda text, *_: ValueError(f"keypoints: {text}"))
     if len(names) != J:
-        raise InputError(f"{source}: the files have {J} keypoints per person; keypoints={keypoints!r} names {len(names)}")
+        raise InputError(
+            f"{source}: the files have {J} keypoints per person; keypoints={keypoints!r} names {len(names)}"
+        )
     return tuple(names)
 
 
-def _keypoint_detections(rows, classes, names, frame_ids, where, notes, capacity, image_size, instances=None) -> Detections:
+def _keypoint_detections(
+    rows, classes, names, frame_ids, where, notes, capacity, image_size, instances=None
+) -> Detections:
     """Rows ``(F, M, P, 3)`` ``[x, y, score]`` (score 0: none) as :class:`Detections`."""
     score = rows[..., 2]
     mask = score != 0.0
@@ -253,32 +345,59 @@ def _keypoint_detections(rows, classes, names, frame_ids, where, notes, capacity
     notes += [note] if note else []
     _check_coordinates(rows[..., :2], mask, where, "where the score is not 0")
     if not np.array_equal(frame_ids, np.arange(len(frame_ids))):
-        notes.append(f"frames numbered {_ranges(frame_ids)} in the files are frames 0…{len(frame_ids) - 1} here (frame_ids)")
-    return _finish(rows[..., :2], mask, conf, True, where, notes, capacity, image_size, classes, names, frame_ids, instances)
+        notes.append(
+            f"frames numbered {_ranges(frame_ids)} in the files are frames 0…{len(frame_ids) - 1} here (frame_ids)"
+        )
+    return _finish(
+        rows[..., :2],
+        mask,
+        conf,
+        True,
+        where,
+        notes,
+        capacity,
+        image_size,
+        classes,
+        names,
+        frame_ids,
+        instances,
+    )
 
 
 def _ranges(ids: np.ndarray) -> str:
-    return f"{ids[0]}…{ids[-1]}" + ("" if ids[-1] - ids[0] + 1 == len(ids) else f" ({len(ids)} of them, with gaps)")
+    return f"{ids[0]}…{ids[-1]}" + (
+        "" if ids[-1] - ids[0] + 1 == len(ids) else f" ({len(ids)} of them, with gaps)"
+    )
 
 
 # Tables ------------------------------------------------------------------------------------
 
 
 def _read_csv_table(path: str) -> tuple[dict[str, list], list[str]]:
-    lines = [(k + 1, line) for k, line in enumerate(read_text(path).splitlines()) if line.strip() and not line.lstrip().startswith("#")]
+    lines = [
+        (k + 1, line)
+        for k, line in enumerate(read_text(path).splitlines())
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
     if not lines:
-        raise InputError(f"{path}: empty table (expected a header {', '.join(TABLE_COLUMNS)} and rows)")
+        raise InputError(
+            f"{path}: empty table (expected a header {', '.join(TABLE_COLUMNS)} and rows)"
+        )
     rows = list(csv.reader([line for _, line in lines]))
     header = [h.strip().lower() for h in rows[0]]
     missing = [c for c in TABLE_COLUMNS[:5] if c not in header]
     if missing:
-        raise InputError(f"{path}: line {lines[0][0]}: header {rows[0]} lacks column(s) {', '.join(missing)} "
-                         f"(expected {', '.join(TABLE_COLUMNS)}, score and instance optional)")  # fmt: skip
+        raise InputError(
+            f"{path}: line {lines[0][0]}: header {rows[0]} lacks column(s) {', '.join(missing)} "
+            f"(expected {', '.join(TABLE_COLUMNS)}, score and instance optional)"
+        )
     index = {c: header.index(c) for c in TABLE_COLUMNS if c in header}
     columns: dict[str, list] = {c: [] for c in index}
     for (line, _), row in zip(lines[1:], rows[1:]):
         if len(row) != len(header):
-            raise InputError(f"{path}: line {line}: {len(row)} fields; the header has {len(header)}")
+            raise InputError(
+                f"{path}: line {line}: {len(row)} fields; the header has {len(header)}"
+            )
         for c, k in index.items():
             columns[c].append(row[k].strip())
     return columns, [f"line {line}" for line, _ in lines[1:]]
@@ -294,12 +413,18 @@ def _read_npz_table(path: str) -> tuple[dict[str, list], list[str]]:
         arrays["x"], arrays["y"] = xy[:, 0], xy[:, 1]
     missing = [c for c in TABLE_COLUMNS[:5] if c not in arrays]
     if missing:
-        raise InputError(f"{path}: no array(s) {', '.join(missing)} (expected 1-D arrays {', '.join(TABLE_COLUMNS)}, score and instance optional)")
+        raise InputError(
+            f"{path}: no array(s) {', '.join(missing)} (expected 1-D arrays {', '.join(TABLE_COLUMNS)}, score and instance optional)"
+        )
     N = len(arrays["frame"])
     for c in TABLE_COLUMNS:
         if c in arrays and (arrays[c].ndim != 1 or len(arrays[c]) != N):
-            raise InputError(f'{path}: array "{c}": expected shape ({N},) like "frame"; got {arrays[c].shape}')
-    return {c: arrays[c].tolist() for c in TABLE_COLUMNS if c in arrays}, [f"row {k}" for k in range(N)]
+            raise InputError(
+                f'{path}: array "{c}": expected shape ({N},) like "frame"; got {arrays[c].shape}'
+            )
+    return {c: arrays[c].tolist() for c in TABLE_COLUMNS if c in arrays}, [
+        f"row {k}" for k in range(N)
+    ]
 
 
 def _from_table(path, columns, row_names, num_views, capacity, image_size) -> Detections:
@@ -314,8 +439,14 @@ def _from_table(path, columns, row_names, num_views, capacity, image_size) -> De
                 x = float(v) if not isinstance(v, (int, np.integer)) else v
             except (TypeError, ValueError):
                 x = None
-            if x is None or isinstance(v, bool) or (integer and (not np.isfinite(x) or x != int(x))):
-                raise InputError(f"{path}: {row_names[k]}: {name} {v!r} is not {'an integer' if integer else 'a number'}")
+            if (
+                x is None
+                or isinstance(v, bool)
+                or (integer and (not np.isfinite(x) or x != int(x)))
+            ):
+                raise InputError(
+                    f"{path}: {row_names[k]}: {name} {v!r} is not {'an integer' if integer else 'a number'}"
+                )
             out[k] = int(x) if integer else x
         return out
 
@@ -325,11 +456,15 @@ def _from_table(path, columns, row_names, num_views, capacity, image_size) -> De
     instance = numbers("instance", True) if "instance" in columns else None
     if instance is not None and (instance < -1).any():
         k = int(np.flatnonzero(instance < -1)[0])
-        raise InputError(f"{path}: {row_names[k]}: instance {instance[k]} must be >= -1 (-1: unknown)")
+        raise InputError(
+            f"{path}: {row_names[k]}: instance {instance[k]} must be >= -1 (-1: unknown)"
+        )
     bad = view < 0 if num_views is None else (view < 0) | (view >= num_views)
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
-        rule = ">= 0" if num_views is None else f"in 0…{num_views - 1} (the rig has {num_views} views)"
+        rule = (
+            ">= 0" if num_views is None else f"in 0…{num_views - 1} (the rig has {num_views} views)"
+        )
         raise InputError(f"{path}: {row_names[k]}: view {view[k]} must be {rule}")
     cls, names = _table_classes(columns["class"], row_names, path)
     frame_ids, f_of = np.unique(frame, return_inverse=True)
@@ -353,13 +488,19 @@ def _from_table(path, columns, row_names, num_views, capacity, image_size) -> De
     bad &= score != 0.0
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
-        raise InputError(f"{path}: {row_names[k]}: ({x[k]}, {y[k]}) is not finite (a row that is no detection has score 0)")
+        raise InputError(
+            f"{path}: {row_names[k]}: ({x[k]}, {y[k]}) is not finite (a row that is no detection has score 0)"
+        )
     rows[..., :2] = np.where(np.isfinite(rows[..., :2]), rows[..., :2], 0.0)
     where = _Where(path, True)
-    return _keypoint_detections(rows, classes, names, frame_ids.astype(np.int64), where, [], capacity, image_size, instances)
+    return _keypoint_detections(
+        rows, classes, names, frame_ids.astype(np.int64), where, [], capacity, image_size, instances
+    )
 
 
-def _table_classes(values: list, row_names: list[str], path: str) -> tuple[np.ndarray, tuple[str, ...] | None]:
+def _table_classes(
+    values: list, row_names: list[str], path: str
+) -> tuple[np.ndarray, tuple[str, ...] | None]:
     """Class ids of the rows: all integers ``>= 0`` (ids), else names (ids by first appearance)."""
     ids = []
     for v in values:
@@ -373,7 +514,9 @@ def _table_classes(values: list, row_names: list[str], path: str) -> tuple[np.nd
         numeric = [k for k, i in enumerate(ids) if i is not None]
         if numeric and len(numeric) < len(ids):
             k = numeric[0]
-            raise InputError(f"{path}: {row_names[k]}: class {values[k]!r}: the table mixes class ids and class names; use one kind")
+            raise InputError(
+                f"{path}: {row_names[k]}: class {values[k]!r}: the table mixes class ids and class names; use one kind"
+            )
         empty = [k for k, v in enumerate(values) if not v]
         if empty:
             raise InputError(f"{path}: {row_names[empty[0]]}: empty class")
@@ -381,4 +524,6 @@ def _table_classes(values: list, row_names: list[str], path: str) -> tuple[np.nd
         index = {n: k for k, n in enumerate(names)}
         return np.asarray([index[v] for v in values], np.int64), names
     k = next(k for k, i in enumerate(ids) if i is None or i < 0)
-    raise InputError(f"{path}: {row_names[k]}: class {values[k]!r} is neither an int >= 0 nor a name")
+    raise InputError(
+        f"{path}: {row_names[k]}: class {values[k]!r} is neither an int >= 0 nor a name"
+    )

@@ -83,7 +83,9 @@ def _resolve_format(path: str, format: str) -> str:
     if format in FORMATS:
         return format
     if format != "auto":
-        raise ValueError(f"{path}: unknown rig format {format!r}; expected 'auto' or one of {FORMATS}")
+        raise ValueError(
+            f"{path}: unknown rig format {format!r}; expected 'auto' or one of {FORMATS}"
+        )
     if os.path.isdir(path):
         entries = set(os.listdir(path))
         if {"cameras.txt", "images.txt"} <= entries:

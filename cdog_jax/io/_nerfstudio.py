@@ -59,29 +59,47 @@ def read_nerfstudio(path: str) -> _Views:
     """
     data = read_json(path)
     if not isinstance(data, dict) or not isinstance(data.get("frames"), list) or not data["frames"]:
-        raise ValueError(f'{path}: expected an object with a non-empty list "frames" (nerfstudio transforms.json)')
+        raise ValueError(
+            f'{path}: expected an object with a non-empty list "frames" (nerfstudio transforms.json)'
+        )
     Ks, Rs, ts, dists, sizes, names = [], [], [], [], [], []
     for m, frame in enumerate(data["frames"]):
         where = f"{path}: frame {m}"
         if not isinstance(frame, dict):
             raise ValueError(f"{where}: expected an object; got {type(frame).__name__}")  # noqa: TRY004
-        get = {**{k: v for k, v in data.items() if k != "frames"}, **frame}  # a frame's own values win
+        get = {
+            **{k: v for k, v in data.items() if k != "frames"},
+            **frame,
+        }  # a frame's own values win
         model = get.get("camera_model", "OPENCV")
         if model not in _MODELS:
-            raise ValueError(f'{where}: camera_model {model!r} is not supported; expected one of {", ".join(_MODELS)}')
+            raise ValueError(
+                f"{where}: camera_model {model!r} is not supported; expected one of {', '.join(_MODELS)}"
+            )
         for key in (*_INTRINSICS, "transform_matrix"):
             if key not in get:
                 raise ValueError(f'{where}: missing key "{key}" (in the frame or at the top level)')
-        fx, fy, cx, cy = (float(_to_array([get[k]], (1,), f'{where}, key "{k}"')[0]) for k in _INTRINSICS[:4])
+        fx, fy, cx, cy = (
+            float(_to_array([get[k]], (1,), f'{where}, key "{k}"')[0]) for k in _INTRINSICS[:4]
+        )
         Ks.append(np.array([[fx, 0.0, cx - 0.5], [0.0, fy, cy - 0.5], [0.0, 0.0, 1.0]]))
         sizes.append(_check_image_size([get["w"], get["h"]], f'{where}, keys "w", "h"'))
-        coeff = {k: float(_to_array([get.get(k, 0.0)], (1,), f'{where}, key "{k}"')[0]) for k in ("k1", "k2", "k3", "k4", "p1", "p2")}
+        coeff = {
+            k: float(_to_array([get.get(k, 0.0)], (1,), f'{where}, key "{k}"')[0])
+            for k in ("k1", "k2", "k3", "k4", "p1", "p2")
+        }
         if model == "OPENCV_FISHEYE":
-            dists.append(("fisheye", np.array([coeff["k1"], coeff["k2"], coeff["k3"], coeff["k4"]])))
+            dists.append(
+                ("fisheye", np.array([coeff["k1"], coeff["k2"], coeff["k3"], coeff["k4"]]))
+            )
         elif model == "OPENCV":
             if coeff["k4"] != 0:
-                raise ValueError(f"{where}: OPENCV with k4 = {coeff['k4']!r} (an r⁸ term OpenCV's model lacks) is not supported")
-            dists.append(np.array([coeff["k1"], coeff["k2"], coeff["p1"], coeff["p2"], coeff["k3"]]))
+                raise ValueError(
+                    f"{where}: OPENCV with k4 = {coeff['k4']!r} (an r⁸ term OpenCV's model lacks) is not supported"
+                )
+            dists.append(
+                np.array([coeff["k1"], coeff["k2"], coeff["p1"], coeff["p2"], coeff["k3"]])
+            )
         else:
             dists.append(None)
         c2w = _to_array(get["transform_matrix"], (4, 4), f'{where}, key "transform_matrix"')
@@ -92,10 +110,19 @@ def read_nerfstudio(path: str) -> _Views:
         names.append(str(name))
     if len(set(names)) != len(names):
         raise ValueError(f'{path}: frames repeat a "file_path": {names}')
-    return _Views(np.stack(Ks), np.stack(Rs), np.stack(ts), np.array(sizes, dtype=np.int64), stack_dists(dists, path), tuple(names))
+    return _Views(
+        np.stack(Ks),
+        np.stack(Rs),
+        np.stack(ts),
+        np.array(sizes, dtype=np.int64),
+        stack_dists(dists, path),
+        tuple(names),
+    )
 
 
-def save_rig_nerfstudio(path: PathLike, rig: Rig, *, image_size: Any, dist: Any = None, names: Any = None) -> None:
+def save_rig_nerfstudio(
+    path: PathLike, rig: Rig, *, image_size: Any, dist: Any = None, names: Any = None
+) -> None:
     """Write ``rig`` (``K, R (M, 3, 3)``, ``t (M, 3)``) as a nerfstudio ``transforms.json``.
 
     One frame per view with its own ``fl_x, fl_y, cx, cy`` (principal point + 0.5), ``w, h``
@@ -112,11 +139,15 @@ def save_rig_nerfstudio(path: PathLike, rig: Rig, *, image_size: Any, dist: Any 
     sizes = _check_view_sizes(image_size, M, required=True)
     dist = _check_dist(dist, M)
     names = _check_names(names, M, "view_{}")
-    model = "OPENCV_FISHEYE" if isinstance(dist, Fisheye) else ("PINHOLE" if dist is None else "OPENCV")
+    model = (
+        "OPENCV_FISHEYE" if isinstance(dist, Fisheye) else ("PINHOLE" if dist is None else "OPENCV")
+    )
     frames = []
     for m in range(M):
         if abs(K[m, 0, 1]) > 1e-12 * np.abs(K[m]).max():
-            raise ValueError(f"view {m}: K has skew K[0,1] = {float(K[m, 0, 1])!r} (after K / K[2,2]); nerfstudio cannot hold it")
+            raise ValueError(
+                f"view {m}: K has skew K[0,1] = {float(K[m, 0, 1])!r} (after K / K[2,2]); nerfstudio cannot hold it"
+            )
         frame: dict[str, Any] = {"file_path": names[m]}
         frame.update(fl_x=K[m, 0, 0], fl_y=K[m, 1, 1], cx=K[m, 0, 2] + 0.5, cy=K[m, 1, 2] + 0.5)
         frame.update(w=int(sizes[m, 0]), h=int(sizes[m, 1]))
@@ -128,6 +159,10 @@ def save_rig_nerfstudio(path: PathLike, rig: Rig, *, image_size: Any, dist: Any 
         c2w[:3, :3] = R[m].T @ _OPENGL_FROM_OPENCV
         c2w[:3, 3] = -R[m].T @ t[m]
         frame["transform_matrix"] = c2w.tolist()
-        frames.append({k: (float(v) if isinstance(v, np.floating) else v) for k, v in frame.items()})
+        frames.append(
+            {k: (float(v) if isinstance(v, np.floating) else v) for k, v in frame.items()}
+        )
     with atomic_write(path, "w") as f:
-        f.write(json.dumps({"camera_model": model, "frames": frames}, indent=1, allow_nan=False) + "\n")
+        f.write(
+            json.dumps({"camera_model": model, "frames": frames}, indent=1, allow_nan=False) + "\n"
+        )

@@ -43,7 +43,15 @@ class OpenCVCameras(NamedTuple):
 
 
 def rig_from_opencv(
-    K: Any, dist: Any, rvec: Any, tvec: Any, *, image_size: Any = None, fisheye: bool = False, names: Any = None, dtype: Any = None
+    K: Any,
+    dist: Any,
+    rvec: Any,
+    tvec: Any,
+    *,
+    image_size: Any = None,
+    fisheye: bool = False,
+    names: Any = None,
+    dtype: Any = None,
 ) -> RigFile:
     """A :class:`RigFile` from OpenCV arrays, one entry per camera (sequences or stacked).
 
@@ -71,17 +79,23 @@ def rig_from_opencv(
     if dist is not None:
         rows = [np.asarray(d, dtype=np.float64).reshape(-1) for d in dist]
         if len(rows) != M:
-            raise ValueError(f"dist: expected {M} coefficient vectors (one per camera, M={M} from K); got {len(rows)}")
+            raise ValueError(
+                f"dist: expected {M} coefficient vectors (one per camera, M={M} from K); got {len(rows)}"
+            )
         if fisheye:
             bad = [m for m, d in enumerate(rows) if d.size != 4]
             if bad:
-                raise ValueError(f"dist[{bad[0]}]: fisheye=True takes 4 coefficients (k1, k2, k3, k4); got {rows[bad[0]].size}")
+                raise ValueError(
+                    f"dist[{bad[0]}]: fisheye=True takes 4 coefficients (k1, k2, k3, k4); got {rows[bad[0]].size}"
+                )
             lens = Fisheye(np.stack(rows))
         else:
             lens = np.stack([_opencv_dist(d, f"dist[{m}]") for m, d in enumerate(rows)])
         coeffs = lens.coeffs if fisheye else lens
         if not np.isfinite(coeffs).all():
-            raise ValueError(f"dist[{int(np.argwhere(~np.isfinite(coeffs))[0, 0])}]: non-finite coefficients")
+            raise ValueError(
+                f"dist[{int(np.argwhere(~np.isfinite(coeffs))[0, 0])}]: non-finite coefficients"
+            )
     sizes = _check_view_sizes(image_size, M)
     names = None if names is None else _check_names(names, M, "")
     return rig_file_from_views(_Views(K, R, tvec, sizes, lens, names), dtype, "rig_from_opencv")
@@ -100,7 +114,9 @@ def opencv_from_rig(rig: Rig, *, dist: Any = None, image_size: Any = None) -> Op
     fisheye = isinstance(lens, Fisheye)
     coeffs = lens.coeffs if fisheye else (np.zeros((M, 5)) if lens is None else lens)
     rvec = np.stack([rodrigues_from_rotation(r) for r in R])
-    return OpenCVCameras(K / K[:, 2:3, 2:3], coeffs, rvec, t, _check_view_sizes(image_size, M), fisheye)
+    return OpenCVCameras(
+        K / K[:, 2:3, 2:3], coeffs, rvec, t, _check_view_sizes(image_size, M), fisheye
+    )
 
 
 def _per_camera(values: Any, shape: tuple[int, ...], name: str, M: int | None = None) -> np.ndarray:
@@ -110,7 +126,9 @@ def _per_camera(values: Any, shape: tuple[int, ...], name: str, M: int | None = 
     except (TypeError, ValueError) as e:
         raise ValueError(f"{name}: expected one array of numbers per camera ({e})") from None
     if M is not None and len(rows) != M:
-        raise ValueError(f"{name}: expected {M} entries (one per camera, M={M} from K); got {len(rows)}")
+        raise ValueError(
+            f"{name}: expected {M} entries (one per camera, M={M} from K); got {len(rows)}"
+        )
     if not rows:
         raise ValueError(f"{name}: no cameras")
     for m, a in enumerate(rows):

@@ -48,20 +48,37 @@ def read_qualisys(path: str) -> _Views:
         raise InputError(f"{path}: not a Qualisys calibration: invalid XML ({e})") from None
     cameras = root.findall("cameras/camera")
     if not cameras:
-        raise InputError(f"{path}: no <cameras><camera …> elements (not a Qualisys .qca.txt calibration?)")
+        raise InputError(
+            f"{path}: no <cameras><camera …> elements (not a Qualisys .qca.txt calibration?)"
+        )
     video = [c for c in cameras if c.get("model") in VIDEO_MODELS]
     chosen = sorted(video, key=lambda c: natural_key(c.get("serial") or ""))
     if len(chosen) < 2:
-        raise InputError(f"{path}: {len(chosen)} video camera(s) (model one of {VIDEO_MODELS}); a rig needs at least 2")
+        raise InputError(
+            f"{path}: {len(chosen)} video camera(s) (model one of {VIDEO_MODELS}); a rig needs at least 2"
+        )
     K, R, t, dist, sizes, names = [], [], [], [], [], []
     for k, cam in enumerate(chosen):
         name = cam.get("serial") or f"camera {k}"
         where = f"{path}: camera {name!r}"
-        fov, tr, intr = (_element(cam, tag, where) for tag in ("fov_video", "transform", "intrinsic"))
-        left, top, right, bottom = (_number(fov, a, where) for a in ("left", "top", "right", "bottom"))
-        fu, fv, cu, cv = (_number(intr, a, where) / SUBPIXEL for a in ("focalLengthU", "focalLengthV", "centerPointU", "centerPointV"))
+        fov, tr, intr = (
+            _element(cam, tag, where) for tag in ("fov_video", "transform", "intrinsic")
+        )
+        left, top, right, bottom = (
+            _number(fov, a, where) for a in ("left", "top", "right", "bottom")
+        )
+        fu, fv, cu, cv = (
+            _number(intr, a, where) / SUBPIXEL
+            for a in ("focalLengthU", "focalLengthV", "centerPointU", "centerPointV")
+        )
         K.append([[fu, 0.0, cu - left], [0.0, fv, cv - top], [0.0, 0.0, 1.0]])
-        coeffs = ("radialDistortion1", "radialDistortion2", "tangentalDistortion1", "tangentalDistortion2", "radialDistortion3")
+        coeffs = (
+            "radialDistortion1",
+            "radialDistortion2",
+            "tangentalDistortion1",
+            "tangentalDistortion2",
+            "radialDistortion3",
+        )
         dist.append([_number(intr, a, where, default=0.0) / SUBPIXEL for a in coeffs])
         Q = np.array([[_number(tr, f"r{i}{j}", where) for j in (1, 2, 3)] for i in (1, 2, 3)])
         C = np.array([_number(tr, a, where) for a in ("x", "y", "z")]) / 1000.0
@@ -72,7 +89,12 @@ def read_qualisys(path: str) -> _Views:
     if len(set(names)) != len(names):
         raise InputError(f"{path}: camera serials are not distinct: {names}")
     return _Views(
-        np.array(K), np.array(R), np.array(t), view_sizes=np.array(sizes, np.int64), dist=np.array(dist), names=tuple(names)
+        np.array(K),
+        np.array(R),
+        np.array(t),
+        view_sizes=np.array(sizes, np.int64),
+        dist=np.array(dist),
+        names=tuple(names),
     )
 
 

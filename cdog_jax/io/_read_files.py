@@ -26,11 +26,17 @@ def read_json(path: str) -> Any:
     except json.JSONDecodeError as e:
         raise InputError(f"{path}: not valid JSON ({e})") from None
     except RecursionError:
-        raise InputError(f"{path}: not readable JSON: brackets nested too deeply (deeper than Python's recursion limit)") from None
+        raise InputError(
+            f"{path}: not readable JSON: brackets nested too deeply (deeper than Python's recursion limit)"
+        ) from None
     except ValueError as e:  # an integer beyond sys.get_int_max_str_digits()
         found = re.search(r"value has (\d+) digits", str(e))
-        digits = f"an integer has {found.group(1)} digits" if found else "an integer has too many digits"
-        raise InputError(f"{path}: not readable JSON: {digits}; at most {sys.get_int_max_str_digits()} are read") from None
+        digits = (
+            f"an integer has {found.group(1)} digits" if found else "an integer has too many digits"
+        )
+        raise InputError(
+            f"{path}: not readable JSON: {digits}; at most {sys.get_int_max_str_digits()} are read"
+        ) from None
 
 
 def open_npz(path: str) -> _NpzFile:
@@ -65,7 +71,9 @@ class _NpzFile:
                 ) from None
             raise InputError(f'{self._path}: array "{key}" is unreadable ({e})') from None
         except (OSError, EOFError, zipfile.BadZipFile, zlib.error) as e:
-            raise InputError(f'{self._path}: array "{key}" is unreadable ({type(e).__name__}: {e})') from None
+            raise InputError(
+                f'{self._path}: array "{key}" is unreadable ({type(e).__name__}: {e})'
+            ) from None
 
     def __enter__(self) -> _NpzFile:
         return self

@@ -13,7 +13,7 @@ from .._expect import PATH, expect_args
 from ..geometry._camera import Rig
 from ._atomic import atomic_write
 from ._errors import read_text
-from ._rig_files import _Views, PathLike
+from ._rig_files import PathLike, _Views
 from ._rig_values import _host_rig, _to_array
 
 _EASYVIS_FILE = re.compile(r"^([KRT])(0|[1-9][0-9]*)\.txt$")
@@ -31,7 +31,9 @@ def easyvis_files(folder: str) -> list[tuple[str, str, int]]:
 
 def read_easyvis(folder: str):
     if not os.path.isdir(folder):
-        raise ValueError(f"{folder}: not a folder (the easyvis format is a folder of K/R/T{{i}}.txt files)")
+        raise ValueError(
+            f"{folder}: not a folder (the easyvis format is a folder of K/R/T{{i}}.txt files)"
+        )
     files = easyvis_files(folder)
     if not files:
         raise ValueError(f"{folder}: no K{{i}}.txt, R{{i}}.txt, T{{i}}.txt files (zero views)")
@@ -76,7 +78,9 @@ def save_rig_easyvis(folder: PathLike, rig: Rig) -> None:
     M = K.shape[0]
     stale = sorted(name for name, _, i in easyvis_files(folder) if i >= M)
     if stale:
-        raise ValueError(f"{folder}: holds {stale[0]}, beyond the {M} views of the rig; remove it or use an empty folder")
+        raise ValueError(
+            f"{folder}: holds {stale[0]}, beyond the {M} views of the rig; remove it or use an empty folder"
+        )
     for m in range(M):
         for name, a in (("K", K[m]), ("R", R[m]), ("T", t[m][:, None])):
             with atomic_write(os.path.join(folder, f"{name}{m}.txt"), "w") as f:

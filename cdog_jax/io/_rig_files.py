@@ -60,7 +60,7 @@ class RigFile(NamedTuple):
     view_sizes: np.ndarray | None = None
     names: tuple[str, ...] | None = None
 
-    def select(self, names: Any) -> "RigFile":
+    def select(self, names: Any) -> RigFile:
         """The views named ``names`` (a sequence of camera names), in that order.
 
         Match cameras by name, never by position, when two tools order them differently:
@@ -69,20 +69,28 @@ class RigFile(NamedTuple):
         ``rig_file.select(camera_group.get_names())`` gives aniposelib's order.
         """
         if self.names is None:
-            raise ValueError("this rig has no camera names; select views by index with rig.select(views)")
+            raise ValueError(
+                "this rig has no camera names; select views by index with rig.select(views)"
+            )
         if isinstance(names, str):
             raise TypeError(f"names must be a sequence of camera names, not the string {names!r}")
         index = {n: m for m, n in enumerate(self.names)}
         missing = [n for n in names if str(n) not in index]
         if missing:
-            raise ValueError(f"camera {missing[0]!r} is not in this rig; its cameras are {list(self.names)}")
+            raise ValueError(
+                f"camera {missing[0]!r} is not in this rig; its cameras are {list(self.names)}"
+            )
         views = np.array([index[str(n)] for n in names], dtype=np.int64)
-        dist = Fisheye(self.dist.coeffs[views]) if isinstance(self.dist, Fisheye) else self.dist[views]
+        dist = (
+            Fisheye(self.dist.coeffs[views]) if isinstance(self.dist, Fisheye) else self.dist[views]
+        )
         sizes = None if self.view_sizes is None else self.view_sizes[views]
         image_size = None
         if sizes is not None and len(sizes) and (sizes == sizes[0]).all():
             image_size = (int(sizes[0, 0]), int(sizes[0, 1]))
-        return RigFile(self.rig.select(views), image_size, dist, sizes, tuple(self.names[m] for m in views))
+        return RigFile(
+            self.rig.select(views), image_size, dist, sizes, tuple(self.names[m] for m in views)
+        )
 
 
 class _Views(NamedTuple):
@@ -144,4 +152,9 @@ def _name_views(message: str, names: tuple[str, ...] | None) -> str:
     """``"… view 3 …"`` → ``"… view 3 (camera 'c3') …"`` when the file names its cameras."""
     if names is None:
         return message
-    return re.sub(r"\bview (\d+)\b", lambda m: f"{m.group(0)} (camera {names[int(m.group(1))]!r})", message, count=1)
+    return re.sub(
+        r"\bview (\d+)\b",
+        lambda m: f"{m.group(0)} (camera {names[int(m.group(1))]!r})",
+        message,
+        count=1,
+    )

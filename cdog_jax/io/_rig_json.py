@@ -13,14 +13,23 @@ from ..geometry._camera import Rig
 from ..geometry._distortion import Fisheye
 from ._atomic import atomic_write
 from ._read_files import read_json
-from ._rig_files import _Views, PathLike
-from ._rig_values import _check_dist, _check_image_size, _host_rig, _tile_size, _to_array, stack_dists
+from ._rig_files import PathLike, _Views
+from ._rig_values import (
+    _check_dist,
+    _check_image_size,
+    _host_rig,
+    _tile_size,
+    _to_array,
+    stack_dists,
+)
 
 
 def read_json_rig(path: str):
     data = read_json(path)
     if not isinstance(data, dict) or "views" not in data:
-        raise ValueError(f'{path}: missing key "views" (expected {{"views": [{{"K", "R", "t"}}, …]}})')
+        raise ValueError(
+            f'{path}: missing key "views" (expected {{"views": [{{"K", "R", "t"}}, …]}})'
+        )
     views = data["views"]
     if not isinstance(views, list) or not views:
         raise ValueError(f'{path}: "views" must be a non-empty list of view objects')
@@ -28,7 +37,9 @@ def read_json_rig(path: str):
     for m, view in enumerate(views):
         where = f"{path}: view {m}"
         if not isinstance(view, dict):
-            raise ValueError(f"{where}: expected an object with keys K, R, t; got {type(view).__name__}")  # noqa: TRY004 (bad file content, not a bad argument)
+            raise ValueError(
+                f"{where}: expected an object with keys K, R, t; got {type(view).__name__}"
+            )  # noqa: TRY004 (bad file content, not a bad argument)
         for key in ("K", "R", "t"):
             if key not in view:
                 raise ValueError(f'{where}: missing key "{key}"')
@@ -40,16 +51,32 @@ def read_json_rig(path: str):
         if "fisheye" in view:
             dists.append(("fisheye", _to_array(view["fisheye"], (4,), f'{where}, key "fisheye"')))
         else:
-            dists.append(_to_array(view["dist"], (5,), f'{where}, key "dist"') if "dist" in view else None)
-        sizes.append(_check_image_size(view["image_size"], f'{where}, key "image_size"') if "image_size" in view else None)
+            dists.append(
+                _to_array(view["dist"], (5,), f'{where}, key "dist"') if "dist" in view else None
+            )
+        sizes.append(
+            _check_image_size(view["image_size"], f'{where}, key "image_size"')
+            if "image_size" in view
+            else None
+        )
     given = {s for s in sizes if s is not None}
     if len(given) > 1:
-        raise ValueError(f'{path}: views give different "image_size" values {sorted(given)}; expected one for all views')
+        raise ValueError(
+            f'{path}: views give different "image_size" values {sorted(given)}; expected one for all views'
+        )
     image_size = given.pop() if given else None
-    return _Views(np.stack(K), np.stack(R), np.stack(t), _tile_size(image_size, len(K)), stack_dists(dists, path))
+    return _Views(
+        np.stack(K),
+        np.stack(R),
+        np.stack(t),
+        _tile_size(image_size, len(K)),
+        stack_dists(dists, path),
+    )
 
 
-def save_rig_json(path: PathLike, rig: Rig, *, image_size: tuple[int, int] | None = None, dist: Any = None) -> None:
+def save_rig_json(
+    path: PathLike, rig: Rig, *, image_size: tuple[int, int] | None = None, dist: Any = None
+) -> None:
     """Write ``rig`` (``K, R (M, 3, 3)``, ``t (M, 3)``) as the project's JSON rig.
 
     One object per view ``{"K": 3×3, "R": 3×3, "t": [3]}``, plus ``"image_size": [w, h]``

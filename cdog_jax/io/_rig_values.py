@@ -35,7 +35,9 @@ def _to_array(value: Any, shape: tuple[int, ...], where: str) -> np.ndarray:
     except ValueError as e:
         if str(e).startswith(where):
             raise
-        raise ValueError(f"{where}: expected a nested list of numbers of shape {shape}; got ragged lists") from e
+        raise ValueError(
+            f"{where}: expected a nested list of numbers of shape {shape}; got ragged lists"
+        ) from e
     if shape == (3,) and a.shape == (3, 1):
         a = a[:, 0]
     if a.shape != shape:
@@ -51,7 +53,10 @@ def _check_image_size(size: Any, where: str) -> tuple[int, int] | None:
         return None
     values = list(size) if isinstance(size, (list, tuple, np.ndarray)) else [size]
     ok = len(values) == 2 and all(
-        not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating)) and float(v).is_integer() and v >= 1
+        not isinstance(v, bool)
+        and isinstance(v, (int, float, np.integer, np.floating))
+        and float(v).is_integer()
+        and v >= 1
         for v in values
     )
     if not ok:
@@ -101,17 +106,28 @@ def _check_view_sizes(image_size: Any, M: int, *, required: bool = False) -> np.
     one per view."""
     if image_size is None:
         if required:
-            raise ValueError("image_size is required by this format: (width, height) or (M, 2) per view")
+            raise ValueError(
+                "image_size is required by this format: (width, height) or (M, 2) per view"
+            )
         return None
     a = np.asarray(image_size)
     if a.shape == (2,):
-        return np.tile(np.asarray(_check_image_size(a.tolist(), "image_size"), dtype=np.int64), (M, 1))
+        return np.tile(
+            np.asarray(_check_image_size(a.tolist(), "image_size"), dtype=np.int64), (M, 1)
+        )
     if a.shape != (M, 2):
-        raise ValueError(f"image_size must be (width, height) or have shape (M, 2) = {(M, 2)}; got shape {a.shape}")
-    return np.array([_check_image_size(row.tolist(), f"image_size[{m}]") for m, row in enumerate(a)], dtype=np.int64)
+        raise ValueError(
+            f"image_size must be (width, height) or have shape (M, 2) = {(M, 2)}; got shape {a.shape}"
+        )
+    return np.array(
+        [_check_image_size(row.tolist(), f"image_size[{m}]") for m, row in enumerate(a)],
+        dtype=np.int64,
+    )
 
 
-def _check_names(names: Any, M: int, default: str, pattern: str | None = None, rule: str = "") -> tuple[str, ...]:
+def _check_names(
+    names: Any, M: int, default: str, pattern: str | None = None, rule: str = ""
+) -> tuple[str, ...]:
     """``M`` distinct camera names (``default.format(m)`` when ``None``), each matching
     ``pattern`` (a regular expression, described by ``rule``) when given."""
     if names is None:
@@ -131,7 +147,9 @@ def _K_over_K22(K: np.ndarray) -> np.ndarray:
     ``K[2,2] = 1``)."""
     zero = K[:, 2, 2] == 0
     if zero.any():
-        raise ValueError(f"K of view {int(np.argmax(zero))} has K[2,2] = 0; cannot write it in this format")
+        raise ValueError(
+            f"K of view {int(np.argmax(zero))} has K[2,2] = 0; cannot write it in this format"
+        )
     return K / K[:, 2:3, 2:3]
 
 
@@ -139,7 +157,9 @@ def _host_rig(rig: Rig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The rig as float64 host arrays (exact widening), checked to be one finite rig."""
     K, R, t = (np.asarray(a, dtype=np.float64) for a in (rig.K, rig.R, rig.t))
     if K.ndim != 3:
-        raise ValueError(f"expected one rig with K of shape (M, 3, 3); got {K.shape} (a batch of rigs?)")
+        raise ValueError(
+            f"expected one rig with K of shape (M, 3, 3); got {K.shape} (a batch of rigs?)"
+        )
     for name, a in (("K", K), ("R", R), ("t", t)):
         if not np.isfinite(a).all():
             raise ValueError(f"{name} has non-finite entries; cannot write it")
@@ -153,7 +173,9 @@ def _check_dist(dist: Any, M: int) -> np.ndarray | Fisheye | None:
     if isinstance(dist, Fisheye):
         coeffs = np.asarray(dist.coeffs, dtype=np.float64)
         if coeffs.shape != (M, 4):
-            raise ValueError(f"Fisheye coefficients must have shape (M, 4) = {(M, 4)}; got {coeffs.shape}")
+            raise ValueError(
+                f"Fisheye coefficients must have shape (M, 4) = {(M, 4)}; got {coeffs.shape}"
+            )
         if not np.isfinite(coeffs).all():
             raise ValueError("Fisheye coefficients have non-finite entries; cannot write them")
         return Fisheye(coeffs)

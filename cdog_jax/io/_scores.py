@@ -37,8 +37,10 @@ def clip_scores(
         raise error(
             f"confidence {conf[f, m, i]} is outside [0, 1] or NaN (scores up to {SCORE_TOLERANCE:g} are taken as 1; "
             "rescale other scores to [0, 1])",
-            f, m, i,
-        )  # fmt: skip
+            f,
+            m,
+            i,
+        )
     above = mask & (conf > 1.0)
     note = None
     if above.any():
@@ -64,7 +66,12 @@ def normalise_keypoint_scores(
     bad = mask & ~((conf >= 0.0) & np.isfinite(conf))
     if bad.any():
         f, m, i = (int(v) for v in np.argwhere(bad)[0])
-        raise error(f"score {conf[f, m, i]} is negative, infinite or NaN (scores must be finite and >= 0)", f, m, i)
+        raise error(
+            f"score {conf[f, m, i]} is negative, infinite or NaN (scores must be finite and >= 0)",
+            f,
+            m,
+            i,
+        )
     largest = float(conf[mask].max()) if mask.any() else 0.0
     if largest <= SCORE_TOLERANCE:
         return clip_scores(conf, mask, error)

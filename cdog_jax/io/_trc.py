@@ -25,7 +25,16 @@ from ._errors import InputError
 
 PathLike = str | os.PathLike  # a file name
 
-_HEADER_KEYS = ("DataRate", "CameraRate", "NumFrames", "NumMarkers", "Units", "OrigDataRate", "OrigDataStartFrame", "OrigNumFrames")
+_HEADER_KEYS = (
+    "DataRate",
+    "CameraRate",
+    "NumFrames",
+    "NumMarkers",
+    "Units",
+    "OrigDataRate",
+    "OrigDataStartFrame",
+    "OrigNumFrames",
+)
 
 
 class Trc(NamedTuple):
@@ -41,7 +50,15 @@ class Trc(NamedTuple):
     time: np.ndarray
 
 
-def save_trc(path: PathLike, markers: Any, names: Any, *, rate: float | int, units: str = "m", z_up: bool = False) -> None:
+def save_trc(
+    path: PathLike,
+    markers: Any,
+    names: Any,
+    *,
+    rate: float | int,
+    units: str = "m",
+    z_up: bool = False,
+) -> None:
     """Write ``markers (F, K, 3)`` (scene units; NaN: not seen in that frame) named ``names``
     (``K`` strings: no tab, no line break, not empty, no two alike) as a ``.trc`` file of
     ``rate`` frames per second; ``units`` is written in the header (``"m"``, ``"mm"``, …);
@@ -52,18 +69,30 @@ def save_trc(path: PathLike, markers: Any, names: Any, *, rate: float | int, uni
     if X.ndim != 3 or X.shape[2] != 3:
         raise ValueError(f"save_trc: markers must have shape (F, K, 3); got {X.shape}")
     if len(names) != X.shape[1]:
-        raise ValueError(f"save_trc: {X.shape[1]} markers need {X.shape[1]} names; got {len(names)}")
+        raise ValueError(
+            f"save_trc: {X.shape[1]} markers need {X.shape[1]} names; got {len(names)}"
+        )
     bad = [n for n in names if not n or any(c in n for c in "\t\r\n")]
     if bad:
-        raise ValueError(f"save_trc: a marker name must be non-empty text without tabs or line breaks; got {bad[0]!r}")
+        raise ValueError(
+            f"save_trc: a marker name must be non-empty text without tabs or line breaks; got {bad[0]!r}"
+        )
     if len(set(names)) != len(names):
-        raise ValueError(f"save_trc: marker names must be distinct; {sorted(n for n in set(names) if names.count(n) > 1)[0]!r} repeats")
-    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not (rate > 0 and math.isfinite(rate)):
+        raise ValueError(
+            f"save_trc: marker names must be distinct; {sorted(n for n in set(names) if names.count(n) > 1)[0]!r} repeats"
+        )
+    if (
+        isinstance(rate, bool)
+        or not isinstance(rate, (int, float))
+        or not (rate > 0 and math.isfinite(rate))
+    ):
         raise ValueError(f"save_trc: rate must be a number of frames per second > 0; got {rate!r}")
     if not isinstance(units, str) or not units or any(c.isspace() for c in units):
         raise ValueError(f"save_trc: units must be a word such as 'm' or 'mm'; got {units!r}")
     if np.isinf(X).any():
-        raise ValueError("save_trc: markers hold an infinite coordinate (NaN marks a marker not seen)")
+        raise ValueError(
+            "save_trc: markers hold an infinite coordinate (NaN marks a marker not seen)"
+        )
     if z_up:
         X = X[..., [1, 2, 0]]
     F, K, _ = X.shape
@@ -103,7 +132,9 @@ def load_trc(path: PathLike) -> Trc:
     try:
         rate, K = float(header["DataRate"]), int(header["NumMarkers"])
     except ValueError:
-        raise InputError(f"{path}: line 3: DataRate and NumMarkers must be numbers; got {header['DataRate']!r}, {header['NumMarkers']!r}") from None
+        raise InputError(
+            f"{path}: line 3: DataRate and NumMarkers must be numbers; got {header['DataRate']!r}, {header['NumMarkers']!r}"
+        ) from None
     names = tuple(n for n in lines[3].split("\t")[2:] if n)
     if len(names) != K:
         raise InputError(f"{path}: line 4 names {len(names)} markers; the header says {K}")
@@ -114,13 +145,22 @@ def load_trc(path: PathLike) -> Trc:
         cells = line.split("\t")
         cells += [""] * (2 + 3 * K - len(cells))  # trailing empty markers may be cut
         if len(cells) != 2 + 3 * K:
-            raise InputError(f"{path}: line {number}: {len(cells)} columns; {2 + 3 * K} expected (frame, time, x y z of {K} markers)")
+            raise InputError(
+                f"{path}: line {number}: {len(cells)} columns; {2 + 3 * K} expected (frame, time, x y z of {K} markers)"
+            )
         try:
             rows.append([float(c) if c.strip() else math.nan for c in cells])
         except ValueError:
             raise InputError(f"{path}: line {number}: a value is not a number") from None
     data = np.asarray(rows, np.float64).reshape(len(rows), 2 + 3 * K)
-    return Trc(data[:, 2:].reshape(len(rows), K, 3), names, rate, header["Units"], data[:, 0].astype(np.int64), data[:, 1])
+    return Trc(
+        data[:, 2:].reshape(len(rows), K, 3),
+        names,
+        rate,
+        header["Units"],
+        data[:, 0].astype(np.int64),
+        data[:, 1],
+    )
 
 
 def _number(v: float | int) -> str:
@@ -144,10 +184,16 @@ def person_markers(people: Any) -> dict[int, np.ndarray]:
 
 def marker_names(class_names: Any, num_classes: int) -> tuple[str, ...]:
     """The class names as marker names, ``class<k>`` where names are not known."""
-    return tuple(class_names) if class_names is not None else tuple(f"class{k}" for k in range(num_classes))
+    return (
+        tuple(class_names)
+        if class_names is not None
+        else tuple(f"class{k}" for k in range(num_classes))
+    )
 
 
-def save_people_trc(path: PathLike, people: Any, *, rate: float | int, units: str = "m", z_up: bool = False) -> list[str]:
+def save_people_trc(
+    path: PathLike, people: Any, *, rate: float | int, units: str = "m", z_up: bool = False
+) -> list[str]:
     """One ``.trc`` file per person of a :class:`cdog_jax.People` (the joints its markers,
     named by class): ``<path's stem>_person<id>.trc`` beside ``path``, every file over all
     frames (a person's rows are empty where it is not seen). Returns the paths written."""

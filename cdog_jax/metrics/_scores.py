@@ -134,14 +134,20 @@ def scene_metrics(rig: Rig, result: Association, scene: Scene) -> Metrics:
     # Contingency table: column 0 is clutter (-1), column k + 1 is instance k, so the
     # first argmax is the majority with ties to the smallest id, -1 included.
     col = jnp.where(is_inst, inst_c + 1, 0)
-    T = jnp.zeros((G, I + 1), jnp.int32).at[jnp.clip(labels, 0, G - 1), col].add(in_group.astype(jnp.int32))
+    T = (
+        jnp.zeros((G, I + 1), jnp.int32)
+        .at[jnp.clip(labels, 0, G - 1), col]
+        .add(in_group.astype(jnp.int32))
+    )
     size = jnp.sum(T, axis=1)  # (G,) |p|
     g_col = jnp.argmax(T, axis=1)
     g = g_col.astype(jnp.int32) - 1  # (G,) g(p), -1 = clutter
     g_c = jnp.clip(g, 0, I - 1)
     tp = jnp.where(g >= 0, jnp.take_along_axis(T, g_col[:, None], axis=1)[:, 0], 0)  # |p ∩ g(p)|
 
-    gt_count = jnp.zeros((I,), jnp.int32).at[inst_c].add(is_inst.astype(jnp.int32))  # |g| per instance
+    gt_count = (
+        jnp.zeros((I,), jnp.int32).at[inst_c].add(is_inst.astype(jnp.int32))
+    )  # |g| per instance
     num_gt = jnp.sum(gt_count >= 2).astype(jnp.int32)
     num_unassigned = jnp.sum(mask & ~in_group).astype(jnp.int32)
     multi = size >= 2
@@ -180,7 +186,9 @@ def scene_metrics(rig: Rig, result: Association, scene: Scene) -> Metrics:
     X_gt = scene.points3d.astype(dtype)[g_c]  # (G, 3)
     err3d = _masked_mean(_norm(X_hat - X_gt), scored, dtype)
     views = jnp.broadcast_to(jnp.arange(M)[:, None], (M, P))
-    detected = jnp.zeros((I, M), jnp.int32).at[inst_c, views].add(is_inst.astype(jnp.int32))[g_c] > 0  # (G, M)
+    detected = (
+        jnp.zeros((I, M), jnp.int32).at[inst_c, views].add(is_inst.astype(jnp.int32))[g_c] > 0
+    )  # (G, M)
     xy_hat, _ = project_views_last(rig, X_hat)  # (G, M, 2)
     xy_gt, _ = project_views_last(rig, X_gt)
     bpe_group = _masked_mean(_norm(xy_hat - xy_gt), detected, dtype)  # (G,)
@@ -222,7 +230,10 @@ def mean_metrics(metrics: Metrics) -> dict[str, float]:
         ``num_err_groups > 0`` only, NaN when there is none.
     """
     expect_args("mean_metrics", metrics=(metrics, Metrics))
-    leaves = {f.name: np.asarray(getattr(metrics, f.name)).reshape(-1) for f in dataclasses.fields(Metrics)}
+    leaves = {
+        f.name: np.asarray(getattr(metrics, f.name)).reshape(-1)
+        for f in dataclasses.fields(Metrics)
+    }
     with_err = leaves["num_err_groups"] > 0
     out = {}
     for k, v in leaves.items():

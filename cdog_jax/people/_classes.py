@@ -22,20 +22,20 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._associate import associate_batch_at
-from .._runtime.shapes import ladder_rung, slot_capacity
-from .._runtime.devices import chunk_devices
-from .._runtime.stored_programs import call_stored
-from ._persons import check_instances, person_consistent, person_vote_argument
-from .._method import method_argument
 from .._expect import INT, expect, expect_args
+from .._method import method_argument
 from .._result import Association, batched_association
+from .._runtime.devices import chunk_devices
+from .._runtime.shapes import ladder_rung, slot_capacity
+from .._runtime.stored_programs import call_stored
 from .._validate import as_array, check_observations, check_rig
+from ..cdog._config import REFERENCE_FOCAL_PX
 from ..geometry._camera import Rig
 from ..geometry._distortion import undistorted
 from ..geometry._epipolar import epipolar_distances
-from ..cdog._config import REFERENCE_FOCAL_PX
 from ..graph._sigma import FALLBACK_SIGMA_PX, focal_scale, nearest_samples, sigma_from_samples
 from ..graph._sigma_robust import nearest_two_samples, robust_sigma_from_samples
+from ._persons import check_instances, person_consistent, person_vote_argument
 
 SIGMA_POOLS = ("frame", "all", "scene")
 
@@ -126,10 +126,23 @@ def associate_classes(
         ``instances`` not integers ``>= -1`` of ``mask``'s shape.
     """
     return associate_classes_at(
-        rig, xy, mask, classes, class_names=class_names, num_classes=num_classes, method=method, sigma=sigma,
-        sigma_pool=sigma_pool, dist=dist, weights=weights, min_views=min_views, batch_size=batch_size,
-        memory_budget_gb=memory_budget_gb, instances=instances, person_vote=person_vote,
-    )  # fmt: skip
+        rig,
+        xy,
+        mask,
+        classes,
+        class_names=class_names,
+        num_classes=num_classes,
+        method=method,
+        sigma=sigma,
+        sigma_pool=sigma_pool,
+        dist=dist,
+        weights=weights,
+        min_views=min_views,
+        batch_size=batch_size,
+        memory_budget_gb=memory_budget_gb,
+        instances=instances,
+        person_vote=person_vote,
+    )
 
 
 def associate_classes_at(
@@ -176,9 +189,17 @@ def associate_classes_at(
     if weights is not None:
         weights = np.asarray(weights)
         if weights.shape != mask.shape:
-            raise ValueError(f"weights must have the shape of mask {mask.shape}; got {weights.shape}")
-    if getattr(method, "tau_mode", "gaussian") == "fitted" and method.sigma_mode == "robust" and sigma_pool != "scene":
-        raise ValueError(f"tau_mode='fitted' fits the gate per scene: it needs sigma_pool='scene'; got sigma_pool={sigma_pool!r}")
+            raise ValueError(
+                f"weights must have the shape of mask {mask.shape}; got {weights.shape}"
+            )
+    if (
+        getattr(method, "tau_mode", "gaussian") == "fitted"
+        and method.sigma_mode == "robust"
+        and sigma_pool != "scene"
+    ):
+        raise ValueError(
+            f"tau_mode='fitted' fits the gate per scene: it needs sigma_pool='scene'; got sigma_pool={sigma_pool!r}"
+        )
     F, M, P = mask.shape
     scenes = _regroup(xy, mask, classes, C, weights)
     B = len(scenes.frame)
@@ -186,37 +207,70 @@ def associate_classes_at(
         scenes = _at_least(scenes, min_scenes, min_slots)
     if B == 0:
         return _empty(rig, F, M, P, xy.dtype, C, class_names)
-    dtype = jax.dtypes.canonicalize_dtype(xy.dtype if np.issubdtype(xy.dtype, np.floating) else np.float64)
+    dtype = jax.dtypes.canonicalize_dtype(
+        xy.dtype if np.issubdtype(xy.dtype, np.floating) else np.float64
+    )
     auto = sigma == "auto" or method.sigma_mode != "given"
     if auto and sigma_pool != "scene":
         estimator = "robust" if method.sigma_mode == "robust" else "auto"
         frame_sigma = _pooled_sigma(rig, scenes, F, dist, dtype, sigma_pool, estimator, min_samples)
         sigma_arg = np.asarray(frame_sigma[scenes.frame], dtype)
-        if getattr(method, "threshold_unit", "px") == "focal":  # the pipeline reads a given σ in focal lengths
-            sigma_arg = np.asarray(sigma_arg * (REFERENCE_FOCAL_PX / np.asarray(focal_scale(np.asarray(rig.K)), dtype)), dtype)
+        if (
+            getattr(method, "threshold_unit", "px") == "focal"
+        ):  # the pipeline reads a given σ in focal lengths
+            sigma_arg = np.asarray(
+                sigma_arg
+                * (REFERENCE_FOCAL_PX / np.asarray(focal_scale(np.asarray(rig.K)), dtype)),
+                dtype,
+            )
         method = method.replace(sigma_mode="given")
     else:
         sigma_arg = "auto" if auto else sigma
     # associate_batch runs the scenes in chunks of a ladder rung (at most batch_size): few
     # compiled programs, whatever the number of frames and classes, and little padding.
     result = associate_batch_at(
-        rig, scenes.xy.astype(dtype, copy=False), scenes.mask, method=method,
-        sigma=jnp.asarray(sigma_arg) if isinstance(sigma_arg, np.ndarray) else sigma_arg, dist=dist, weights=None if weights is None else scenes.weights.astype(dtype, copy=False),
-        min_views=min_views, batch_size=batch_size, memory_budget_gb=memory_budget_gb, min_slots=min_slots,
-    )  # fmt: skip
+        rig,
+        scenes.xy.astype(dtype, copy=False),
+        scenes.mask,
+        method=method,
+        sigma=jnp.asarray(sigma_arg) if isinstance(sigma_arg, np.ndarray) else sigma_arg,
+        dist=dist,
+        weights=None if weights is None else scenes.weights.astype(dtype, copy=False),
+        min_views=min_views,
+        batch_size=batch_size,
+        memory_budget_gb=memory_budget_gb,
+        min_slots=min_slots,
+    )
     result = jax.tree_util.tree_map(np.asarray, result)
     out = _map_back(result, scenes, F, M, P, C, class_names)
     if vote is not None:
-        fixed = person_consistent(rig, out.association, out.group_class, xy, mask, classes, instances, vote,
-                                  dist=dist, weights=weights, min_views=min_views)  # fmt: skip
+        fixed = person_consistent(
+            rig,
+            out.association,
+            out.group_class,
+            xy,
+            mask,
+            classes,
+            instances,
+            vote,
+            dist=dist,
+            weights=weights,
+            min_views=min_views,
+        )
         a = out.association
-        assoc = batched_association(**{k: v for k, v in fixed._asdict().items() if k != "group_class"},
-                         sigma_px=a.sigma_px, tau_px=a.tau_px, status=a.status)  # fmt: skip
+        assoc = batched_association(
+            **{k: v for k, v in fixed._asdict().items() if k != "group_class"},
+            sigma_px=a.sigma_px,
+            tau_px=a.tau_px,
+            status=a.status,
+        )
         out = out._replace(association=assoc, group_class=fixed.group_class)
     return out
 
 
-def class_sigmas(rig: Rig, xy, mask, classes, *, estimator: str = "auto", pool: str = "frame", dist=None) -> np.ndarray:
+def class_sigmas(
+    rig: Rig, xy, mask, classes, *, estimator: str = "auto", pool: str = "frame", dist=None
+) -> np.ndarray:
     """``(F,)`` σ̂ per frame (pixels), as :func:`associate_classes` estimates it with
     ``sigma="auto"``: from the epipolar nearest-neighbour distances within each class, the
     samples of all the frame's classes pooled (``pool="all"``: of all frames, one value
@@ -237,7 +291,9 @@ def class_sigmas(rig: Rig, xy, mask, classes, *, estimator: str = "auto", pool: 
     scenes = _regroup(xy, mask, classes, C, None)
     if len(scenes.frame) == 0:
         return np.full(mask.shape[0], FALLBACK_SIGMA_PX)
-    dtype = jax.dtypes.canonicalize_dtype(xy.dtype if np.issubdtype(xy.dtype, np.floating) else np.float64)
+    dtype = jax.dtypes.canonicalize_dtype(
+        xy.dtype if np.issubdtype(xy.dtype, np.floating) else np.float64
+    )
     return _pooled_sigma(rig, scenes, mask.shape[0], dist, dtype, pool, estimator)
 
 
@@ -250,7 +306,9 @@ def _check_classes(classes, mask: np.ndarray) -> np.ndarray:
     bad = mask & (c < 0)
     if bad.any():
         f, m, i = (int(v) for v in np.argwhere(bad)[0])
-        raise ValueError(f"classes must be >= 0 where mask is True; got {int(c[f, m, i])} at frame {f}, view {m}, slot {i}")
+        raise ValueError(
+            f"classes must be >= 0 where mask is True; got {int(c[f, m, i])} at frame {f}, view {m}, slot {i}"
+        )
     return np.where(mask, c, 0).astype(np.int64)
 
 
@@ -262,9 +320,15 @@ def given_classes(names, num_classes, where: str = "") -> int | None:
         if isinstance(names, str) or not all(isinstance(n, str) for n in names):
             raise ValueError(f"{where}class_names must be a list of strings; got {names!r}")
         if num_classes is not None and num_classes != len(names):
-            raise ValueError(f"{where}num_classes = {num_classes} but class_names has {len(names)} names")
+            raise ValueError(
+                f"{where}num_classes = {num_classes} but class_names has {len(names)} names"
+            )
         num_classes = len(names)
-    if num_classes is not None and (isinstance(num_classes, bool) or not isinstance(num_classes, (int, np.integer)) or num_classes < 1):
+    if num_classes is not None and (
+        isinstance(num_classes, bool)
+        or not isinstance(num_classes, (int, np.integer))
+        or num_classes < 1
+    ):
         raise ValueError(f"{where}num_classes must be a positive int; got {num_classes!r}")
     return num_classes
 
@@ -276,7 +340,9 @@ def _num_classes(classes: np.ndarray, mask: np.ndarray, names, num_classes) -> i
         return max(largest, 1)
     if largest > num_classes:
         f, m, i = (int(v) for v in np.argwhere(mask & (classes >= num_classes))[0])
-        raise ValueError(f"class id {int(classes[f, m, i])} at frame {f}, view {m}, slot {i} is >= num_classes = {num_classes}")
+        raise ValueError(
+            f"class id {int(classes[f, m, i])} at frame {f}, view {m}, slot {i} is >= num_classes = {num_classes}"
+        )
     return int(num_classes)
 
 
@@ -291,7 +357,9 @@ def _regroup(xy, mask, classes, C, weights) -> _Scenes:
     cell = key * M + m
     start = np.r_[0, np.flatnonzero(np.diff(cell)) + 1]
     rank = np.arange(len(cell)) - np.repeat(start, np.diff(np.r_[start, len(cell)]))
-    views = np.zeros(0, np.int64) if len(cell) == 0 else key[start]  # one entry per (scene, view) cell
+    views = (
+        np.zeros(0, np.int64) if len(cell) == 0 else key[start]
+    )  # one entry per (scene, view) cell
     scene_keys, views_per_scene = np.unique(views, return_counts=True)
     live = scene_keys[views_per_scene >= 2]
     keep = np.isin(key, live)
@@ -326,10 +394,13 @@ def _at_least(scenes: _Scenes, count: int, slots: int) -> _Scenes:
         return np.pad(a, widths, constant_values=fill)
 
     return _Scenes(
-        pad(scenes.xy, 0), pad(scenes.mask, False), pad(scenes.slot, -1),
-        np.concatenate([scenes.frame, np.full(extra, scenes.frame[-1])]), np.concatenate([scenes.cls, np.zeros(extra, scenes.cls.dtype)]),
+        pad(scenes.xy, 0),
+        pad(scenes.mask, False),
+        pad(scenes.slot, -1),
+        np.concatenate([scenes.frame, np.full(extra, scenes.frame[-1])]),
+        np.concatenate([scenes.cls, np.zeros(extra, scenes.cls.dtype)]),
         None if scenes.weights is None else pad(scenes.weights, 0),
-    )  # fmt: skip
+    )
 
 
 @partial(jax.jit, static_argnames=("robust",))
@@ -342,7 +413,9 @@ def _nearest_samples(rig, xy, mask, dist, robust: bool):
     def one(x, m):
         if dist is not None:
             x = undistorted(rig, x, m, dist)
-        return (nearest_two_samples if robust else nearest_samples)(epipolar_distances(rig, x, m), m)
+        return (nearest_two_samples if robust else nearest_samples)(
+            epipolar_distances(rig, x, m), m
+        )
 
     return jax.vmap(one)(xy, mask)
 
@@ -375,7 +448,10 @@ def _chunked_samples(rig, scenes: _Scenes, dist, dtype, robust: bool) -> _UsedSa
     B = len(scenes.frame)
     xy, mask = scenes.xy, scenes.mask
     if B <= SAMPLE_CHUNK:
-        return _used(call_stored(_nearest_samples, (rig, np.asarray(xy, dtype), mask, dist), robust=robust), B)
+        return _used(
+            call_stored(_nearest_samples, (rig, np.asarray(xy, dtype), mask, dist), robust=robust),
+            B,
+        )
     parts = []
     for start in range(0, B, SAMPLE_CHUNK):
         x, m = xy[start : start + SAMPLE_CHUNK], mask[start : start + SAMPLE_CHUNK]
@@ -392,7 +468,9 @@ def _chunked_samples(rig, scenes: _Scenes, dist, dtype, robust: bool) -> _UsedSa
     )
 
 
-def _pooled_sigma(rig, scenes: _Scenes, F: int, dist, dtype, pool: str, estimator: str, min_samples: int = 0) -> np.ndarray:
+def _pooled_sigma(
+    rig, scenes: _Scenes, F: int, dist, dtype, pool: str, estimator: str, min_samples: int = 0
+) -> np.ndarray:
     """``(F,)`` σ per frame by the estimator of ``sigma_mode=estimator`` (``"auto"`` or
     ``"robust"``) on the nearest-distance samples of all the frame's class scenes
     (``pool="all"``: of all frames, one value); the fit's table at least ``min_samples`` wide."""
@@ -402,7 +480,9 @@ def _pooled_sigma(rig, scenes: _Scenes, F: int, dist, dtype, pool: str, estimato
     group = scenes.frame if pool == "frame" else np.zeros_like(scenes.frame)
     G = F if pool == "frame" else 1
     tables = _sample_tables(samples, group, G, min_samples)
-    sigma = _chunked_fit(_pooled_robust_fit if robust else _pooled_fit, tables, focal_scale(np.asarray(rig.K)))
+    sigma = _chunked_fit(
+        _pooled_robust_fit if robust else _pooled_fit, tables, focal_scale(np.asarray(rig.K))
+    )
     return sigma if pool == "frame" else np.full(F, sigma[0])
 
 
@@ -450,14 +530,18 @@ def _sample_tables(samples: _UsedSamples, group: np.ndarray, G: int, min_width: 
     classes, a view against itself), and the EM's cost is per entry. The one number the fit
     reads from unused entries, the largest view count, is kept in every padding entry."""
     per_group = np.bincount(group, weights=samples.per_scene, minlength=G).astype(np.int64)
-    width = ladder_rung(max(int(per_group.max()) + 1, min_width), 16)  # + 1: room for the largest count
+    width = ladder_rung(
+        max(int(per_group.max()) + 1, min_width), 16
+    )  # + 1: room for the largest count
     rows = np.repeat(group, samples.per_scene)  # the group of each used sample, in order
     start = np.r_[0, np.cumsum(per_group)[:-1]]
     column = np.arange(len(rows)) - start[rows]
     largest = np.zeros(G, samples.largest_count.dtype)
     np.maximum.at(largest, group, samples.largest_count)
     tables = []
-    for k, a in enumerate(samples.values):  # padding: weight 0, distance 0; count the group's largest
+    for k, a in enumerate(
+        samples.values
+    ):  # padding: weight 0, distance 0; count the group's largest
         table = np.zeros((G, width), a.dtype)
         if k == 2:
             table[:] = largest[:, None]
@@ -478,7 +562,9 @@ def _pooled_fit(x, w, count, focal):
 
 @jax.jit
 def _pooled_robust_fit(x, w, count, second, focal):
-    return jax.vmap(robust_sigma_from_samples, in_axes=(0, 0, 0, 0, None))(x, w, count, second, focal)
+    return jax.vmap(robust_sigma_from_samples, in_axes=(0, 0, 0, 0, None))(
+        x, w, count, second, focal
+    )
 
 
 def _map_back(r, scenes: _Scenes, F, M, P, C, names) -> ClassAssociation:
@@ -541,9 +627,18 @@ def _empty(rig, F, M, P, dtype, C, names) -> ClassAssociation:
     dtype = dtype if np.issubdtype(dtype, np.floating) else np.float64
     z = lambda *shape, dt=dtype: np.zeros(shape, dt)  # noqa: E731
     assoc = batched_association(
-        labels=np.full((F, M, P), -1, np.int32), groups=np.full((F, 1, M), -1, np.int32),
-        valid=np.zeros((F, 1), bool), points3d=z(F, 1, 3), bpe=z(F, 1), err_px=z(F, 1),
-        n_views=z(F, 1, dt=np.int32), num_groups=z(F, dt=np.int32), sigma_px=z(F), tau_px=z(F),
+        labels=np.full((F, M, P), -1, np.int32),
+        groups=np.full((F, 1, M), -1, np.int32),
+        valid=np.zeros((F, 1), bool),
+        points3d=z(F, 1, 3),
+        bpe=z(F, 1),
+        err_px=z(F, 1),
+        n_views=z(F, 1, dt=np.int32),
+        num_groups=z(F, dt=np.int32),
+        sigma_px=z(F),
+        tau_px=z(F),
         status=z(F, dt=np.int32),
-    )  # fmt: skip
-    return ClassAssociation(assoc, np.full((F, 1), -1, np.int32), None if names is None else tuple(names), C)
+    )
+    return ClassAssociation(
+        assoc, np.full((F, 1), -1, np.int32), None if names is None else tuple(names), C
+    )

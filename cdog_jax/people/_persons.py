@@ -43,9 +43,17 @@ class PersonVote:
     gate: int | float = 2.0
 
     def __post_init__(self):
-        if isinstance(self.min_votes, bool) or not isinstance(self.min_votes, (int, float)) or not self.min_votes > 0:
+        if (
+            isinstance(self.min_votes, bool)
+            or not isinstance(self.min_votes, (int, float))
+            or not self.min_votes > 0
+        ):
             raise ValueError(f"PersonVote.min_votes must be a number > 0; got {self.min_votes!r}")
-        if isinstance(self.gate, bool) or not isinstance(self.gate, (int, float)) or not self.gate > 0:
+        if (
+            isinstance(self.gate, bool)
+            or not isinstance(self.gate, (int, float))
+            or not self.gate > 0
+        ):
             raise ValueError(f"PersonVote.gate must be a number > 0; got {self.gate!r}")
 
 
@@ -61,7 +69,9 @@ def person_vote_argument(person_vote, instances) -> PersonVote | None:
     if not isinstance(vote, PersonVote):
         raise ValueError(f"person_vote must be a bool or a PersonVote; got {person_vote!r}")
     if instances is None:
-        raise ValueError("person_vote needs instances= (the per-view instance index of every detection)")
+        raise ValueError(
+            "person_vote needs instances= (the per-view instance index of every detection)"
+        )
     return vote
 
 
@@ -72,11 +82,15 @@ def check_instances(instances, mask: np.ndarray) -> np.ndarray:
     if a.shape != mask.shape:
         raise ValueError(f"instances must have the shape of mask {mask.shape}; got {a.shape}")
     if a.dtype == bool or not np.issubdtype(a.dtype, np.integer):
-        raise ValueError(f"instances must be integer instance indices (-1: unknown); got dtype {a.dtype}")
+        raise ValueError(
+            f"instances must be integer instance indices (-1: unknown); got dtype {a.dtype}"
+        )
     bad = mask & (a < -1)
     if bad.any():
         f, m, i = (int(v) for v in np.argwhere(bad)[0])
-        raise ValueError(f"instances must be >= -1 (-1: unknown); got {int(a[f, m, i])} at frame {f}, view {m}, slot {i}")
+        raise ValueError(
+            f"instances must be >= -1 (-1: unknown); got {int(a[f, m, i])} at frame {f}, view {m}, slot {i}"
+        )
     return np.where(mask, a, -1).astype(np.int64)
 
 
@@ -89,7 +103,9 @@ def person_nodes(instances: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     M = instances.shape[0]
     known = instances >= 0
     view = np.broadcast_to(np.arange(M)[:, None], instances.shape)
-    pairs, inverse = np.unique(np.stack([view[known], instances[known]], axis=1), axis=0, return_inverse=True)
+    pairs, inverse = np.unique(
+        np.stack([view[known], instances[known]], axis=1), axis=0, return_inverse=True
+    )
     node = np.full(instances.shape, -1, np.int64)
     node[known] = inverse.reshape(-1)
     return node, pairs[:, 0] if len(pairs) else np.zeros(0, np.int64)
@@ -169,7 +185,9 @@ class FramePeople(NamedTuple):
     foreign: np.ndarray
 
 
-def frame_people(groups: np.ndarray, valid: np.ndarray, instances: np.ndarray, min_votes: int | float) -> FramePeople | None:
+def frame_people(
+    groups: np.ndarray, valid: np.ndarray, instances: np.ndarray, min_votes: int | float
+) -> FramePeople | None:
     """The people of one frame's groups ``groups (G, M)``, ``valid (G,)``, from the per-view
     ``instances (M, P)`` (:func:`person_nodes`, :func:`vote_matrix`, :func:`cluster_people`);
     ``None`` when no instance is known."""
@@ -183,7 +201,10 @@ def frame_people(groups: np.ndarray, valid: np.ndarray, instances: np.ndarray, m
     group_person = np.array([_mode(row) for row in member_person], np.int64).reshape(len(groups))
     person_views = np.zeros((len(node_view), M), bool)
     person_views[person, node_view] = True
-    clash = (person_views[np.maximum(member_person, 0)] & person_views[np.maximum(group_person, 0)][:, None, :]).any(axis=-1)
+    clash = (
+        person_views[np.maximum(member_person, 0)]
+        & person_views[np.maximum(group_person, 0)][:, None, :]
+    ).any(axis=-1)
     foreign = (member_person >= 0) & (member_person != group_person[:, None]) & clash
     return FramePeople(det_person, group_person, foreign)
 
@@ -201,7 +222,17 @@ class FrameGroups(NamedTuple):
 
 
 def consistent_groups(
-    groups, valid, group_class, classes, instances, xy, points3d, project, gate_px: float, vote: PersonVote, min_views: int
+    groups,
+    valid,
+    group_class,
+    classes,
+    instances,
+    xy,
+    points3d,
+    project,
+    gate_px: float,
+    vote: PersonVote,
+    min_views: int,
 ) -> FrameGroups:
     """One frame's groups made consistent with the per-view instances.
 
@@ -231,11 +262,15 @@ def consistent_groups(
     groups = np.where(valid[:, None], groups, -1)
     people = frame_people(groups, valid, instances, vote.min_votes)
     if people is None:  # no instance known: nothing to vote on
-        return FrameGroups(groups, valid, group_class, np.zeros(len(valid), bool), np.arange(len(valid)))
+        return FrameGroups(
+            groups, valid, group_class, np.zeros(len(valid), bool), np.arange(len(valid))
+        )
     det_person, group_person, detach = people.det_person, people.group_person, people.foreign
     kept = np.where(detach, -1, groups)
     small = valid & ((kept >= 0).sum(axis=1) < min_views) & detach.any(axis=1)
-    detach |= small[:, None] & (kept >= 0) & (det_person[np.arange(M)[None, :], np.maximum(kept, 0)] >= 0)
+    detach |= (
+        small[:, None] & (kept >= 0) & (det_person[np.arange(M)[None, :], np.maximum(kept, 0)] >= 0)
+    )
     kept = np.where(detach, -1, kept)
     small = valid & ((kept >= 0).sum(axis=1) < min_views)
     valid = valid & ~small
@@ -253,7 +288,9 @@ def consistent_groups(
     left = []
     for m, s in zip(m_idx, slots):
         c, p = classes[m, s], det_person[m, s]
-        options = np.flatnonzero(valid & (group_class == c) & (group_person == p) & (kept[:, m] < 0))
+        options = np.flatnonzero(
+            valid & (group_class == c) & (group_person == p) & (kept[:, m] < 0)
+        )
         if options.size:
             g = options[np.argmax((kept[options] >= 0).sum(axis=1))]
             if np.linalg.norm(project(points[g][None])[0, m] - xy[m, s]) <= gate_px:
@@ -294,14 +331,21 @@ class _Camera:
 
     def __init__(self, rig: Rig):
         self.rig = rig
-        Rt = np.concatenate([np.asarray(rig.R, np.float64), np.asarray(rig.t, np.float64)[:, :, None]], axis=-1)
+        Rt = np.concatenate(
+            [np.asarray(rig.R, np.float64), np.asarray(rig.t, np.float64)[:, :, None]], axis=-1
+        )
         self.P = np.einsum("mij,mjk->mik", np.asarray(rig.K, np.float64), Rt)  # (M, 3, 4)
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
-        h = np.einsum("mij,kj->kmi", self.P[:, :, :3], np.asarray(X, np.float64)) + self.P[None, :, :, 3]
+        h = (
+            np.einsum("mij,kj->kmi", self.P[:, :, :3], np.asarray(X, np.float64))
+            + self.P[None, :, :, 3]
+        )
         return h[..., :2] / np.where(np.abs(h[..., 2:]) > 0, h[..., 2:], np.inf)
 
-    def triangulate(self, xy: np.ndarray, rows: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+    def triangulate(
+        self, xy: np.ndarray, rows: np.ndarray, weights: np.ndarray | None = None
+    ) -> np.ndarray:
         X, _, _, _ = self.solve(xy, rows, weights)
         return X
 
@@ -317,7 +361,9 @@ class _Camera:
         xy_g = np.where(member[..., None], xy[at], 0.0)
         w = np.where(member, 1.0 if weights is None else weights[at], 0.0)
         dtype = self.rig.K.dtype
-        out = _retriangulate(self.rig, jnp.asarray(xy_g, dtype), jnp.asarray(member), jnp.asarray(w, dtype))
+        out = _retriangulate(
+            self.rig, jnp.asarray(xy_g, dtype), jnp.asarray(member), jnp.asarray(w, dtype)
+        )
         return tuple(np.asarray(a)[:K] for a in out)
 
 
@@ -343,8 +389,20 @@ class PersonGroups(NamedTuple):
     group_class: np.ndarray
 
 
-def person_consistent(rig: Rig, assoc, group_class, xy, mask, classes, instances, vote: PersonVote, *, dist=None,
-                      weights=None, min_views: int = 2) -> PersonGroups:  # fmt: skip
+def person_consistent(
+    rig: Rig,
+    assoc,
+    group_class,
+    xy,
+    mask,
+    classes,
+    instances,
+    vote: PersonVote,
+    *,
+    dist=None,
+    weights=None,
+    min_views: int = 2,
+) -> PersonGroups:
     """The groups of a batched association ``assoc`` (``(F, …)``, as
     :func:`cdog_jax.associate_classes` builds it, with ``group_class (F, G)``) made
     consistent with ``instances (F, M, P)`` frame by frame (:func:`consistent_groups`, gate
@@ -359,12 +417,25 @@ def person_consistent(rig: Rig, assoc, group_class, xy, mask, classes, instances
         lens, xy_j = as_lens(dist, rig.K.dtype), jnp.asarray(xy, rig.K.dtype)
         pinhole = np.asarray(undistorted_frames(rig, xy_j, jnp.asarray(mask), lens), np.float64)
     camera = _Camera(rig)
-    fields = {k: np.asarray(getattr(assoc, k)) for k in ("groups", "valid", "points3d", "bpe", "err_px")}
+    fields = {
+        k: np.asarray(getattr(assoc, k)) for k in ("groups", "valid", "points3d", "bpe", "err_px")
+    }
     tau = np.asarray(assoc.tau_px)
     frames = []
     for f in range(F):
-        fg = consistent_groups(fields["groups"][f], fields["valid"][f], np.asarray(group_class[f]), classes[f], instances[f],
-                               pinhole[f], fields["points3d"][f], camera, vote.gate * float(tau[f]), vote, min_views)  # fmt: skip
+        fg = consistent_groups(
+            fields["groups"][f],
+            fields["valid"][f],
+            np.asarray(group_class[f]),
+            classes[f],
+            instances[f],
+            pinhole[f],
+            fields["points3d"][f],
+            camera,
+            vote.gate * float(tau[f]),
+            vote,
+            min_views,
+        )
         points = np.zeros((len(fg.valid), 3))
         bpe, err = np.zeros(len(fg.valid)), np.zeros(len(fg.valid))
         old = fg.source >= 0
@@ -373,18 +444,28 @@ def person_consistent(rig: Rig, assoc, group_class, xy, mask, classes, instances
         redo = fg.changed & fg.valid
         valid = fg.valid.copy()
         if redo.any():
-            X, ok, b, e = camera.solve(pinhole[f], fg.groups[redo], None if weights is None else weights[f])
+            X, ok, b, e = camera.solve(
+                pinhole[f], fg.groups[redo], None if weights is None else weights[f]
+            )
             points[redo], bpe[redo], err[redo] = X, b, e
             valid[np.flatnonzero(redo)[~ok]] = False
         order = np.flatnonzero(valid)
         order = order[np.argsort(fg.group_class[order], kind="stable")]
-        frames.append((fg.groups[order], fg.group_class[order], points[order], bpe[order], err[order]))
+        frames.append(
+            (fg.groups[order], fg.group_class[order], points[order], bpe[order], err[order])
+        )
     G = max(1, max(len(fr[0]) for fr in frames))
     out = PersonGroups(
-        labels=np.full((F, M, P), -1, np.int32), groups=np.full((F, G, M), -1, np.int32), valid=np.zeros((F, G), bool),
-        points3d=np.zeros((F, G, 3), dtype), bpe=np.zeros((F, G), dtype), err_px=np.zeros((F, G), dtype),
-        n_views=np.zeros((F, G), np.int32), num_groups=np.zeros(F, np.int32), group_class=np.full((F, G), -1, np.int32),
-    )  # fmt: skip
+        labels=np.full((F, M, P), -1, np.int32),
+        groups=np.full((F, G, M), -1, np.int32),
+        valid=np.zeros((F, G), bool),
+        points3d=np.zeros((F, G, 3), dtype),
+        bpe=np.zeros((F, G), dtype),
+        err_px=np.zeros((F, G), dtype),
+        n_views=np.zeros((F, G), np.int32),
+        num_groups=np.zeros(F, np.int32),
+        group_class=np.full((F, G), -1, np.int32),
+    )
     for f, (g, c, X, b, e) in enumerate(frames):
         n = len(g)
         out.groups[f, :n], out.valid[f, :n], out.group_class[f, :n] = g, True, c
@@ -441,7 +522,9 @@ class PersonLinker:
         self.owner: dict[int, int] = {}  # track id -> person id
         self.next_id = 0
 
-    def step(self, local: np.ndarray, track_id: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def step(
+        self, local: np.ndarray, track_id: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``local (G,)`` person of every group in ``0..K-1`` (-1 none), ``track_id (G,)``
         (-1 none; ``None``: ids per frame). Returns ``ids (K,)``, ``merged (K,)`` (took
         ``min_votes`` or more tracks of a known person not seen in this frame) and ``split
@@ -490,8 +573,19 @@ class FramePersons(NamedTuple):
     mixed: np.ndarray
 
 
-def people_of_frame(groups, valid, group_class, instances, points3d, n_views, err_px, num_classes: int, linker: PersonLinker,
-                    track_id, min_votes: int | float) -> FramePersons:  # fmt: skip
+def people_of_frame(
+    groups,
+    valid,
+    group_class,
+    instances,
+    points3d,
+    n_views,
+    err_px,
+    num_classes: int,
+    linker: PersonLinker,
+    track_id,
+    min_votes: int | float,
+) -> FramePersons:
     """One frame of :func:`identify_people`: ``groups (G, M)``, ``valid``, ``group_class``,
     ``points3d (G, 3)``, ``n_views``, ``err_px (G,)`` of the result, ``instances (M, P)``;
     ``linker`` carries the ids over frames (``track_id (G,)``, or ``None``)."""
@@ -501,7 +595,14 @@ def people_of_frame(groups, valid, group_class, instances, points3d, n_views, er
         if track_id is not None:
             linker.step(np.full(G, -1), track_id)
         empty = np.zeros(0, bool)
-        return FramePersons(np.zeros(0, np.int64), np.zeros((0, C, 3)), empty, empty, np.full(G, -1, np.int32), np.zeros(G, bool))
+        return FramePersons(
+            np.zeros(0, np.int64),
+            np.zeros((0, C, 3)),
+            empty,
+            empty,
+            np.full(G, -1, np.int32),
+            np.zeros(G, bool),
+        )
     gp = np.where(valid, fp.group_person, -1)
     people, local = np.unique(gp[gp >= 0], return_inverse=True)
     local_of = np.full(G, -1, np.int64)
@@ -521,7 +622,9 @@ def people_of_frame(groups, valid, group_class, instances, points3d, n_views, er
         best[k, c] = g
         skeleton[k, c] = points3d[g]
     group_person = np.where(local_of >= 0, ids[np.maximum(local_of, 0)], -1).astype(np.int32)
-    return FramePersons(ids, skeleton, twice | temporal_merge, split, group_person, fp.foreign.any(axis=1) & valid)
+    return FramePersons(
+        ids, skeleton, twice | temporal_merge, split, group_person, fp.foreign.any(axis=1) & valid
+    )
 
 
 def identify_people(result, instances, *, min_votes: int | float = 2.0) -> People:
@@ -549,13 +652,21 @@ def identify_people(result, instances, *, min_votes: int | float = 2.0) -> Peopl
     assoc = result.association
     group_class = getattr(result, "group_class", None)
     if group_class is None or getattr(result, "num_classes", None) is None:
-        raise ValueError("identify_people needs a classed result (associate_classes, or associate_sequence with classes=)")
+        raise ValueError(
+            "identify_people needs a classed result (associate_classes, or associate_sequence with classes=)"
+        )
     labels = np.asarray(assoc.labels)
     if labels.ndim != 3:
-        raise ValueError(f"identify_people needs a result with a frame axis (labels (F, M, P)); got labels {labels.shape}")
+        raise ValueError(
+            f"identify_people needs a result with a frame axis (labels (F, M, P)); got labels {labels.shape}"
+        )
     instances = check_instances(instances, np.ones(labels.shape, bool))
     groups, valid = np.asarray(assoc.groups), np.asarray(assoc.valid)
-    points3d, n_views, err = np.asarray(assoc.points3d), np.asarray(assoc.n_views), np.asarray(assoc.err_px)
+    points3d, n_views, err = (
+        np.asarray(assoc.points3d),
+        np.asarray(assoc.n_views),
+        np.asarray(assoc.err_px),
+    )
     group_class = np.asarray(group_class)
     track = getattr(result, "track_id", None)
     track = None if track is None else np.asarray(track)
@@ -566,16 +677,32 @@ def identify_people(result, instances, *, min_votes: int | float = 2.0) -> Peopl
     mixed = np.zeros((F, G), bool)
     frames = []
     for f in range(F):
-        one = people_of_frame(groups[f], valid[f], group_class[f], instances[f], points3d[f], n_views[f], err[f], C, linker,
-                              None if track is None else track[f], min_votes)  # fmt: skip
+        one = people_of_frame(
+            groups[f],
+            valid[f],
+            group_class[f],
+            instances[f],
+            points3d[f],
+            n_views[f],
+            err[f],
+            C,
+            linker,
+            None if track is None else track[f],
+            min_votes,
+        )
         group_person[f], mixed[f] = one.group_person, one.mixed
         frames.append((one.ids, one.skeletons, one.merged, one.split))
     N = max(1, max(len(ids) for ids, *_ in frames))
     out = People(
-        points=np.full((F, N, C, 3), np.nan, points3d.dtype), person_id=np.full((F, N), -1, np.int32),
-        group_person=group_person, merged=np.zeros((F, N), bool), split=np.zeros((F, N), bool), mixed=mixed,
-        num_people=linker.next_id, class_names=result.class_names,
-    )  # fmt: skip
+        points=np.full((F, N, C, 3), np.nan, points3d.dtype),
+        person_id=np.full((F, N), -1, np.int32),
+        group_person=group_person,
+        merged=np.zeros((F, N), bool),
+        split=np.zeros((F, N), bool),
+        mixed=mixed,
+        num_people=linker.next_id,
+        class_names=result.class_names,
+    )
     for f, (ids, skeleton, merged, split) in enumerate(frames):
         order = np.argsort(ids, kind="stable")
         n = len(ids)

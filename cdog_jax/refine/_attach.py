@@ -8,7 +8,9 @@ from .._types import Array, Bool, Float, Int
 from ..graph._adjacency import min_and_first_index
 
 
-def attach_cheapest(groups: Int[Array, "G M"], cost: Float[Array, "G N"], gate: Float[Array, ""]) -> Int[Array, "G M"]:
+def attach_cheapest(
+    groups: Int[Array, "G M"], cost: Float[Array, "G N"], gate: Float[Array, ""]
+) -> Int[Array, "G M"]:
     """The group table ``(G, M)`` with every node ``u`` whose smallest ``cost[:, u]`` is
     below ``gate`` attached to that group (ties: lowest group id), one node per (group,
     view). ``cost`` must be ``+inf`` where a node may not join a group."""
@@ -22,12 +24,18 @@ def attach_cheapest(groups: Int[Array, "G M"], cost: Float[Array, "G N"], gate: 
     safe = jnp.minimum(target, G - 1)
     lowest = jnp.full((G, M), jnp.inf, cost.dtype).at[target, node_view].min(best_cost, mode="drop")
     is_best = (target < G) & (best_cost == lowest[safe, node_view])
-    first = jnp.full((G, M), N, jnp.int32).at[jnp.where(is_best, target, G), node_view].min(node, mode="drop")
+    first = (
+        jnp.full((G, M), N, jnp.int32)
+        .at[jnp.where(is_best, target, G), node_view]
+        .min(node, mode="drop")
+    )
     winner = is_best & (first[safe, node_view] == node)
     return groups.at[jnp.where(winner, target, G), node_view].set(node % P, mode="drop")
 
 
-def leftover_nodes(groups: Int[Array, "G M"], valid: Bool[Array, " G"], mask: Bool[Array, "M P"]) -> Bool[Array, " N"]:
+def leftover_nodes(
+    groups: Int[Array, "G M"], valid: Bool[Array, " G"], mask: Bool[Array, "M P"]
+) -> Bool[Array, " N"]:
     """``(N,)``: detections (``mask (M, P)``) that are in no valid group of ``groups (G, M)``."""
     M, P = mask.shape
     member = valid[:, None] & (groups >= 0)

@@ -12,10 +12,9 @@ import jax
 import jax.numpy as jnp
 
 from .._expect import ARRAY, INT, expect_args
+from .._types import Array, Bool, Float, Int
 from ..cdog._config import Number, Numbers, Switch
 from ..cdog._stage import Scene, Stage, State
-from .._types import Array, Bool, Float, Int
-
 
 PREFIX_CHUNK = 64
 """Prefixes whose median :func:`_prefix_medians` computes together (static)."""
@@ -46,17 +45,30 @@ def _prefix_medians(x: Float[Array, " K"], n: Int[Array, ""]) -> Float[Array, " 
         return start + C, jax.lax.dynamic_update_slice_in_dim(med, m, start, 0)
 
     med = jnp.full((K_pad,), jnp.inf, x.dtype)
-    _, med = jax.lax.while_loop(lambda c: c[0] < jnp.minimum(n, K), lambda c: chunk(*c), (jnp.int32(0), med))
+    _, med = jax.lax.while_loop(
+        lambda c: c[0] < jnp.minimum(n, K), lambda c: chunk(*c), (jnp.int32(0), med)
+    )
     i = jnp.arange(K, dtype=jnp.int32)
     return jnp.where((i > 0) & (i < n), med[:K], jnp.inf)
 
 
 def bpe_jump_keep(
-    bpe: Float[Array, " G"], valid: Bool[Array, " G"], sigma_px: Float[Array, ""], th: Numbers, min_gaps: int
+    bpe: Float[Array, " G"],
+    valid: Bool[Array, " G"],
+    sigma_px: Float[Array, ""],
+    th: Numbers,
+    min_gaps: int,
 ) -> Bool[Array, " G"]:
     """``(G,)``: which valid groups survive the jump rule, from ``bpe (G,)`` (px²) and
     ``valid (G,)``."""
-    expect_args("bpe_jump_keep", bpe=(bpe, ARRAY), valid=(valid, ARRAY), sigma_px=(sigma_px, ARRAY), th=(th, Numbers), min_gaps=(min_gaps, INT))
+    expect_args(
+        "bpe_jump_keep",
+        bpe=(bpe, ARRAY),
+        valid=(valid, ARRAY),
+        sigma_px=(sigma_px, ARRAY),
+        th=(th, Numbers),
+        min_gaps=(min_gaps, INT),
+    )
     G = bpe.shape[0]
     if G < 2:
         return valid
@@ -83,15 +95,28 @@ class BpeFilterOptions(NamedTuple):
 
 def bpe_filter_stage(scene: Scene, state: State, options: BpeFilterOptions) -> State:
     """Drop the groups after the first jump of the sorted BPEs (needs a fit)."""
-    keep = bpe_jump_keep(state.fit.bpe, state.table.valid, scene.sigma, scene.th, options.jump_min_gaps)
-    return state._replace(table=state.table.keep(keep), fit=state.fit._replace(member=state.fit.member & keep[:, None]))
+    keep = bpe_jump_keep(
+        state.fit.bpe, state.table.valid, scene.sigma, scene.th, options.jump_min_gaps
+    )
+    return state._replace(
+        table=state.table.keep(keep),
+        fit=state.fit._replace(member=state.fit.member & keep[:, None]),
+    )
 
 
 BPE_FILTER = Stage(
-    "bpe_filter", bpe_filter_stage, BpeFilterOptions, Switch("bpe_filter", True, "drop the groups after the first BPE jump"),
+    "bpe_filter",
+    bpe_filter_stage,
+    BpeFilterOptions,
+    Switch("bpe_filter", True, "drop the groups after the first BPE jump"),
     numbers=(
         Number("jump_kappa", 10.0, doc="BPE jump: gap > jump_kappa · median(previous gaps)"),
-        Number("jump_floor_px2", 4.0, doc="BPE jump: gap > jump_floor_px2 + (jump_floor_sigma · σ)² (px²)", unit="px2"),
+        Number(
+            "jump_floor_px2",
+            4.0,
+            doc="BPE jump: gap > jump_floor_px2 + (jump_floor_sigma · σ)² (px²)",
+            unit="px2",
+        ),
         Number("jump_floor_sigma", 3.0, doc="BPE jump: see jump_floor_px2"),
     ),
 )

@@ -79,6 +79,10 @@ def score_hypotheses(
     nearest = jnp.min(reproj, axis=-1)  # (H, M)
     voter = nearest < gate_px
     count = jnp.where(ok, 2 + jnp.sum(voter, axis=-1, dtype=jnp.int32), 0)
-    total = pair_error(src, view_a) + pair_error(dst, view_b) + jnp.sum(jnp.where(voter, nearest, 0.0), axis=-1)
+    total = (
+        pair_error(src, view_a)
+        + pair_error(dst, view_b)
+        + jnp.sum(jnp.where(voter, nearest, 0.0), axis=-1)
+    )
     err = jnp.where(ok, total / jnp.maximum(count, 1).astype(total.dtype), jnp.inf)
     return ScoredHypotheses(ok, count, err, X, xy_hat, vote_views)

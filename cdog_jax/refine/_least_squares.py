@@ -12,10 +12,10 @@ import jax
 import jax.numpy as jnp
 
 from .._expect import ARRAY, INT, expect_args
-from ..cdog._config import Switch
-from ..cdog._stage import Scene, Stage, State
 from .._status import Status
 from .._types import Array, Bool, Float
+from ..cdog._config import Switch
+from ..cdog._stage import Scene, Stage, State
 from ..geometry._camera import Rig
 from ..geometry._projection import project
 
@@ -36,13 +36,22 @@ def refine_points(
     """Refined points ``(G, 3)`` (scene units) from ``X0 (G, 3)``, ``xy_g (G, M, 2)`` and
     ``member (G, M)``; groups with < 2 members are unchanged. Also ``()`` True when the
     solver of some group (of ≥ 2 members) stopped at ``max_steps`` before converging."""
-    expect_args("refine_points", rig=(rig, Rig), X0=(X0, ARRAY), xy_g=(xy_g, ARRAY), member=(member, ARRAY), max_steps=(max_steps, INT))
+    expect_args(
+        "refine_points",
+        rig=(rig, Rig),
+        X0=(X0, ARRAY),
+        xy_g=(xy_g, ARRAY),
+        member=(member, ARRAY),
+        max_steps=(max_steps, INT),
+    )
     import optimistix as optx  # here, not at import: only refinement needs it (a large import)
 
     solver = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-6)
 
     def one(X, xy, mem):
-        sol = optx.least_squares(_residuals, solver, X, args=(rig, xy, mem), max_steps=max_steps, throw=False)
+        sol = optx.least_squares(
+            _residuals, solver, X, args=(rig, xy, mem), max_steps=max_steps, throw=False
+        )
         r0 = _residuals(X, (rig, xy, mem))
         r1 = _residuals(sol.value, (rig, xy, mem))
         better = jnp.all(jnp.isfinite(sol.value)) & (jnp.sum(r1 * r1) < jnp.sum(r0 * r0))
@@ -70,4 +79,9 @@ def refine_stage(scene: Scene, state: State, options: RefineOptions) -> State:
     return state._replace(fit=fit._replace(X=X)).flag(capped, Status.REFINE_CAPPED)
 
 
-REFINE = Stage("refine", refine_stage, RefineOptions, Switch("refine", False, "refine each point by Levenberg–Marquardt"))
+REFINE = Stage(
+    "refine",
+    refine_stage,
+    RefineOptions,
+    Switch("refine", False, "refine each point by Levenberg–Marquardt"),
+)

@@ -17,14 +17,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._expect import ARRAY, expect_args
-from ..cdog._config import IqrQuartiles, IqrScore, Number, Numbers, Switch
-from ..cdog._stage import GroupTable, Scene, Stage, State
 from .._status import Status
 from .._types import Array, Bool, Float
-from ..graph._groups import gather_groups
+from ..cdog._config import IqrQuartiles, IqrScore, Number, Numbers, Switch
+from ..cdog._stage import GroupTable, Scene, Stage, State
 from ..geometry._camera import Rig
 from ..geometry._projection import reprojection_errors_views_last
 from ..geometry._triangulate import solve_normal_3x3
+from ..graph._groups import gather_groups
 
 
 class IqrOptions(NamedTuple):
@@ -65,12 +65,16 @@ def node_scores(
     pa, pb = np.triu_indices(M, k=1)  # the K = M(M-1)/2 unordered pairs a < b, static
     X, ok = solve_normal_3x3(N[pa] + N[pb], r[pa] + r[pb])  # (K, 3), (K,)
     X = X + origin[None, :]
-    err = reprojection_errors_views_last(rig, X, jnp.broadcast_to(xy_g, (len(pa), M, 2)))  # e[p, c], (K, M)
+    err = reprojection_errors_views_last(
+        rig, X, jnp.broadcast_to(xy_g, (len(pa), M, 2))
+    )  # e[p, c], (K, M)
     pair = ok & member[pa] & member[pb]
     weight = pair[:, None] & member[None, :]
     if not own:
         views = np.arange(M)
-        weight = weight & jnp.asarray((views[None, :] != pa[:, None]) & (views[None, :] != pb[:, None]))
+        weight = weight & jnp.asarray(
+            (views[None, :] != pa[:, None]) & (views[None, :] != pb[:, None])
+        )
     w = weight.astype(err.dtype)
     total = jnp.sum(w * err, axis=0)
     count = jnp.sum(w, axis=0)
@@ -82,13 +86,21 @@ def iqr_outliers(
     score: Float[Array, " M"], member: Bool[Array, " M"], th: Numbers, options: IqrOptions
 ) -> Bool[Array, " M"]:
     """Members whose score lies outside ``[max(0, Q1 − α IQR), Q3 + α IQR]``."""
-    expect_args("iqr_outliers", score=(score, ARRAY), member=(member, ARRAY), th=(th, Numbers), options=(options, IqrOptions))
+    expect_args(
+        "iqr_outliers",
+        score=(score, ARRAY),
+        member=(member, ARRAY),
+        th=(th, Numbers),
+        options=(options, IqrOptions),
+    )
     if options.iqr_quartiles == "zero_pad":
         vals = jnp.concatenate([jnp.where(member, score, jnp.inf), jnp.zeros((1,), score.dtype)])
         count = jnp.sum(member, dtype=jnp.int32) + 1
     else:
         positive = member & (score > 0)
-        vals = jnp.concatenate([jnp.where(positive, score, jnp.inf), jnp.full((1,), jnp.inf, score.dtype)])
+        vals = jnp.concatenate(
+            [jnp.where(positive, score, jnp.inf), jnp.full((1,), jnp.inf, score.dtype)]
+        )
         count = jnp.sum(positive, dtype=jnp.int32)
     q1 = percentile_linear(vals, count, 25.0)
     q3 = percentile_linear(vals, count, 75.0)
@@ -114,7 +126,7 @@ def remove_outliers(
     rig: Rig,
     N_g: Float[Array, "G M 3 3"],
     r_g: Float[Array, "G M 3"],
-    origin: Float[Array, "3"],
+    origin: Float[Array, 3],
     xy_g: Float[Array, "G M 2"],
     member: Bool[Array, "G M"],
     th: Numbers,
@@ -174,10 +186,18 @@ def remove_outliers(
         start, mem_s, capped = carry
         take = lambda a: jax.lax.dynamic_slice_in_dim(a, start, C)  # noqa: E731
         new, changed = clean_chunk(take(N_s), take(r_s), take(xy_s), take(mem_s))
-        return start + C, jax.lax.dynamic_update_slice_in_dim(mem_s, new, start, 0), capped | changed
+        return (
+            start + C,
+            jax.lax.dynamic_update_slice_in_dim(mem_s, new, start, 0),
+            capped | changed,
+        )
 
-    _, mem_s, capped = jax.lax.while_loop(chunk_cond, chunk_body, (jnp.int32(0), mem_s, jnp.bool_(False)))
-    cleaned = jnp.zeros((G, M), bool).at[order].max(mem_s & live[:, None])  # padding rows add nothing
+    _, mem_s, capped = jax.lax.while_loop(
+        chunk_cond, chunk_body, (jnp.int32(0), mem_s, jnp.bool_(False))
+    )
+    cleaned = (
+        jnp.zeros((G, M), bool).at[order].max(mem_s & live[:, None])
+    )  # padding rows add nothing
     keep = jnp.where(big[:, None], cleaned, member)  # groups of 2 are left as they are
     return keep & (jnp.sum(keep, dtype=jnp.int32, axis=1, keepdims=True) >= 2), capped
 
@@ -186,7 +206,12 @@ def remove_outliers(
 # and the second call reuses it.
 @partial(jax.jit, static_argnames=("options",))
 def iqr_table(
-    rig: Rig, xy: Float[Array, "M P 2"], table: GroupTable, blocks: tuple, th: Numbers, options: IqrOptions
+    rig: Rig,
+    xy: Float[Array, "M P 2"],
+    table: GroupTable,
+    blocks: tuple,
+    th: Numbers,
+    options: IqrOptions,
 ) -> tuple[GroupTable, Bool[Array, ""]]:
     """Alg. 3 on the group table (per-node DLT ``blocks`` as in :func:`dlt_blocks`); returns
     the cleaned table (groups left with < 2 members are no longer valid) and ``()`` True
@@ -203,7 +228,9 @@ def iqr_table(
         th,
         options,
     )
-    return GroupTable(jnp.where(member, groups, -1), jnp.sum(member, dtype=jnp.int32, axis=1) >= 2), capped
+    return GroupTable(
+        jnp.where(member, groups, -1), jnp.sum(member, dtype=jnp.int32, axis=1) >= 2
+    ), capped
 
 
 def iqr_stage(scene: Scene, state: State, options: IqrOptions) -> State:
@@ -213,11 +240,26 @@ def iqr_stage(scene: Scene, state: State, options: IqrOptions) -> State:
 
 
 IQR = Stage(
-    "iqr", iqr_stage, IqrOptions, Switch("iqr", True, "remove IQR outliers from groups (Alg. 3)"),
+    "iqr",
+    iqr_stage,
+    IqrOptions,
+    Switch("iqr", True, "remove IQR outliers from groups (Alg. 3)"),
     numbers=(
         Number("iqr_alpha", 2.0, doc="IQR fence multiplier (Alg. 3)"),
-        Number("iqr_floor_px", 1.0, doc="an outlier's score must also exceed this (pixels)", unit="px"),
-        Number("iqr_min_px", 10.0, doc="reference guard: no outlier if the max score is below this (pixels)", unit="px"),
-        Number("iqr_force_px", 50.0, doc="reference guard: drop the max if above this (pixels)", unit="px"),
+        Number(
+            "iqr_floor_px", 1.0, doc="an outlier's score must also exceed this (pixels)", unit="px"
+        ),
+        Number(
+            "iqr_min_px",
+            10.0,
+            doc="reference guard: no outlier if the max score is below this (pixels)",
+            unit="px",
+        ),
+        Number(
+            "iqr_force_px",
+            50.0,
+            doc="reference guard: drop the max if above this (pixels)",
+            unit="px",
+        ),
     ),
 )

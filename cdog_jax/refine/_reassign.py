@@ -28,9 +28,9 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
+from .._types import Array, Bool, Float
 from ..cdog._config import Number, Range, Switch
 from ..cdog._stage import GroupTable, Scene, Stage, State
-from .._types import Array, Bool, Float
 from ..geometry._projection import distances_to_detections, project_views_last
 from ..graph._adjacency import min_and_first_index
 from ..graph._groups import compact_groups
@@ -47,12 +47,16 @@ class ReassignOptions(NamedTuple):
     reassign_iters: int = 3
 
 
-def _node_errors(scene: Scene, X: Float[Array, "G 3"], usable: Bool[Array, " G"]) -> Float[Array, "G N"]:
+def _node_errors(
+    scene: Scene, X: Float[Array, "G 3"], usable: Bool[Array, " G"]
+) -> Float[Array, "G N"]:
     """Pixel distance between every detection and every usable group's point projected into
     the detection's view; ``+inf`` where the group is not usable, the point is behind that
     camera or the slot is padding."""
     G, (M, P) = X.shape[0], scene.mask.shape
-    err, in_front = distances_to_detections(scene.rig, X, scene.xy)  # (G, M, P): node view · P + slot
+    err, in_front = distances_to_detections(
+        scene.rig, X, scene.xy
+    )  # (G, M, P): node view · P + slot
     allowed = usable[:, None, None] & in_front[:, :, None] & scene.mask[None]
     return jnp.where(allowed, err, jnp.inf).reshape(G, M * P)
 
@@ -74,16 +78,24 @@ def reassign_nearest(
     for _ in range(REASSIGN_ROUNDS):
         taken = groups >= 0  # (G, M)
         views = jnp.arange(M, dtype=jnp.int32)[None, :]
-        placed = jnp.zeros((M, num_slots + 1), bool).at[views, jnp.where(taken, groups, num_slots)].set(True)
+        placed = (
+            jnp.zeros((M, num_slots + 1), bool)
+            .at[views, jnp.where(taken, groups, num_slots)]
+            .set(True)
+        )
         placed = placed[:, :num_slots].reshape(N)
-        open_slot = jnp.broadcast_to(~taken[:, :, None], (G, M, num_slots)).reshape(G, N)  # taken[:, node_view]
+        open_slot = jnp.broadcast_to(~taken[:, :, None], (G, M, num_slots)).reshape(
+            G, N
+        )  # taken[:, node_view]
         open_cost = jnp.where(open_slot & ~placed[None, :], err, jnp.inf)
         groups = attach_cheapest(groups, open_cost, gate)
     valid = jnp.sum(groups >= 0, axis=1) >= 2
     return GroupTable(groups, valid).keep(valid)
 
 
-def merge_split_groups(scene: Scene, table: GroupTable, X: Float[Array, "G 3"], gate: Float[Array, ""]) -> GroupTable:
+def merge_split_groups(
+    scene: Scene, table: GroupTable, X: Float[Array, "G 3"], gate: Float[Array, ""]
+) -> GroupTable:
     """Groups moved into a larger group with disjoint views whose point lies within
     ``gate`` px of all their members (``X (G, 3)`` the groups' points)."""
     G, M = table.groups.shape
@@ -94,27 +106,41 @@ def merge_split_groups(scene: Scene, table: GroupTable, X: Float[Array, "G 3"], 
     # usable or behind the member's camera; -inf for a group without members).
     pix, in_front = project_views_last(scene.rig, X)  # (K, M, 2)
     seen = _usable(table, X)[:, None] & in_front  # (K, M)
-    member_xy = scene.xy[jnp.arange(M, dtype=jnp.int32)[None, :], jnp.where(member, table.groups, 0)]  # (H, M, 2)
+    member_xy = scene.xy[
+        jnp.arange(M, dtype=jnp.int32)[None, :], jnp.where(member, table.groups, 0)
+    ]  # (H, M, 2)
     worst_sq = jnp.full((G, G), -jnp.inf, X.dtype)
     for m in range(M):
         dx = pix[:, m, None, 0] - member_xy[None, :, m, 0]
         dy = pix[:, m, None, 1] - member_xy[None, :, m, 1]
-        sq = jnp.where(member[None, :, m], jnp.where(seen[:, m, None], dx * dx + dy * dy, jnp.inf), -jnp.inf)
+        sq = jnp.where(
+            member[None, :, m], jnp.where(seen[:, m, None], dx * dx + dy * dy, jnp.inf), -jnp.inf
+        )
         worst_sq = jnp.maximum(worst_sq, sq)
-    worst = jnp.sqrt(jnp.maximum(worst_sq, 0.0))  # (K, H) px: the root of the largest, the largest root
+    worst = jnp.sqrt(
+        jnp.maximum(worst_sq, 0.0)
+    )  # (K, H) px: the root of the largest, the largest root
     index = jnp.arange(G, dtype=jnp.int32)
     disjoint = ~jnp.any(member[:, None, :] & member[None, :, :], axis=-1)
-    larger = (size[:, None] > size[None, :]) | ((size[:, None] == size[None, :]) & (index[:, None] < index[None, :]))
+    larger = (size[:, None] > size[None, :]) | (
+        (size[:, None] == size[None, :]) & (index[:, None] < index[None, :])
+    )
     allowed = disjoint & larger & (size[None, :] >= 2) & (size[:, None] >= 2) & (worst < gate)
     cost = jnp.where(allowed, worst, jnp.inf)  # (K, H)
     nearest, target = min_and_first_index(cost, axis=0)  # (H,)
     moves = jnp.isfinite(nearest)
     # One group per target, the nearest (ties: the smallest h); a moving group takes none.
-    best = jnp.full((G,), jnp.inf, cost.dtype).at[jnp.where(moves, target, G)].min(nearest, mode="drop")
+    best = (
+        jnp.full((G,), jnp.inf, cost.dtype)
+        .at[jnp.where(moves, target, G)]
+        .min(nearest, mode="drop")
+    )
     win = moves & (nearest == best[target])
     first = jnp.full((G,), G, jnp.int32).at[jnp.where(win, target, G)].min(index, mode="drop")
     win = win & (first[target] == index) & ~moves[target]
-    incoming = jnp.full((G,), G, jnp.int32).at[jnp.where(win, target, G)].set(index, mode="drop")  # (K,)
+    incoming = (
+        jnp.full((G,), G, jnp.int32).at[jnp.where(win, target, G)].set(index, mode="drop")
+    )  # (K,)
     has_incoming = incoming < G
     added = table.groups[jnp.minimum(incoming, G - 1)]  # (K, M)
     groups = jnp.where(has_incoming[:, None] & (added >= 0), added, table.groups)
@@ -138,7 +164,18 @@ def reassign_stage(scene: Scene, state: State, options: ReassignOptions) -> Stat
 
 
 REASSIGN = Stage(
-    "reassign", reassign_stage, ReassignOptions,
-    Switch("reassign", False, "each detection to its nearest group point, refitting (beyond the paper)"),
-    numbers=(Number("reassign_frac", 2.0, Range(0.0, low_open=True), doc="re-assignment: a detection joins its nearest point within reassign_frac · τ"),),
+    "reassign",
+    reassign_stage,
+    ReassignOptions,
+    Switch(
+        "reassign", False, "each detection to its nearest group point, refitting (beyond the paper)"
+    ),
+    numbers=(
+        Number(
+            "reassign_frac",
+            2.0,
+            Range(0.0, low_open=True),
+            doc="re-assignment: a detection joins its nearest point within reassign_frac · τ",
+        ),
+    ),
 )

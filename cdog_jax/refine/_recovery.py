@@ -9,9 +9,9 @@ one view compete for a group, the closest wins (ties: smallest node index).
 
 import jax.numpy as jnp
 
+from .._types import Array, Bool, Float, Int
 from ..cdog._config import Number, Numbers, Switch
 from ..cdog._stage import Scene, Stage, State
-from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..geometry._projection import distances_to_detections
 from ._attach import attach_cheapest, leftover_nodes
@@ -37,7 +37,11 @@ def recover_leftovers(
 
     err, in_front = distances_to_detections(rig, X, xy)  # (G, M, P)
     enough = jnp.sum(member, axis=1, dtype=jnp.int32) >= 2
-    allowed = (valid & enough)[:, None, None] & (~member & in_front)[:, :, None] & leftover.reshape(M, P)[None]
+    allowed = (
+        (valid & enough)[:, None, None]
+        & (~member & in_front)[:, :, None]
+        & leftover.reshape(M, P)[None]
+    )
     err = jnp.where(allowed, err, jnp.inf).reshape(G, N)
 
     return attach_cheapest(groups, err, th.recover_frac * tau_px)
@@ -45,12 +49,20 @@ def recover_leftovers(
 
 def recover_stage(scene: Scene, state: State, options: None) -> State:
     """Attach leftover detections to the groups whose fitted point reprojects near them."""
-    groups = recover_leftovers(scene.rig, scene.xy, scene.mask, *state.table, state.fit.X, scene.tau, scene.th)
+    groups = recover_leftovers(
+        scene.rig, scene.xy, scene.mask, *state.table, state.fit.X, scene.tau, scene.th
+    )
     return state._replace(table=state.table._replace(groups=groups), fit=None)
 
 
 RECOVER = Stage(
-    "recover", recover_stage, None,
+    "recover",
+    recover_stage,
+    None,
     Switch("recover", False, "attach leftovers to groups by reprojection (beyond the paper)"),
-    numbers=(Number("recover_frac", 1.0, doc="recovery: attach if the reprojection error < recover_frac · τ"),),
+    numbers=(
+        Number(
+            "recover_frac", 1.0, doc="recovery: attach if the reprojection error < recover_frac · τ"
+        ),
+    ),
 )

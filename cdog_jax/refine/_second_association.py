@@ -8,9 +8,9 @@ pass closest to it on average, distances ≥ τ counted three times, if that mea
 import jax.numpy as jnp
 
 from .._expect import ARRAY, expect_args
+from .._types import Array, Bool, Float, Int
 from ..cdog._config import Number, Numbers, Switch
 from ..cdog._stage import Scene, Stage, State
-from .._types import Array, Bool, Float, Int
 from ._attach import attach_cheapest, leftover_nodes
 
 
@@ -24,12 +24,21 @@ def second_association(
 ) -> Int[Array, "G M"]:
     """The group table ``(G, M)`` with leftover nodes attached. ``d (N, N)``: ``d[v, u]`` is
     the distance in u's image from u to the epipolar line of v (pixels)."""
-    expect_args("second_association", d=(d, ARRAY), groups=(groups, ARRAY), valid=(valid, ARRAY), node_valid=(node_valid, ARRAY), th=(th, Numbers))
+    expect_args(
+        "second_association",
+        d=(d, ARRAY),
+        groups=(groups, ARRAY),
+        valid=(valid, ARRAY),
+        node_valid=(node_valid, ARRAY),
+        th=(th, Numbers),
+    )
     G, M = groups.shape
     N = d.shape[0]
     P = N // M
     member = valid[:, None] & (groups >= 0)  # (G, M)
-    member_node = jnp.where(member, jnp.arange(M, dtype=jnp.int32)[None, :] * P + groups, 0)  # (G, M)
+    member_node = jnp.where(
+        member, jnp.arange(M, dtype=jnp.int32)[None, :] * P + groups, 0
+    )  # (G, M)
     leftover = leftover_nodes(groups, valid, node_valid.reshape(M, P))
     node_view = jnp.arange(N, dtype=jnp.int32) // P
 
@@ -48,12 +57,24 @@ def second_association(
 def second_association_stage(scene: Scene, state: State, options: None) -> State:
     """The group table with leftover nodes attached by their epipolar cost."""
     M, P = scene.mask.shape
-    groups = second_association(scene.d.reshape(M * P, M * P), *state.table, scene.node_valid, scene.tau, scene.th)
+    groups = second_association(
+        scene.d.reshape(M * P, M * P), *state.table, scene.node_valid, scene.tau, scene.th
+    )
     return state._replace(table=state.table._replace(groups=groups), fit=None)
 
 
 SECOND_ASSOCIATION = Stage(
-    "second_association", second_association_stage, None,
-    Switch("second_association", False, "attach leftover nodes by their epipolar cost (the reference's)"),
-    numbers=(Number("second_frac", 0.5, doc="second association: attach if the mean cost < second_frac · τ"),),
+    "second_association",
+    second_association_stage,
+    None,
+    Switch(
+        "second_association",
+        False,
+        "attach leftover nodes by their epipolar cost (the reference's)",
+    ),
+    numbers=(
+        Number(
+            "second_frac", 0.5, doc="second association: attach if the mean cost < second_frac · τ"
+        ),
+    ),
 )

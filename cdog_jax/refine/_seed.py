@@ -22,14 +22,14 @@ from typing import Annotated, NamedTuple
 import jax
 import jax.numpy as jnp
 
+from .._types import Array, Bool, Float, Int
 from ..cdog._config import AtLeast, Number, Range, Switch
 from ..cdog._stage import GroupTable, Scene, Stage, State
-from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..graph._adjacency import min_and_first_index
 from ..graph._groups import compact_groups
-from ._hypotheses import score_hypotheses, voter_distances
 from ._attach import leftover_nodes
+from ._hypotheses import score_hypotheses, voter_distances
 from ._support import missing_views
 
 
@@ -61,7 +61,9 @@ class _Hypotheses(NamedTuple):
     vote_views: Bool[Array, "R M"]
 
 
-def _hypotheses_of(rig, xy, mask, free, d, blocks, sources, tau_px, gate_px, support_px, min_views) -> _Hypotheses:
+def _hypotheses_of(
+    rig, xy, mask, free, d, blocks, sources, tau_px, gate_px, support_px, min_views
+) -> _Hypotheses:
     """The hypotheses of the detections ``sources (C,)`` (flat nodes; ``N`` or a detection
     that is not free: none), ``C · M`` rows, source by source, view by view: each source
     paired with its cheapest free detection in every other view, at the symmetric epipolar
@@ -72,21 +74,41 @@ def _hypotheses_of(rig, xy, mask, free, d, blocks, sources, tau_px, gate_px, sup
     node_view = jnp.arange(N, dtype=jnp.int32) // P
     flat_free = free.reshape(N)
     s = jnp.minimum(sources, N - 1)
-    pair_ok = ((sources < N) & flat_free[s])[:, None] & flat_free[None, :] & (node_view[None, :] != node_view[s][:, None])
+    pair_ok = (
+        ((sources < N) & flat_free[s])[:, None]
+        & flat_free[None, :]
+        & (node_view[None, :] != node_view[s][:, None])
+    )
     out_d, in_d = d[s], d[:, s].T  # (C, N): from each source, and to it
     out_d = jnp.where(pair_ok & ~jnp.isnan(out_d), out_d, jnp.inf)
     in_d = jnp.where(pair_ok & ~jnp.isnan(in_d), in_d, jnp.inf)
-    best_cost, best = min_and_first_index((0.5 * (out_d + in_d)).reshape(C, M, P), axis=-1)  # (C, M): first of equals
+    best_cost, best = min_and_first_index(
+        (0.5 * (out_d + in_d)).reshape(C, M, P), axis=-1
+    )  # (C, M): first of equals
     src = jnp.broadcast_to(s[:, None], (C, M)).reshape(-1)
     dst = (views[None, :] * P + best).reshape(-1)
-    scored = score_hypotheses(rig, xy, free, blocks, src, dst, (best_cost < tau_px).reshape(-1), gate_px)
-    pair = (views[None, :] == (src // P)[:, None]) | (views[None, :] == (dst // P)[:, None])  # (C·M, M)
+    scored = score_hypotheses(
+        rig, xy, free, blocks, src, dst, (best_cost < tau_px).reshape(-1), gate_px
+    )
+    pair = (views[None, :] == (src // P)[:, None]) | (
+        views[None, :] == (dst // P)[:, None]
+    )  # (C·M, M)
     missing, _ = missing_views(rig, xy, mask, scored.X, pair, support_px)
     ok = scored.ok & (scored.count >= min_views) & ~jnp.any(missing, axis=1)
-    return _Hypotheses(ok, jnp.where(ok, scored.err, jnp.inf), scored.count, src, dst, scored.xy_hat, scored.vote_views)
+    return _Hypotheses(
+        ok,
+        jnp.where(ok, scored.err, jnp.inf),
+        scored.count,
+        src,
+        dst,
+        scored.xy_hat,
+        scored.vote_views,
+    )
 
 
-def _all_hypotheses(rig, xy, mask, free, d, blocks, tau_px, gate_px, support_px, min_views) -> _Hypotheses:
+def _all_hypotheses(
+    rig, xy, mask, free, d, blocks, tau_px, gate_px, support_px, min_views
+) -> _Hypotheses:
     """Every free detection's hypotheses (:func:`_hypotheses_of`), the free detections in
     node order, :data:`SOURCE_CHUNK` at a time; rows past the last free detection are not ok."""
     M, P = free.shape
@@ -94,7 +116,9 @@ def _all_hypotheses(rig, xy, mask, free, d, blocks, tau_px, gate_px, support_px,
     d = d.reshape(N, N)
 
     def make(sources):
-        return _hypotheses_of(rig, xy, mask, free, d, blocks, sources, tau_px, gate_px, support_px, min_views)
+        return _hypotheses_of(
+            rig, xy, mask, free, d, blocks, sources, tau_px, gate_px, support_px, min_views
+        )
 
     if N <= SOURCE_CHUNK:
         return make(jnp.arange(N, dtype=jnp.int32))
@@ -103,18 +127,29 @@ def _all_hypotheses(rig, xy, mask, free, d, blocks, tau_px, gate_px, support_px,
     flat_free = free.reshape(N)
     num_free = jnp.sum(flat_free, dtype=jnp.int32)
     position = jnp.where(flat_free, jnp.cumsum(flat_free, dtype=jnp.int32) - 1, width)
-    sources = jnp.full((width,), N, jnp.int32).at[position].set(jnp.arange(N, dtype=jnp.int32), mode="drop")
+    sources = (
+        jnp.full((width,), N, jnp.int32)
+        .at[position]
+        .set(jnp.arange(N, dtype=jnp.int32), mode="drop")
+    )
 
     def body(carry):
         start, table = carry
         chunk = make(jax.lax.dynamic_slice_in_dim(sources, start, C))
-        table = jax.tree.map(lambda t, c: jax.lax.dynamic_update_slice_in_dim(t, c, start * M, 0), table, chunk)
+        table = jax.tree.map(
+            lambda t, c: jax.lax.dynamic_update_slice_in_dim(t, c, start * M, 0), table, chunk
+        )
         return start + C, table
 
     R = width * M
     empty = _Hypotheses(
-        jnp.zeros((R,), bool), jnp.full((R,), jnp.inf, xy.dtype), jnp.zeros((R,), jnp.int32), jnp.zeros((R,), jnp.int32),
-        jnp.zeros((R,), jnp.int32), jnp.zeros((R, M, 2), xy.dtype), jnp.zeros((R, M), bool),
+        jnp.zeros((R,), bool),
+        jnp.full((R,), jnp.inf, xy.dtype),
+        jnp.zeros((R,), jnp.int32),
+        jnp.zeros((R,), jnp.int32),
+        jnp.zeros((R,), jnp.int32),
+        jnp.zeros((R, M, 2), xy.dtype),
+        jnp.zeros((R, M), bool),
     )
     _, table = jax.lax.while_loop(lambda c: c[0] < num_free, body, (jnp.int32(0), empty))
     return table
@@ -159,7 +194,9 @@ def seed_groups(
         found = h < R
         h = jnp.minimum(h, R - 1)
         a, b = hyp.src[h], hyp.dst[h]
-        dist = jnp.where(used, jnp.inf, voter_distances(xy, free, hyp.xy_hat[h], hyp.vote_views[h]))  # (M, P)
+        dist = jnp.where(
+            used, jnp.inf, voter_distances(xy, free, hyp.xy_hat[h], hyp.vote_views[h])
+        )  # (M, P)
         slot = jnp.argmin(dist, axis=-1).astype(jnp.int32)
         row = jnp.where(jnp.min(dist, axis=-1) < gate_px, slot, -1)
         row = row.at[a // P].set(a % P).at[b // P].set(b % P)
@@ -169,7 +206,13 @@ def seed_groups(
         used = used | (accept & (slots[None, :] == row[:, None]))
         return used, groups, num_groups + accept.astype(jnp.int32), tried.at[h].set(True), found
 
-    init = (~free, jnp.full((G, M), -1, jnp.int32), jnp.int32(0), jnp.zeros((R,), bool), jnp.any(hyp.ok))
+    init = (
+        ~free,
+        jnp.full((G, M), -1, jnp.int32),
+        jnp.int32(0),
+        jnp.zeros((R,), bool),
+        jnp.any(hyp.ok),
+    )
     _, groups, _, _, _ = jax.lax.while_loop(cond, body, init)
     return groups
 
@@ -180,8 +223,16 @@ def seed_stage(scene: Scene, state: State, options: SeedOptions) -> State:
     M, P = scene.mask.shape
     free = leftover_nodes(*table, scene.mask).reshape(M, P)
     new = seed_groups(
-        scene.rig, scene.xy, scene.mask, free, scene.d, scene.blocks, scene.tau, scene.th.seed_frac * scene.tau,
-        scene.th.seed_support_frac * scene.tau, options.seed_min_views,
+        scene.rig,
+        scene.xy,
+        scene.mask,
+        free,
+        scene.d,
+        scene.blocks,
+        scene.tau,
+        scene.th.seed_frac * scene.tau,
+        scene.th.seed_support_frac * scene.tau,
+        options.seed_min_views,
     )
     G = table.groups.shape[0]
     groups = jnp.concatenate([table.groups, new])
@@ -191,11 +242,24 @@ def seed_stage(scene: Scene, state: State, options: SeedOptions) -> State:
 
 
 SEED = Stage(
-    "seed", seed_stage, SeedOptions,
-    Switch("seed", False, "groups from two-view hypotheses on what is still left (beyond the paper)"),
+    "seed",
+    seed_stage,
+    SeedOptions,
+    Switch(
+        "seed", False, "groups from two-view hypotheses on what is still left (beyond the paper)"
+    ),
     numbers=(
-        Number("seed_frac", 1.5, Range(0.0, low_open=True), doc="seeding: a detection within seed_frac · τ votes for a two-view point"),
-        Number("seed_support_frac", 1.5, Range(0.0, low_open=True),
-               doc="seeding: a two-view point is not seeded where a view sees it with no detection within seed_support_frac · τ"),
+        Number(
+            "seed_frac",
+            1.5,
+            Range(0.0, low_open=True),
+            doc="seeding: a detection within seed_frac · τ votes for a two-view point",
+        ),
+        Number(
+            "seed_support_frac",
+            1.5,
+            Range(0.0, low_open=True),
+            doc="seeding: a two-view point is not seeded where a view sees it with no detection within seed_support_frac · τ",
+        ),
     ),
 )

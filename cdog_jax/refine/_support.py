@@ -22,9 +22,9 @@ where points are seen). Views without a detection never count as missing.
 import jax
 import jax.numpy as jnp
 
+from .._types import Array, Bool, Float
 from ..cdog._config import Number, Numbers, Range, Switch
 from ..cdog._stage import Scene, Stage, State
-from .._types import Array, Bool, Float
 from ..geometry._camera import Rig
 from ..geometry._projection import project_views_last
 
@@ -88,8 +88,11 @@ def support_keep(
     j_ok = j <= Tc
     jT = jnp.where(j_ok, j, 0.0)
     log_pmf = (
-        jax.lax.lgamma(Tc + 1.0) - jax.lax.lgamma(jT + 1.0) - jax.lax.lgamma(Tc - jT + 1.0)
-        + jT * jnp.log(q) + (Tc - jT) * jnp.log1p(-q)
+        jax.lax.lgamma(Tc + 1.0)
+        - jax.lax.lgamma(jT + 1.0)
+        - jax.lax.lgamma(Tc - jT + 1.0)
+        + jT * jnp.log(q)
+        + (Tc - jT) * jnp.log1p(-q)
     )
     tail = jnp.sum(jnp.where(j_ok & (j >= kc), jnp.exp(log_pmf), 0.0), axis=1)  # (G,)
     return valid & ~behind & ((k == 0) | (tail >= th.support_alpha))
@@ -98,16 +101,27 @@ def support_keep(
 def support_stage(scene: Scene, state: State, options: None) -> State:
     """Drop the groups that views seeing their point do not detect (needs a fit)."""
     fit = state.fit
-    keep = support_keep(scene.rig, scene.xy, scene.mask, fit.X, fit.member, state.table.valid, scene.tau, scene.th)
-    return state._replace(table=state.table.keep(keep), fit=fit._replace(member=fit.member & keep[:, None]))
+    keep = support_keep(
+        scene.rig, scene.xy, scene.mask, fit.X, fit.member, state.table.valid, scene.tau, scene.th
+    )
+    return state._replace(
+        table=state.table.keep(keep), fit=fit._replace(member=fit.member & keep[:, None])
+    )
 
 
 SUPPORT = Stage(
-    "support", support_stage, None,
+    "support",
+    support_stage,
+    None,
     Switch("support_filter", False, "drop groups that views seeing their point do not detect"),
     numbers=(
         Number("support_frac", 3.0, doc="a detection within support_frac · τ explains a view"),
-        Number("support_alpha", 0.01, Range(0.0, 1.0), "drop if P(that many misses) < support_alpha (a probability)"),
+        Number(
+            "support_alpha",
+            0.01,
+            Range(0.0, 1.0),
+            "drop if P(that many misses) < support_alpha (a probability)",
+        ),
         Number("support_min_rate", 0.02, Range(0.0, 1.0), "floor of the estimated miss rate"),
         Number("support_ref_views", 4.0, doc="members of the groups that estimate the miss rate"),
     ),

@@ -21,29 +21,34 @@ groups, vmappable like the rest of the pipeline.
 import jax
 import jax.numpy as jnp
 
+from .._types import Array, Bool, Float
 from ..cdog._config import DEFAULT_MIN_PARALLAX_DEG, Number, Range
 from ..cdog._stage import GroupTable, Scene, Stage, State, always
-
-from .._types import Array, Bool, Float
 from ..geometry._camera import Rig, affine_per_view
 from ..geometry._projection import group_errors, reprojection_errors_views_last
 from ..geometry._triangulate import dlt_blocks_views_last, solve_normal_3x3
 
 
-def counting_views(member: Bool[Array, "G M"], *, weights: Float[Array, "G M"] | None = None) -> Bool[Array, "G M"]:
+def counting_views(
+    member: Bool[Array, "G M"], *, weights: Float[Array, "G M"] | None = None
+) -> Bool[Array, "G M"]:
     """``(G, M)``: the members whose DLT equations count (weight > 0; all members without
     ``weights``)."""
     return member if weights is None else member & (weights > 0)
 
 
-def in_front_of_members(rig: Rig, X: Float[Array, "G 3"], member: Bool[Array, "G M"]) -> Bool[Array, " G"]:
+def in_front_of_members(
+    rig: Rig, X: Float[Array, "G 3"], member: Bool[Array, "G M"]
+) -> Bool[Array, " G"]:
     """``(G,)``: each point ``X (G, 3)`` lies in front of every member camera,
     ``(R X + t)_z > 0``."""
     depth = affine_per_view(rig.R, rig.t, X)[..., 2]  # (G, M)
     return jnp.all(~member | (depth > 0), axis=1)
 
 
-def max_parallax_deg(rig: Rig, X: Float[Array, "G 3"], member: Bool[Array, "G M"]) -> Float[Array, " G"]:
+def max_parallax_deg(
+    rig: Rig, X: Float[Array, "G 3"], member: Bool[Array, "G M"]
+) -> Float[Array, " G"]:
     """``(G,)``: the largest angle (degrees, in [0, 90]) between the lines of sight
     ``X − C_m`` of two member views at the point ``X (G, 3)``; 0 with fewer than two members
     or where a camera centre coincides with the point."""
@@ -60,7 +65,9 @@ def max_parallax_deg(rig: Rig, X: Float[Array, "G 3"], member: Bool[Array, "G M"
     return jnp.max(jnp.where(pair, angle, 0.0), axis=(1, 2))
 
 
-def member_errors(rig: Rig, X: Float[Array, "G 3"], xy_g: Float[Array, "G M 2"], member: Bool[Array, "G M"]) -> Float[Array, "G M"]:
+def member_errors(
+    rig: Rig, X: Float[Array, "G 3"], xy_g: Float[Array, "G M 2"], member: Bool[Array, "G M"]
+) -> Float[Array, "G M"]:
     """``(G, M)``: each member's reprojection distance (px); ``+inf`` where it is not
     finite, ``0`` for non-members."""
     err = reprojection_errors_views_last(rig, X, xy_g)
@@ -106,7 +113,9 @@ def detach_worst(
         member = member & ~drop
         w = jnp.where(member, weights, 0.0)
         X_new, ok = solve_normal_3x3(
-            jnp.einsum("gm,gmij->gij", w, N), jnp.einsum("gm,gmi->gi", w, r), jnp.sum(w > 0, axis=1, dtype=jnp.int32)
+            jnp.einsum("gm,gmij->gij", w, N),
+            jnp.einsum("gm,gmi->gi", w, r),
+            jnp.sum(w > 0, axis=1, dtype=jnp.int32),
         )
         X_new = jnp.where(ok[:, None], X_new + origin[None, :], X)
         return member, jnp.where(bad[:, None], X_new, X), it + 1
@@ -129,7 +138,11 @@ def validity_gate(
     """The groups ``member (G, M)`` (members' pixels ``xy_g (G, M, 2)``, points ``X (G, 3)``)
     after the gate of the module docstring: ``(member, valid, X)``, with the members of
     dissolved groups all False. ``weights (G, M)``: the members' DLT weights (default 1)."""
-    w = member.astype(X.dtype) if weights is None else jnp.where(member, weights.astype(X.dtype), 0.0)
+    w = (
+        member.astype(X.dtype)
+        if weights is None
+        else jnp.where(member, weights.astype(X.dtype), 0.0)
+    )
     bound = max_err_frac * tau_px
     member, X = detach_worst(rig, xy_g, member, w, X, bound)
     valid = (
@@ -146,21 +159,41 @@ def validity_stage(scene: Scene, state: State, options: None) -> State:
     gated members, points and their errors."""
     fit = state.fit
     member, valid, X = validity_gate(
-        scene.rig, fit.xy_g, fit.member & state.table.valid[:, None], fit.X, scene.tau,
-        scene.th.max_err_frac, scene.th.min_parallax_deg,
+        scene.rig,
+        fit.xy_g,
+        fit.member & state.table.valid[:, None],
+        fit.X,
+        scene.tau,
+        scene.th.max_err_frac,
+        scene.th.min_parallax_deg,
     )
     bpe, err_px = group_errors(scene.rig, X, fit.xy_g, member)
-    return state._replace(table=GroupTable(state.table.groups, valid), fit=fit._replace(member=member, X=X, bpe=bpe, err_px=err_px))
+    return state._replace(
+        table=GroupTable(state.table.groups, valid),
+        fit=fit._replace(member=member, X=X, bpe=bpe, err_px=err_px),
+    )
 
 
 # The gate every valid group passes (ALGORITHM.md §12). 1° is far below the parallax of
 # any benchmark group and well above what float32 can triangulate; 3 τ leaves room above
 # recovery's attach gate (recover_frac · τ, 2 τ in extended()).
 VALIDITY = Stage(
-    "validity_gate", validity_stage, None, always,
+    "validity_gate",
+    validity_stage,
+    None,
+    always,
     numbers=(
-        Number("min_parallax_deg", DEFAULT_MIN_PARALLAX_DEG, Range(0.0, 90.0, high_open=True),
-               "validity gate: the largest angle between members' lines of sight (degrees)"),
-        Number("max_err_frac", 3.0, Range(0.0, low_open=True), "validity gate: every member's reprojection error <= max_err_frac · τ"),
+        Number(
+            "min_parallax_deg",
+            DEFAULT_MIN_PARALLAX_DEG,
+            Range(0.0, 90.0, high_open=True),
+            "validity gate: the largest angle between members' lines of sight (degrees)",
+        ),
+        Number(
+            "max_err_frac",
+            3.0,
+            Range(0.0, low_open=True),
+            "validity gate: every member's reprojection error <= max_err_frac · τ",
+        ),
     ),
 )

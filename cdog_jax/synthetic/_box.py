@@ -20,7 +20,9 @@ _project_points = jax.jit(jax.vmap(project, in_axes=(None, 0)))  # (S, 3) → (S
 _MIN_VISIBLE_FRACTION = 0.01
 
 
-def intrinsics_image_size(K: Float[Array, "*M 3 3"] | np.ndarray, *, multiple: int = 8) -> tuple[int, int]:
+def intrinsics_image_size(
+    K: Float[Array, "*M 3 3"] | np.ndarray, *, multiple: int = 8
+) -> tuple[int, int]:
     """Best-guess image ``(width, height)`` in pixels from intrinsics ``K (3, 3)`` or
     ``(M, 3, 3)``, for rig files that give no image size.
 
@@ -109,7 +111,9 @@ def visible_box(
     centre = np.linalg.lstsq(A, b, rcond=None)[0]
     half = float(np.median(np.linalg.norm(centers - centre, axis=-1)))
     if not half > 0:
-        raise ValueError("cannot build a search region: all camera centres coincide with the axes' closest point")
+        raise ValueError(
+            "cannot build a search region: all camera centres coincide with the axes' closest point"
+        )
 
     lo, hi = centre - half, centre + half
     kept = _seen(rig, rng.uniform(lo, hi, size=(samples, 3)), image_size, min_views)

@@ -76,7 +76,7 @@ class Realism(eqx.Module):
             if isinstance(value, (int, float)) and not ok(value):
                 raise ValueError(f"Realism.{name} is out of range; got {value!r}")
 
-    def as_arrays(self, dtype) -> "Realism":
+    def as_arrays(self, dtype) -> Realism:
         """The same options as ``()`` arrays of ``dtype`` (one jit cache entry for any values)."""
         return jax.tree.map(lambda v: jnp.asarray(v, dtype), self)
 
@@ -103,10 +103,14 @@ def student_t_mad(nu: Float[Array, ""]) -> Float[Array, ""]:
 
     # A cond, not a where: outside jit (and in a jitted scalar call) the Gaussian skips the search.
     big = nu >= _NU_GAUSSIAN
-    return jax.lax.cond(big, lambda nu: jnp.asarray(_GAUSS_MAD, dtype), solve, jnp.where(big, 1.0, nu))
+    return jax.lax.cond(
+        big, lambda nu: jnp.asarray(_GAUSS_MAD, dtype), solve, jnp.where(big, 1.0, nu)
+    )
 
 
-def unit_noise(key: PRNGKeyArray, shape: tuple[int, ...], realism: Realism, dtype) -> Float[Array, "*S 2"]:
+def unit_noise(
+    key: PRNGKeyArray, shape: tuple[int, ...], realism: Realism, dtype
+) -> Float[Array, "*S 2"]:
     """2D noise of unit scale, ``(*shape, 2)``: bivariate Student-t (isotropic, one radius per
     detection, as a detector's miss is off in both coordinates; each coordinate is a
     Student-t with ``nu`` degrees of freedom) scaled so that each coordinate's MAD is
@@ -131,7 +135,9 @@ def unit_noise(key: PRNGKeyArray, shape: tuple[int, ...], realism: Realism, dtyp
     return radius[..., None] * jnp.stack([jnp.cos(angle), jnp.sin(angle)], axis=-1)
 
 
-def view_sigmas(key: PRNGKeyArray, sigma_px: Float[Array, ""], realism: Realism, M: int) -> Float[Array, " M"]:
+def view_sigmas(
+    key: PRNGKeyArray, sigma_px: Float[Array, ""], realism: Realism, M: int
+) -> Float[Array, " M"]:
     """Noise level of every view ``σ_m = σ · exp(s · z_m)`` (pixels), ``(M,)``."""
     dtype = sigma_px.dtype
     z = jax.random.normal(key, (M,), dtype=dtype)
@@ -148,8 +154,16 @@ def perturb_rig(key: PRNGKeyArray, rig: Rig, realism: Realism) -> Rig:
     k_rot, k_shift = jax.random.split(key)
     # Each component has std RMS / √3, so the vector's RMS length is the option's value.
     per_axis = 1.0 / math.sqrt(3.0)
-    rotvec = jnp.deg2rad(jnp.asarray(realism.rotation_deg, dtype)) * per_axis * jax.random.normal(k_rot, (M, 3), dtype)
-    shift = jnp.asarray(realism.translation, dtype) * per_axis * jax.random.normal(k_shift, (M, 3), dtype)
+    rotvec = (
+        jnp.deg2rad(jnp.asarray(realism.rotation_deg, dtype))
+        * per_axis
+        * jax.random.normal(k_rot, (M, 3), dtype)
+    )
+    shift = (
+        jnp.asarray(realism.translation, dtype)
+        * per_axis
+        * jax.random.normal(k_shift, (M, 3), dtype)
+    )
     R = jnp.einsum("mij,mjk->mik", so3_exp(rotvec), rig.R)
     centers = rig.centers + shift  # (M, 3)
     t = -jnp.einsum("mij,mj->mi", R, centers)

@@ -114,19 +114,25 @@ def render_points(
     xy_real = xy_true + sigma_view[None, :, None] * unit_noise(tag(_NOISE), (I, M), realism, dtype)
 
     # Doubles: the first D doubled detections of each view (in point order) get a row.
-    doubled = seen & (jax.random.uniform(tag(_DOUBLE_PICK), (I, M), dtype=dtype) < realism.double_rate)
+    doubled = seen & (
+        jax.random.uniform(tag(_DOUBLE_PICK), (I, M), dtype=dtype) < realism.double_rate
+    )
     rank = jnp.cumsum(doubled, axis=0, dtype=jnp.int32) - 1  # (I, M)
     row = jnp.where(doubled & (rank < D), rank, D)  # D: dropped by the scatter
     views = jnp.broadcast_to(jnp.arange(M, dtype=jnp.int32)[None, :], (I, M))
     offset = realism.double_offset_px * jax.random.normal(tag(_DOUBLE_XY), (I, M, 2), dtype=dtype)
     xy_double = jnp.zeros((D, M, 2), dtype).at[row, views].set(xy_real + offset, mode="drop")
-    id_double = jnp.full((D, M), -1, jnp.int32).at[row, views].set(
-        jnp.broadcast_to(jnp.arange(I, dtype=jnp.int32)[:, None], (I, M)), mode="drop"
+    id_double = (
+        jnp.full((D, M), -1, jnp.int32)
+        .at[row, views]
+        .set(jnp.broadcast_to(jnp.arange(I, dtype=jnp.int32)[:, None], (I, M)), mode="drop")
     )
     has_double = id_double >= 0  # (D, M)
     num_doubles = jnp.sum(has_double, axis=0, dtype=jnp.int32)
 
-    num_clutter = _clipped_poisson(tag(_CLUTTER_COUNT), jnp.asarray(realism.clutter_rate, dtype), C, M)  # (M,)
+    num_clutter = _clipped_poisson(
+        tag(_CLUTTER_COUNT), jnp.asarray(realism.clutter_rate, dtype), C, M
+    )  # (M,)
     w_h = jnp.asarray(image_size, dtype=dtype)
     xy_clutter = jax.random.uniform(tag(_CLUTTER_XY), (C, M, 2), dtype=dtype) * w_h[None, None, :]
     has_clutter = jnp.arange(C, dtype=jnp.int32)[:, None] < num_clutter[None, :]  # (C, M)
@@ -135,15 +141,29 @@ def render_points(
     safe_id = jnp.maximum(id_double, 0)
     vis_src = jnp.concatenate([seen, has_double, has_clutter])  # (S, M)
     xy_src = jnp.concatenate([xy_real, xy_double, xy_clutter])  # (S, M, 2)
-    id_src = jnp.concatenate([jnp.broadcast_to(jnp.arange(I, dtype=jnp.int32)[:, None], (I, M)), id_double,
-                              jnp.full((C, M), -1, jnp.int32)])  # fmt: skip
-    kind_src = jnp.concatenate([jnp.full((I, M), REAL, jnp.int32), jnp.full((D, M), DOUBLE, jnp.int32),
-                                jnp.full((C, M), CLUTTER, jnp.int32)])  # fmt: skip
-    class_src = jnp.concatenate([jnp.broadcast_to(point_class[:, None], (I, M)), point_class[safe_id], class_clutter])
+    id_src = jnp.concatenate(
+        [
+            jnp.broadcast_to(jnp.arange(I, dtype=jnp.int32)[:, None], (I, M)),
+            id_double,
+            jnp.full((C, M), -1, jnp.int32),
+        ]
+    )
+    kind_src = jnp.concatenate(
+        [
+            jnp.full((I, M), REAL, jnp.int32),
+            jnp.full((D, M), DOUBLE, jnp.int32),
+            jnp.full((C, M), CLUTTER, jnp.int32),
+        ]
+    )
+    class_src = jnp.concatenate(
+        [jnp.broadcast_to(point_class[:, None], (I, M)), point_class[safe_id], class_clutter]
+    )
 
     # An independent uniform permutation of the S rows of every view.
     S = I + D + C
-    order = jnp.argsort(jax.random.bits(tag(_PERM), (M, S), dtype=jnp.uint32), axis=-1).astype(jnp.int32)
+    order = jnp.argsort(jax.random.bits(tag(_PERM), (M, S), dtype=jnp.uint32), axis=-1).astype(
+        jnp.int32
+    )
     view = jnp.arange(M, dtype=jnp.int32)[:, None]
     mask = vis_src[order, view]  # (M, S)
     return RealScene(
@@ -185,30 +205,70 @@ def generate_realistic_scene(
     ``clutter_capacity`` are static. Returns a :class:`RealScene` with
     ``S = capacity + double_capacity + clutter_capacity`` slots per view.
     """
-    expect_args("generate_realistic_scene", key=(key, ARRAY), rig=(rig, Rig), realism=(realism, Realism))
+    expect_args(
+        "generate_realistic_scene", key=(key, ARRAY), rig=(rig, Rig), realism=(realism, Realism)
+    )
     _check_static(capacity, image_size, 1, clutter_capacity)
     if not isinstance(double_capacity, int) or double_capacity < 0:
         raise ValueError(f"double_capacity must be a Python int >= 0; got {double_capacity!r}")
     dtype = rig.K.dtype
     return _realistic_scene(
-        key, rig, jnp.asarray(num_points, jnp.int32), jnp.asarray(sigma_px, dtype), realism.as_arrays(dtype),
-        _box_array(box, dtype), capacity=capacity, image_size=tuple(image_size),
-        double_capacity=double_capacity, clutter_capacity=clutter_capacity,
-    )  # fmt: skip
+        key,
+        rig,
+        jnp.asarray(num_points, jnp.int32),
+        jnp.asarray(sigma_px, dtype),
+        realism.as_arrays(dtype),
+        _box_array(box, dtype),
+        capacity=capacity,
+        image_size=tuple(image_size),
+        double_capacity=double_capacity,
+        clutter_capacity=clutter_capacity,
+    )
 
 
-@functools.partial(jax.jit, static_argnames=("capacity", "image_size", "double_capacity", "clutter_capacity"))
-def _realistic_scene(key, rig, num_points, sigma_px, realism, box, *, capacity, image_size, double_capacity, clutter_capacity):
+@functools.partial(
+    jax.jit, static_argnames=("capacity", "image_size", "double_capacity", "clutter_capacity")
+)
+def _realistic_scene(
+    key,
+    rig,
+    num_points,
+    sigma_px,
+    realism,
+    box,
+    *,
+    capacity,
+    image_size,
+    double_capacity,
+    clutter_capacity,
+):
     k_points, k_rig, k_sigma, k_render = jax.random.split(key, 4)
     zero = jnp.zeros((), sigma_px.dtype)
     points = _generate_scene(
-        k_points, rig, num_points, zero, box, zero, zero, capacity=capacity, image_size=image_size, oversample=4,
+        k_points,
+        rig,
+        num_points,
+        zero,
+        box,
+        zero,
+        zero,
+        capacity=capacity,
+        image_size=image_size,
+        oversample=4,
         clutter_capacity=0,
-    )  # fmt: skip
+    )
     exists = jnp.arange(capacity, dtype=jnp.int32) < points.num_points
     true_rig = perturb_rig(k_rig, rig, realism)
     sigma_view = view_sigmas(k_sigma, sigma_px, realism, rig.num_views)
     return render_points(
-        k_render, true_rig, points.points3d, exists, jnp.zeros((capacity,), jnp.int32), sigma_view, realism,
-        image_size=image_size, double_capacity=double_capacity, clutter_capacity=clutter_capacity,
-    )  # fmt: skip
+        k_render,
+        true_rig,
+        points.points3d,
+        exists,
+        jnp.zeros((capacity,), jnp.int32),
+        sigma_view,
+        realism,
+        image_size=image_size,
+        double_capacity=double_capacity,
+        clutter_capacity=clutter_capacity,
+    )

@@ -105,7 +105,11 @@ def default_rig(*, num_views: int = 10, dtype=None) -> Rig:
         elevation = np.deg2rad(_ELEVATION_DEG[m % 2] + _ELEVATION_JITTER_DEG * u[1])
         distance = _DISTANCE[(m // 2) % 2] + _DISTANCE_JITTER * u[2]
         direction = np.array(
-            [np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)]
+            [
+                np.cos(elevation) * np.cos(azimuth),
+                np.cos(elevation) * np.sin(azimuth),
+                np.sin(elevation),
+            ]
         )
         center = box_center + distance * direction
         target = box_center + np.asarray(_TARGET_OFFSET) * u[3:6]

@@ -2,7 +2,7 @@
 
 import functools
 from collections.abc import Sequence
-from typing import Optional, Union
+from typing import Union
 
 import equinox as eqx
 import jax
@@ -37,7 +37,7 @@ class Scene(eqx.Module):
     instance: Int[Array, "M P"]
     points3d: Float[Array, "P 3"]
     num_points: Int[Array, ""]
-    num_clutter: Optional[Int[Array, " M"]] = None
+    num_clutter: Int[Array, " M"] | None = None
 
 
 # A corner of the sampling box: a (3,) sequence of floats or an array.
@@ -111,7 +111,13 @@ def generate_scene(
     compile once per shape; it also works under an outer ``jit`` or ``vmap``. For a batch
     see :func:`generate_scenes`.
     """
-    expect_args("generate_scene", key=(key, ARRAY), rig=(rig, Rig), num_points=(num_points, ARRAY), sigma_px=(sigma_px, ARRAY))
+    expect_args(
+        "generate_scene",
+        key=(key, ARRAY),
+        rig=(rig, Rig),
+        num_points=(num_points, ARRAY),
+        sigma_px=(sigma_px, ARRAY),
+    )
     _check_static(capacity, image_size, oversample, clutter_capacity)
     if isinstance(num_points, int) and not 0 <= num_points <= capacity:
         raise ValueError(f"num_points must be in [0, capacity={capacity}]; got {num_points}")
@@ -154,7 +160,13 @@ def generate_scenes(
     Returns a :class:`Scene` whose fields have a leading ``B`` axis. Counts, noise levels
     and rates are traced, so a whole benchmark grid compiles once per ``(B, capacity)``.
     """
-    expect_args("generate_scenes", key=(key, ARRAY), rig=(rig, Rig), num_points=(num_points, ARRAY), sigma_px=(sigma_px, ARRAY))
+    expect_args(
+        "generate_scenes",
+        key=(key, ARRAY),
+        rig=(rig, Rig),
+        num_points=(num_points, ARRAY),
+        sigma_px=(sigma_px, ARRAY),
+    )
     _check_static(capacity, image_size, oversample, clutter_capacity)
     _check_rates(drop_rate, clutter_rate)
     dtype = rig.K.dtype
@@ -169,7 +181,9 @@ def generate_scenes(
     for name, rate in (("drop_rate", drop_rate), ("clutter_rate", clutter_rate)):
         rate = jnp.asarray(rate, dtype=dtype)
         if rate.shape not in ((), (B,)):
-            raise ValueError(f"{name} must be a scalar or have shape (B,) = ({B},); got {rate.shape}")
+            raise ValueError(
+                f"{name} must be a scalar or have shape (B,) = ({B},); got {rate.shape}"
+            )
         rates.append(jnp.broadcast_to(rate, (B,)))
     keys = jax.random.split(key, B)
     one = functools.partial(
@@ -210,7 +224,9 @@ def _box_array(box, dtype) -> Float[Array, "2 3"]:
     return jnp.stack([lo, hi])
 
 
-def _clipped_poisson(key: PRNGKeyArray, rate: Float[Array, ""], cap: int, M: int) -> Int[Array, " M"]:
+def _clipped_poisson(
+    key: PRNGKeyArray, rate: Float[Array, ""], cap: int, M: int
+) -> Int[Array, " M"]:
     """``(M,)`` draws of ``min(Poisson(rate), cap)`` by inversion of the CDF on ``0 … cap``.
 
     Exact in distribution up to rounding of the CDF; much cheaper to compile than
@@ -224,7 +240,9 @@ def _clipped_poisson(key: PRNGKeyArray, rate: Float[Array, ""], cap: int, M: int
     # all the mass is on k = 0 (log 0 guarded by the where).
     pos = rate > 0
     log_rate = jnp.log(jnp.where(pos, rate, 1.0))
-    log_pmf = jnp.where(pos, k * log_rate - rate - jax.lax.lgamma(k + 1.0), jnp.where(k == 0, 0.0, -jnp.inf))
+    log_pmf = jnp.where(
+        pos, k * log_rate - rate - jax.lax.lgamma(k + 1.0), jnp.where(k == 0, 0.0, -jnp.inf)
+    )
     cdf = jnp.cumsum(jnp.exp(log_pmf))  # (cap,) F(0 … cap-1)
     u = jax.random.uniform(key, (M,), dtype=dtype)
     return jnp.sum(u[:, None] >= cdf[None, :], axis=1, dtype=jnp.int32)
@@ -235,7 +253,9 @@ def _clipped_poisson(key: PRNGKeyArray, rate: Float[Array, ""], cap: int, M: int
 _DROP, _CLUTTER_COUNT, _CLUTTER_XY = 0x64726F70, 0x636E7400, 0x63787900
 
 
-@functools.partial(jax.jit, static_argnames=("capacity", "image_size", "oversample", "clutter_capacity"))
+@functools.partial(
+    jax.jit, static_argnames=("capacity", "image_size", "oversample", "clutter_capacity")
+)
 def _generate_scene(
     key: PRNGKeyArray,
     rig: Rig,
@@ -285,23 +305,39 @@ def _generate_scene(
     vis_inst = vis_inst & ~dropped
 
     # Clutter in C extra rows per view (row P + j of view m is valid iff j < count[m]).
-    num_clutter = _clipped_poisson(jax.random.fold_in(key, _CLUTTER_COUNT), clutter_rate, C, M)  # (M,)
+    num_clutter = _clipped_poisson(
+        jax.random.fold_in(key, _CLUTTER_COUNT), clutter_rate, C, M
+    )  # (M,)
     w_h = jnp.asarray(image_size, dtype=dtype)
-    xy_clutter = jax.random.uniform(jax.random.fold_in(key, _CLUTTER_XY), (C, M, 2), dtype=dtype) * w_h[None, None, :]
-    vis_src = jnp.concatenate([vis_inst, jnp.arange(C, dtype=jnp.int32)[:, None] < num_clutter[None, :]])  # (P + C, M)
+    xy_clutter = (
+        jax.random.uniform(jax.random.fold_in(key, _CLUTTER_XY), (C, M, 2), dtype=dtype)
+        * w_h[None, None, :]
+    )
+    vis_src = jnp.concatenate(
+        [vis_inst, jnp.arange(C, dtype=jnp.int32)[:, None] < num_clutter[None, :]]
+    )  # (P + C, M)
     xy_src = jnp.concatenate([xy_inst, xy_clutter])  # (P + C, M, 2)
-    id_src = jnp.concatenate([jnp.arange(P, dtype=jnp.int32), jnp.full((C,), -1, jnp.int32)])  # (P + C,)
+    id_src = jnp.concatenate(
+        [jnp.arange(P, dtype=jnp.int32), jnp.full((C,), -1, jnp.int32)]
+    )  # (P + C,)
     points3d = jnp.concatenate([points3d, jnp.zeros((C, 3), dtype)])
 
     # Slot s of view m holds row order[m, s]: an independent uniform permutation of the
     # P + C rows per view (real and clutter mixed), the argsort of random 32-bit keys (one
     # sort; ties, p ≈ P²/2³³, keep row order).
-    order = jnp.argsort(jax.random.bits(k_perm, (M, P + C), dtype=jnp.uint32), axis=-1)  # (M, P + C)
+    order = jnp.argsort(
+        jax.random.bits(k_perm, (M, P + C), dtype=jnp.uint32), axis=-1
+    )  # (M, P + C)
     order = order.astype(jnp.int32)
     view = jnp.arange(M, dtype=jnp.int32)[:, None]  # (M, 1): index broadcast against (M, P + C)
     mask = vis_src[order, view]  # (M, P + C)
     xy = jnp.where(mask[..., None], xy_src[order, view], 0.0)  # (M, P + C, 2)
     instance = jnp.where(mask, id_src[order], -1)
     return Scene(
-        xy=xy, mask=mask, instance=instance, points3d=points3d, num_points=n_kept, num_clutter=num_clutter
+        xy=xy,
+        mask=mask,
+        instance=instance,
+        points3d=points3d,
+        num_points=n_kept,
+        num_clutter=num_clutter,
     )

@@ -26,25 +26,68 @@ from ._render import RealScene, render_points
 from ._ring import RING_IMAGE_SIZE
 
 SKELETON_JOINTS: tuple[str, ...] = (
-    "nose", "left_eye", "right_eye", "left_ear", "right_ear", "left_shoulder", "right_shoulder",
-    "left_elbow", "right_elbow", "left_wrist", "right_wrist", "left_hip", "right_hip",
-    "left_knee", "right_knee", "left_ankle", "right_ankle",
-)  # fmt: skip
+    "nose",
+    "left_eye",
+    "right_eye",
+    "left_ear",
+    "right_ear",
+    "left_shoulder",
+    "right_shoulder",
+    "left_elbow",
+    "right_elbow",
+    "left_wrist",
+    "right_wrist",
+    "left_hip",
+    "right_hip",
+    "left_knee",
+    "right_knee",
+    "left_ankle",
+    "right_ankle",
+)
 """The joint classes, in COCO-17 keypoint order."""
 
-SKELETON_TEMPLATE = np.array([
-    [0.10, 0.00, 1.62], [0.08, 0.03, 1.66], [0.08, -0.03, 1.66], [0.00, 0.075, 1.63], [0.00, -0.075, 1.63],
-    [0.00, 0.19, 1.45], [0.00, -0.19, 1.45], [0.00, 0.21, 1.17], [0.00, -0.21, 1.17],
-    [0.02, 0.22, 0.92], [0.02, -0.22, 0.92], [0.00, 0.10, 0.95], [0.00, -0.10, 0.95],
-    [0.02, 0.11, 0.52], [0.02, -0.11, 0.52], [0.00, 0.11, 0.08], [0.00, -0.11, 0.08],
-])  # fmt: skip
+SKELETON_TEMPLATE = np.array(
+    [
+        [0.10, 0.00, 1.62],
+        [0.08, 0.03, 1.66],
+        [0.08, -0.03, 1.66],
+        [0.00, 0.075, 1.63],
+        [0.00, -0.075, 1.63],
+        [0.00, 0.19, 1.45],
+        [0.00, -0.19, 1.45],
+        [0.00, 0.21, 1.17],
+        [0.00, -0.21, 1.17],
+        [0.02, 0.22, 0.92],
+        [0.02, -0.22, 0.92],
+        [0.00, 0.10, 0.95],
+        [0.00, -0.10, 0.95],
+        [0.02, 0.11, 0.52],
+        [0.02, -0.11, 0.52],
+        [0.00, 0.11, 0.08],
+        [0.00, -0.11, 0.08],
+    ]
+)
 """``(17, 3)`` joint positions (metres) of a 1.7 m person: upper arm 0.28 m, forearm 0.25 m,
 thigh 0.43 m, shin 0.44 m, shoulders 0.38 m apart."""
 
 SKELETON_BONES: tuple[tuple[int, int], ...] = (
-    (5, 7), (7, 9), (6, 8), (8, 10), (11, 13), (13, 15), (12, 14), (14, 16),
-    (5, 6), (11, 12), (5, 11), (6, 12), (0, 1), (0, 2), (1, 3), (2, 4),
-)  # fmt: skip
+    (5, 7),
+    (7, 9),
+    (6, 8),
+    (8, 10),
+    (11, 13),
+    (13, 15),
+    (12, 14),
+    (14, 16),
+    (5, 6),
+    (11, 12),
+    (5, 11),
+    (6, 12),
+    (0, 1),
+    (0, 2),
+    (1, 3),
+    (2, 4),
+)
 """Joint pairs whose distance is a bone of the template (fixed for a person)."""
 
 HEIGHT_SCALE = (0.85, 1.15)
@@ -59,7 +102,9 @@ _SPEED = (0.3, 1.0)  # m/s
 _TURN = 0.6  # max |heading rate|, rad/s
 _SWING_DEG = (10.0, 25.0)  # amplitude
 _STEP_HZ = (0.7, 1.0)
-_GRID_SPACING = 1.0  # start positions: distinct cells of a 3 × 3 grid of this spacing (metres), jittered
+_GRID_SPACING = (
+    1.0  # start positions: distinct cells of a 3 × 3 grid of this spacing (metres), jittered
+)
 _GRID_JITTER = 0.2
 
 
@@ -89,7 +134,13 @@ class SkeletonScenes(eqx.Module):
 
 
 def skeleton_motion(
-    key: PRNGKeyArray, num_people: Int[Array, ""], *, max_people: int, num_frames: int, fps: float, dtype
+    key: PRNGKeyArray,
+    num_people: Int[Array, ""],
+    *,
+    max_people: int,
+    num_frames: int,
+    fps: float,
+    dtype,
 ) -> tuple[Float[Array, "F K J 3"], Bool[Array, " K"]]:
     """Joints ``(F, K, 17, 3)`` (metres) of ``K = max_people`` walking people, frames
     ``1 / fps`` s apart, and which people exist ``(K,)`` (the first ``num_people``).
@@ -98,7 +149,7 @@ def skeleton_motion(
     0.6 rad/s, limbs swinging ±10–25° at 0.7–1 Hz; starts in a distinct cell of a 3 × 3
     grid of 1 m cells around the origin (so people start ≥ 0.6 m apart).
     """
-    K, F, J = max_people, num_frames, len(SKELETON_JOINTS)
+    K, F = max_people, num_frames
     ks = jax.random.split(key, 8)
     u = lambda k, lo, hi: lo + (hi - lo) * jax.random.uniform(k, (K,), dtype=dtype)  # noqa: E731
     scale = u(ks[0], *HEIGHT_SCALE)
@@ -109,25 +160,45 @@ def skeleton_motion(
     step_hz = u(ks[5], *_STEP_HZ)
     phase = u(ks[6], 0.0, 2.0 * math.pi)
     cell = jax.random.permutation(ks[7], 9)[:K]  # K <= 9 distinct cells
-    jitter = _GRID_JITTER * (2.0 * jax.random.uniform(jax.random.fold_in(key, 8), (K, 2), dtype=dtype) - 1.0)
-    start = _GRID_SPACING * jnp.stack([cell % 3 - 1, cell // 3 - 1], axis=-1).astype(dtype) + jitter  # (K, 2)
+    jitter = _GRID_JITTER * (
+        2.0 * jax.random.uniform(jax.random.fold_in(key, 8), (K, 2), dtype=dtype) - 1.0
+    )
+    start = (
+        _GRID_SPACING * jnp.stack([cell % 3 - 1, cell // 3 - 1], axis=-1).astype(dtype) + jitter
+    )  # (K, 2)
 
     t = jnp.arange(F, dtype=dtype) / fps  # (F,)
     heading = heading0[None, :] + turn[None, :] * t[:, None]  # (F, K)
-    step = (speed / fps)[None, :, None] * jnp.stack([jnp.cos(heading), jnp.sin(heading)], axis=-1)  # (F, K, 2)
+    step = (speed / fps)[None, :, None] * jnp.stack(
+        [jnp.cos(heading), jnp.sin(heading)], axis=-1
+    )  # (F, K, 2)
     position = start[None] + jnp.cumsum(step, axis=0) - step[:1]  # the walk starts at `start`
 
-    theta = swing[None, :] * jnp.sin(2.0 * math.pi * step_hz[None, :] * t[:, None] + phase[None, :])  # (F, K)
+    theta = swing[None, :] * jnp.sin(
+        2.0 * math.pi * step_hz[None, :] * t[:, None] + phase[None, :]
+    )  # (F, K)
     body = scale[:, None, None] * jnp.asarray(SKELETON_TEMPLATE, dtype)[None]  # (K, J, 3)
     pivot = body[:, _SWING_PIVOT]  # (K, J, 3)
     angle = theta[..., None] * jnp.asarray(_SWING_SIGN, dtype)[None, None, :]  # (F, K, J)
     d = (body - pivot)[None]  # (1, K, J, 3)
     c, s = jnp.cos(angle), jnp.sin(angle)
-    swung = pivot[None] + jnp.stack([c * d[..., 0] + s * d[..., 2], jnp.broadcast_to(d[..., 1], c.shape),
-                                     -s * d[..., 0] + c * d[..., 2]], axis=-1)  # fmt: skip  # (F, K, J, 3)
+    swung = pivot[None] + jnp.stack(
+        [
+            c * d[..., 0] + s * d[..., 2],
+            jnp.broadcast_to(d[..., 1], c.shape),
+            -s * d[..., 0] + c * d[..., 2],
+        ],
+        axis=-1,
+    )  # (F, K, J, 3)
     ch, sh = jnp.cos(heading)[..., None], jnp.sin(heading)[..., None]  # (F, K, 1)
-    world = jnp.stack([ch * swung[..., 0] - sh * swung[..., 1] + position[..., 0:1],
-                       sh * swung[..., 0] + ch * swung[..., 1] + position[..., 1:2], swung[..., 2]], axis=-1)  # fmt: skip
+    world = jnp.stack(
+        [
+            ch * swung[..., 0] - sh * swung[..., 1] + position[..., 0:1],
+            sh * swung[..., 0] + ch * swung[..., 1] + position[..., 1:2],
+            swung[..., 2],
+        ],
+        axis=-1,
+    )
     exists = jnp.arange(K) < num_people
     return world, exists
 
@@ -157,9 +228,15 @@ def generate_skeleton_scenes(
     traced; the keyword arguments are static. For :func:`cdog_jax.associate_classes` pass
     ``frames.xy, frames.mask, frames.class_id`` with ``class_names=SKELETON_JOINTS``.
     """
-    expect_args("generate_skeleton_scenes", key=(key, ARRAY), rig=(rig, Rig), realism=(realism, Realism))
-    for name, value, low in (("num_frames", num_frames, 1), ("max_people", max_people, 1),
-                             ("double_capacity", double_capacity, 0), ("clutter_capacity", clutter_capacity, 0)):  # fmt: skip
+    expect_args(
+        "generate_skeleton_scenes", key=(key, ARRAY), rig=(rig, Rig), realism=(realism, Realism)
+    )
+    for name, value, low in (
+        ("num_frames", num_frames, 1),
+        ("max_people", max_people, 1),
+        ("double_capacity", double_capacity, 0),
+        ("clutter_capacity", clutter_capacity, 0),
+    ):
         if not isinstance(value, int) or value < low:
             raise ValueError(f"{name} must be a Python int >= {low}; got {value!r}")
     if max_people > 9:
@@ -170,21 +247,51 @@ def generate_skeleton_scenes(
         raise ValueError(f"fps must be > 0; got {fps!r}")
     dtype = rig.K.dtype
     return _skeleton_scenes(
-        key, rig, jnp.asarray(num_people, jnp.int32), jnp.asarray(sigma_px, dtype), realism.as_arrays(dtype),
-        num_frames=num_frames, max_people=max_people, fps=float(fps), image_size=tuple(image_size),
-        double_capacity=double_capacity, clutter_capacity=clutter_capacity,
-    )  # fmt: skip
+        key,
+        rig,
+        jnp.asarray(num_people, jnp.int32),
+        jnp.asarray(sigma_px, dtype),
+        realism.as_arrays(dtype),
+        num_frames=num_frames,
+        max_people=max_people,
+        fps=float(fps),
+        image_size=tuple(image_size),
+        double_capacity=double_capacity,
+        clutter_capacity=clutter_capacity,
+    )
 
 
 @functools.partial(
-    jax.jit, static_argnames=("num_frames", "max_people", "fps", "image_size", "double_capacity", "clutter_capacity")
+    jax.jit,
+    static_argnames=(
+        "num_frames",
+        "max_people",
+        "fps",
+        "image_size",
+        "double_capacity",
+        "clutter_capacity",
+    ),
 )
-def _skeleton_scenes(key, rig, num_people, sigma_px, realism, *, num_frames, max_people, fps, image_size,
-                     double_capacity, clutter_capacity):  # fmt: skip
+def _skeleton_scenes(
+    key,
+    rig,
+    num_people,
+    sigma_px,
+    realism,
+    *,
+    num_frames,
+    max_people,
+    fps,
+    image_size,
+    double_capacity,
+    clutter_capacity,
+):
     dtype = rig.K.dtype
     J = len(SKELETON_JOINTS)
     k_motion, k_rig, k_sigma, k_render = jax.random.split(key, 4)
-    joints, exists = skeleton_motion(k_motion, num_people, max_people=max_people, num_frames=num_frames, fps=fps, dtype=dtype)
+    joints, exists = skeleton_motion(
+        k_motion, num_people, max_people=max_people, num_frames=num_frames, fps=fps, dtype=dtype
+    )
     true_rig = perturb_rig(k_rig, rig, realism)
     sigma_view = view_sigmas(k_sigma, sigma_px, realism, rig.num_views)
     point_exists = jnp.repeat(exists, J)  # (K·J,) point id = person · J + joint
@@ -192,9 +299,18 @@ def _skeleton_scenes(key, rig, num_people, sigma_px, realism, *, num_frames, max
 
     def frame(k, X):
         return render_points(
-            k, true_rig, X.reshape(-1, 3), point_exists, point_class, sigma_view, realism, image_size=image_size,
-            double_capacity=double_capacity, clutter_capacity=clutter_capacity, num_classes=J,
-        )  # fmt: skip
+            k,
+            true_rig,
+            X.reshape(-1, 3),
+            point_exists,
+            point_class,
+            sigma_view,
+            realism,
+            image_size=image_size,
+            double_capacity=double_capacity,
+            clutter_capacity=clutter_capacity,
+            num_classes=J,
+        )
 
     frames = jax.vmap(frame)(jax.random.split(k_render, num_frames), joints)
     return SkeletonScenes(frames=frames, joints3d=joints, exists=exists, rig=true_rig)

@@ -20,15 +20,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..people._classes import associate_classes_at, given_classes
 from .._expect import expect_args
 from .._method import method_argument
-from ..people._persons import PersonLinker, PersonVote, people_of_frame
 from .._runtime.shapes import ladder_rung, slot_capacity
-from ._tracks import DEFAULT_MAX_STEP_PX, _check_gate, initial_tracks, track_one, tracking_frames
 from .._validate import as_array, check_observations, check_rig
 from ..geometry._camera import Rig
 from ..geometry._distortion import as_lens, undistorted_frames
+from ..people._classes import associate_classes_at, given_classes
+from ..people._persons import PersonLinker, PersonVote, people_of_frame
+from ._tracks import DEFAULT_MAX_STEP_PX, _check_gate, initial_tracks, track_one, tracking_frames
 
 DEFAULT_SLOTS = 8
 """Detections of one class in one view that the first compiled programs hold (a person
@@ -121,15 +121,31 @@ class LiveAssociator:
         check_rig(rig)
         num_classes = given_classes(class_names, num_classes, "LiveAssociator: ")
         for name, value in (("slots", slots), ("max_gap", max_gap), ("min_views", min_views)):
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < (1 if name == "slots" else 0):
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, np.integer))
+                or value < (1 if name == "slots" else 0)
+            ):
                 raise ValueError(f"LiveAssociator: {name} must be a positive int; got {value!r}")
         if not 2 <= min_views <= rig.num_views:
-            raise ValueError(f"LiveAssociator: min_views must be an int in [2, {rig.num_views}]; got {min_views!r}")
+            raise ValueError(
+                f"LiveAssociator: min_views must be an int in [2, {rig.num_views}]; got {min_views!r}"
+            )
         _check_gate("max_step", max_step, allow_none=True)
         _check_gate("max_step_px", max_step_px)
         _check_gate("max_err_px", max_err_px, allow_none=True)
-        if not (sigma == "auto" or (isinstance(sigma, (int, float)) and not isinstance(sigma, bool) and np.isfinite(sigma) and sigma > 0)):
-            raise ValueError(f"LiveAssociator: sigma must be 'auto' or a finite number > 0 (px); got {sigma!r}")
+        if not (
+            sigma == "auto"
+            or (
+                isinstance(sigma, (int, float))
+                and not isinstance(sigma, bool)
+                and np.isfinite(sigma)
+                and sigma > 0
+            )
+        ):
+            raise ValueError(
+                f"LiveAssociator: sigma must be 'auto' or a finite number > 0 (px); got {sigma!r}"
+            )
         self.rig = rig
         self.classed = num_classes is not None
         self.num_classes = int(num_classes) if self.classed else 1
@@ -140,12 +156,17 @@ class LiveAssociator:
         self.lens = None if dist is None else as_lens(dist, rig.K.dtype)
         self.min_views = int(min_views)
         self.person_vote = person_vote
-        self._min_votes = person_vote.min_votes if isinstance(person_vote, PersonVote) else PersonVote().min_votes
+        self._min_votes = (
+            person_vote.min_votes if isinstance(person_vote, PersonVote) else PersonVote().min_votes
+        )
         self.temporal_prior = bool(temporal_prior)
         self.max_err_px, self.max_gap = max_err_px, int(max_gap)
         self.dtype = np.dtype(rig.K.dtype)
         # The tracker's gates as it reads them (scene units, or nan: pixels at the depth).
-        self._gates = (jnp.asarray(np.nan if max_step is None else max_step, self.dtype), jnp.asarray(max_step_px, self.dtype))
+        self._gates = (
+            jnp.asarray(np.nan if max_step is None else max_step, self.dtype),
+            jnp.asarray(max_step_px, self.dtype),
+        )
         self.slots = slot_capacity(slots)  # per class and view, the association's programs
         # Group rows the tracker carries: room for every class to hold half its slots' groups.
         self.rows = ladder_rung(self.num_classes * self.slots // 2, 8)
@@ -165,7 +186,9 @@ class LiveAssociator:
         self._carry = None
         self._people = PersonLinker(self._min_votes)
 
-    def update(self, xy: Any, mask: Any = None, *, classes: Any = None, instances: Any = None) -> LiveFrame:
+    def update(
+        self, xy: Any, mask: Any = None, *, classes: Any = None, instances: Any = None
+    ) -> LiveFrame:
         """Associate, triangulate and track one frame.
 
         Args:
@@ -190,52 +213,115 @@ class LiveAssociator:
         per_class = _most_per_class(mask, classes, self.num_classes)
         if per_class > self.slots:
             what = "of one class " if self.classed else ""
-            self._raise("slots", slot_capacity(per_class), f"{per_class} detections {what}in one view")
+            self._raise(
+                "slots", slot_capacity(per_class), f"{per_class} detections {what}in one view"
+            )
+
         def pad(a, fill):
-            packed = np.take_along_axis(a, order.reshape(order.shape + (1,) * (a.ndim - 2)), axis=1)[:, :count]
-            return np.concatenate([packed, np.full((M, self.frame_slots - count, *a.shape[2:]), fill, a.dtype)], axis=1)
+            packed = np.take_along_axis(
+                a, order.reshape(order.shape + (1,) * (a.ndim - 2)), axis=1
+            )[:, :count]
+            return np.concatenate(
+                [packed, np.full((M, self.frame_slots - count, *a.shape[2:]), fill, a.dtype)],
+                axis=1,
+            )
 
         xy_p, mask_p, cls_p = pad(xy, 0), pad(mask, False), pad(classes, 0)
         inst_p = None if instances is None else pad(instances, -1)
         result = associate_classes_at(
-            self.rig, xy_p[None], mask_p[None], cls_p[None], num_classes=self.num_classes, method=self.method,
-            sigma=self.sigma, dist=self.dist, min_views=self.min_views, instances=None if inst_p is None else inst_p[None],
-            person_vote=self.person_vote, min_scenes=self.num_classes, min_slots=self.slots,
+            self.rig,
+            xy_p[None],
+            mask_p[None],
+            cls_p[None],
+            num_classes=self.num_classes,
+            method=self.method,
+            sigma=self.sigma,
+            dist=self.dist,
+            min_views=self.min_views,
+            instances=None if inst_p is None else inst_p[None],
+            person_vote=self.person_vote,
+            min_scenes=self.num_classes,
+            min_slots=self.slots,
             batch_size=self.num_classes,  # one program of exactly one scene per class
-            min_samples=self.num_classes * self.slots * M * (M - 1) + 1,  # σ fit: a frame that fits, + 1
-        )  # fmt: skip
+            min_samples=self.num_classes * self.slots * M * (M - 1)
+            + 1,  # σ fit: a frame that fits, + 1
+        )
         assoc = result.association
         found = int(np.asarray(assoc.num_groups)[0])
         if found > self.rows:
             old = self.rows
             self._raise("rows", ladder_rung(found), f"{found} groups")
             if self._carry is not None:
-                self._carry = jax.device_put(_grown(self._carry, self._table_rows(old), self._table_rows(self.rows), self.max_gap))
+                self._carry = jax.device_put(
+                    _grown(
+                        self._carry,
+                        self._table_rows(old),
+                        self._table_rows(self.rows),
+                        self.max_gap,
+                    )
+                )
         if self._carry is None:
             # On the device from the start: the program's own output is, and arrays placed
             # differently would be a second program.
-            self._carry = jax.device_put(initial_tracks(self._table_rows(self.rows), self.max_gap, self.dtype))
+            self._carry = jax.device_put(
+                initial_tracks(self._table_rows(self.rows), self.max_gap, self.dtype)
+            )
         if self.temporal_prior:
-            pinhole = xy_p[None] if self.lens is None else np.asarray(undistorted_frames(self.rig, xy_p[None], mask_p[None], self.lens))
+            pinhole = (
+                xy_p[None]
+                if self.lens is None
+                else np.asarray(undistorted_frames(self.rig, xy_p[None], mask_p[None], self.lens))
+            )
             det = (pinhole.astype(self.dtype), mask_p[None], cls_p[None])
         else:
-            det = (np.zeros((1, M, self.frame_slots, 2), self.dtype), np.zeros((1, M, self.frame_slots), bool),
-                   np.zeros((1, M, self.frame_slots), np.int32))  # fmt: skip
+            det = (
+                np.zeros((1, M, self.frame_slots, 2), self.dtype),
+                np.zeros((1, M, self.frame_slots), bool),
+                np.zeros((1, M, self.frame_slots), np.int32),
+            )
         group_class = result.group_class if self.classed else None
-        frames = tracking_frames(assoc, group_class, np.asarray(assoc.labels), *det, self.max_err_px, self.rows, self.temporal_prior)
+        frames = tracking_frames(
+            assoc,
+            group_class,
+            np.asarray(assoc.labels),
+            *det,
+            self.max_err_px,
+            self.rows,
+            self.temporal_prior,
+        )
         one = type(frames)(*(a[0] for a in frames))
-        carry, out = track_one(self.rig, self._carry, one, *self._gates, prior=self.temporal_prior, min_views=self.min_views,
-                               max_gap=self.max_gap)  # fmt: skip
+        carry, out = track_one(
+            self.rig,
+            self._carry,
+            one,
+            *self._gates,
+            prior=self.temporal_prior,
+            min_views=self.min_views,
+            max_gap=self.max_gap,
+        )
         self._carry = carry
         self._compiled = True
         answer = _answer(self.frame, out, order, P, self.classed, assoc)
         if instances is not None and self.classed:
             G = len(answer.groups)
-            one = people_of_frame(answer.groups, np.ones(G, bool), answer.group_class, np.where(mask, instances, -1),
-                                  answer.points3d, answer.n_views, answer.err_px, self.num_classes, self._people,
-                                  answer.track_id, self._min_votes)  # fmt: skip
-            answer = answer._replace(person_id=one.group_person, merged_people=tuple(int(i) for i in one.ids[one.merged]),
-                                     split_people=tuple(int(i) for i in one.ids[one.split]))  # fmt: skip
+            one = people_of_frame(
+                answer.groups,
+                np.ones(G, bool),
+                answer.group_class,
+                np.where(mask, instances, -1),
+                answer.points3d,
+                answer.n_views,
+                answer.err_px,
+                self.num_classes,
+                self._people,
+                answer.track_id,
+                self._min_votes,
+            )
+            answer = answer._replace(
+                person_id=one.group_person,
+                merged_people=tuple(int(i) for i in one.ids[one.merged]),
+                split_people=tuple(int(i) for i in one.ids[one.split]),
+            )
         self.frame += 1
         return answer
 
@@ -245,7 +331,9 @@ class LiveAssociator:
         if hasattr(xy, "xy") and hasattr(xy, "mask") and hasattr(xy, "counts"):  # a Detections
             det = xy
             if det.xy.shape[0] != 1:
-                raise ValueError(f"LiveAssociator.update: give one frame; the detections hold {det.xy.shape[0]} frames")
+                raise ValueError(
+                    f"LiveAssociator.update: give one frame; the detections hold {det.xy.shape[0]} frames"
+                )
             xy, mask = det.xy[0], det.mask[0]
             classes = classes if det.classes is None else det.classes[0]
             instances = instances if det.instances is None else det.instances[0]
@@ -256,21 +344,29 @@ class LiveAssociator:
         check_observations(xy, mask, self.rig.num_views)
         if self.classed:
             if classes is None:
-                raise ValueError("LiveAssociator.update: this associator has classes; give the frame's classes (M, P)")
+                raise ValueError(
+                    "LiveAssociator.update: this associator has classes; give the frame's classes (M, P)"
+                )
             classes = np.asarray(classes)
             if classes.shape != mask.shape or not np.issubdtype(classes.dtype, np.integer):
-                raise ValueError(f"LiveAssociator.update: classes must be integer ids of shape {mask.shape}; got {classes.shape} {classes.dtype}")
+                raise ValueError(
+                    f"LiveAssociator.update: classes must be integer ids of shape {mask.shape}; got {classes.shape} {classes.dtype}"
+                )
             bad = mask & ((classes < 0) | (classes >= self.num_classes))
             if bad.any():
                 m, i = (int(v) for v in np.argwhere(bad)[0])
-                raise ValueError(f"LiveAssociator.update: class {int(classes[m, i])} at view {m}, slot {i} is not in [0, {self.num_classes})")
+                raise ValueError(
+                    f"LiveAssociator.update: class {int(classes[m, i])} at view {m}, slot {i} is not in [0, {self.num_classes})"
+                )
             classes = np.where(mask, classes, 0).astype(np.int64)
         else:
             classes = np.zeros(mask.shape, np.int64)
         if instances is not None:
             instances = np.asarray(instances)
             if instances.shape != mask.shape or not np.issubdtype(instances.dtype, np.integer):
-                raise ValueError(f"LiveAssociator.update: instances must be integer indices of shape {mask.shape}; got {instances.shape}")
+                raise ValueError(
+                    f"LiveAssociator.update: instances must be integer indices of shape {mask.shape}; got {instances.shape}"
+                )
         return xy.astype(self.dtype), mask.astype(bool), classes, instances
 
     def _table_rows(self, rows: int) -> int:
@@ -282,8 +378,11 @@ class LiveAssociator:
         if not self._compiled:  # the first frame compiles anyway: its capacities are free
             setattr(self, name, value)
             return
-        warnings.warn(f"LiveAssociator: a frame with {why} does not fit the compiled programs ({name} = {getattr(self, name)}); "
-                      f"compiling once for {value}", stacklevel=3)  # fmt: skip
+        warnings.warn(
+            f"LiveAssociator: a frame with {why} does not fit the compiled programs ({name} = {getattr(self, name)}); "
+            f"compiling once for {value}",
+            stacklevel=3,
+        )
         setattr(self, name, value)
         self.compiles += 1
 
@@ -307,7 +406,14 @@ def _grown(carry: tuple, old: int, new: int, max_gap: int) -> tuple:
     out = []
     for a, fill in zip((X, valid, cls, track, age), fills):
         parts = np.split(a, halves)
-        out.append(np.concatenate([np.concatenate([p, np.full((new - old, *a.shape[1:]), fill, a.dtype)]) for p in parts]))
+        out.append(
+            np.concatenate(
+                [
+                    np.concatenate([p, np.full((new - old, *a.shape[1:]), fill, a.dtype)])
+                    for p in parts
+                ]
+            )
+        )
     return (*out, next_id)
 
 
@@ -322,13 +428,26 @@ def _answer(frame: int, out, order: np.ndarray, P: int, classed: bool, assoc) ->
     table = np.asarray(out.labels)
     width = min(P, table.shape[1])
     labels = np.full((table.shape[0], P), -1, np.int32)
-    np.put_along_axis(labels, order[:, :width], rank[np.where(table[:, :width] >= 0, table[:, :width], -1)], axis=1)
+    np.put_along_axis(
+        labels,
+        order[:, :width],
+        rank[np.where(table[:, :width] >= 0, table[:, :width], -1)],
+        axis=1,
+    )
     packed = np.asarray(out.groups)[rows]
     views = np.arange(packed.shape[1])[None, :]
     groups = np.where(packed >= 0, order[views, np.maximum(packed, 0)], -1).astype(np.int32)
     return LiveFrame(
-        frame=frame, labels=labels, groups=groups, points3d=np.asarray(out.X)[rows], err_px=np.asarray(out.err_px)[rows],
-        n_views=np.sum(groups >= 0, axis=1, dtype=np.int32), track_id=np.asarray(out.track)[rows],
-        recovered=np.asarray(out.recovered)[rows], group_class=np.asarray(out.cls)[rows] if classed else None,
-        sigma_px=float(np.asarray(assoc.sigma_px)[0]), tau_px=float(np.asarray(assoc.tau_px)[0]), status=int(np.asarray(assoc.status)[0]),
-    )  # fmt: skip
+        frame=frame,
+        labels=labels,
+        groups=groups,
+        points3d=np.asarray(out.X)[rows],
+        err_px=np.asarray(out.err_px)[rows],
+        n_views=np.sum(groups >= 0, axis=1, dtype=np.int32),
+        track_id=np.asarray(out.track)[rows],
+        recovered=np.asarray(out.recovered)[rows],
+        group_class=np.asarray(out.cls)[rows] if classed else None,
+        sigma_px=float(np.asarray(assoc.sigma_px)[0]),
+        tau_px=float(np.asarray(assoc.tau_px)[0]),
+        status=int(np.asarray(assoc.status)[0]),
+    )

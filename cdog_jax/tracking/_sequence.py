@@ -9,11 +9,11 @@ from typing import Any
 import numpy as np
 
 from .._associate import associate_batch
-from ..people._classes import associate_classes
 from .._expect import expect_args
-from ._tracks import DEFAULT_MAX_STEP_PX, TrackedAssociation, track_groups
 from .._validate import as_array
 from ..geometry._camera import Rig
+from ..people._classes import associate_classes
+from ._tracks import DEFAULT_MAX_STEP_PX, TrackedAssociation, track_groups
 
 
 def associate_sequence(
@@ -53,12 +53,23 @@ def associate_sequence(
     if xy.ndim != 4:
         raise ValueError(f"associate_sequence: xy must have shape (F, M, P, 2); got {xy.shape}")
     if classes is not None:
-        result = associate_classes(rig, xy, mask, classes, min_views=min_views, dist=dist, **options)
+        result = associate_classes(
+            rig, xy, mask, classes, min_views=min_views, dist=dist, **options
+        )
     else:
         options.setdefault("sigma", "auto")
         result = associate_batch(rig, xy, mask, min_views=min_views, dist=dist, **options)
     return track_groups(
-        rig, result, xy=xy, mask=mask, classes=classes, temporal_prior=temporal_prior, max_step=max_step,
-        max_step_px=max_step_px, max_err_px=max_err_px, max_gap=max_gap, min_views=min_views,
+        rig,
+        result,
+        xy=xy,
+        mask=mask,
+        classes=classes,
+        temporal_prior=temporal_prior,
+        max_step=max_step,
+        max_step_px=max_step_px,
+        max_err_px=max_err_px,
+        max_gap=max_gap,
+        min_views=min_views,
         dist=dist,
-    )  # fmt: skip
+    )

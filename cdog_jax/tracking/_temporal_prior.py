@@ -20,11 +20,11 @@ import jax
 import jax.numpy as jnp
 from jax import lax
 
-from ._matching import greedy_match
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..geometry._projection import project_views_last, reprojection_errors_views_last
 from ..geometry._triangulate import triangulate_views_last
+from ._matching import greedy_match
 
 
 def recover_tracks(
@@ -54,7 +54,12 @@ def recover_tracks(
     pred, in_front = project_views_last(rig, prev_X)  # (T, M, 2), (T, M)
     free = mask & (out.labels < 0)
     d = jnp.linalg.norm(pred[:, :, None, :] - xy[None], axis=-1)  # (T, M, P)
-    allowed = lost[:, None, None] & in_front[:, :, None] & free[None] & (det_class[None] == prev_class[:, None, None])
+    allowed = (
+        lost[:, None, None]
+        & in_front[:, :, None]
+        & free[None]
+        & (det_class[None] == prev_class[:, None, None])
+    )
     allowed = allowed & (d <= gate_px[:, None, None])
     slot = jax.vmap(greedy_match, in_axes=1, out_axes=1)(jnp.where(allowed, d, jnp.inf))  # (T, M)
     member = slot >= 0
@@ -95,7 +100,9 @@ def recover_tracks(
         groups=out.groups.at[at].set(jnp.where(member, slot, -1), mode="drop"),
         bpe=out.bpe.at[at].set(jnp.sum(err_member**2, axis=1) / n, mode="drop"),
         err_px=out.err_px.at[at].set(jnp.sum(err_member, axis=1) / n, mode="drop"),
-        labels=out.labels.at[m_at, jnp.maximum(slot, 0)].set(jnp.broadcast_to(row[:, None], (T, M)).astype(jnp.int32), mode="drop"),
+        labels=out.labels.at[m_at, jnp.maximum(slot, 0)].set(
+            jnp.broadcast_to(row[:, None], (T, M)).astype(jnp.int32), mode="drop"
+        ),
         track=out.track.at[at].set(prev_track, mode="drop"),
         recovered=out.recovered.at[at].set(True, mode="drop"),
         unplaced=out.unplaced + jnp.sum(found & ~placed, dtype=jnp.int32),

@@ -25,13 +25,13 @@ import numpy as np
 from jax import lax
 
 from .._expect import expect_args
-from ._matching import greedy_match
 from .._result import Association, batched_association
-from ._temporal_prior import recover_tracks
 from .._types import Array, Bool, Float, Int
 from .._validate import as_array
 from ..geometry._camera import Rig
 from ..geometry._distortion import as_lens, undistorted_frames
+from ._matching import greedy_match
+from ._temporal_prior import recover_tracks
 
 DEFAULT_MAX_STEP_PX = 60.0
 """Default gate of a track's step between frames (pixels at the point's depth): a wrist
@@ -92,7 +92,12 @@ def link_frame(
     cheapest-first on the 3D distance, same class, at most ``gate (H,)`` (scene units, per
     previous group)."""
     d = jnp.linalg.norm(prev_X[:, None, :] - X[None, :, :], axis=-1)  # (H, G)
-    allowed = prev_valid[:, None] & valid[None, :] & (prev_class[:, None] == cls[None, :]) & (d <= gate[:, None])
+    allowed = (
+        prev_valid[:, None]
+        & valid[None, :]
+        & (prev_class[:, None] == cls[None, :])
+        & (d <= gate[:, None])
+    )
     return greedy_match(jnp.where(allowed, d, jnp.inf))
 
 
@@ -125,8 +130,17 @@ class _Out(NamedTuple):
     unplaced: Int[Array, ""]
 
 
-def track_step(rig: Rig, carry: tuple, f: _Frame, max_step: Float[Array, ""], max_step_px: Float[Array, ""], *, prior: bool,
-               min_views: int, max_gap: int) -> tuple[tuple, _Out]:  # fmt: skip
+def track_step(
+    rig: Rig,
+    carry: tuple,
+    f: _Frame,
+    max_step: Float[Array, ""],
+    max_step_px: Float[Array, ""],
+    *,
+    prior: bool,
+    min_views: int,
+    max_gap: int,
+) -> tuple[tuple, _Out]:
     """Link (and with ``prior``, recover) one frame ``f`` (``H`` rows, the last rows free for
     recovered groups) to the tracks in ``carry`` (:func:`initial_tracks`): the new carry and
     the frame's final table. ``max_step``: the gate in scene units, or ``nan``:
@@ -135,26 +149,63 @@ def track_step(rig: Rig, carry: tuple, f: _Frame, max_step: Float[Array, ""], ma
     H = f.valid.shape[0]
     prev_X, prev_valid, prev_class, prev_track, prev_age, next_id = carry
     steps = (prev_age + 1).astype(prev_X.dtype)
-    gate = steps * jnp.where(jnp.isnan(max_step), max_step_px * scene_units_per_px(rig, prev_X), max_step)
+    gate = steps * jnp.where(
+        jnp.isnan(max_step), max_step_px * scene_units_per_px(rig, prev_X), max_step
+    )
     match = link_frame(prev_X, prev_valid, prev_class, f.X, f.valid, f.cls, gate)  # (T,)
     rows = jnp.arange(H, dtype=jnp.int32)
     linked = jnp.any(match[:, None] == rows[None, :], axis=0)  # (H,) rows that continue a track
     inherited = jnp.max(jnp.where(match[:, None] == rows[None, :], prev_track[:, None], -1), axis=0)
     new = f.valid & ~linked
-    track = jnp.where(linked, inherited, jnp.where(new, next_id + jnp.cumsum(new, dtype=jnp.int32) - 1, -1)).astype(jnp.int32)
+    track = jnp.where(
+        linked, inherited, jnp.where(new, next_id + jnp.cumsum(new, dtype=jnp.int32) - 1, -1)
+    ).astype(jnp.int32)
     next_id = next_id + jnp.sum(new, dtype=jnp.int32)
-    out = _Out(f.X, f.valid, f.cls, f.groups, f.bpe, f.err_px, f.labels, track, jnp.zeros(H, bool), jnp.int32(0))
+    out = _Out(
+        f.X,
+        f.valid,
+        f.cls,
+        f.groups,
+        f.bpe,
+        f.err_px,
+        f.labels,
+        track,
+        jnp.zeros(H, bool),
+        jnp.int32(0),
+    )
     if prior:
         lost = prev_valid & (match < 0)
-        out = recover_tracks(rig, out, prev_X, lost, prev_class, prev_track, f.xy, f.mask, f.det_class,
-                             steps * max_step_px, f.err_gate_px, min_views)  # fmt: skip
+        out = recover_tracks(
+            rig,
+            out,
+            prev_X,
+            lost,
+            prev_class,
+            prev_track,
+            f.xy,
+            f.mask,
+            f.det_class,
+            steps * max_step_px,
+            f.err_gate_px,
+            min_views,
+        )
     carried = (out.X, out.valid, out.cls, out.track, jnp.zeros(H, jnp.int32))
     if max_gap:
         seen = jnp.any((prev_track[:, None] == out.track[None, :]) & out.valid[None, :], axis=1)
         unseen = prev_valid & ~seen & (prev_age < max_gap)
-        at = jnp.where(unseen, jnp.cumsum(unseen) - 1, H)  # the k-th unseen track in row k of the second half
-        second = lambda a, fill: jnp.full((H, *a.shape[1:]), fill, a.dtype).at[at].set(a, mode="drop")  # noqa: E731
-        tail = (second(prev_X, 0), second(unseen, False), second(prev_class, -1), second(prev_track, -1), second(prev_age + 1, 0))
+        at = jnp.where(
+            unseen, jnp.cumsum(unseen) - 1, H
+        )  # the k-th unseen track in row k of the second half
+        second = lambda a, fill: (
+            jnp.full((H, *a.shape[1:]), fill, a.dtype).at[at].set(a, mode="drop")
+        )  # noqa: E731
+        tail = (
+            second(prev_X, 0),
+            second(unseen, False),
+            second(prev_class, -1),
+            second(prev_track, -1),
+            second(prev_age + 1, 0),
+        )
         carried = tuple(jnp.concatenate([a, b]) for a, b in zip(carried, tail))
     return (*carried, next_id), out
 
@@ -162,18 +213,42 @@ def track_step(rig: Rig, carry: tuple, f: _Frame, max_step: Float[Array, ""], ma
 def initial_tracks(rows: int, max_gap: int, dtype) -> tuple:
     """The tracks before the first frame of frames of ``rows`` rows: none (``T = rows``, or
     ``2 · rows`` with ``max_gap``, carried rows), the next id 0."""
-    T = rows if max_gap == 0 else 2 * rows  # tracks carried: this frame's rows, then the unseen ones
-    return (np.zeros((T, 3), dtype), np.zeros(T, bool), np.zeros(T, np.int32), np.full(T, -1, np.int32), np.zeros(T, np.int32),
-            np.int32(0))  # fmt: skip
+    T = (
+        rows if max_gap == 0 else 2 * rows
+    )  # tracks carried: this frame's rows, then the unseen ones
+    return (
+        np.zeros((T, 3), dtype),
+        np.zeros(T, bool),
+        np.zeros(T, np.int32),
+        np.full(T, -1, np.int32),
+        np.zeros(T, np.int32),
+        np.int32(0),
+    )
 
 
 @partial(jax.jit, static_argnames=("prior", "min_views", "max_gap"))
-def track_sequence(rig: Rig, frames: _Frame, max_step: Float[Array, ""], max_step_px: Float[Array, ""], *, prior: bool,
-                   min_views: int, max_gap: int) -> _Out:  # fmt: skip
+def track_sequence(
+    rig: Rig,
+    frames: _Frame,
+    max_step: Float[Array, ""],
+    max_step_px: Float[Array, ""],
+    *,
+    prior: bool,
+    min_views: int,
+    max_gap: int,
+) -> _Out:
     """:func:`track_step` over the ``F`` frames of ``frames`` (fields with a leading ``F``), as
     one ``lax.scan``. Returns the frames' final tables, ``(F, …)``."""
     init = initial_tracks(frames.valid.shape[1], max_gap, frames.X.dtype)
-    step = partial(track_step, rig, max_step=max_step, max_step_px=max_step_px, prior=prior, min_views=min_views, max_gap=max_gap)
+    step = partial(
+        track_step,
+        rig,
+        max_step=max_step,
+        max_step_px=max_step_px,
+        prior=prior,
+        min_views=min_views,
+        max_gap=max_gap,
+    )
     _, out = lax.scan(step, init, frames)
     return out
 
@@ -238,13 +313,21 @@ def track_groups(
     """
     expect_args("track_groups", rig=(rig, Rig))
     assoc, group_class, names, C = _unpack(result)
-    missing = [k for k in ("labels", "groups", "valid", "points3d", "bpe", "err_px", "tau_px") if not hasattr(assoc, k)]
+    missing = [
+        k
+        for k in ("labels", "groups", "valid", "points3d", "bpe", "err_px", "tau_px")
+        if not hasattr(assoc, k)
+    ]
     if missing:
-        raise TypeError(f"track_groups: result must be an Association, a ClassAssociation or an object with their fields; "
-                        f"got {type(result).__name__} without {', '.join(missing)}")  # fmt: skip
+        raise TypeError(
+            f"track_groups: result must be an Association, a ClassAssociation or an object with their fields; "
+            f"got {type(result).__name__} without {', '.join(missing)}"
+        )
     labels = np.asarray(assoc.labels)
     if labels.ndim != 3:
-        raise ValueError(f"track_groups: result must hold F frames (labels (F, M, P)); got labels of shape {labels.shape}")
+        raise ValueError(
+            f"track_groups: result must hold F frames (labels (F, M, P)); got labels of shape {labels.shape}"
+        )
     F, M, P = labels.shape
     if M != rig.num_views:
         raise ValueError(f"track_groups: result has {M} views but the rig has {rig.num_views}")
@@ -253,35 +336,69 @@ def track_groups(
     _check_gate("max_err_px", max_err_px, allow_none=True)
     if isinstance(max_gap, bool) or not isinstance(max_gap, (int, np.integer)) or max_gap < 0:
         raise ValueError(f"track_groups: max_gap must be an int >= 0; got {max_gap!r}")
-    if isinstance(min_views, bool) or not isinstance(min_views, (int, np.integer)) or not 2 <= min_views <= M:
+    if (
+        isinstance(min_views, bool)
+        or not isinstance(min_views, (int, np.integer))
+        or not 2 <= min_views <= M
+    ):
         raise ValueError(f"track_groups: min_views must be an int in [2, {M}]; got {min_views!r}")
     dtype = np.asarray(assoc.points3d).dtype
     if temporal_prior:
         if xy is None or mask is None:
-            raise ValueError("track_groups: temporal_prior=True needs the detections xy (F, M, P, 2) and mask (F, M, P)")
+            raise ValueError(
+                "track_groups: temporal_prior=True needs the detections xy (F, M, P, 2) and mask (F, M, P)"
+            )
         xy, mask = np.asarray(as_array(xy), dtype), np.asarray(as_array(mask))
         if xy.shape != (F, M, P, 2) or mask.shape != (F, M, P) or mask.dtype != bool:
-            raise ValueError(f"track_groups: xy and mask must have shapes {(F, M, P, 2)} and {(F, M, P)} (bool) like the result's "
-                             f"labels; got xy {xy.shape}, mask {mask.shape} {mask.dtype}")  # fmt: skip
+            raise ValueError(
+                f"track_groups: xy and mask must have shapes {(F, M, P, 2)} and {(F, M, P)} (bool) like the result's "
+                f"labels; got xy {xy.shape}, mask {mask.shape} {mask.dtype}"
+            )
         if group_class is not None and classes is None:
-            raise ValueError("track_groups: the result has classes: temporal_prior=True needs the detections' classes (F, M, P)")
+            raise ValueError(
+                "track_groups: the result has classes: temporal_prior=True needs the detections' classes (F, M, P)"
+            )
         det_class = np.zeros((F, M, P), np.int32) if group_class is None else np.asarray(classes)
         if det_class.shape != (F, M, P) or not np.issubdtype(det_class.dtype, np.integer):
-            raise ValueError(f"track_groups: classes must be integer class ids of shape {(F, M, P)}; got {det_class.shape} {det_class.dtype}")
+            raise ValueError(
+                f"track_groups: classes must be integer class ids of shape {(F, M, P)}; got {det_class.shape} {det_class.dtype}"
+            )
         if dist is not None:
             lens = as_lens(dist, dtype)
             xy = np.asarray(undistorted_frames(rig, xy, mask, lens))
     else:
-        xy, mask, det_class = np.zeros((F, M, P, 2), dtype), np.zeros((F, M, P), bool), np.zeros((F, M, P), np.int32)
-    frames = tracking_frames(assoc, group_class, labels, xy, mask, det_class, max_err_px, np.asarray(assoc.valid).shape[1],
-                             temporal_prior)  # fmt: skip
+        xy, mask, det_class = (
+            np.zeros((F, M, P, 2), dtype),
+            np.zeros((F, M, P), bool),
+            np.zeros((F, M, P), np.int32),
+        )
+    frames = tracking_frames(
+        assoc,
+        group_class,
+        labels,
+        xy,
+        mask,
+        det_class,
+        max_err_px,
+        np.asarray(assoc.valid).shape[1],
+        temporal_prior,
+    )
     step_units = jnp.asarray(np.nan if max_step is None else max_step, dtype)
-    out = track_sequence(rig, frames, step_units, jnp.asarray(max_step_px, dtype), prior=temporal_prior, min_views=int(min_views),
-                         max_gap=int(max_gap))  # fmt: skip
+    out = track_sequence(
+        rig,
+        frames,
+        step_units,
+        jnp.asarray(max_step_px, dtype),
+        prior=temporal_prior,
+        min_views=int(min_views),
+        max_gap=int(max_gap),
+    )
     return _tracked(assoc, out, group_class is not None, names, C)
 
 
-def tracking_frames(assoc, group_class, labels, xy, mask, det_class, max_err_px, rows: int, prior: bool) -> _Frame:
+def tracking_frames(
+    assoc, group_class, labels, xy, mask, det_class, max_err_px, rows: int, prior: bool
+) -> _Frame:
     """The ``F`` frames of an association (fields ``(F, G, …)``; ``group_class (F, G)`` or
     ``None``) as the tracker reads them: ``rows`` group rows (the first ``rows`` of ``G``,
     valid groups first, or padded with empty rows), ``rows`` more free rows for recovered
@@ -292,25 +409,49 @@ def tracking_frames(assoc, group_class, labels, xy, mask, det_class, max_err_px,
     valid = np.asarray(assoc.valid)
     F = valid.shape[0]
     H = 2 * rows if prior else rows
-    cls = np.zeros(valid.shape, np.int32) if group_class is None else np.asarray(group_class).astype(np.int32)
-    err_gate = np.asarray(assoc.tau_px, dtype) if max_err_px is None else np.full(F, max_err_px, dtype)
+    cls = (
+        np.zeros(valid.shape, np.int32)
+        if group_class is None
+        else np.asarray(group_class).astype(np.int32)
+    )
+    err_gate = (
+        np.asarray(assoc.tau_px, dtype) if max_err_px is None else np.full(F, max_err_px, dtype)
+    )
 
     def at_rows(a, fill):
         a = np.asarray(a)[:, :rows]
-        return np.concatenate([a, np.full((F, H - a.shape[1], *a.shape[2:]), fill, a.dtype)], axis=1)
+        return np.concatenate(
+            [a, np.full((F, H - a.shape[1], *a.shape[2:]), fill, a.dtype)], axis=1
+        )
 
     return _Frame(
-        at_rows(assoc.points3d, 0), at_rows(valid, False), at_rows(cls, -1), at_rows(assoc.groups, -1), at_rows(assoc.bpe, 0),
-        at_rows(assoc.err_px, 0), np.asarray(labels), np.asarray(xy), np.asarray(mask), np.asarray(det_class, np.int32), err_gate,
-    )  # fmt: skip
+        at_rows(assoc.points3d, 0),
+        at_rows(valid, False),
+        at_rows(cls, -1),
+        at_rows(assoc.groups, -1),
+        at_rows(assoc.bpe, 0),
+        at_rows(assoc.err_px, 0),
+        np.asarray(labels),
+        np.asarray(xy),
+        np.asarray(mask),
+        np.asarray(det_class, np.int32),
+        err_gate,
+    )
 
 
 def _check_gate(name: str, value, allow_none: bool = False) -> None:
     if value is None and allow_none:
         return
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool) and np.isfinite(value) and value > 0
+    ok = (
+        isinstance(value, (int, float, np.integer, np.floating))
+        and not isinstance(value, bool)
+        and np.isfinite(value)
+        and value > 0
+    )
     if not ok:
-        raise ValueError(f"track_groups: {name} must be a finite number > 0{' or None' if allow_none else ''}; got {value!r}")
+        raise ValueError(
+            f"track_groups: {name} must be a finite number > 0{' or None' if allow_none else ''}; got {value!r}"
+        )
 
 
 def _tracked(assoc, out: _Out, classed: bool, names, C) -> TrackedAssociation:
@@ -318,12 +459,20 @@ def _tracked(assoc, out: _Out, classed: bool, names, C) -> TrackedAssociation:
     valid = np.asarray(out.valid)
     # Valid groups first in every frame (recovered groups fill the free rows in order).
     order = np.argsort(~valid, axis=1, kind="stable")
-    take = lambda a: np.take_along_axis(np.asarray(a), order.reshape(order.shape + (1,) * (np.ndim(a) - 2)), axis=1)  # noqa: E731
+    take = lambda a: np.take_along_axis(
+        np.asarray(a), order.reshape(order.shape + (1,) * (np.ndim(a) - 2)), axis=1
+    )  # noqa: E731
     F, H = valid.shape
     rank = np.empty_like(order)
     np.put_along_axis(rank, order, np.arange(H)[None, :].repeat(F, 0), axis=1)
     labels = np.asarray(out.labels)
-    labels = np.where(labels >= 0, np.take_along_axis(rank, np.maximum(labels, 0).reshape(F, -1), axis=1).reshape(labels.shape), -1)
+    labels = np.where(
+        labels >= 0,
+        np.take_along_axis(rank, np.maximum(labels, 0).reshape(F, -1), axis=1).reshape(
+            labels.shape
+        ),
+        -1,
+    )
     groups, valid = take(groups), take(valid)
     association = batched_association(  # host arrays; placed on the device there
         labels=labels.astype(np.int32),

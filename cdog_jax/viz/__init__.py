@@ -3,14 +3,14 @@ histogram, the benchmark's figures (docs/BENCHMARK.md) and the calibration conve
 matplotlib is imported when a figure is drawn, not with this package."""
 
 from ._benchmark_common import PAPER_VIEWS_PG_F1 as PAPER_VIEWS_PG_F1
-from ._grid_maps import heatmaps as heatmaps
-from ._benchmark_curves import metrics_vs_sigma as metrics_vs_sigma
-from ._grid_maps import surfaces as surfaces
-from ._benchmark_curves import time_vs_count as time_vs_count
-from ._benchmark_curves import views_ablation as views_ablation
+from ._benchmark_curves import (
+    metrics_vs_sigma as metrics_vs_sigma,
+    time_vs_count as time_vs_count,
+    views_ablation as views_ablation,
+)
 from ._bpe_plot import plot_bpe_histogram as plot_bpe_histogram
 from ._calibration_plot import convergence_figure as convergence_figure
 from ._epipolar_plot import plot_epipolar as plot_epipolar
+from ._grid_maps import heatmaps as heatmaps, surfaces as surfaces
 from ._plot import plot_association as plot_association
-from ._rig_plot import plot_rays as plot_rays
-from ._rig_plot import plot_rig as plot_rig
+from ._rig_plot import plot_rays as plot_rays, plot_rig as plot_rig

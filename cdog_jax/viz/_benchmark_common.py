@@ -25,7 +25,6 @@ import numpy as np
 
 from ..io._atomic import atomic_savefig
 
-
 # Display name and unit of every Metrics field; a unit of None marks a score in [0, 1].
 _FIELD_INFO = {
     "g_p": ("G-P", None),
@@ -130,7 +129,9 @@ def _cell_sizes(sigma, count) -> np.ndarray:
     """``(A, C)`` number of scenes in each (σ, count) cell."""
     sigmas, si = np.unique(np.asarray(sigma), return_inverse=True)
     counts, ci = np.unique(np.asarray(count), return_inverse=True)
-    return np.bincount(si * counts.size + ci, minlength=sigmas.size * counts.size).reshape(sigmas.size, counts.size)
+    return np.bincount(si * counts.size + ci, minlength=sigmas.size * counts.size).reshape(
+        sigmas.size, counts.size
+    )
 
 
 def scenes_for(method_metrics: Mapping[str, Any], field: str) -> np.ndarray:
@@ -147,7 +148,9 @@ def scenes_for(method_metrics: Mapping[str, Any], field: str) -> np.ndarray:
     values = np.asarray(method_metrics[field])
     if field in _ERR_FIELDS:
         if "num_err_groups" not in method_metrics:
-            raise ValueError(f"averaging {field!r} needs 'num_err_groups' in the metrics (docs/BENCHMARK.md §2)")
+            raise ValueError(
+                f"averaging {field!r} needs 'num_err_groups' in the metrics (docs/BENCHMARK.md §2)"
+            )
         return np.asarray(method_metrics["num_err_groups"]).reshape(values.shape) > 0
     return np.ones(values.shape, bool)
 
@@ -205,7 +208,9 @@ def _as_fields(per_method) -> dict[str, Any]:
         return dict(per_method)
     if dataclasses.is_dataclass(per_method):
         return {f.name: getattr(per_method, f.name) for f in dataclasses.fields(per_method)}
-    raise ValueError(f"per-method metrics must be a mapping of fields or a Metrics; got {type(per_method)}")
+    raise ValueError(
+        f"per-method metrics must be a mapping of fields or a Metrics; got {type(per_method)}"
+    )
 
 
 def _checked(metrics: Mapping[str, Any], fields: Sequence[str]) -> dict[str, dict[str, Any]]:
@@ -217,7 +222,9 @@ def _checked(metrics: Mapping[str, Any], fields: Sequence[str]) -> dict[str, dic
         out[method] = per_field = _as_fields(per_method)
         missing = [f for f in fields if f not in per_field]
         if missing:
-            raise ValueError(f"metrics[{method!r}] lacks the fields {missing}; it has {sorted(per_field)}")
+            raise ValueError(
+                f"metrics[{method!r}] lacks the fields {missing}; it has {sorted(per_field)}"
+            )
     return out
 
 
@@ -264,7 +271,9 @@ def _step_breaks(values: np.ndarray) -> list[int]:
     return [i + 1 for i in range(1, d.size) if not math.isclose(d[i], d[i - 1], rel_tol=1e-6)]
 
 
-def _category_axis(values: np.ndarray, name: str, *, max_labels: int) -> tuple[list[int], list[int], str]:
+def _category_axis(
+    values: np.ndarray, name: str, *, max_labels: int
+) -> tuple[list[int], list[int], str]:
     """Ticks, step breaks and axis label of a categorical axis. On a long axis whose spacing
     changes a few times (docs/BENCHMARK.md §1 counts: step 1 to 20, then 5) the breaks are marked and the
     label says so; a short axis labels every category and needs neither."""

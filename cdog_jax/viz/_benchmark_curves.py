@@ -12,11 +12,33 @@ from typing import Any
 
 import numpy as np
 
-from ._benchmark_common import PAPER_VIEWS_PG_F1, _ORIGINAL_CODE, _ORIGINAL_TIME_COUNTS, _ORIGINAL_TIME_S, _ORIG_COLOR, _PAPER_OURS, _PAPER_SIGMA_PX, _REF_COLOR, _as_1d, _as_fields, _checked, _finish, _fmt, _group_means, _is_score, _label, _method_colors, _new_figure, _per_method, scenes_for
+from ._benchmark_common import (
+    _ORIG_COLOR,
+    _ORIGINAL_CODE,
+    _ORIGINAL_TIME_COUNTS,
+    _ORIGINAL_TIME_S,
+    _PAPER_OURS,
+    _PAPER_SIGMA_PX,
+    _REF_COLOR,
+    PAPER_VIEWS_PG_F1,
+    _as_1d,
+    _as_fields,
+    _checked,
+    _finish,
+    _fmt,
+    _group_means,
+    _is_score,
+    _label,
+    _method_colors,
+    _new_figure,
+    _per_method,
+    scenes_for,
+)
 
-
-_TIME_NOTE = ("median over the scenes\nband: interquartile range\n\nevery scene is padded to its\nbucket's capacity P and timed\n"
-              "at that size: the time is\nflat within a bucket")
+_TIME_NOTE = (
+    "median over the scenes\nband: interquartile range\n\nevery scene is padded to its\nbucket's capacity P and timed\n"
+    "at that size: the time is\nflat within a bucket"
+)
 
 
 def time_vs_count(
@@ -62,37 +84,78 @@ def time_vs_count(
         t_ms = _as_1d(f"time_s[{method!r}]", t, count.size).astype(np.float64) * 1e3
         ok = np.isfinite(t_ms)
         counts = np.unique(count[ok])
-        q = np.array([np.percentile(t_ms[ok & (count == c)], (25, 50, 75)) for c in counts]).reshape(-1, 3)
+        q = np.array(
+            [np.percentile(t_ms[ok & (count == c)], (25, 50, 75)) for c in counts]
+        ).reshape(-1, 3)
         color = colors[method]
         ax.fill_between(counts, q[:, 0], q[:, 2], color=color, alpha=0.22, lw=0)
-        label = f"{method}\n({q[-1, 1]:.3g} ms at {_fmt(counts[-1])} points)" if counts.size else method
+        label = (
+            f"{method}\n({q[-1, 1]:.3g} ms at {_fmt(counts[-1])} points)" if counts.size else method
+        )
         ax.plot(counts, q[:, 1], color=color, lw=1.8, marker="o", ms=2.8, label=label)
     if reference:
-        ax.plot(_ORIGINAL_TIME_COUNTS, np.array(_ORIGINAL_TIME_S) * 1e3, color=_REF_COLOR, ls="--", lw=1.2,
-                marker="s", ms=6, mfc="white", mew=1.4, label="original code, full grid (docs/BENCHMARK.md §4)")
+        ax.plot(
+            _ORIGINAL_TIME_COUNTS,
+            np.array(_ORIGINAL_TIME_S) * 1e3,
+            color=_REF_COLOR,
+            ls="--",
+            lw=1.2,
+            marker="s",
+            ms=6,
+            mfc="white",
+            mew=1.4,
+            label="original code, full grid (docs/BENCHMARK.md §4)",
+        )
         # Labels below-right of the first markers, above-left of the last: clear of the line.
         offsets = ((8, -3, "left", "top"), (8, -3, "left", "top"), (-9, 3, "right", "bottom"))
         for c, sec, (dx, dy, ha, va) in zip(_ORIGINAL_TIME_COUNTS, _ORIGINAL_TIME_S, offsets):
-            ax.annotate(f"{sec:g} s", (c, sec * 1e3), textcoords="offset points", xytext=(dx, dy), ha=ha,
-                        va=va, fontsize=8, color=_REF_COLOR)
+            ax.annotate(
+                f"{sec:g} s",
+                (c, sec * 1e3),
+                textcoords="offset points",
+                xytext=(dx, dy),
+                ha=ha,
+                va=va,
+                fontsize=8,
+                color=_REF_COLOR,
+            )
     if capacity is not None:
         capacity_of = _per_method("capacity", capacity, list(time_s))
         for method, caps in capacity_of.items():
             _as_1d(f"capacity[{method!r}]", caps, count_of[method].size)
         for k, cap in enumerate(np.unique(np.concatenate(list(capacity_of.values())))):
-            ax.axvline(cap, color="0.6", ls=":", lw=1.0, label="end of a padded bucket" if k == 0 else None)
-            ax.annotate(f"P = {_fmt(cap)}", (cap, 0.0), xycoords=("data", "axes fraction"), xytext=(-3, 4),
-                        textcoords="offset points", ha="right", va="bottom", fontsize=8, color="0.4")
+            ax.axvline(
+                cap, color="0.6", ls=":", lw=1.0, label="end of a padded bucket" if k == 0 else None
+            )
+            ax.annotate(
+                f"P = {_fmt(cap)}",
+                (cap, 0.0),
+                xycoords=("data", "axes fraction"),
+                xytext=(-3, 4),
+                textcoords="offset points",
+                ha="right",
+                va="bottom",
+                fontsize=8,
+                color="0.4",
+            )
     if log:
         ax.set_yscale("log")
     ax.set_xlim(left=0)
     ax.set_xlabel("3D points per scene", fontsize=10)
-    ax.set_ylabel("time per scene of its padded bucket (ms" + (", log scale)" if log else ")"), fontsize=10)
+    ax.set_ylabel(
+        "time per scene of its padded bucket (ms" + (", log scale)" if log else ")"), fontsize=10
+    )
     ax.grid(True, which="major", color="0.88", lw=0.8)
     ax.grid(True, which="minor", axis="y", color="0.94", lw=0.5)
     ax.set_axisbelow(True)
-    fig.legend(loc="outside right upper", fontsize=9, title=_TIME_NOTE,
-               title_fontsize=8, frameon=False, labelspacing=0.9)
+    fig.legend(
+        loc="outside right upper",
+        fontsize=9,
+        title=_TIME_NOTE,
+        title_fontsize=8,
+        frameon=False,
+        labelspacing=0.9,
+    )
     ax.set_title("Association time vs scene size", fontsize=12, fontweight="bold", loc="left")
 
     return _finish(fig, path)
@@ -144,15 +207,37 @@ def metrics_vs_sigma(
             sigma = sigma_of[method]
             values = _as_1d(f"metrics[{method!r}][{f!r}]", m[f], sigma.size).astype(np.float64)
             sigmas, means = _group_means(sigma, values, scenes_for(m, f))
-            (h,) = ax.plot(sigmas, means, color=colors[method], lw=1.8, marker="o", ms=3, label=method)
+            (h,) = ax.plot(
+                sigmas, means, color=colors[method], lw=1.8, marker="o", ms=3, label=method
+            )
             handles.setdefault(method, h)
         if original_reference and f in _ORIGINAL_CODE:
-            (h,) = ax.plot(_PAPER_SIGMA_PX, _ORIGINAL_CODE[f], ls="none", marker="D", ms=6.5, mfc="white",
-                           mec=_ORIG_COLOR, mew=1.5, label="original code, full grid (docs/BENCHMARK.md §4)", zorder=4)
+            (h,) = ax.plot(
+                _PAPER_SIGMA_PX,
+                _ORIGINAL_CODE[f],
+                ls="none",
+                marker="D",
+                ms=6.5,
+                mfc="white",
+                mec=_ORIG_COLOR,
+                mew=1.5,
+                label="original code, full grid (docs/BENCHMARK.md §4)",
+                zorder=4,
+            )
             handles.setdefault(h.get_label(), h)
         if paper_reference and f in _PAPER_OURS:
-            (h,) = ax.plot(_PAPER_SIGMA_PX, _PAPER_OURS[f], ls="none", marker="*", ms=11, color=_REF_COLOR,
-                           mec="white", mew=0.6, label="paper, full grid (docs/BENCHMARK.md §3)", zorder=5)
+            (h,) = ax.plot(
+                _PAPER_SIGMA_PX,
+                _PAPER_OURS[f],
+                ls="none",
+                marker="*",
+                ms=11,
+                color=_REF_COLOR,
+                mec="white",
+                mew=0.6,
+                label="paper, full grid (docs/BENCHMARK.md §3)",
+                zorder=5,
+            )
             handles.setdefault(h.get_label(), h)
         if _is_score(f):
             lo, hi = ax.get_ylim()
@@ -165,12 +250,20 @@ def metrics_vs_sigma(
         ax.grid(True, color="0.9", lw=0.8)
         ax.set_axisbelow(True)
         ax.tick_params(labelsize=8)
-    fig.legend(list(handles.values()), list(handles), loc="outside lower center", ncol=min(len(handles), 6),
-               fontsize=9, frameon=False)
+    fig.legend(
+        list(handles.values()),
+        list(handles),
+        loc="outside lower center",
+        ncol=min(len(handles), 6),
+        fontsize=9,
+        frameon=False,
+    )
     title = "Metrics vs noise (mean over all the scenes of each σ, all point counts)"
     if not full_grid and (paper_reference or original_reference):
-        title += ("\nthis run is a smaller grid than the full benchmark; the paper's and the original code's "
-                  "markers average the full grid: a rough guide, not a like-for-like comparison")
+        title += (
+            "\nthis run is a smaller grid than the full benchmark; the paper's and the original code's "
+            "markers average the full grid: a rough guide, not a like-for-like comparison"
+        )
     fig.suptitle(title, fontsize=12 if full_grid else 11)
     return _finish(fig, path)
 
@@ -227,8 +320,18 @@ def views_ablation(
     if paper is not None:
         paper_views = np.arange(2, 2 + len(paper))
         all_views.append(paper_views)
-        ax.plot(paper_views, paper, color=_REF_COLOR, ls="--", lw=1.0, marker="*", ms=11, mec="white", mew=0.6,
-                label="paper Table I (docs/BENCHMARK.md §3)")
+        ax.plot(
+            paper_views,
+            paper,
+            color=_REF_COLOR,
+            ls="--",
+            lw=1.0,
+            marker="*",
+            ms=11,
+            mec="white",
+            mew=0.6,
+            label="paper Table I (docs/BENCHMARK.md §3)",
+        )
     xs = np.unique(np.concatenate(all_views))
     ax.set_xticks(xs)
     if _is_score(field):
@@ -239,6 +342,10 @@ def views_ablation(
     ax.grid(True, color="0.9", lw=0.8)
     ax.set_axisbelow(True)
     ax.legend(fontsize=9, loc="lower right", framealpha=0.9)
-    ax.set_title(f"Views ablation at σ = {sigma_px:g} px: {_label(field, with_unit=False)}", fontsize=12,
-                 fontweight="bold", loc="left")
+    ax.set_title(
+        f"Views ablation at σ = {sigma_px:g} px: {_label(field, with_unit=False)}",
+        fontsize=12,
+        fontweight="bold",
+        loc="left",
+    )
     return _finish(fig, path)

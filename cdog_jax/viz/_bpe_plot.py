@@ -15,7 +15,9 @@ from ..io._atomic import atomic_savefig
 _BAR_COLOR = "#3b6fb6"
 
 
-def plot_bpe_histogram(result: Association, *, bins: int = 30, path: str | os.PathLike | None = None):
+def plot_bpe_histogram(
+    result: Association, *, bins: int = 30, path: str | os.PathLike | None = None
+):
     """Histogram of the BPE (px², ``result.bpe``) of every valid group.
 
     ``result`` may be one scene or a batch (any leading axes): all valid groups are pooled.
@@ -37,7 +39,9 @@ def plot_bpe_histogram(result: Association, *, bins: int = 30, path: str | os.Pa
     from matplotlib.figure import Figure
 
     if not isinstance(result, Association):
-        raise TypeError(f"plot_bpe_histogram: result must be an Association; got {type(result).__name__}")
+        raise TypeError(
+            f"plot_bpe_histogram: result must be an Association; got {type(result).__name__}"
+        )
     if not (isinstance(bins, int) and bins >= 1):
         raise ValueError(f"plot_bpe_histogram: bins must be an integer >= 1; got {bins!r}")
     valid = np.asarray(result.valid, dtype=bool)
@@ -60,17 +64,37 @@ def plot_bpe_histogram(result: Association, *, bins: int = 30, path: str | os.Pa
             edges, values = bins, bpe
         ax.hist(values, bins=edges, color=_BAR_COLOR, edgecolor="white", linewidth=0.6)
         median = float(np.median(bpe))
-        ax.axvline(max(median, positive.min()) if log and positive.size else median, color="k", lw=1.4,
-                   label=f"median {median:.3g} px²")
+        ax.axvline(
+            max(median, positive.min()) if log and positive.size else median,
+            color="k",
+            lw=1.4,
+            label=f"median {median:.3g} px²",
+        )
         noise = float(np.mean(sigma) ** 2 * (2.0 - 3.0 / max(float(n_views.mean()), 2.0)))
         if noise > 0:
-            ax.axvline(noise, color="#d40000", lw=1.4, ls="--",
-                       label=f"noise alone: σ²(2 − 3/n) = {noise:.3g} px² (σ = {float(np.mean(sigma)):.2f} px, "
-                       f"n = {n_views.mean():.1f})")
+            ax.axvline(
+                noise,
+                color="#d40000",
+                lw=1.4,
+                ls="--",
+                label=f"noise alone: σ²(2 − 3/n) = {noise:.3g} px² (σ = {float(np.mean(sigma)):.2f} px, "
+                f"n = {n_views.mean():.1f})",
+            )
         ax.legend(fontsize=10, frameon=True, framealpha=0.92, edgecolor="0.8", loc="upper left")
     else:
-        ax.text(0.5, 0.5, "no valid group", transform=ax.transAxes, ha="center", va="center", fontsize=12)
-    ax.set_xlabel("group back-projection error, BPE (px², mean squared reprojection error over its views)", fontsize=10)
+        ax.text(
+            0.5,
+            0.5,
+            "no valid group",
+            transform=ax.transAxes,
+            ha="center",
+            va="center",
+            fontsize=12,
+        )
+    ax.set_xlabel(
+        "group back-projection error, BPE (px², mean squared reprojection error over its views)",
+        fontsize=10,
+    )
     ax.set_ylabel("groups", fontsize=10)
     ax.grid(True, axis="y", color="0.9")
     ax.set_axisbelow(True)

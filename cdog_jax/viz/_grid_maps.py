@@ -10,7 +10,21 @@ from typing import Any
 
 import numpy as np
 
-from ._benchmark_common import _CMAP, _FIELD_INFO, _as_1d, _category_axis, _cell_sizes, _checked, _finish, _fmt, _is_score, _label, _new_figure, cell_means, scenes_for
+from ._benchmark_common import (
+    _CMAP,
+    _FIELD_INFO,
+    _as_1d,
+    _category_axis,
+    _cell_sizes,
+    _checked,
+    _finish,
+    _fmt,
+    _is_score,
+    _label,
+    _new_figure,
+    cell_means,
+    scenes_for,
+)
 
 
 def heatmaps(
@@ -59,7 +73,9 @@ def heatmaps(
     # Size the panels to the grid so cells stay roughly square (capped for huge grids).
     panel_w = float(np.clip(0.11 * C, 2.6, 4.8))
     panel_h = float(np.clip(0.15 * A, 1.8, 3.4))
-    fig = _new_figure(ncols * (panel_w + 0.5) + 1.6, nrows * (panel_h + 0.9) + 0.7, layout="constrained")
+    fig = _new_figure(
+        ncols * (panel_w + 0.5) + 1.6, nrows * (panel_h + 0.9) + 0.7, layout="constrained"
+    )
     fig.get_layout_engine().set(w_pad=0.06, h_pad=0.08, wspace=0.03, hspace=0.06)
     from matplotlib import colormaps
 
@@ -74,8 +90,15 @@ def heatmaps(
         else:
             finite = table[np.isfinite(table)]
             vmin, vmax = (0.0, float(finite.max())) if finite.size else (0.0, 1.0)
-        im = ax.imshow(np.ma.masked_invalid(table), origin="lower", aspect="auto", cmap=cmap,
-                       vmin=vmin, vmax=vmax if vmax > vmin else vmin + 1.0, interpolation="nearest")
+        im = ax.imshow(
+            np.ma.masked_invalid(table),
+            origin="lower",
+            aspect="auto",
+            cmap=cmap,
+            vmin=vmin,
+            vmax=vmax if vmax > vmin else vmin + 1.0,
+            interpolation="nearest",
+        )
         images.append(im)
         for b in x_breaks:
             ax.axvline(b - 0.5, color="white", lw=1.2, alpha=0.9)
@@ -85,8 +108,15 @@ def heatmaps(
             for (i, j), v in np.ndenumerate(table):
                 if np.isfinite(v):
                     light = im.norm(v) < 0.55
-                    ax.text(j, i, f"{v:.2f}", ha="center", va="center", fontsize=7,
-                            color="white" if light else "black")
+                    ax.text(
+                        j,
+                        i,
+                        f"{v:.2f}",
+                        ha="center",
+                        va="center",
+                        fontsize=7,
+                        color="white" if light else "black",
+                    )
         ax.set_xticks(x_ticks, [_fmt(counts[i]) for i in x_ticks])
         ax.set_yticks(y_ticks, [_fmt(sigmas[i]) for i in y_ticks])
         ax.set_xticks(np.arange(C), minor=True)
@@ -105,14 +135,19 @@ def heatmaps(
             cb.ax.tick_params(labelsize=8)
         axes.append(ax)
     if all_scores:
-        cb = fig.colorbar(images[0], ax=axes, fraction=0.03 if ncols > 1 else 0.06, pad=0.015, aspect=25)
+        cb = fig.colorbar(
+            images[0], ax=axes, fraction=0.03 if ncols > 1 else 0.06, pad=0.015, aspect=25
+        )
         cb.set_label("score (mean over the scenes of a cell)", fontsize=9)
         cb.ax.tick_params(labelsize=8)
     lo, hi = int(n_scenes.min()), int(n_scenes.max())
     per = f"{lo}" if lo == hi else f"{lo}–{hi}"
     empty = any(not np.isfinite(t).all() for t in tables)
-    fig.suptitle(f"{method}: mean over the scenes of each (σ, point count) cell  ·  {A} σ × {C} counts, "
-                 f"{per} scenes per cell" + ("  ·  grey: no scene to average" if empty else ""), fontsize=12)
+    fig.suptitle(
+        f"{method}: mean over the scenes of each (σ, point count) cell  ·  {A} σ × {C} counts, "
+        f"{per} scenes per cell" + ("  ·  grey: no scene to average" if empty else ""),
+        fontsize=12,
+    )
     return _finish(fig, path)
 
 
@@ -170,13 +205,31 @@ def surfaces(
             rect = ((k + 0.08) * width, 0.05, 0.74 * width, 0.82)
         ax = fig.add_axes(rect, projection="3d")
         if sigmas.size >= 2 and counts.size >= 2:
-            ax.plot_surface(X, Y, table, facecolors=colors, rstride=1, cstride=1, linewidth=0.15,
-                            edgecolor=(0.1, 0.1, 0.1, 0.25), shade=False, antialiased=True)
+            ax.plot_surface(
+                X,
+                Y,
+                table,
+                facecolors=colors,
+                rstride=1,
+                cstride=1,
+                linewidth=0.15,
+                edgecolor=(0.1, 0.1, 0.1, 0.25),
+                shade=False,
+                antialiased=True,
+            )
             ax.set_xlim(float(counts.min()), float(counts.max()))
             ax.set_ylim(float(sigmas.min()), float(sigmas.max()))
         else:  # a surface needs a 2 × 2 grid at least; say so rather than fail a whole report
-            ax.text2D(0.5, 0.5, "needs ≥ 2 σ levels\nand ≥ 2 point counts", transform=ax.transAxes,
-                      ha="center", va="center", fontsize=10, color="0.4")
+            ax.text2D(
+                0.5,
+                0.5,
+                "needs ≥ 2 σ levels\nand ≥ 2 point counts",
+                transform=ax.transAxes,
+                ha="center",
+                va="center",
+                fontsize=10,
+                color="0.4",
+            )
         ax.set_zlim(0.0, zmax)
         ax.set_xlabel("3D points per scene", fontsize=9, labelpad=2)
         ax.set_ylabel("noise σ (px)", fontsize=9, labelpad=2)
@@ -197,5 +250,7 @@ def surfaces(
         cb = fig.colorbar(ScalarMappable(Normalize(0.0, 1.0), cmap), cax=cax)
         cb.set_label("score, mean over the scenes of a cell", fontsize=9)
         cb.ax.tick_params(labelsize=8)
-    fig.suptitle(f"{method}: mean over the scenes of each (σ, point count) cell", fontsize=12, y=0.97)
+    fig.suptitle(
+        f"{method}: mean over the scenes of each (σ, point count) cell", fontsize=12, y=0.97
+    )
     return _finish(fig, path)

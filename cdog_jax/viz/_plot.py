@@ -46,7 +46,9 @@ def _scatter_groups(ax, pts, gids, **kw) -> None:
         pick = kinds == k
         if pick.any():
             colors = [group_style(int(g))[0] for g in gids[pick]]
-            ax.scatter(*pts[pick].T, c=colors, marker=marker, edgecolors="0.15", linewidths=0.5, **kw)
+            ax.scatter(
+                *pts[pick].T, c=colors, marker=marker, edgecolors="0.15", linewidths=0.5, **kw
+            )
 
 
 def wrong_groups(groups, valid, instance) -> np.ndarray:
@@ -66,7 +68,9 @@ def _camera_label_clusters(centers: np.ndarray, radius: float) -> list[list[int]
     """Views whose centres lie within ``radius`` of each other, chained: one label each."""
     clusters: list[list[int]] = []
     for m in range(len(centers)):
-        near = [c for c in clusters if np.min(np.linalg.norm(centers[c] - centers[m], axis=1)) < radius]
+        near = [
+            c for c in clusters if np.min(np.linalg.norm(centers[c] - centers[m], axis=1)) < radius
+        ]
         merged = [m] + [v for c in near for v in c]
         clusters = [c for c in clusters if c not in near] + [sorted(merged)]
     return sorted(clusters)
@@ -115,15 +119,21 @@ def plot_association(
     valid = np.asarray(result.valid, dtype=bool)
     M = mask.shape[0]
     if xy.ndim != 3 or xy.shape[2] != 2 or mask.shape != xy.shape[:2]:
-        raise ValueError(f"xy must have shape (M, P, 2) and mask (M, P); got {xy.shape} and {mask.shape}")
+        raise ValueError(
+            f"xy must have shape (M, P, 2) and mask (M, P); got {xy.shape} and {mask.shape}"
+        )
     if labels.shape != mask.shape or valid.ndim != 1:
         raise ValueError(
             f"result must be one unbatched scene with labels of shape {mask.shape}; got {labels.shape}"
         )
     if np.asarray(rig.K).shape != (M, 3, 3):
-        raise ValueError(f"rig.K must have shape (M, 3, 3) with M={M}; got {np.asarray(rig.K).shape}")
+        raise ValueError(
+            f"rig.K must have shape (M, 3, 3) with M={M}; got {np.asarray(rig.K).shape}"
+        )
     if instance is not None and np.shape(instance) != mask.shape:
-        raise ValueError(f"instance must have the shape of mask {mask.shape}; got {np.shape(instance)}")
+        raise ValueError(
+            f"instance must have the shape of mask {mask.shape}; got {np.shape(instance)}"
+        )
     G = valid.shape[0]
     points3d = np.asarray(result.points3d, dtype=np.float64)
     n_views = np.asarray(result.n_views)
@@ -149,26 +159,62 @@ def plot_association(
     FigureCanvasAgg(fig)
     top = 1 - 1.0 / fig_h
     views_bottom = top - panel_h * nrows / fig_h
-    gs = fig.add_gridspec(nrows, ncols, left=0.05, right=0.99, top=top, bottom=views_bottom + 0.35 / fig_h,
-                          wspace=0.18, hspace=0.3)
+    gs = fig.add_gridspec(
+        nrows,
+        ncols,
+        left=0.05,
+        right=0.99,
+        top=top,
+        bottom=views_bottom + 0.35 / fig_h,
+        wspace=0.18,
+        hspace=0.3,
+    )
     margin_x, margin_y = 0.04 * width, 0.04 * height
 
     for m in range(M):
         r, c = divmod(m, ncols)
         ax = fig.add_subplot(gs[r, c])
-        ax.add_patch(Rectangle((0, 0), width, height, facecolor="#f4f4f4", edgecolor="0.35", lw=0.8, zorder=0))
+        ax.add_patch(
+            Rectangle(
+                (0, 0), width, height, facecolor="#f4f4f4", edgecolor="0.35", lw=0.8, zorder=0
+            )
+        )
         pts, gids = xy[m][assigned[m]], labels[m][assigned[m]]
         _scatter_groups(ax, pts, gids, s=34, zorder=3)
         if wrong_det[m].any():
             bad = xy[m][wrong_det[m]]
-            ax.scatter(bad[:, 0], bad[:, 1], s=150, facecolors="none", edgecolors=_WRONG_COLOR, linewidths=1.6, zorder=4)
+            ax.scatter(
+                bad[:, 0],
+                bad[:, 1],
+                s=150,
+                facecolors="none",
+                edgecolors=_WRONG_COLOR,
+                linewidths=1.6,
+                zorder=4,
+            )
         if numbered:
             for (x, y), g in zip(pts, gids):
-                ax.annotate(str(int(g)), (x, y), xytext=(3.5, 2.5), textcoords="offset points", fontsize=7.5,
-                            color=group_style(int(g))[0], fontweight="bold", zorder=5)
+                ax.annotate(
+                    str(int(g)),
+                    (x, y),
+                    xytext=(3.5, 2.5),
+                    textcoords="offset points",
+                    fontsize=7.5,
+                    color=group_style(int(g))[0],
+                    fontweight="bold",
+                    zorder=5,
+                )
         if unassigned[m].any():
             pts = xy[m][unassigned[m]]
-            ax.scatter(pts[:, 0], pts[:, 1], s=24, c=_UNASSIGNED_COLOR, marker="x", linewidths=1.1, zorder=2)
+            ax.scatter(
+                pts[:, 0],
+                pts[:, 1],
+                s=24,
+                c=_UNASSIGNED_COLOR,
+                marker="x",
+                linewidths=1.1,
+                zorder=2,
+            )
         ax.set_xlim(-margin_x, width + margin_x)
         ax.set_ylim(height + margin_y, -margin_y)  # image y axis points down
         ax.set_aspect("equal")
@@ -179,9 +225,13 @@ def plot_association(
             ax.set_ylabel("y (px)", fontsize=9, labelpad=1)
         n_det, n_un = int(mask[m].sum()), int(unassigned[m].sum())
         ax.set_title(f"view {m}", fontsize=12, fontweight="bold", loc="left", pad=3)
-        ax.set_title(f"{n_det} det., {n_un} unassigned", fontsize=9, loc="right", pad=3, color="0.3")
+        ax.set_title(
+            f"{n_det} det., {n_un} unassigned", fontsize=9, loc="right", pad=3, color="0.3"
+        )
 
-    ax3 = fig.add_axes((0.02, 0.5 / fig_h, 0.56, (views_bottom * fig_h - 0.9) / fig_h), projection="3d")
+    ax3 = fig.add_axes(
+        (0.02, 0.5 / fig_h, 0.56, (views_bottom * fig_h - 0.9) / fig_h), projection="3d"
+    )
     centers, dirs = rig.centers_and_dirs_on_host()
     cloud = [centers]
     if group_ids.size:
@@ -189,22 +239,47 @@ def plot_association(
         _scatter_groups(ax3, points3d[group_ids], group_ids, s=30, depthshade=False)
         bad = group_ids[wrong[group_ids]]
         if bad.size:
-            ax3.scatter(*points3d[bad].T, s=120, facecolors="none", edgecolors=_WRONG_COLOR, linewidths=1.5,
-                        depthshade=False)
+            ax3.scatter(
+                *points3d[bad].T,
+                s=120,
+                facecolors="none",
+                edgecolors=_WRONG_COLOR,
+                linewidths=1.5,
+                depthshade=False,
+            )
     if points3d_gt is not None:
         gt = np.asarray(points3d_gt, dtype=np.float64).reshape(-1, 3)
         cloud.append(gt)
-        ax3.scatter(gt[:, 0], gt[:, 1], gt[:, 2], s=60, facecolors="none", edgecolors="k",
-                    linewidths=0.8, marker="o", depthshade=False)
+        ax3.scatter(
+            gt[:, 0],
+            gt[:, 1],
+            gt[:, 2],
+            s=60,
+            facecolors="none",
+            edgecolors="k",
+            linewidths=0.8,
+            marker="o",
+            depthshade=False,
+        )
     extent = np.concatenate(cloud)
     span = float(np.max(np.ptp(extent, axis=0))) if extent.size else 1.0
     axis_len = 0.12 * span
-    ax3.scatter(centers[:, 0], centers[:, 1], centers[:, 2], s=70, c=_CAMERA_COLOR, marker="^", depthshade=False)
+    ax3.scatter(
+        centers[:, 0],
+        centers[:, 1],
+        centers[:, 2],
+        s=70,
+        c=_CAMERA_COLOR,
+        marker="^",
+        depthshade=False,
+    )
     for m in range(M):
         tip = centers[m] + axis_len * dirs[m]
         ax3.plot(*np.stack([centers[m], tip]).T, color=_CAMERA_COLOR, lw=1.0)
     lo, hi = extent.min(axis=0) - 0.04 * span, extent.max(axis=0) + 0.04 * span
-    ax3.set_box_aspect(tuple(np.maximum(hi - lo, 1e-3 * max(float(np.max(hi - lo)), 1e-9))), zoom=1.1)
+    ax3.set_box_aspect(
+        tuple(np.maximum(hi - lo, 1e-3 * max(float(np.max(hi - lo)), 1e-9))), zoom=1.1
+    )
     ax3.view_init(elev=28, azim=-58)
     ax3.set_xlim(lo[0], hi[0])
     ax3.set_ylim(lo[1], hi[1])
@@ -216,17 +291,29 @@ def plot_association(
     screen = np.stack(proj3d.proj_transform(*centers.T, ax3.get_proj())[:2], axis=1)
     for views in _camera_label_clusters(screen, 0.06 * float(np.max(np.ptp(screen, axis=0)))):
         anchor = centers[views].mean(axis=0) + np.array([0.0, 0.0, 0.07 * span])
-        ax3.text(*anchor, ", ".join(str(v) for v in views), fontsize=10, color=_CAMERA_COLOR, ha="center",
-                 fontweight="bold")
+        ax3.text(
+            *anchor,
+            ", ".join(str(v) for v in views),
+            fontsize=10,
+            color=_CAMERA_COLOR,
+            ha="center",
+            fontweight="bold",
+        )
     for setter, name in ((ax3.set_xlabel, "X"), (ax3.set_ylabel, "Y"), (ax3.set_zlabel, "Z")):
         setter(name, fontsize=10, labelpad=2)
     ax3.tick_params(labelsize=8, pad=0)
-    ax3.set_title("3D: triangulated groups and cameras (scene units)", fontsize=12, fontweight="bold")
+    ax3.set_title(
+        "3D: triangulated groups and cameras (scene units)", fontsize=12, fontweight="bold"
+    )
 
     n_det, n_un = int(mask.sum()), int(unassigned.sum())
     if group_ids.size:
         nv = n_views[group_ids]
-        views_txt = f"{nv.min()}–{nv.max()} views each" if nv.min() != nv.max() else f"{nv.min()} views each"
+        views_txt = (
+            f"{nv.min()}–{nv.max()} views each"
+            if nv.min() != nv.max()
+            else f"{nv.min()} views each"
+        )
         groups_txt = f"{group_ids.size} groups ({views_txt})"
     else:
         groups_txt = "no groups"
@@ -236,30 +323,58 @@ def plot_association(
         f"C-DOG association: {M} views, {n_det} detections, {groups_txt}, {n_un} unassigned"
         f"   ·   σ = {float(np.asarray(result.sigma_px)):.2f} px, τ = {float(np.asarray(result.tau_px)):.2f} px"
     )
-    fig.suptitle(line if title is None else f"{line}\n{title}", fontsize=13, y=1 - 0.12 / fig_h, va="top",
-                 linespacing=1.5)
+    fig.suptitle(
+        line if title is None else f"{line}\n{title}",
+        fontsize=13,
+        y=1 - 0.12 / fig_h,
+        va="top",
+        linespacing=1.5,
+    )
 
     def proxy(marker, **kw):
         return Line2D([], [], linestyle="none", marker=marker, **kw)
 
-    handles = [proxy(mk, markerfacecolor=group_style(g)[0], markeredgecolor="0.15", markersize=8)
-               for g, mk in zip(range(4), _MARKERS)]
+    handles = [
+        proxy(mk, markerfacecolor=group_style(g)[0], markeredgecolor="0.15", markersize=8)
+        for g, mk in zip(range(4), _MARKERS)
+    ]
     handles = [tuple(handles)]
-    names = ["group member / its 3D point: one colour + marker per group"
-             + (",\nits number beside each detection" if numbered else "")]
-    handles += [proxy("x", color=_UNASSIGNED_COLOR, markersize=8, markeredgewidth=1.3),
-                proxy("^", color=_CAMERA_COLOR, markersize=9)]
+    names = [
+        "group member / its 3D point: one colour + marker per group"
+        + (",\nits number beside each detection" if numbered else "")
+    ]
+    handles += [
+        proxy("x", color=_UNASSIGNED_COLOR, markersize=8, markeredgewidth=1.3),
+        proxy("^", color=_CAMERA_COLOR, markersize=9),
+    ]
     names += ["unassigned detection", "camera centre + optical axis (label = view)"]
     if points3d_gt is not None:
         handles.append(proxy("o", markerfacecolor="none", markeredgecolor="k", markersize=9))
         names.append("ground-truth 3D point")
     if instance is not None:
-        handles.append(proxy("o", markerfacecolor="none", markeredgecolor=_WRONG_COLOR, markersize=12, markeredgewidth=1.6))
+        handles.append(
+            proxy(
+                "o",
+                markerfacecolor="none",
+                markeredgecolor=_WRONG_COLOR,
+                markersize=12,
+                markeredgewidth=1.6,
+            )
+        )
         names.append("wrong group: members of different true points")
     from matplotlib.legend_handler import HandlerTuple
 
-    fig.legend(handles, names, loc="center left", bbox_to_anchor=(0.6, 0.5 * views_bottom), fontsize=11,
-               frameon=False, handletextpad=0.6, labelspacing=1.1, handler_map={tuple: HandlerTuple(ndivide=None)})
+    fig.legend(
+        handles,
+        names,
+        loc="center left",
+        bbox_to_anchor=(0.6, 0.5 * views_bottom),
+        fontsize=11,
+        frameon=False,
+        handletextpad=0.6,
+        labelspacing=1.1,
+        handler_map={tuple: HandlerTuple(ndivide=None)},
+    )
 
     if path is not None:
         atomic_savefig(fig, path)

@@ -18,13 +18,25 @@ _CAMERA_COLOR = "0.2"
 _POINT_COLOR = "tab:blue"
 
 
-def _frustum_corners(K: np.ndarray, R: np.ndarray, t: np.ndarray, size: np.ndarray, depth: float) -> np.ndarray:
+def _frustum_corners(
+    K: np.ndarray, R: np.ndarray, t: np.ndarray, size: np.ndarray, depth: float
+) -> np.ndarray:
     """World coordinates ``(M, 4, 3)`` of the image corners ``(0,0), (w,0), (w,h), (0,h)``
     of every view pushed out to camera depth ``depth`` (scene units); ``size (M, 2)``."""
     w, h = size[:, 0], size[:, 1]
     zero = np.zeros_like(w)
-    px = np.stack([np.stack([zero, zero], -1), np.stack([w, zero], -1), np.stack([w, h], -1), np.stack([zero, h], -1)], 1)
-    ray = np.einsum("mij,mcj->mci", np.linalg.inv(K), np.concatenate([px, np.ones_like(px[..., :1])], -1))  # (M, 4, 3)
+    px = np.stack(
+        [
+            np.stack([zero, zero], -1),
+            np.stack([w, zero], -1),
+            np.stack([w, h], -1),
+            np.stack([zero, h], -1),
+        ],
+        1,
+    )
+    ray = np.einsum(
+        "mij,mcj->mci", np.linalg.inv(K), np.concatenate([px, np.ones_like(px[..., :1])], -1)
+    )  # (M, 4, 3)
     # Scale each ray to depth `depth` in front (K[2,2] may be -1, so the sign comes from z).
     X_cam = ray * (depth / ray[..., 2:3])
     return np.einsum("mji,mcj->mci", R, X_cam - t[:, None, :])
@@ -54,8 +66,12 @@ def plot_rig(rig: Rig, *, ax=None, points=None, names=None, image_size=None, fru
     if size is None:
         Kn = K / K[:, 2:3, 2:3]
         size = np.abs(2.0 * Kn[:, :2, 2])
-        size = np.where(size > 0, size, np.abs(Kn[:, [0, 1], [0, 1]]))  # principal point at 0: use f
-    pts = np.zeros((0, 3)) if points is None else np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        size = np.where(
+            size > 0, size, np.abs(Kn[:, [0, 1], [0, 1]])
+        )  # principal point at 0: use f
+    pts = (
+        np.zeros((0, 3)) if points is None else np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    )
     pts = pts[np.isfinite(pts).all(axis=1)]
 
     centers = -np.einsum("mji,mj->mi", R, t)
@@ -82,8 +98,14 @@ def plot_rig(rig: Rig, *, ax=None, points=None, names=None, image_size=None, fru
     for m in range(M):
         # Mark the image's top edge (y = 0) so that the roll of each camera can be read.
         top = 0.5 * (corners[m, 0] + corners[m, 1])
-        ax.plot(*np.stack([corners[m, 0], top + 0.25 * (top - corners[m, 3]), corners[m, 1]]).T, color="tab:red", lw=0.9)
-    ax.scatter(*centers.T, s=30, c=_CAMERA_COLOR, marker="o", depthshade=False, label="camera centre")
+        ax.plot(
+            *np.stack([corners[m, 0], top + 0.25 * (top - corners[m, 3]), corners[m, 1]]).T,
+            color="tab:red",
+            lw=0.9,
+        )
+    ax.scatter(
+        *centers.T, s=30, c=_CAMERA_COLOR, marker="o", depthshade=False, label="camera centre"
+    )
     for m in range(M):
         ax.text(*centers[m], f" {names[m]}", fontsize=8, color=_CAMERA_COLOR)
     if len(pts):
@@ -100,7 +122,9 @@ def plot_rig(rig: Rig, *, ax=None, points=None, names=None, image_size=None, fru
     ax.set_xlabel("X (scene units)")
     ax.set_ylabel("Y (scene units)")
     ax.set_zlabel("Z (scene units)")
-    ax.set_title(f"Rig: {M} cameras (frusta to depth {frustum_depth:.3g}; red tick = image top)", fontsize=10)
+    ax.set_title(
+        f"Rig: {M} cameras (frusta to depth {frustum_depth:.3g}; red tick = image top)", fontsize=10
+    )
     return ax
 
 
@@ -129,22 +153,36 @@ def plot_rays(rig: Rig, xy, mask, *, result=None, depth=None, ax=None, names=Non
     mask = np.asarray(mask, dtype=bool)
     M = K.shape[0]
     if xy.ndim != 3 or xy.shape[0] != M or xy.shape[2] != 2 or mask.shape != xy.shape[:2]:
-        raise ValueError(f"plot_rays: xy must be (M, P, 2) and mask (M, P) with M={M}; got {xy.shape} and {mask.shape}")
+        raise ValueError(
+            f"plot_rays: xy must be (M, P, 2) and mask (M, P) with M={M}; got {xy.shape} and {mask.shape}"
+        )
     centers = -np.einsum("mji,mj->mi", R, t)
     labels = np.full(mask.shape, -1)
     points = np.zeros((0, 3))
     if result is not None:
         labels = np.asarray(result.labels)
         if labels.shape != mask.shape:
-            raise ValueError(f"plot_rays: result must be one unbatched scene; labels {labels.shape}, mask {mask.shape}")
+            raise ValueError(
+                f"plot_rays: result must be one unbatched scene; labels {labels.shape}, mask {mask.shape}"
+            )
         valid = np.asarray(result.valid, dtype=bool)
         labels = np.where((labels >= 0) & valid[np.maximum(labels, 0)], labels, -1)
         points = np.asarray(result.points3d, dtype=np.float64)
     used = np.unique(labels[labels >= 0])
     if depth is None:
-        reach = np.linalg.norm(points[used][None, :, :] - centers[:, None, :], axis=-1) if used.size else np.zeros(0)
-        depth = 1.2 * float(reach.max()) if reach.size else float(np.max(np.ptp(centers, axis=0))) or 1.0
-    ax = plot_rig(rig, ax=ax, points=points[used] if used.size else None, names=names, image_size=image_size)
+        reach = (
+            np.linalg.norm(points[used][None, :, :] - centers[:, None, :], axis=-1)
+            if used.size
+            else np.zeros(0)
+        )
+        depth = (
+            1.2 * float(reach.max())
+            if reach.size
+            else float(np.max(np.ptp(centers, axis=0))) or 1.0
+        )
+    ax = plot_rig(
+        rig, ax=ax, points=points[used] if used.size else None, names=names, image_size=image_size
+    )
 
     pixels = np.concatenate([xy, np.ones_like(xy[..., :1])], axis=-1)
     ray = np.einsum("mij,mpj->mpi", np.linalg.inv(K), pixels)
@@ -155,7 +193,9 @@ def plot_rays(rig: Rig, xy, mask, *, result=None, depth=None, ax=None, names=Non
         g = int(labels[m, p])
         length = depth
         if g >= 0:
-            length = 1.08 * float(np.dot(points[g] - centers[m], world[m, p]))  # just past the point
+            length = 1.08 * float(
+                np.dot(points[g] - centers[m], world[m, p])
+            )  # just past the point
             color, lw, alpha = group_style(g)[0], 0.9, 0.9
         else:
             color, lw, alpha = "0.6", 0.5, 0.6
@@ -163,5 +203,8 @@ def plot_rays(rig: Rig, xy, mask, *, result=None, depth=None, ax=None, names=Non
         ax.plot(*np.stack([centers[m], end]).T, color=color, lw=lw, alpha=alpha)
     n = int(mask.sum())
     assigned = int((labels[mask] >= 0).sum())
-    ax.set_title(f"Rays through {n} detections ({assigned} in {used.size} groups, coloured; others grey)", fontsize=10)
+    ax.set_title(
+        f"Rays through {n} detections ({assigned} in {used.size} groups, coloured; others grey)",
+        fontsize=10,
+    )
     return ax

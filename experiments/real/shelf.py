@@ -50,16 +50,62 @@ from shelf_score import score  # noqa: E402
 NUM_JOINTS = 25  # OpenPose BODY_25
 # BODY_25's PAF channels in the order the candidate files store them: (joint a, joint b).
 PAF_PAIRS = (
-    (1, 8), (9, 10), (10, 11), (8, 9), (8, 12), (12, 13), (13, 14), (1, 2), (2, 3), (3, 4), (2, 17), (1, 5),
-    (5, 6), (6, 7), (5, 18), (1, 0), (0, 15), (0, 16), (15, 17), (16, 18), (14, 19), (19, 20), (14, 21),
-    (11, 22), (22, 23), (11, 24),
-)  # fmt: skip
+    (1, 8),
+    (9, 10),
+    (10, 11),
+    (8, 9),
+    (8, 12),
+    (12, 13),
+    (13, 14),
+    (1, 2),
+    (2, 3),
+    (3, 4),
+    (2, 17),
+    (1, 5),
+    (5, 6),
+    (6, 7),
+    (5, 18),
+    (1, 0),
+    (0, 15),
+    (0, 16),
+    (15, 17),
+    (16, 18),
+    (14, 19),
+    (19, 20),
+    (14, 21),
+    (11, 22),
+    (22, 23),
+    (11, 24),
+)
 # OpenPose's order of limbs when it assembles people (from the neck outwards).
 LIMB_ORDER = (
-    (1, 8), (1, 2), (1, 5), (2, 3), (3, 4), (5, 6), (6, 7), (8, 9), (9, 10), (10, 11), (8, 12), (12, 13),
-    (13, 14), (1, 0), (0, 15), (15, 17), (0, 16), (16, 18), (2, 17), (5, 18), (14, 19), (19, 20), (14, 21),
-    (11, 22), (22, 23), (11, 24),
-)  # fmt: skip
+    (1, 8),
+    (1, 2),
+    (1, 5),
+    (2, 3),
+    (3, 4),
+    (5, 6),
+    (6, 7),
+    (8, 9),
+    (9, 10),
+    (10, 11),
+    (8, 12),
+    (12, 13),
+    (13, 14),
+    (1, 0),
+    (0, 15),
+    (15, 17),
+    (0, 16),
+    (16, 18),
+    (2, 17),
+    (5, 18),
+    (14, 19),
+    (19, 20),
+    (14, 21),
+    (11, 22),
+    (22, 23),
+    (11, 24),
+)
 MIN_PERSON_JOINTS = 3  # OpenPose drops people of fewer joints
 
 
@@ -72,7 +118,9 @@ class Frame:
         self.joints, self.pafs = joints, pafs
 
 
-def read_calibration(path: str) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray, tuple[int, int]]:
+def read_calibration(
+    path: str,
+) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray, tuple[int, int]]:
     """``calibration.json``: camera names (in numeric order), ``K (M, 3, 3)``, ``R (M, 3, 3)``,
     ``t (M, 3)`` (world to camera, metres) and the image size ``(width, height)``."""
     with open(path) as f:
@@ -151,8 +199,12 @@ def parse_people(frame: Frame) -> list[np.ndarray]:
     for a, b in LIMB_ORDER:
         scores = frame.pafs[paf_of[(a, b)]]
         ca, cb = frame.joints[a], frame.joints[b]
-        pairs = [(scores[i, j], i, j) for i in range(len(ca)) for j in range(len(cb))
-                 if scores[i, j] > 0 and ca[i, 2] > 0 and cb[j, 2] > 0]  # fmt: skip
+        pairs = [
+            (scores[i, j], i, j)
+            for i in range(len(ca))
+            for j in range(len(cb))
+            if scores[i, j] > 0 and ca[i, 2] > 0 and cb[j, 2] > 0
+        ]
         used_a, used_b = set(), set()
         for _, i, j in sorted(pairs, key=lambda p: -p[0]):
             if i in used_a or j in used_b:
@@ -195,7 +247,10 @@ def write_openpose(views: list[list[Frame]], folder: str) -> None:
         cam = os.path.join(folder, str(v))
         os.makedirs(cam, exist_ok=True)
         for f, frame in enumerate(frames):
-            people = [{"person_id": [-1], "pose_keypoints_2d": person_keypoints(frame, p)} for p in parse_people(frame)]
+            people = [
+                {"person_id": [-1], "pose_keypoints_2d": person_keypoints(frame, p)}
+                for p in parse_people(frame)
+            ]
             with open(os.path.join(cam, f"{f:06d}_keypoints.json"), "w") as out:
                 json.dump({"version": 1.3, "people": people}, out)
 
@@ -225,8 +280,21 @@ def prepare(data: str, work: str, frames: int | None = None) -> dict:
 
 def run_command(rig: str, pose: str, out: str, extra: list[str]) -> float:
     """``cdog-jax associate`` as a user runs it; returns its wall time (s)."""
-    cmd = [sys.executable, "-m", "cdog_jax", "associate", "--rig", rig, "--points", pose,
-           "--keypoints", "BODY_25", "--out", out, *extra]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "cdog_jax",
+        "associate",
+        "--rig",
+        rig,
+        "--points",
+        pose,
+        "--keypoints",
+        "BODY_25",
+        "--out",
+        out,
+        *extra,
+    ]
     start = time.perf_counter()
     done = subprocess.run(cmd, capture_output=True, text=True)
     seconds = time.perf_counter() - start
@@ -252,11 +320,18 @@ def main(argv: list[str] | None = None) -> dict:
     extra = argv[argv.index("--") + 1 :] if "--" in argv else []
     argv = argv[: argv.index("--")] if "--" in argv else argv
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("data", help="a local copy of the 4D-association repository's data/shelf folder")
-    parser.add_argument("--work", default=os.path.join(os.path.expanduser("~"), ".cache", "cdog_jax", "shelf"),
-                        help="where the rig, the OpenPose folders and the result go")  # fmt: skip
+    parser.add_argument(
+        "data", help="a local copy of the 4D-association repository's data/shelf folder"
+    )
+    parser.add_argument(
+        "--work",
+        default=os.path.join(os.path.expanduser("~"), ".cache", "cdog_jax", "shelf"),
+        help="where the rig, the OpenPose folders and the result go",
+    )
     parser.add_argument("--frames", type=int, default=None, help="only the first N frames")
-    parser.add_argument("--split", choices=("dev", "held-out", "all"), default="dev", help="frames scored")
+    parser.add_argument(
+        "--split", choices=("dev", "held-out", "all"), default="dev", help="frames scored"
+    )
     parser.add_argument("--json", default=None, help="also write the scores to this JSON file")
     args = parser.parse_args(argv)
     ready = prepare(args.data, args.work, args.frames)
@@ -265,7 +340,12 @@ def main(argv: list[str] | None = None) -> dict:
     scored = split_frames(ready["frames"], args.split)
     with np.load(out) as result:
         report = score(dict(result), ready["gt"], scored)
-    report.update(command_s=round(seconds, 2), frames=ready["frames"], split=args.split, options=" ".join(extra))
+    report.update(
+        command_s=round(seconds, 2),
+        frames=ready["frames"],
+        split=args.split,
+        options=" ".join(extra),
+    )
     print(json.dumps(report, indent=1))
     if args.json:
         with open(args.json, "w") as f:

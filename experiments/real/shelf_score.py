@@ -35,12 +35,33 @@ ACTORS = (0, 1, 2)  # the ground truth's ids of actors 1–3 (the field reports 
 RECALL_RADIUS_M = 0.1
 # Shelf's 10 parts as (name, joint a, joint b) of the 15 ground-truth joints.
 PARTS = (
-    ("left upper arm", 9, 10), ("right upper arm", 8, 7), ("left lower arm", 10, 11), ("right lower arm", 7, 6),
-    ("left upper leg", 3, 4), ("right upper leg", 2, 1), ("left lower leg", 4, 5), ("right lower leg", 1, 0),
-    ("head", 12, 13), ("torso", 12, 14),
-)  # fmt: skip
+    ("left upper arm", 9, 10),
+    ("right upper arm", 8, 7),
+    ("left lower arm", 10, 11),
+    ("right lower arm", 7, 6),
+    ("left upper leg", 3, 4),
+    ("right upper leg", 2, 1),
+    ("left lower leg", 4, 5),
+    ("right lower leg", 1, 0),
+    ("head", 12, 13),
+    ("torso", 12, 14),
+)
 # BODY_25 joint for each of Shelf's joints 0–11 and 14 (12, 13 are made: see the docstring).
-BODY25_OF_SHELF = {0: 11, 1: 10, 2: 9, 3: 12, 4: 13, 5: 14, 6: 4, 7: 3, 8: 2, 9: 5, 10: 6, 11: 7, 14: 8}
+BODY25_OF_SHELF = {
+    0: 11,
+    1: 10,
+    2: 9,
+    3: 12,
+    4: 13,
+    5: 14,
+    6: 4,
+    7: 3,
+    8: 2,
+    9: 5,
+    10: 6,
+    11: 7,
+    14: 8,
+}
 LIMB_JOINTS = tuple(range(12))
 # The 4D-association repository's 19-joint skeleton (its skel.txt) in BODY_25 ids.
 BODY25_OF_SKEL19 = (8, 1, 9, 12, 0, 2, 5, 10, 13, 17, 18, 3, 6, 11, 14, 4, 7, 19, 22)
@@ -107,17 +128,28 @@ def pcp(people: list[list[np.ndarray]], gt: list[dict[int, np.ndarray]], frames)
             d = np.linalg.norm(best[:14] - true[:14], axis=-1)
             errors.extend(d[np.isfinite(d)])
     per_actor = {a: 100.0 * float(np.mean(h)) for a, h in hits.items() if h}
-    every = np.concatenate([np.stack(h) for h in hits.values() if h]) if any(hits.values()) else np.zeros((0, len(PARTS)))
+    every = (
+        np.concatenate([np.stack(h) for h in hits.values() if h])
+        if any(hits.values())
+        else np.zeros((0, len(PARTS)))
+    )
     return {
         "pcp": {f"actor {a + 1}": round(v, 1) for a, v in per_actor.items()},
         "pcp_mean": round(float(np.mean(list(per_actor.values()))), 1) if per_actor else None,
-        "pcp_parts": {name: round(100.0 * float(every[:, k].mean()), 1) for k, (name, _, _) in enumerate(PARTS)} if len(every) else {},
+        "pcp_parts": {
+            name: round(100.0 * float(every[:, k].mean()), 1)
+            for k, (name, _, _) in enumerate(PARTS)
+        }
+        if len(every)
+        else {},
         "mpjpe_mm": round(1000.0 * float(np.mean(errors)), 1) if errors else None,
         "scored": int(sum(len(h) for h in hits.values())),
     }
 
 
-def joint_recall(points: list[dict[int, np.ndarray]], gt: list[dict[int, np.ndarray]], frames) -> float:
+def joint_recall(
+    points: list[dict[int, np.ndarray]], gt: list[dict[int, np.ndarray]], frames
+) -> float:
     """Recall@10cm (module docstring) of ``points[f][body25_joint] (n, 3)``: every predicted
     3D point of that joint type in frame ``f``."""
     found = total = 0
@@ -129,7 +161,9 @@ def joint_recall(points: list[dict[int, np.ndarray]], gt: list[dict[int, np.ndar
                 total += 1
                 cands = points[f].get(BODY25_OF_SHELF[s])
                 if cands is not None and len(cands):
-                    found += bool(np.min(np.linalg.norm(cands - true[s], axis=-1)) <= RECALL_RADIUS_M)
+                    found += bool(
+                        np.min(np.linalg.norm(cands - true[s], axis=-1)) <= RECALL_RADIUS_M
+                    )
     return found / max(total, 1)
 
 
@@ -161,14 +195,23 @@ def score(result: dict, gt: list[dict[int, np.ndarray]], frames) -> dict:
     missing, as ``cdog-jax associate --out result.npz`` writes them for OpenPose folders)."""
     report = {"recall_10cm": round(joint_recall(points_by_joint(result), gt, frames), 4)}
     if "people_points" in result:
-        people = [[shelf_from_body25(p) for p in frame if np.any(np.isfinite(p))] for frame in result["people_points"]]
+        people = [
+            [shelf_from_body25(p) for p in frame if np.any(np.isfinite(p))]
+            for frame in result["people_points"]
+        ]
         report.update(pcp(people, gt, frames))
     return report
 
 
-def score_skeletons(skeletons: list[dict[int, np.ndarray]], gt: list[dict[int, np.ndarray]], frames) -> dict:
+def score_skeletons(
+    skeletons: list[dict[int, np.ndarray]], gt: list[dict[int, np.ndarray]], frames
+) -> dict:
     """The scores of another system's people, ``skeletons[f] = {id: (25, 3) BODY_25}``."""
     people = [[shelf_from_body25(p) for p in frame.values()] for frame in skeletons]
-    report = {"recall_10cm": round(joint_recall(people_points([list(f.values()) for f in skeletons]), gt, frames), 4)}
+    report = {
+        "recall_10cm": round(
+            joint_recall(people_points([list(f.values()) for f in skeletons]), gt, frames), 4
+        )
+    }
     report.update(pcp(people, gt, frames))
     return report

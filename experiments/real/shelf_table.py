@@ -35,7 +35,9 @@ SETTINGS: dict[str, list[str]] = {
 }
 
 
-def run_setting(ready: dict, name: str, options: list[str], frames, work: str, runs: int = 2) -> dict:
+def run_setting(
+    ready: dict, name: str, options: list[str], frames, work: str, runs: int = 2
+) -> dict:
     """Run ``cdog-jax associate`` with ``options`` ``runs`` times; score the last result."""
     out = os.path.join(work, f"result_{len(os.listdir(work))}.npz")
     seconds = [shelf["run_command"](ready["rig"], ready["pose"], out, options) for _ in range(runs)]
@@ -51,8 +53,12 @@ def four_d_row(data: str, count: int, frames) -> dict | None:
     if not os.path.exists(path):
         return None
     skeletons = shelf["read_skeletons"](path)[:count]
-    body = [{k: shelf_score["body25_from_skel19"](v) for k, v in frame.items()} for frame in skeletons]
-    row = shelf_score["score_skeletons"](body, shelf["read_skeletons"](os.path.join(data, "gt.txt"))[:count], frames)
+    body = [
+        {k: shelf_score["body25_from_skel19"](v) for k, v in frame.items()} for frame in skeletons
+    ]
+    row = shelf_score["score_skeletons"](
+        body, shelf["read_skeletons"](os.path.join(data, "gt.txt"))[:count], frames
+    )
     row.update(setting="4D association (its skel.txt)", first_s=None, warm_s=None)
     return row
 
@@ -65,21 +71,33 @@ def markdown(rows: list[dict], split: str, frames: int) -> str:
     for r in rows:
         actors = " / ".join(f"{r['pcp'].get(f'actor {a}', float('nan')):.1f}" for a in (1, 2, 3))
         wall = "" if r["first_s"] is None else f"{r['first_s']:.1f} / {r['warm_s']:.1f}"
-        lines.append(f"| {r['setting']} | {actors} | {r['pcp_mean']:.1f} | {r['recall_10cm']:.3f} | {r['mpjpe_mm']:.1f} | {wall} |")
+        lines.append(
+            f"| {r['setting']} | {actors} | {r['pcp_mean']:.1f} | {r['recall_10cm']:.3f} | {r['mpjpe_mm']:.1f} | {wall} |"
+        )
     return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> list[dict]:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("data", help="a local copy of the 4D-association repository's data/shelf folder")
-    parser.add_argument("--work", default=os.path.join(os.path.expanduser("~"), ".cache", "cdog_jax", "shelf"))
+    parser.add_argument(
+        "data", help="a local copy of the 4D-association repository's data/shelf folder"
+    )
+    parser.add_argument(
+        "--work", default=os.path.join(os.path.expanduser("~"), ".cache", "cdog_jax", "shelf")
+    )
     parser.add_argument("--frames", type=int, default=None, help="only the first N frames")
     parser.add_argument("--split", choices=("dev", "held-out", "all"), default="dev")
-    parser.add_argument("--settings", default=None, help="comma-separated names of SETTINGS (default: all)")
-    parser.add_argument("--runs", type=int, default=2, help="runs of each command (the last is timed as warm)")
+    parser.add_argument(
+        "--settings", default=None, help="comma-separated names of SETTINGS (default: all)"
+    )
+    parser.add_argument(
+        "--runs", type=int, default=2, help="runs of each command (the last is timed as warm)"
+    )
     parser.add_argument("--markdown", default=None, help="also write the table to this file")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
-    names = list(SETTINGS) if args.settings is None else [n.strip() for n in args.settings.split(",")]
+    names = (
+        list(SETTINGS) if args.settings is None else [n.strip() for n in args.settings.split(",")]
+    )
     unknown = [n for n in names if n not in SETTINGS]
     if unknown:
         parser.error(f"unknown setting {unknown[0]!r}; known: {', '.join(SETTINGS)}")

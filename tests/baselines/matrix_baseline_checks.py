@@ -11,10 +11,10 @@ import functools
 import jax
 import jax.numpy as jnp
 import numpy as np
+from helpers import project_np, ring_rig
 
 from cdog_jax.geometry._epipolar import epipolar_distances
 from cdog_jax.synthetic import default_rig, generate_scene
-from helpers import project_np, ring_rig
 
 RANDOM_VIEWS, RANDOM_SLOTS, RANDOM_POINTS = 4, 12, 8
 
@@ -27,7 +27,7 @@ def numbers_of(options):
     return {name: jnp.asarray(getattr(options, name), jnp.float32) for name in options.NUMBERS}
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def jitted(fn, options):
     """``run(rig, xy, mask, sigma, d=None) -> (groups, valid, status, d)``: the method jitted
     (one program per shape), ``d`` computed when not given."""
@@ -81,7 +81,9 @@ def _pairs_of(items):
 
 def random_scene(seed, sigma=0.0):
     rig = default_rig().select(range(RANDOM_VIEWS))
-    scene = generate_scene(jax.random.PRNGKey(seed), rig, RANDOM_POINTS, sigma, capacity=RANDOM_SLOTS)
+    scene = generate_scene(
+        jax.random.PRNGKey(seed), rig, RANDOM_POINTS, sigma, capacity=RANDOM_SLOTS
+    )
     return rig, scene
 
 
@@ -102,7 +104,9 @@ def hand_scene():
     Returns ``rig, xy, mask, instance, answers``: the two right answers (either copy of the
     duplicate joins point 0's group) as sets of groups."""
     rig = ring_rig(RANDOM_VIEWS, seed=3)
-    X = np.array([[0.32, -0.35, 0.14], [-0.02, 0.14, -0.37], [-0.36, -0.26, 0.38], [-0.16, 0.07, 0.39]])
+    X = np.array(
+        [[0.32, -0.35, 0.14], [-0.02, 0.14, -0.37], [-0.36, -0.26, 0.38], [-0.16, 0.07, 0.39]]
+    )
     xy_true, vis = project_np(rig, X)
     assert vis.all()
     # slot_of[m, p]: slot of point p in view m, -1 where view m does not see it.
@@ -115,7 +119,8 @@ def hand_scene():
     xy[1, 8] = xy_true[1, 0] + np.array([0.3, 0.0])
     instance[1, 8] = 0
     groups = [
-        frozenset((int(m), int(slot_of[m, p])) for m in range(RANDOM_VIEWS) if slot_of[m, p] >= 0) for p in range(4)
+        frozenset((int(m), int(slot_of[m, p])) for m in range(RANDOM_VIEWS) if slot_of[m, p] >= 0)
+        for p in range(4)
     ]
     swapped = [g - {(1, 3)} | {(1, 8)} if (1, 3) in g else g for g in groups]
     return rig, jnp.asarray(xy), jnp.asarray(instance >= 0), instance, (set(groups), set(swapped))
@@ -176,7 +181,9 @@ def check_jit_vmap_padding_permutation(fn, options, sigma=1.0, seeds=(1, 2)):
     d_junk = epipolar_distances(rig, junk, scene.mask)
     pad_pair = pad[:, :, None, None] | pad[None, None, :, :]
     # NaN, and 0 (inside every gate) where a padded slot meets a valid one.
-    d_junk = jnp.where(pad_pair, jnp.where(pad[:, :, None, None] & pad[None, None, :, :], jnp.nan, 0.0), d_junk)
+    d_junk = jnp.where(
+        pad_pair, jnp.where(pad[:, :, None, None] & pad[None, None, :, :], jnp.nan, 0.0), d_junk
+    )
     dirty = jitted(fn, options)(rig, junk, scene.mask, sigma, d_junk)[:3]
     clean = jitted(fn, options)(rig, scene.xy, scene.mask, sigma)[:3]
     for a, b in zip(clean, dirty):
@@ -184,14 +191,20 @@ def check_jit_vmap_padding_permutation(fn, options, sigma=1.0, seeds=(1, 2)):
 
     # Slot permutation within each view.
     rng = np.random.default_rng(7)
-    perm = np.stack([rng.permutation(RANDOM_SLOTS) for _ in range(RANDOM_VIEWS)])  # new slot s holds old perm[m, s]
-    take = lambda a: jnp.asarray(np.take_along_axis(np.asarray(a), perm.reshape(perm.shape + (1,) * (np.ndim(a) - 2)), axis=1))
+    perm = np.stack(
+        [rng.permutation(RANDOM_SLOTS) for _ in range(RANDOM_VIEWS)]
+    )  # new slot s holds old perm[m, s]
+    take = lambda a: jnp.asarray(
+        np.take_along_axis(
+            np.asarray(a), perm.reshape(perm.shape + (1,) * (np.ndim(a) - 2)), axis=1
+        )
+    )
     groups, valid, _, _ = jitted(fn, options)(rig, take(scene.xy), take(scene.mask), sigma)
     back = {frozenset((m, int(perm[m, s])) for m, s in g) for g in group_sets(groups, valid)}
     assert back == group_sets(clean[0], clean[1])
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _vmapped(fn, options):
     def one(rig, xy, mask, sigma, numbers):
         d = epipolar_distances(rig, xy, mask)

@@ -36,7 +36,7 @@ def run(fn, options, rig, xy, mask, sigma, d=None):
 distances = jax.jit(epipolar_distances)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _compiled(fn, options):
     return jax.jit(lambda rig, xy, mask, d, sigma: run(fn, options, rig, xy, mask, sigma, d))
 
@@ -45,12 +45,19 @@ def jitted(fn, options):
     """``f(rig, xy, mask, sigma)``: the jitted method (the distances computed apart, so
     that a test may hand it a table with garbage in its padded entries)."""
     compiled = _compiled(fn, options)
-    return lambda rig, xy, mask, sigma, d=None: compiled(rig, xy, mask, distances(rig, xy, mask) if d is None else d, sigma)
+    return lambda rig, xy, mask, sigma, d=None: compiled(
+        rig, xy, mask, distances(rig, xy, mask) if d is None else d, sigma
+    )
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def vmapped(fn, options):
-    return jax.jit(jax.vmap(lambda rig, xy, mask, sigma: run(fn, options, rig, xy, mask, sigma), in_axes=(None, 0, 0, None)))
+    return jax.jit(
+        jax.vmap(
+            lambda rig, xy, mask, sigma: run(fn, options, rig, xy, mask, sigma),
+            in_axes=(None, 0, 0, None),
+        )
+    )
 
 
 def group_sets(groups, valid) -> set[frozenset]:
@@ -79,7 +86,9 @@ def check_table(groups, valid, status, mask) -> None:
     assert valid.shape == (Mv * Pv // 2,) and valid.dtype == jnp.bool_
     assert status.shape == () and status.dtype == jnp.int32
     valid = np.asarray(valid)
-    assert not np.any(valid[np.argmin(valid):]) if not valid.all() else True, "valid groups must come first"
+    assert not np.any(valid[np.argmin(valid) :]) if not valid.all() else True, (
+        "valid groups must come first"
+    )
     g = np.asarray(groups)[valid]
     first_node = np.min(np.where(g >= 0, np.arange(Mv)[None, :] * Pv + g, Mv * Pv), axis=1)
     assert np.all(np.diff(first_node) > 0), "groups must be ordered by their smallest node"
@@ -171,7 +180,9 @@ def conformance(fn, options, *, bound_scale: float = 1.0, seeds=range(8)) -> Non
     f = jitted(fn, options)
     # Hand-made scene: known answer.
     rig, xy, mask, expected = hand_scene()
-    assert min_cross_cost(rig, jnp.where(mask[..., None], xy, 0.0), mask, _hand_instance(mask)) >= bound_scale * gate(0.0)
+    assert min_cross_cost(
+        rig, jnp.where(mask[..., None], xy, 0.0), mask, _hand_instance(mask)
+    ) >= bound_scale * gate(0.0)
     g, v, st = f(rig, xy, mask, jnp.float32(0.0))
     check_table(g, v, st, mask)
     assert group_sets(g, v) == expected and int(st) == 0

@@ -19,7 +19,9 @@ def cca_numpy(d, mask, tau, max_rounds):
     one most-expensive edge (ties: smallest node pair) cut per conflicting component per
     round, components again. Returns the groups and the rounds used (at most
     ``max_rounds``)."""
-    d = np.where(mask[:, :, None, None] & mask[None, None] & ~np.isnan(d), d, np.inf).astype(np.float32)
+    d = np.where(mask[:, :, None, None] & mask[None, None] & ~np.isnan(d), d, np.inf).astype(
+        np.float32
+    )
     c = np.float32(0.5) * (d + d.transpose(2, 3, 0, 1))
     M, P = mask.shape
     N = M * P
@@ -75,7 +77,16 @@ def test_cca_conformance():
 def test_cca_matches_numpy():
     f = jitted(components_groups, ComponentsOptions())
     rounds_seen = []
-    for seed, sigma in [(1, 1.0), (2, 3.0), (3, 3.0), (4, 5.0), (9, 5.0), (1, 10.0), (9, 10.0), (1, 15.0)]:
+    for seed, sigma in [
+        (1, 1.0),
+        (2, 3.0),
+        (3, 3.0),
+        (4, 5.0),
+        (9, 5.0),
+        (1, 10.0),
+        (9, 10.0),
+        (1, 15.0),
+    ]:
         rig, s = random_scene(seed, sigma, num_points=12)
         g, v, st = f(rig, s.xy, s.mask, np.float32(sigma))
         d = np.asarray(distances(rig, s.xy, s.mask))

@@ -9,14 +9,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import random_scene, ring_rig
 
 from cdog_jax import associate, associate_batch
 from cdog_jax.baselines import Exact
-from cdog_jax.baselines._exact import exact_groups
-from cdog_jax.baselines._exact import MAX_POINTS, clique_cost, gated_cost
+from cdog_jax.baselines._exact import MAX_POINTS, clique_cost, exact_groups, gated_cost
 from cdog_jax.benchmark import Grid, sweep
 from cdog_jax.geometry import epipolar_distances
-from helpers import random_scene, ring_rig
 
 RIG3 = ring_rig(3)
 SIGMA = 3.0
@@ -61,7 +60,10 @@ def _brute_force(cost, nodes, tau):
 
 
 def _sets(groups, valid, P):
-    return {frozenset(m * P + int(s) for m, s in enumerate(row) if s >= 0) for row in np.asarray(groups)[np.asarray(valid)]}
+    return {
+        frozenset(m * P + int(s) for m, s in enumerate(row) if s >= 0)
+        for row in np.asarray(groups)[np.asarray(valid)]
+    }
 
 
 def _competing(cost, tau, P):
@@ -85,7 +87,9 @@ def test_exact_matches_brute_force_on_tiny_scenes():
         assert sum(clique_cost(cost, g, TAU) for g in found) == pytest.approx(want, abs=1e-6)
         assert all(len({n // P for n in g}) == len(g) for g in found)
         if found != set(partition):  # another optimum: it must cost exactly as much
-            assert sum(clique_cost(cost, g, TAU) for g in partition) == pytest.approx(value, abs=1e-6)
+            assert sum(clique_cost(cost, g, TAU) for g in partition) == pytest.approx(
+                value, abs=1e-6
+            )
         competing += _competing(cost, TAU, P)
     assert competing >= 5, "too few scenes with competing cliques: the check says little"
 
@@ -109,7 +113,10 @@ def test_exact_is_never_worse_than_greedy_or_voting():
             cost = gated_cost(d, mask[b])
             _, _, best = exact_groups(d, mask[b], TAU)
             theirs = _labels_to_sets(other.labels[b], mask[b])
-            if all(all(cost[a, c] < TAU for a, c in itertools.combinations(sorted(g), 2)) for g in theirs):
+            if all(
+                all(cost[a, c] < TAU for a, c in itertools.combinations(sorted(g), 2))
+                for g in theirs
+            ):
                 compared += 1
                 assert best <= sum(clique_cost(cost, g, TAU) for g in theirs) + 1e-6, (name, b)
     assert compared >= len(scenes), "too few comparable scenes"
@@ -128,24 +135,36 @@ def test_exact_refuses_large_scenes_and_tracing():
     from cdog_jax import Observations
 
     with pytest.raises(TypeError, match="host method"):
-        jax.jit(lambda x, m: method.associate_scene(rig, Observations(x, m), th))(jnp.asarray(xy), jnp.asarray(mask))
+        jax.jit(lambda x, m: method.associate_scene(rig, Observations(x, m), th))(
+            jnp.asarray(xy), jnp.asarray(mask)
+        )
 
 
 def test_sweep_refuses_a_host_method():
     with pytest.raises(ValueError, match="runs on the host.*sweep_host"):
-        sweep(RIG3, Grid(sigmas=(0.0,), counts=(3,), scenes=1), methods=["exact"], timing=False, progress=False)
+        sweep(
+            RIG3,
+            Grid(sigmas=(0.0,), counts=(3,), scenes=1),
+            methods=["exact"],
+            timing=False,
+            progress=False,
+        )
 
 
 def test_exact_with_weights_and_min_views_is_finished_like_every_method():
     rig = ring_rig(4)
     xy, mask, _, _ = random_scene(rig, 6, 8, sigma=1.0, seed=3)
     plain = associate(rig, xy, mask, method="exact", sigma=1.0)
-    weighted = associate(rig, xy, mask, method="exact", sigma=1.0, weights=np.ones(mask.shape, np.float32))
+    weighted = associate(
+        rig, xy, mask, method="exact", sigma=1.0, weights=np.ones(mask.shape, np.float32)
+    )
     np.testing.assert_array_equal(weighted.labels, plain.labels)
     three = associate(rig, xy, mask, method="exact", sigma=1.0, min_views=3)
     keep = np.asarray(plain.n_views)[np.asarray(plain.valid)] >= 3
     assert 0 < keep.sum() < np.asarray(plain.valid).sum()
-    assert int(three.num_groups) == int(keep.sum()) and np.all(np.asarray(three.n_views)[np.asarray(three.valid)] >= 3)
+    assert int(three.num_groups) == int(keep.sum()) and np.all(
+        np.asarray(three.n_views)[np.asarray(three.valid)] >= 3
+    )
 
 
 def test_robust_sigma_of_a_group_table_method_is_c_dogs_robust_estimate():

@@ -16,7 +16,9 @@ from cdog_jax.baselines._greedy import GreedyOptions, greedy_groups
 def greedy_numpy(d, mask, tau, k):
     """Independent version: plain loops over every node, other view and its k cheapest
     partners; union-find over Python sets."""
-    d = np.where(mask[:, :, None, None] & mask[None, None] & ~np.isnan(d), d, np.inf).astype(np.float32)
+    d = np.where(mask[:, :, None, None] & mask[None, None] & ~np.isnan(d), d, np.inf).astype(
+        np.float32
+    )
     c = np.float32(0.5) * (d + d.transpose(2, 3, 0, 1))
     M, P = mask.shape
     edges = set()
@@ -53,7 +55,9 @@ def test_greedy_matches_numpy(k):
         rig, s = random_scene(seed, sigma, num_points=10)
         g, v, _ = f(rig, s.xy, s.mask, np.float32(sigma))
         d = np.asarray(distances(rig, s.xy, s.mask))
-        assert group_sets(g, v) == greedy_numpy(d, np.asarray(s.mask), np.float32(gate(sigma)), k), f"seed {seed}"
+        assert group_sets(g, v) == greedy_numpy(
+            d, np.asarray(s.mask), np.float32(gate(sigma)), k
+        ), f"seed {seed}"
 
 
 def test_greedy_options_checked():

@@ -12,7 +12,16 @@ detection's, the re-estimated points stay on the true ones, and the hardening ga
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from pairwise_baseline_checks import check_table, conformance, group_sets, hand_scene, jitted, pair_scores, random_scene, run
+from pairwise_baseline_checks import (
+    check_table,
+    conformance,
+    group_sets,
+    hand_scene,
+    jitted,
+    pair_scores,
+    random_scene,
+    run,
+)
 
 from cdog_jax.baselines._soft_ba import SoftBAOptions, soft_ba_groups
 from cdog_jax.baselines._voting import VotingOptions, voting_groups
@@ -29,7 +38,9 @@ def test_soft_assignment_is_a_softassign_with_slack():
     from cdog_jax.baselines._soft_ba import _soft_assignment
 
     e = np.array([[[0.1, 3.0, np.inf]], [[2.5, 0.2, 4.0]]], np.float32)  # (G=2, M=1, P=3) px
-    log_aff = jnp.where(jnp.isfinite(e), -0.5 * jnp.asarray(np.where(np.isfinite(e), e, 0.0)) ** 2, -jnp.inf)
+    log_aff = jnp.where(
+        jnp.isfinite(e), -0.5 * jnp.asarray(np.where(np.isfinite(e), e, 0.0)) ** 2, -jnp.inf
+    )
     w = np.exp(np.asarray(_soft_assignment(log_aff, jnp.float32(-2.0), 50)))
     assert np.all(w.sum(axis=2) <= 1 + 1e-5) and np.all(w.sum(axis=0) <= 1 + 1e-5)
     assert w[0, 0, 2] == 0.0
@@ -78,5 +89,12 @@ def test_soft_ba_options_checked():
 
 def test_soft_ba_single_view_has_no_groups():
     rig = default_rig(num_views=1)
-    g, v, st = run(soft_ba_groups, SoftBAOptions(), rig, jnp.zeros((1, 4, 2), jnp.float32), jnp.ones((1, 4), bool), 1.0)
+    g, v, st = run(
+        soft_ba_groups,
+        SoftBAOptions(),
+        rig,
+        jnp.zeros((1, 4, 2), jnp.float32),
+        jnp.ones((1, 4), bool),
+        1.0,
+    )
     assert g.shape == (2, 1) and not np.asarray(v).any() and int(st) == 0

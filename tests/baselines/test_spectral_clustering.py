@@ -1,5 +1,13 @@
-from cdog_jax.baselines._spectral_clustering import SpectralClusteringOptions, spectral_clustering_groups
-from matrix_baseline_checks import check_hand_scene, check_jit_vmap_padding_permutation, check_noise_free
+from matrix_baseline_checks import (
+    check_hand_scene,
+    check_jit_vmap_padding_permutation,
+    check_noise_free,
+)
+
+from cdog_jax.baselines._spectral_clustering import (
+    SpectralClusteringOptions,
+    spectral_clustering_groups,
+)
 
 OPTIONS = SpectralClusteringOptions()
 
@@ -26,7 +34,9 @@ def test_dense_gated_graph_keeps_at_least_one_cluster_per_detection_of_a_view():
     recalls = []
     for seed in (0, 2):
         rig, scene = random_scene(seed, sigma=3.0)
-        groups, valid, _, _ = jitted(spectral_clustering_groups, OPTIONS)(rig, scene.xy, scene.mask, 20.0)
+        groups, valid, _, _ = jitted(spectral_clustering_groups, OPTIONS)(
+            rig, scene.xy, scene.mask, 20.0
+        )
         true = pairs(truth_sets(scene.instance))
         recalls.append(len(pairs(group_sets(groups, valid)) & true) / len(true))
     assert min(recalls) > 0.75, recalls

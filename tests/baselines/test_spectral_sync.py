@@ -1,5 +1,10 @@
+from matrix_baseline_checks import (
+    check_hand_scene,
+    check_jit_vmap_padding_permutation,
+    check_noise_free,
+)
+
 from cdog_jax.baselines._spectral_sync import SpectralSyncOptions, spectral_sync_groups
-from matrix_baseline_checks import check_hand_scene, check_jit_vmap_padding_permutation, check_noise_free
 
 OPTIONS = SpectralSyncOptions()
 

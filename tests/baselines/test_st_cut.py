@@ -9,15 +9,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import project_np, random_scene, ring_rig
 from scipy.sparse import csr_array
 
 from cdog_jax import Observations, associate
 from cdog_jax.baselines import StCut
-from cdog_jax.baselines._st_cut import st_cut_groups
-from cdog_jax.baselines._st_cut import min_cut_source_side
+from cdog_jax.baselines._st_cut import min_cut_source_side, st_cut_groups
 from cdog_jax.benchmark import Grid, sweep
 from cdog_jax.geometry import epipolar_distances
-from helpers import project_np, random_scene, ring_rig
 
 distances = jax.jit(epipolar_distances)
 
@@ -29,7 +28,10 @@ def _groups(rig, xy, mask, sigma):
 
 
 def _sets(groups, valid):
-    return {frozenset((m, int(s)) for m, s in enumerate(row) if s >= 0) for row in np.asarray(groups)[np.asarray(valid)]}
+    return {
+        frozenset((m, int(s)) for m, s in enumerate(row) if s >= 0)
+        for row in np.asarray(groups)[np.asarray(valid)]
+    }
 
 
 def _truth(inst, mask):
@@ -57,9 +59,13 @@ def test_min_cut_matches_brute_force_on_tiny_graphs():
                 if best is None or value < best:
                     best, smallest = value, inside
                 elif value == best:
-                    smallest = smallest & inside  # min-cut source sides are closed under intersection
+                    smallest = (
+                        smallest & inside
+                    )  # min-cut source sides are closed under intersection
         assert int(weights[side][:, ~side].sum()) == best, trial
-        np.testing.assert_array_equal(side, smallest, err_msg=f"trial {trial}: not the smallest minimum-cut side")
+        np.testing.assert_array_equal(
+            side, smallest, err_msg=f"trial {trial}: not the smallest minimum-cut side"
+        )
 
 
 def _coplanar_scene():
@@ -69,7 +75,11 @@ def _coplanar_scene():
     K, R, t = (np.asarray(a, np.float64) for a in (rig.K, rig.R, rig.t))
     c0, c1 = -R[0].T @ t[0], -R[1].T @ t[1]
     X1 = np.array([0.05, -0.1, 0.1])
-    X2 = X1 + 0.6 * (X1 - c0) / np.linalg.norm(X1 - c0) * 0.5 + 0.3 * (c1 - c0) / np.linalg.norm(c1 - c0)
+    X2 = (
+        X1
+        + 0.6 * (X1 - c0) / np.linalg.norm(X1 - c0) * 0.5
+        + 0.3 * (c1 - c0) / np.linalg.norm(c1 - c0)
+    )
     X = np.stack([X1, X2])
     xy, inside = project_np(rig, X)
     assert inside.all()
@@ -84,12 +94,16 @@ def _coplanar_scene():
 def test_points_on_one_epipolar_plane_are_separated_by_a_cut():
     rig, xy, mask, inst = _coplanar_scene()
     d = np.asarray(distances(rig, jnp.asarray(xy), jnp.asarray(mask)))
-    assert np.all(np.minimum(d[0, :, 1], d[1, :, 0].T) < 0.1), "views 0 and 1 must not tell the points apart"
+    assert np.all(np.minimum(d[0, :, 1], d[1, :, 0].T) < 0.1), (
+        "views 0 and 1 must not tell the points apart"
+    )
     groups, valid, cuts = _groups(rig, xy, mask, 0.0)
     assert cuts >= 1, "the two points must share a component, so that a cut is needed"
     assert _sets(groups, valid) == _truth(inst, mask)
     result = associate(rig, xy, mask, method="st_cut", sigma=0.0)
-    assert int(result.num_groups) == 2 and np.all(np.asarray(result.n_views)[np.asarray(result.valid)] == 4)
+    assert int(result.num_groups) == 2 and np.all(
+        np.asarray(result.n_views)[np.asarray(result.valid)] == 4
+    )
 
 
 def test_unambiguous_noise_free_scenes_are_exact():
@@ -100,7 +114,9 @@ def test_unambiguous_noise_free_scenes_are_exact():
         xy, mask, inst, _ = random_scene(rig, 6, 12, seed=500 + seed)
         d = np.asarray(distances(rig, jnp.asarray(xy, jnp.float32), jnp.asarray(mask)))
         cost = 0.5 * (d + d.transpose(2, 3, 0, 1))
-        wrong = (inst[:, :, None, None] != inst[None, None]) & mask[:, :, None, None] & mask[None, None]
+        wrong = (
+            (inst[:, :, None, None] != inst[None, None]) & mask[:, :, None, None] & mask[None, None]
+        )
         if np.any(cost[wrong & np.isfinite(cost)] < 1.0):
             continue
         groups, valid, _ = st_cut_groups(rig, xy, mask, d, 1.0, 2.0, 2)
@@ -144,8 +160,13 @@ def test_slot_permutation_permutes_the_groups():
     rig, xy, mask, _ = _noisy_scene()
     groups, valid, cuts = _groups(rig, xy, mask, 3.0)
     assert cuts >= 1
-    perm = np.stack([np.random.default_rng(m).permutation(mask.shape[1]) for m in range(rig.num_views)])
-    xy_p, mask_p = np.take_along_axis(xy, perm[..., None], axis=1), np.take_along_axis(mask, perm, axis=1)
+    perm = np.stack(
+        [np.random.default_rng(m).permutation(mask.shape[1]) for m in range(rig.num_views)]
+    )
+    xy_p, mask_p = (
+        np.take_along_axis(xy, perm[..., None], axis=1),
+        np.take_along_axis(mask, perm, axis=1),
+    )
     groups_p, valid_p, _ = _groups(rig, xy_p, mask_p, 3.0)
     back = {frozenset((m, int(perm[m, i])) for m, i in g) for g in _sets(groups_p, valid_p)}
     assert back == _sets(groups, valid)
@@ -160,6 +181,14 @@ def test_options_checked_and_host_only():
     method = StCut()
     th = method.thresholds(1.0)
     with pytest.raises(TypeError, match="host method"):
-        jax.jit(lambda x, m: method.associate_scene(rig, Observations(x, m), th))(jnp.asarray(xy), jnp.asarray(mask))
+        jax.jit(lambda x, m: method.associate_scene(rig, Observations(x, m), th))(
+            jnp.asarray(xy), jnp.asarray(mask)
+        )
     with pytest.raises(ValueError, match="runs on the host.*sweep_host"):
-        sweep(rig, Grid(sigmas=(0.0,), counts=(3,), scenes=1), methods=["st_cut"], timing=False, progress=False)
+        sweep(
+            rig,
+            Grid(sigmas=(0.0,), counts=(3,), scenes=1),
+            methods=["st_cut"],
+            timing=False,
+            progress=False,
+        )

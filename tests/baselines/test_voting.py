@@ -70,5 +70,12 @@ def test_voting_options_checked():
 
 def test_voting_single_view_has_no_groups():
     rig = default_rig(num_views=1)
-    g, v, st = run(voting_groups, VotingOptions(), rig, jnp.zeros((1, 4, 2), jnp.float32), jnp.ones((1, 4), bool), 1.0)
+    g, v, st = run(
+        voting_groups,
+        VotingOptions(),
+        rig,
+        jnp.zeros((1, 4, 2), jnp.float32),
+        jnp.ones((1, 4), bool),
+        1.0,
+    )
     assert g.shape == (2, 1) and not np.asarray(v).any() and int(st) == 0

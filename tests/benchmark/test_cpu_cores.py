@@ -15,7 +15,9 @@ from cdog_jax.benchmark._cpu_cores import usable_cores
 def _run(code: str, **env) -> str:
     environment = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
     environment.update(env)
-    done = subprocess.run([sys.executable, "-c", code], env=environment, capture_output=True, text=True, check=True)
+    done = subprocess.run(
+        [sys.executable, "-c", code], env=environment, capture_output=True, text=True, check=True
+    )
     return done.stdout.strip()
 
 

@@ -37,15 +37,22 @@ def test_two_processes_match_one(tmp_path):
     port = str(_free_port())
     outs = [tmp_path / f"two_{i}.npz" for i in range(2)]
     children = [
-        subprocess.Popen([sys.executable, "-c", _CHILD, str(i), "2", port, str(outs[i])], env=env,
-                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        subprocess.Popen(
+            [sys.executable, "-c", _CHILD, str(i), "2", port, str(outs[i])],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
         for i in range(2)
     ]
     logs = [child.communicate(timeout=600)[0] for child in children]
     for child, log in zip(children, logs):
         assert child.returncode == 0, log[-3000:]
     one = tmp_path / "one.npz"
-    subprocess.run([sys.executable, "-c", _CHILD, "0", "1", "0", str(one)], env=env, check=True, timeout=600)
+    subprocess.run(
+        [sys.executable, "-c", _CHILD, "0", "1", "0", str(one)], env=env, check=True, timeout=600
+    )
     single = np.load(one)
     assert set(single.files) >= {"pg_f1", "g_f1", "num_groups"}
     for out in outs:  # every process holds the whole result

@@ -28,8 +28,12 @@ def test_host_sweep_equals_the_compiled_sweep_for_a_jittable_method():
 
 def test_host_sweep_runs_a_host_method_and_checks_its_scenes():
     rig = default_rig(num_views=3)
-    result = sweep_host(rig, GRID.replace(sigmas=(1.0,), counts=(4,), scenes=1), ["exact"], buckets=(6,))
+    result = sweep_host(
+        rig, GRID.replace(sigmas=(1.0,), counts=(4,), scenes=1), ["exact"], buckets=(6,)
+    )
     assert result.metrics["exact"]["pg_f1"].shape == (1,) and result.num_points[0] == 4
     assert np.isfinite(result.time_s["exact"]).all()
     with pytest.raises(ValueError, match="scene 0.*at most 15 points"):
-        sweep_host(rig, GRID.replace(sigmas=(0.0,), counts=(20,), scenes=1), ["exact"], buckets=(20,))
+        sweep_host(
+            rig, GRID.replace(sigmas=(0.0,), counts=(20,), scenes=1), ["exact"], buckets=(20,)
+        )

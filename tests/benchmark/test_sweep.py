@@ -18,7 +18,9 @@ from cdog_jax.benchmark import Grid, compact_scene, load_results, save_results, 
 from cdog_jax.metrics import scene_metrics
 from cdog_jax.synthetic import default_rig, generate_scene
 
-GRID = Grid(sigmas=(0.5, 3.0), counts=(3, 7, 12), scenes=2, seed=3, views=(0, 1, 2, 3, 4), capacity=16)
+GRID = Grid(
+    sigmas=(0.5, 3.0), counts=(3, 7, 12), scenes=2, seed=3, views=(0, 1, 2, 3, 4), capacity=16
+)
 # Same structure, other numbers: the sweep runs both through one pipeline mapped over
 # thresholds, per-scene calls run them one by one.
 CONFIGS = {"paper": Config.paper(), "loose": Config.paper(delta=0.3, alpha_tau=3.0)}
@@ -61,7 +63,9 @@ def sharded_run(tmp_path_factory):
     flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count=4".strip()
     env = dict(os.environ, XLA_FLAGS=flags, JAX_PLATFORMS="cpu")
     with open(out / "stderr.txt", "w") as err:
-        proc = subprocess.Popen([sys.executable, "-c", code, str(out / "results")], env=env, stdout=err, stderr=err)
+        proc = subprocess.Popen(
+            [sys.executable, "-c", code, str(out / "results")], env=env, stdout=err, stderr=err
+        )
     yield proc, out
     if proc.poll() is None:
         proc.kill()
@@ -71,7 +75,9 @@ def sharded_run(tmp_path_factory):
 @pytest.fixture(scope="module")
 def padded(rig, sharded_run):
     """Every scene padded to 16 slots (one bucket), with time estimates."""
-    return sweep(rig, GRID, methods=CONFIGS, buckets=(16,), batch_size=BATCH, timing=True, timing_runs=1)
+    return sweep(
+        rig, GRID, methods=CONFIGS, buckets=(16,), batch_size=BATCH, timing=True, timing_runs=1
+    )
 
 
 def _assert_same_metrics(a, b, *, exact):
@@ -84,7 +90,9 @@ def _assert_same_metrics(a, b, *, exact):
             if exact or field not in _CONTINUOUS:
                 np.testing.assert_array_equal(value, b.metrics[name][field], err_msg=msg)
             else:
-                np.testing.assert_allclose(value, b.metrics[name][field], rtol=1e-5, atol=1e-6, err_msg=msg)
+                np.testing.assert_allclose(
+                    value, b.metrics[name][field], rtol=1e-5, atol=1e-6, err_msg=msg
+                )
 
 
 def test_paper_grid_size_and_order():
@@ -115,8 +123,12 @@ def test_compact_scene_keeps_every_detection(rig, getkey):
     scene, small = jax.device_get((scene, small))
     np.testing.assert_array_equal(small.points3d, scene.points3d[:9])
     for m in range(10):
-        before = {(i, *p) for i, p in zip(scene.instance[m].tolist(), scene.xy[m].tolist()) if i >= 0}
-        after = {(i, *p) for i, p in zip(small.instance[m].tolist(), small.xy[m].tolist()) if i >= 0}
+        before = {
+            (i, *p) for i, p in zip(scene.instance[m].tolist(), scene.xy[m].tolist()) if i >= 0
+        }
+        after = {
+            (i, *p) for i, p in zip(small.instance[m].tolist(), small.xy[m].tolist()) if i >= 0
+        }
         assert before == after
         n = int(scene.mask[m].sum())
         assert small.mask[m, :n].all() and not small.mask[m, n:].any()
@@ -127,7 +139,9 @@ def test_sweep_equals_per_scene_calls(rig, padded):
     idx, keys = GRID.flat(), GRID.keys()
     score = jax.jit(scene_metrics)
     for i in range(GRID.num_scenes):
-        scene = generate_scene(keys[i], sub, int(idx.count[i]), float(idx.sigma[i]), capacity=GRID.capacity)
+        scene = generate_scene(
+            keys[i], sub, int(idx.count[i]), float(idx.sigma[i]), capacity=GRID.capacity
+        )
         scene = compact_scene(scene, capacity=16)
         assert int(scene.num_points) == padded.num_points[i]
         for name, config in CONFIGS.items():
@@ -139,9 +153,13 @@ def test_sweep_equals_per_scene_calls(rig, padded):
                 msg = f"scene {i} {name}.{field}"
                 if field in _CONTINUOUS:  # float32 DLT: batched and single differ in rounding
                     expected = np.asarray(getattr(m, field))
-                    np.testing.assert_allclose(value[i], expected, rtol=1e-3, atol=1e-4, err_msg=msg)
+                    np.testing.assert_allclose(
+                        value[i], expected, rtol=1e-3, atol=1e-4, err_msg=msg
+                    )
                 else:  # counts and ratios of counts: every decision must agree
-                    np.testing.assert_array_equal(value[i], np.asarray(getattr(m, field)), err_msg=msg)
+                    np.testing.assert_array_equal(
+                        value[i], np.asarray(getattr(m, field)), err_msg=msg
+                    )
             assert padded.metrics[name]["num_groups"][i] == int(res.num_groups)
     assert padded.metrics["paper"]["pg_f1"].mean() > 0.5  # the scenes are not trivial or empty
     assert np.all(padded.time_s["paper"] > 0) and padded.num_devices == 1
@@ -150,7 +168,15 @@ def test_sweep_equals_per_scene_calls(rig, padded):
 def test_bucketed_equals_padded_to_max(rig, padded):
     # batch 1: the plain-scan path (the CPU default), against the vmapped one of `padded`.
     events = []
-    bucketed = sweep(rig, GRID, methods=CONFIGS, buckets=(8, 16), batch_size=1, timing=False, progress=events.append)
+    bucketed = sweep(
+        rig,
+        GRID,
+        methods=CONFIGS,
+        buckets=(8, 16),
+        batch_size=1,
+        timing=False,
+        progress=events.append,
+    )
     # One report per bucket, in bucket order as each finishes, counting the scenes done.
     assert [(e.bucket, e.capacity, e.num_buckets) for e in events] == [(0, 8, 2), (1, 16, 2)]
     assert [e.scenes_done for e in events] == [int(np.sum(bucketed.capacity == 8)), GRID.num_scenes]
@@ -161,11 +187,15 @@ def test_bucketed_equals_padded_to_max(rig, padded):
     assert np.isnan(bucketed.time_s["paper"]).all()
     # Progress is reported from the host between the bucket programs: without it, the same
     # programs run (none compiled again), with the same results.
-    quiet = sweep(rig, GRID, methods=CONFIGS, buckets=(8, 16), batch_size=1, timing=False, progress=None)
+    quiet = sweep(
+        rig, GRID, methods=CONFIGS, buckets=(8, 16), batch_size=1, timing=False, progress=None
+    )
     assert quiet.compile_s == 0.0
     for name in CONFIGS:
         for field, value in bucketed.metrics[name].items():
-            np.testing.assert_array_equal(quiet.metrics[name][field], value, err_msg=f"{name}.{field}")
+            np.testing.assert_array_equal(
+                quiet.metrics[name][field], value, err_msg=f"{name}.{field}"
+            )
 
 
 def test_sharded_equals_unsharded(padded, sharded_run):
@@ -178,7 +208,9 @@ def test_sharded_equals_unsharded(padded, sharded_run):
     assert sharded.num_devices == 4 and "4 × cpu" in sharded.device
     np.testing.assert_array_equal(sharded.num_points, padded.num_points)
     _assert_same_metrics(sharded, padded, exact=True)
-    assert "refused: 'refine' refines points (refine=True)" in log and "4 devices" in log, log[-3000:]
+    assert "refused: 'refine' refines points (refine=True)" in log and "4 devices" in log, log[
+        -3000:
+    ]
 
 
 def test_refinement_sweeps_on_one_device(rig):
@@ -189,12 +221,16 @@ def test_refinement_sweeps_on_one_device(rig):
     result = sweep(rig, grid, methods={"refine": config}, buckets=(16,), timing=False)
     sub, keys = rig.select(GRID.views), grid.keys()
     for i in range(grid.num_scenes):
-        scene = compact_scene(generate_scene(keys[i], sub, 7, 0.5, capacity=GRID.capacity), capacity=16)
+        scene = compact_scene(
+            generate_scene(keys[i], sub, 7, 0.5, capacity=GRID.capacity), capacity=16
+        )
         res = associate(sub, scene.xy, scene.mask, method=config, sigma=0.5)
         m = scene_metrics(sub, res, scene)
         assert result.metrics["refine"]["num_groups"][i] == int(res.num_groups)
         np.testing.assert_array_equal(result.metrics["refine"]["pg_f1"][i], np.asarray(m.pg_f1))
-        np.testing.assert_allclose(result.metrics["refine"]["err3d"][i], np.asarray(m.err3d), rtol=1e-3, atol=1e-4)
+        np.testing.assert_allclose(
+            result.metrics["refine"]["err3d"][i], np.asarray(m.err3d), rtol=1e-3, atol=1e-4
+        )
 
 
 def test_saved_results_load_back_identically(padded, tmp_path):

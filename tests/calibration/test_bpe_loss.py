@@ -9,9 +9,9 @@ import numpy as np
 from helpers import project_np, run_with_xla_defaults, x64
 
 from cdog_jax import Rig
+from cdog_jax.calibration._bpe_loss import bpe, group_bpe
 from cdog_jax.geometry import triangulate
 from cdog_jax.geometry._parameters import CameraParams, params_from_rig, rig_from_params
-from cdog_jax.calibration._bpe_loss import bpe, group_bpe
 from cdog_jax.synthetic import default_rig, generate_scene
 
 FIELDS = ("rotvec", "t", "focal", "principal", "skew")
@@ -169,10 +169,14 @@ def test_gradients_match_finite_differences():
 
         @jax.jit
         def value_and_grad(p, xy):
-            return jax.value_and_grad(lambda p, xy: bpe(rig_from_params(p), xy, *table_args), argnums=(0, 1))(p, xy)
+            return jax.value_and_grad(
+                lambda p, xy: bpe(rig_from_params(p), xy, *table_args), argnums=(0, 1)
+            )(p, xy)
 
         value, (grad, grad_xy) = value_and_grad(params, xy_garbage)
-        ref = np.mean([r.mean() for r in residuals_np(rig_from_params(params), xy, clean, clean_valid)])
+        ref = np.mean(
+            [r.mean() for r in residuals_np(rig_from_params(params), xy, clean, clean_valid)]
+        )
         np.testing.assert_allclose(float(value), ref, rtol=1e-9)
         assert np.all(np.isfinite(np.asarray(grad_xy)))
         assert np.all(np.asarray(grad_xy)[padded] == 0)  # padding gets no gradient
@@ -201,11 +205,16 @@ def test_robust_kernels():
 
     @jax.jit
     def kernels(c):
-        values = [group_bpe(rig, xy, groups, valid, loss=loss, scale_px=c) for loss in ("l2", "huber", "cauchy")]
+        values = [
+            group_bpe(rig, xy, groups, valid, loss=loss, scale_px=c)
+            for loss in ("l2", "huber", "cauchy")
+        ]
 
         def joint(rig, points):  # gradients of both kernels; non-members have s = 0 exactly
             kw = {"scale_px": c, "points3d": points}
-            return bpe(rig, xy, groups, valid, loss="huber", **kw) + bpe(rig, xy, groups, valid, loss="cauchy", **kw)
+            return bpe(rig, xy, groups, valid, loss="huber", **kw) + bpe(
+                rig, xy, groups, valid, loss="cauchy", **kw
+            )
 
         return values, jax.grad(joint, argnums=(0, 1))(rig, points)
 
@@ -266,7 +275,9 @@ def test_given_points_equal_triangulated_and_are_stationary():
             tracks = xy[jnp.arange(xy.shape[0])[:, None], jnp.maximum(groups, 0).T]  # (M, G, 2)
             X_dlt, ok = triangulate(rig, tracks, ((groups >= 0) & valid[:, None]).T)
             inside = bpe(rig, xy, groups, valid)
-            given, g = jax.value_and_grad(lambda X: bpe(rig, xy, groups, valid, points3d=X))(X_dlt + X)
+            given, g = jax.value_and_grad(lambda X: bpe(rig, xy, groups, valid, points3d=X))(
+                X_dlt + X
+            )
             return ok, inside, given, g
 
         ok, inside, given, g = run(jnp.zeros((groups.shape[0], 3)))

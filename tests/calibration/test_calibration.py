@@ -12,11 +12,11 @@ import pytest
 from helpers import tree_allclose, x64
 
 from cdog_jax import Config, Rig
+from cdog_jax.calibration import align_rigs, calibrate, refine_rig, rig_errors
+from cdog_jax.calibration._refine_rig import _robust_weight
 from cdog_jax.geometry import project
 from cdog_jax.geometry._parameters import so3_exp
 from cdog_jax.metrics import scene_metrics
-from cdog_jax.calibration import align_rigs, calibrate, refine_rig, rig_errors
-from cdog_jax.calibration._refine_rig import _robust_weight
 from cdog_jax.synthetic import default_rig, generate_scenes
 
 S, N_POINTS = 2, 30  # scenes and points per scene (slot capacity P = N_POINTS)
@@ -24,7 +24,9 @@ MAX_GROUPS = 32
 
 # One compilation per static configuration for the whole module.
 refine_jit = jax.jit(refine_rig, static_argnames=("max_groups",))
-calibrate_jit = jax.jit(calibrate, static_argnames=("method", "rounds", "max_groups", "loss", "refine_intrinsics"))
+calibrate_jit = jax.jit(
+    calibrate, static_argnames=("method", "rounds", "max_groups", "loss", "refine_intrinsics")
+)
 
 
 def gt_tables(instance, G):
@@ -49,7 +51,10 @@ def perturb(rig, seed, *, rot_deg=0.5, shift=0.01, focal=0.01):
         R[m] = rodrigues(np.deg2rad(rot_deg) * unit(rng.normal(size=3))) @ R[m]
         if m == 1:
             b = C[1] - C[0]
-            C[1] = C[0] + rodrigues(step / np.linalg.norm(b) * unit(np.cross(b, rng.normal(size=3)))) @ b
+            C[1] = (
+                C[0]
+                + rodrigues(step / np.linalg.norm(b) * unit(np.cross(b, rng.normal(size=3)))) @ b
+            )
         else:
             C[m] = C[m] + step * unit(rng.normal(size=3))
         K[m, 0, 0] *= 1 + focal * rng.choice([-1.0, 1.0])
@@ -76,7 +81,9 @@ def scenes64():
     """Noise-free float64 scenes with NaN in every padded slot, and their true groups."""
     with x64(True):
         rig = default_rig(dtype=jnp.float64)
-        sc = generate_scenes(jax.random.PRNGKey(0), rig, jnp.full(S, N_POINTS), jnp.zeros(S), capacity=N_POINTS)
+        sc = generate_scenes(
+            jax.random.PRNGKey(0), rig, jnp.full(S, N_POINTS), jnp.zeros(S), capacity=N_POINTS
+        )
         xy = jnp.where(sc.mask[..., None], sc.xy, jnp.nan)  # padding must not matter
         return rig, xy, *gt_tables(sc.instance, N_POINTS)
 
@@ -115,11 +122,15 @@ def test_refine_jit_vmap_over_rigs_matches_single_calls():
         rig, xy, groups, valid = scenes64()
         starts = [perturb(rig, seed) for seed in (2, 3)]
         batch = jax.tree_util.tree_map(lambda *a: jnp.stack(a), *starts)
-        vmapped = jax.vmap(functools.partial(refine_jit, max_groups=MAX_GROUPS), in_axes=(0, None, None, None))
+        vmapped = jax.vmap(
+            functools.partial(refine_jit, max_groups=MAX_GROUPS), in_axes=(0, None, None, None)
+        )
         out_b, info_b = vmapped(batch, xy, groups, valid)
         singles = [refine_jit(r, xy, groups, valid, max_groups=MAX_GROUPS) for r in starts]
         for b, (out, info) in enumerate(singles):
-            assert tree_allclose(jax.tree_util.tree_map(operator.itemgetter(b), out_b), out, rtol=1e-9, atol=1e-9)
+            assert tree_allclose(
+                jax.tree_util.tree_map(operator.itemgetter(b), out_b), out, rtol=1e-9, atol=1e-9
+            )
             assert tree_allclose(info_b.bpe_before[b], info.bpe_before, rtol=1e-9, atol=1e-12)
             assert bool(info_b.accepted[b]) and float(info_b.bpe_after[b]) < 1e-6
 
@@ -127,7 +138,9 @@ def test_refine_jit_vmap_over_rigs_matches_single_calls():
 def test_calibrate_with_association_improves_a_drifted_rig():
     sigma = 0.5
     rig = default_rig()
-    scenes = generate_scenes(jax.random.PRNGKey(0), rig, jnp.full(S, N_POINTS), jnp.full(S, sigma), capacity=N_POINTS)
+    scenes = generate_scenes(
+        jax.random.PRNGKey(0), rig, jnp.full(S, N_POINTS), jnp.full(S, sigma), capacity=N_POINTS
+    )
     # Rotations and centres drift, focal lengths do not: with ~60 points at σ = 0.5 px,
     # free focal lengths trade against depth (a 27° field of view), and the rotation
     # estimate's own spread is then about the 0.5° perturbation (measured 0.46° starting
@@ -152,11 +165,15 @@ def test_calibrate_with_association_improves_a_drifted_rig():
     # BPE falls to the noise floor (2σ² px² per member, less the fitted degrees of freedom).
     assert float(history.bpe_after[-1]) < min(float(history.bpe_before[0]), 2 * sigma**2)
     before, after = rig_errors(start, rig), rig_errors(out, rig)
-    assert float(after.rotation_deg.mean()) < 0.5 * float(before.rotation_deg.mean())  # measured 0.47° → 0.08°
+    assert float(after.rotation_deg.mean()) < 0.5 * float(
+        before.rotation_deg.mean()
+    )  # measured 0.47° → 0.08°
     assert float(after.center.mean()) < float(before.center.mean())
 
     # Re-association: the first association used the drifted rig, the last the refined one.
-    per_round = jax.jit(jax.vmap(jax.vmap(scene_metrics, in_axes=(None, 0, 0)), in_axes=(None, 0, None)))
+    per_round = jax.jit(
+        jax.vmap(jax.vmap(scene_metrics, in_axes=(None, 0, 0)), in_axes=(None, 0, None))
+    )
     metrics = per_round(rig, history.associations, scenes)
     pg_f1 = np.asarray(metrics.pg_f1).mean(axis=1)
     assert pg_f1[-1] >= pg_f1[0] and pg_f1[-1] > 0.95
@@ -192,14 +209,19 @@ def test_huber_weight_gives_the_kernel_and_is_finite_at_zero():
     w = _robust_weight(s, "huber", c)
     rho = jnp.where(s > 4.0, 2 * 2.0 * jnp.sqrt(s) - 4.0, s)
     np.testing.assert_allclose(w * w * s, rho, rtol=1e-6)
-    grad = jax.jit(jax.grad(lambda r: jnp.sum(r * _robust_weight(r * r, "huber", c))))(jnp.array([0.0, 3.0]))
+    grad = jax.jit(jax.grad(lambda r: jnp.sum(r * _robust_weight(r * r, "huber", c))))(
+        jnp.array([0.0, 3.0])
+    )
     assert bool(jnp.all(jnp.isfinite(grad)))
 
 
 @pytest.mark.parametrize(
     "change, match",
     [
-        ({"xy": jnp.zeros((S, 9, 4, 2)), "groups": -jnp.ones((S, 5, 9), jnp.int32)}, "xy must have shape"),
+        (
+            {"xy": jnp.zeros((S, 9, 4, 2)), "groups": -jnp.ones((S, 5, 9), jnp.int32)},
+            "xy must have shape",
+        ),
         ({"xy": jnp.zeros((S, 10, 4, 2), jnp.float16)}, "share a dtype"),
         ({"refine_intrinsics": False, "refine_principal": True}, "need refine_intrinsics"),
         ({"max_groups": 0}, "max_groups"),
@@ -207,7 +229,11 @@ def test_huber_weight_gives_the_kernel_and_is_finite_at_zero():
 )
 def test_refine_rig_rejects_bad_input(change, match):
     rig = default_rig()
-    args = {"xy": jnp.zeros((S, 10, 4, 2)), "groups": -jnp.ones((S, 5, 10), jnp.int32), "valid": jnp.zeros((S, 5), bool)}
+    args = {
+        "xy": jnp.zeros((S, 10, 4, 2)),
+        "groups": -jnp.ones((S, 5, 10), jnp.int32),
+        "valid": jnp.zeros((S, 5), bool),
+    }
     args.update(change)
     with pytest.raises(ValueError, match=match):
         refine_rig(rig, args.pop("xy"), args.pop("groups"), args.pop("valid"), **args)

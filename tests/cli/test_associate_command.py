@@ -37,7 +37,10 @@ def data(tmp_path_factory):
     scene = generate_scene(jax.random.PRNGKey(5), rig, 12, SIGMA, capacity=12)
     xy, mask = np.asarray(scene.xy, np.float64), np.asarray(scene.mask)
     conf = np.random.default_rng(0).uniform(0.5, 1.0, mask.shape)
-    views = [[[*xy[m, i], conf[m, i]] for i in range(mask.shape[1]) if mask[m, i]] for m in range(mask.shape[0])]
+    views = [
+        [[*xy[m, i], conf[m, i]] for i in range(mask.shape[1]) if mask[m, i]]
+        for m in range(mask.shape[0])
+    ]
     points = folder / "detections.json"
     points.write_text(json.dumps({"views": views}))
     # The file's slots are the scene's detections packed to the front of each view.
@@ -47,7 +50,9 @@ def data(tmp_path_factory):
     for m, v in enumerate(views):
         xy_file[m, : len(v)] = np.asarray(v)[:, :2] if v else 0.0
         mask_file[m, : len(v)] = True
-    expected = cdog_jax.associate(rig, jnp.asarray(xy_file, jnp.float32), jnp.asarray(mask_file), sigma=SIGMA)
+    expected = cdog_jax.associate(
+        rig, jnp.asarray(xy_file, jnp.float32), jnp.asarray(mask_file), sigma=SIGMA
+    )
     return folder, rig, points, views, expected
 
 
@@ -64,7 +69,14 @@ WRITERS = {
     "colmap": lambda p, rig: save_rig_colmap(p, rig, image_size=IMAGE_SIZE),
     "easymocap": lambda p, rig: save_rig_easymocap(p, rig),
 }
-NAMES = {"easyvis": "rig_ev", "json": "rig.json", "npz": "rig.npz", "anipose": "calibration.toml", "colmap": "colmap", "easymocap": "easymocap"}
+NAMES = {
+    "easyvis": "rig_ev",
+    "json": "rig.json",
+    "npz": "rig.npz",
+    "anipose": "calibration.toml",
+    "colmap": "colmap",
+    "easymocap": "easymocap",
+}
 
 
 @pytest.mark.parametrize("fmt", list(WRITERS))
@@ -73,14 +85,31 @@ def test_associate_from_every_rig_format(data, fmt, capsys):
     rig_path = folder / NAMES[fmt]
     WRITERS[fmt](rig_path, rig)
     out = folder / f"groups_{fmt}.json"
-    assert main(["associate", "--rig", rig_path, "--points", points, "--sigma", str(SIGMA), "--out", out]) == 0
+    assert (
+        main(
+            [
+                "associate",
+                "--rig",
+                rig_path,
+                "--points",
+                points,
+                "--sigma",
+                str(SIGMA),
+                "--out",
+                out,
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
     assert f"3D points: {int(expected.num_groups)}" in text
     records = load_association_json(out)
     got = np.array([g["point3d"] for g in records["groups"]])
     np.testing.assert_allclose(got, _points(expected), atol=1e-3)
     # Every detection of the file appears once, in a group or as unassigned.
-    listed = [(r[0], r[1]) for g in records["groups"] for r in g["members"]] + [(r[0], r[1]) for r in records["unassigned"]]
+    listed = [(r[0], r[1]) for g in records["groups"] for r in g["members"]] + [
+        (r[0], r[1]) for r in records["unassigned"]
+    ]
     assert sorted(listed) == sorted((m, i) for m, v in enumerate(views) for i in range(len(v)))
 
 
@@ -92,7 +121,10 @@ def test_associate_frames_csv_npz_weights_min_views_plot(data, capsys):
     frames.write_text(json.dumps({"frames": [{"views": views}, {"views": views[::-1][::-1]}]}))
     out_csv, out_npz, fig = folder / "points.csv", folder / "groups.npz", folder / "frame0.png"
     common = ["associate", "--rig", rig_path, "--points", frames, "--sigma", str(SIGMA)]
-    assert main([*common, "--min-views", "3", "--confidence-weights", "--out", out_csv, "--plot", fig]) == 0
+    assert (
+        main([*common, "--min-views", "3", "--confidence-weights", "--out", out_csv, "--plot", fig])
+        == 0
+    )
     text = capsys.readouterr().out
     assert "2 frame(s)" in text and fig.stat().st_size > 10_000
     with open(out_csv) as f:
@@ -112,10 +144,15 @@ def test_associate_summary_says_when_sigma_fell_back(data, capsys):
     # Frame 1: one detection in each of two views (of different points): nothing to estimate σ from.
     thin = [[[300.0, 200.0]], [[350.0, 260.0]]] + [[] for _ in views[2:]]
     frames = folder / "frames_fallback.json"
-    frames.write_text(json.dumps({"frames": [{"views": [[r[:2] for r in v] for v in views]}, {"views": thin}]}))
+    frames.write_text(
+        json.dumps({"frames": [{"views": [[r[:2] for r in v] for v in views]}, {"views": thin}]})
+    )
     assert main(["associate", "--rig", rig_path, "--points", frames]) == 0
     text = capsys.readouterr().out
-    assert "(the fallback 1 px in 1 of 2 frame(s), e.g. frame 1: too little evidence to estimate σ" in text
+    assert (
+        "(the fallback 1 px in 1 of 2 frame(s), e.g. frame 1: too little evidence to estimate σ"
+        in text
+    )
 
 
 def test_associate_undistorts_with_the_rig_distortion(data, capsys):
@@ -134,7 +171,22 @@ def test_associate_undistorts_with_the_rig_distortion(data, capsys):
     lens_points = folder / "lens_detections.json"
     lens_points.write_text(json.dumps({"views": lens_views}))
     out = folder / "lens_groups.json"
-    assert main(["associate", "--rig", rig_path, "--points", lens_points, "--sigma", str(SIGMA), "--out", out]) == 0
+    assert (
+        main(
+            [
+                "associate",
+                "--rig",
+                rig_path,
+                "--points",
+                lens_points,
+                "--sigma",
+                str(SIGMA),
+                "--out",
+                out,
+            ]
+        )
+        == 0
+    )
     assert "with lens distortion" in capsys.readouterr().out
     got = np.array([g["point3d"] for g in load_association_json(out)["groups"]])
     np.testing.assert_allclose(got, _points(expected), atol=2e-3)
@@ -162,8 +214,12 @@ def test_associate_refuses_bad_input_before_any_work(data, tmp_path, capsys):
     rig_path = tmp_path / "three.json"
     save_rig_json(rig_path, rig.select([0, 1, 2]))
     assert main(["associate", "--rig", rig_path, "--points", points]) == 2
-    assert re.search(r"^cdog-jax: error: .*detections\.json.*10 views; the rig has 3", capsys.readouterr().err)
-    assert main(["associate", "--rig", rig_path, "--points", points, "--out", tmp_path / "x.txt"]) == 2
+    assert re.search(
+        r"^cdog-jax: error: .*detections\.json.*10 views; the rig has 3", capsys.readouterr().err
+    )
+    assert (
+        main(["associate", "--rig", rig_path, "--points", points, "--out", tmp_path / "x.txt"]) == 2
+    )
     assert "extension must be one of" in capsys.readouterr().err
     with pytest.raises(ValueError, match=r"detections\.json.*10 views; the rig has 3"):
         main(["associate", "--debug", "--rig", rig_path, "--points", points])
@@ -176,7 +232,12 @@ def test_associate_with_the_robust_sigma_estimator(data, capsys):
     rig_path = folder / "rig_robust.json"
     save_rig_json(rig_path, rig, image_size=IMAGE_SIZE)
     out = folder / "robust.json"
-    assert main(["associate", "--rig", rig_path, "--points", points, "--sigma", "robust", "--out", out]) == 0
+    assert (
+        main(
+            ["associate", "--rig", rig_path, "--points", points, "--sigma", "robust", "--out", out]
+        )
+        == 0
+    )
     assert "σ estimated (robust)" in capsys.readouterr().out
     P = max(len(v) for v in views)
     xy = np.zeros((len(views), P, 2), np.float32)
@@ -184,9 +245,13 @@ def test_associate_with_the_robust_sigma_estimator(data, capsys):
     for m, v in enumerate(views):
         xy[m, : len(v)] = np.asarray(v)[:, :2] if v else 0.0
         mask[m, : len(v)] = True
-    robust = cdog_jax.associate(rig, xy, mask, method=cdog_jax.Config.best(sigma_mode="robust"), sigma="auto")
+    robust = cdog_jax.associate(
+        rig, xy, mask, method=cdog_jax.Config.best(sigma_mode="robust"), sigma="auto"
+    )
     auto = cdog_jax.associate(rig, xy, mask, method=cdog_jax.Config.best(), sigma="auto")
     assert float(robust.sigma_px) != float(auto.sigma_px)
     records = load_association_json(out)
     np.testing.assert_allclose(records["sigma_px"], float(robust.sigma_px), rtol=1e-5)
-    np.testing.assert_allclose(np.array([g["point3d"] for g in records["groups"]]), _points(robust), atol=1e-3)
+    np.testing.assert_allclose(
+        np.array([g["point3d"] for g in records["groups"]]), _points(robust), atol=1e-3
+    )

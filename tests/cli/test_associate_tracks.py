@@ -6,11 +6,10 @@ import json
 
 import numpy as np
 import pytest
+from helpers import project_np, ring_rig
 
 from cdog_jax.cli import main
 from cdog_jax.io import save_rig_json
-
-from helpers import project_np, ring_rig
 
 
 def test_associate_writes_track_ids(tmp_path, capsys):
@@ -24,12 +23,31 @@ def test_associate_writes_track_ids(tmp_path, capsys):
     points, rig_path = tmp_path / "frames.json", tmp_path / "rig.json"
     points.write_text(json.dumps({"frames": frames}))
     save_rig_json(rig_path, rig, image_size=(640, 480))
-    common = ["associate", "--rig", rig_path, "--points", points, "--sigma", "1", "--method", "paper"]
-    assert main([*common, "--temporal-prior", "--track-step-px", "40", "--out", tmp_path / "a.json"]) == 0
-    assert "tracks: 2 over 3 frame(s); 0 point(s) recovered by the temporal prior" in capsys.readouterr().out
+    common = [
+        "associate",
+        "--rig",
+        rig_path,
+        "--points",
+        points,
+        "--sigma",
+        "1",
+        "--method",
+        "paper",
+    ]
+    assert (
+        main([*common, "--temporal-prior", "--track-step-px", "40", "--out", tmp_path / "a.json"])
+        == 0
+    )
+    assert (
+        "tracks: 2 over 3 frame(s); 0 point(s) recovered by the temporal prior"
+        in capsys.readouterr().out
+    )
     data = json.loads((tmp_path / "a.json").read_text())["frames"]
     # A track keeps its point: the first member's slot in view 0 swaps with the slots.
-    track_of_slot = [{g["members"][0][1]: g["track"] for g in fr["groups"] if g["members"][0][0] == 0} for fr in data]
+    track_of_slot = [
+        {g["members"][0][1]: g["track"] for g in fr["groups"] if g["members"][0][0] == 0}
+        for fr in data
+    ]
     assert track_of_slot[0] == track_of_slot[2] == {0: track_of_slot[0][0], 1: track_of_slot[0][1]}
     assert track_of_slot[1] == {0: track_of_slot[0][1], 1: track_of_slot[0][0]}
     assert main([*common, "--out", tmp_path / "a.csv"]) == 0
@@ -49,8 +67,26 @@ def test_the_prior_on_one_scene_says_it_does_nothing(tmp_path, capsys):
     rig = ring_rig(num_views=3)
     xy, _ = project_np(rig, np.array([[0.2, 0.0, 0.1], [-0.3, 0.2, 0.0]]))
     points, rig_path = tmp_path / "one.json", tmp_path / "rig.json"
-    points.write_text(json.dumps({"views": [[[float(v) for v in p] for p in xy[m]] for m in range(3)]}))
+    points.write_text(
+        json.dumps({"views": [[[float(v) for v in p] for p in xy[m]] for m in range(3)]})
+    )
     save_rig_json(rig_path, rig, image_size=(640, 480))
-    assert main(["associate", "--rig", rig_path, "--points", points, "--sigma", "1", "--method", "paper", "--temporal-prior"]) == 0
+    assert (
+        main(
+            [
+                "associate",
+                "--rig",
+                rig_path,
+                "--points",
+                points,
+                "--sigma",
+                "1",
+                "--method",
+                "paper",
+                "--temporal-prior",
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
     assert "--temporal-prior needs a sequence of frames" in text and "tracks:" not in text

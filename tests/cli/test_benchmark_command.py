@@ -4,8 +4,8 @@ import os
 
 import numpy as np
 
-from cdog_jax.cli import main
 from cdog_jax.benchmark import load_results
+from cdog_jax.cli import main
 
 
 def test_benchmark_quick_end_to_end(tmp_path, capsys):
@@ -17,7 +17,14 @@ def test_benchmark_quick_end_to_end(tmp_path, capsys):
     assert "| σ (px) | method |" in text and "| 2 | reference |" in text and "PG-F1" in text
     result = load_results(out)
     assert result.configs == ("paper", "reference") and result.num_scenes == 2
-    for name in ("results.npz", "results.csv", "results.json", "metrics_vs_sigma.png", "time_vs_count.png", "heatmaps_paper.png"):
+    for name in (
+        "results.npz",
+        "results.csv",
+        "results.json",
+        "metrics_vs_sigma.png",
+        "time_vs_count.png",
+        "heatmaps_paper.png",
+    ):
         assert os.path.getsize(out / name) > 0, name
 
 
@@ -36,7 +43,18 @@ def test_benchmark_on_a_rig_file(tmp_path, capsys):
     rig = default_rig().select([0, 1, 2, 3])
     save_rig_easyvis(tmp_path / "rig", rig)
     out = tmp_path / "bench"
-    argv = ["benchmark", "--quick", "--rig", str(tmp_path / "rig"), "--sigmas", "1", "--counts", "4", "--scenes", "1"]
+    argv = [
+        "benchmark",
+        "--quick",
+        "--rig",
+        str(tmp_path / "rig"),
+        "--sigmas",
+        "1",
+        "--counts",
+        "4",
+        "--scenes",
+        "1",
+    ]
     argv += ["--methods", "paper", "--no-figures", "--no-timing", "--out", out]
     assert main(argv) == 0
     text = capsys.readouterr().out
@@ -55,14 +73,25 @@ def test_benchmark_rig_file_with_explicit_box(tmp_path, capsys):
 
     save_rig_json(tmp_path / "rig.json", default_rig().select([0, 1, 2, 3]), image_size=(640, 480))
     out = tmp_path / "bench"
-    argv = ["benchmark", "--quick", "--rig", str(tmp_path / "rig.json"), "--sigmas", "1", "--counts", "4"]
+    argv = [
+        "benchmark",
+        "--quick",
+        "--rig",
+        str(tmp_path / "rig.json"),
+        "--sigmas",
+        "1",
+        "--counts",
+        "4",
+    ]
     argv += ["--scenes", "1", "--methods", "paper", "--no-figures", "--no-timing", "--out", out]
     argv += ["--box", "-0.5", "-0.5", "0", "0.5", "0.5", "0.4", "--no-progress"]
     assert main(argv) == 0
     text = capsys.readouterr().out
     assert "image 640×480 px (the rig file)" in text and "(--box)" in text
     assert "bucket 1/1" not in text  # --no-progress: no report between buckets
-    np.testing.assert_allclose(load_results(out).box, [[-0.5, -0.5, 0.0], [0.5, 0.5, 0.4]], rtol=1e-6)
+    np.testing.assert_allclose(
+        load_results(out).box, [[-0.5, -0.5, 0.0], [0.5, 0.5, 0.4]], rtol=1e-6
+    )
 
 
 def test_the_benchmark_runs_the_default_method_of_every_entry_point():

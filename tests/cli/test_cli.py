@@ -6,8 +6,8 @@ import pytest
 
 import cdog_jax
 from cdog_jax.cli import main
-from cdog_jax.viz import plot_association
 from cdog_jax.synthetic import default_rig, generate_scene
+from cdog_jax.viz import plot_association
 
 METRIC_NAMES = ("G-F1", "mP-F1", "PG-P", "PG-R", "PG-F1", "3DErr", "BPE")
 
@@ -53,7 +53,9 @@ def test_plot_association_tiny_scene(tmp_path, tiny, with_gt):
     rig, scene, result = tiny
     path = tmp_path / "tiny.png"
     gt = np.asarray(scene.points3d)[: int(scene.num_points)] if with_gt else None
-    fig = plot_association(rig, scene.xy, scene.mask, result, points3d_gt=gt, title="extra line", path=path)
+    fig = plot_association(
+        rig, scene.xy, scene.mask, result, points3d_gt=gt, title="extra line", path=path
+    )
     assert path.is_file() and path.stat().st_size > 0
     axes = fig.get_axes()
     M = rig.num_views

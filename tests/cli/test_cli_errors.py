@@ -100,12 +100,22 @@ def test_out_equal_to_the_rig_file(files, capsys):
 
 def test_out_equal_to_plot(files, capsys):
     folder, rig, _, points = files
-    refused(_associate(rig, points, "--out", folder / "a.json", "--plot", folder / "a.json"), capsys, "--out", "--plot")
+    refused(
+        _associate(rig, points, "--out", folder / "a.json", "--plot", folder / "a.json"),
+        capsys,
+        "--out",
+        "--plot",
+    )
 
 
 def test_trc_of_one_scene_without_people_is_refused(files, capsys):
     folder, rig, _, points = files
-    refused(_associate(rig, points, "--out", folder / "m.trc"), capsys, "m.trc", "sequence of frames or per-view people")
+    refused(
+        _associate(rig, points, "--out", folder / "m.trc"),
+        capsys,
+        "m.trc",
+        "sequence of frames or per-view people",
+    )
     refused(_associate(rig, points, "--out", folder / "m.trc", "--units", "m m"), capsys, "--units")
     assert not (folder / "m.trc").exists()
 
@@ -120,12 +130,19 @@ def test_trc_of_a_sequence_has_one_marker_per_track(files, capsys):
     assert "4 marker(s), one per track, 50 frames/s" in capsys.readouterr().out
     trc = load_trc(folder / "m.trc")
     assert trc.names == ("track0", "track1", "track2", "track3") and trc.rate == 50
-    np.testing.assert_allclose(np.sort(trc.markers[0], axis=0), np.sort(POINTS3D, axis=0), atol=1e-4)
+    np.testing.assert_allclose(
+        np.sort(trc.markers[0], axis=0), np.sort(POINTS3D, axis=0), atol=1e-4
+    )
 
 
 def test_out_in_a_missing_folder(files, capsys):
     folder, rig, _, points = files
-    refused(_associate(rig, points, "--out", folder / "nope" / "out.json"), capsys, "nope", "does not exist")
+    refused(
+        _associate(rig, points, "--out", folder / "nope" / "out.json"),
+        capsys,
+        "nope",
+        "does not exist",
+    )
 
 
 def test_out_is_a_directory(files, capsys):
@@ -138,8 +155,14 @@ def test_out_folder_not_writable(files, capsys, monkeypatch):
     folder, rig, _, points = files
     (folder / "ro").mkdir()
     real = os.access
-    monkeypatch.setattr(os, "access", lambda p, mode, **kw: False if os.fspath(p).endswith("ro") else real(p, mode, **kw))
-    refused(_associate(rig, points, "--out", folder / "ro" / "out.json"), capsys, "ro", "not writable")
+    monkeypatch.setattr(
+        os,
+        "access",
+        lambda p, mode, **kw: False if os.fspath(p).endswith("ro") else real(p, mode, **kw),
+    )
+    refused(
+        _associate(rig, points, "--out", folder / "ro" / "out.json"), capsys, "ro", "not writable"
+    )
 
 
 def test_out_existing_read_only_file(files, capsys, monkeypatch):
@@ -147,7 +170,11 @@ def test_out_existing_read_only_file(files, capsys, monkeypatch):
     out = folder / "old.json"
     out.write_text("{}")
     real = os.access
-    monkeypatch.setattr(os, "access", lambda p, mode, **kw: False if os.fspath(p).endswith("old.json") else real(p, mode, **kw))
+    monkeypatch.setattr(
+        os,
+        "access",
+        lambda p, mode, **kw: False if os.fspath(p).endswith("old.json") else real(p, mode, **kw),
+    )
     refused(_associate(rig, points, "--out", out), capsys, "old.json", "read-only")
 
 
@@ -161,13 +188,24 @@ def test_other_commands_check_their_outputs(files, capsys):
     folder, rig, _, points = files
     refused(["demo", "--out", folder / "nope" / "d.png"], capsys, "nope", "does not exist")
     refused(["demo", "--out", folder / "d.txt"], capsys, "d.txt", ".png")
-    refused(["calibrate", "--quick", "--out", folder / "nope" / "c.png"], capsys, "nope", "does not exist")
+    refused(
+        ["calibrate", "--quick", "--out", folder / "nope" / "c.png"],
+        capsys,
+        "nope",
+        "does not exist",
+    )
     (folder / "file").write_text("x")
     refused(["benchmark", "--quick", "--out", folder / "file"], capsys, "file", "not a folder")
     (folder / "bench").mkdir()
     (folder / "bench" / "results.json").write_bytes(rig.read_bytes())
     rig_in_out = folder / "bench" / "results.json"
-    refused(["benchmark", "--quick", "--rig", rig_in_out, "--out", folder / "bench"], capsys, "--out", "results.json", "--rig")
+    refused(
+        ["benchmark", "--quick", "--rig", rig_in_out, "--out", folder / "bench"],
+        capsys,
+        "--out",
+        "results.json",
+        "--rig",
+    )
     refused(["rig", rig, "--plot", folder / "nope" / "r.png"], capsys, "nope", "does not exist")
 
 
@@ -216,14 +254,36 @@ def test_deep_nesting(files, capsys):
 
 def test_missing_paths_and_folders_where_files_belong(files, capsys):
     folder, rig, _, points = files
-    refused(_associate(rig, folder / "missing.json"), capsys, "missing.json", "--points", "does not exist")
-    refused(_associate(folder / "missing_rig.json", points), capsys, "missing_rig.json", "--rig", "does not exist")
+    refused(
+        _associate(rig, folder / "missing.json"),
+        capsys,
+        "missing.json",
+        "--points",
+        "does not exist",
+    )
+    refused(
+        _associate(folder / "missing_rig.json", points),
+        capsys,
+        "missing_rig.json",
+        "--rig",
+        "does not exist",
+    )
     (folder / "dir.json").mkdir()
     refused(_associate(rig, folder / "dir.json"), capsys, "dir.json", "is a folder")
     refused(_associate(folder / "dir.json", points), capsys, "dir.json", "is a folder")
-    refused(["associate", "--rig", rig, "--rig-format", "easyvis", "--points", points], capsys, rig, "not a folder")
+    refused(
+        ["associate", "--rig", rig, "--rig-format", "easyvis", "--points", points],
+        capsys,
+        rig,
+        "not a folder",
+    )
     refused(["rig", folder / "missing_rig"], capsys, "missing_rig", "does not exist")
-    refused(["benchmark", "--rig", folder / "missing_rig", "--out", folder / "b"], capsys, "missing_rig", "does not exist")
+    refused(
+        ["benchmark", "--rig", folder / "missing_rig", "--out", folder / "b"],
+        capsys,
+        "missing_rig",
+        "does not exist",
+    )
 
 
 def test_invalid_json_is_one_line(files, capsys):
@@ -280,9 +340,20 @@ def test_sigma_not_finite_or_huge(files, capsys, sigma):
 
 def test_sigma_larger_than_the_image_diagonal(files, capsys):
     folder, rig, bare, points = files
-    refused(["associate", "--rig", rig, "--points", points, "--sigma", "900"], capsys, "--sigma", "800", "diagonal")
+    refused(
+        ["associate", "--rig", rig, "--points", points, "--sigma", "900"],
+        capsys,
+        "--sigma",
+        "800",
+        "diagonal",
+    )
     # Without an image size: twice the principal point (320.8, 240.7) → about 802 px.
-    refused(["associate", "--rig", bare, "--points", points, "--sigma", "900"], capsys, "--sigma", "diagonal")
+    refused(
+        ["associate", "--rig", bare, "--points", points, "--sigma", "900"],
+        capsys,
+        "--sigma",
+        "diagonal",
+    )
     refused(["demo", "--sigma", "inf"], capsys, "--sigma")
     refused(["demo", "--sigma", "5000"], capsys, "--sigma", "diagonal")
     refused(["calibrate", "--sigma", "nan"], capsys, "--sigma")
@@ -355,4 +426,9 @@ def test_associate_end_to_end_with_empty_frames(files, capsys):
 
 def test_sigma_robust_for_a_method_without_that_estimator(files, capsys):
     folder, rig, _, points = files
-    refused(["associate", "--rig", rig, "--points", points, "--sigma", "median"], capsys, "--sigma", "robust")
+    refused(
+        ["associate", "--rig", rig, "--points", points, "--sigma", "median"],
+        capsys,
+        "--sigma",
+        "robust",
+    )

@@ -11,8 +11,16 @@ from cdog_jax.cli import build_parser
 from cdog_jax.io import FORMATS
 
 # Words of a rig format that a help text naming it must contain (one per format).
-_FORMAT_WORDS = {"easyvis": "EasyVis", "json": ".json", "npz": ".npz", "anipose": "anipose",
-                 "colmap": "COLMAP", "easymocap": "EasyMocap", "nerfstudio": "nerfstudio", "qualisys": "Qualisys"}
+_FORMAT_WORDS = {
+    "easyvis": "EasyVis",
+    "json": ".json",
+    "npz": ".npz",
+    "anipose": "anipose",
+    "colmap": "COLMAP",
+    "easymocap": "EasyMocap",
+    "nerfstudio": "nerfstudio",
+    "qualisys": "Qualisys",
+}
 
 
 def _subparsers(parser):
@@ -27,10 +35,21 @@ def _helps():
         yield f"cdog-jax {name}", sub.format_help()
 
 
-@pytest.mark.parametrize("command,text", list(_helps()), ids=lambda v: v if v.startswith("cdog") else "")
+@pytest.mark.parametrize(
+    "command,text", list(_helps()), ids=lambda v: v if v.startswith("cdog") else ""
+)
 def test_help_text_is_for_users(command, text):
-    forbidden = [r"SPEC", r"\bissue\b", r"\bsession\b", r"\bitem \d", r"``", r":(func|meth|mod|class):",
-                 r"cdog_jax/_", r"\b_[a-z_]+\.py\b", r"cdog_jax(\.[a-z]+)*\._"]
+    forbidden = [
+        r"SPEC",
+        r"\bissue\b",
+        r"\bsession\b",
+        r"\bitem \d",
+        r"``",
+        r":(func|meth|mod|class):",
+        r"cdog_jax/_",
+        r"\b_[a-z_]+\.py\b",
+        r"cdog_jax(\.[a-z]+)*\._",
+    ]
     for pattern in forbidden:
         assert not re.search(pattern, text), f"{command} --help matches {pattern!r}:\n{text}"
 
@@ -40,7 +59,9 @@ def test_every_rig_flag_names_every_format():
     subs = _subparsers(build_parser())
     for name in ("benchmark", "associate", "rig"):
         sub = subs[name]
-        rig_help = [a.help for a in sub._actions if "--rig" in a.option_strings or a.dest == "rig"][0]
+        rig_help = [a.help for a in sub._actions if "--rig" in a.option_strings or a.dest == "rig"][
+            0
+        ]
         text = f"{sub.description} {rig_help}"
         missing = [w for w in _FORMAT_WORDS.values() if w not in text]
         assert not missing, f"{name}: help of --rig lacks {missing}"

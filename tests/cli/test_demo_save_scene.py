@@ -17,17 +17,48 @@ from cdog_jax.synthetic import default_rig, generate_scene
 
 def test_save_scene_then_associate_round_trip(tmp_path, capsys):
     folder = tmp_path / "scene"
-    assert main(["demo", "--points", "12", "--seed", "3", "--out", tmp_path / "d.png", "--save-scene", folder]) == 0
+    assert (
+        main(
+            [
+                "demo",
+                "--points",
+                "12",
+                "--seed",
+                "3",
+                "--out",
+                tmp_path / "d.png",
+                "--save-scene",
+                folder,
+            ]
+        )
+        == 0
+    )
     assert "cdog-jax associate --rig" in capsys.readouterr().out
     rig_file = load_rig(folder / "rig.json")
     assert rig_file.image_size == (640, 480)
     truth = json.loads((folder / "truth.json").read_text())
 
     groups_path = tmp_path / "groups.json"
-    assert main(["associate", "--rig", folder / "rig.json", "--points", folder / "detections.json",
-                 "--sigma", "1", "--out", groups_path]) == 0
+    assert (
+        main(
+            [
+                "associate",
+                "--rig",
+                folder / "rig.json",
+                "--points",
+                folder / "detections.json",
+                "--sigma",
+                "1",
+                "--out",
+                groups_path,
+            ]
+        )
+        == 0
+    )
     written = json.loads(groups_path.read_text())
-    from_files = {frozenset((v, truth["views"][v][s]) for v, s, *_ in g["members"]) for g in written["groups"]}
+    from_files = {
+        frozenset((v, truth["views"][v][s]) for v, s, *_ in g["members"]) for g in written["groups"]
+    }
 
     # The same scene in memory (the demo's defaults: paper(), σ = 1 px, capacity = points).
     rig = default_rig()
@@ -35,9 +66,13 @@ def test_save_scene_then_associate_round_trip(tmp_path, capsys):
     result = cdog_jax.associate(rig, scene.xy, scene.mask, sigma=1.0)
     instance = np.asarray(scene.instance)
     groups = np.asarray(result.groups)[np.asarray(result.valid)]
-    in_memory = {frozenset((m, int(instance[m, s])) for m, s in enumerate(g) if s >= 0) for g in groups}
+    in_memory = {
+        frozenset((m, int(instance[m, s])) for m, s in enumerate(g) if s >= 0) for g in groups
+    }
     assert from_files == in_memory and len(in_memory) > 0
-    np.testing.assert_allclose(truth["points3d"], np.asarray(scene.points3d)[: int(scene.num_points)], atol=1e-6)
+    np.testing.assert_allclose(
+        truth["points3d"], np.asarray(scene.points3d)[: int(scene.num_points)], atol=1e-6
+    )
     assert [len(v) for v in truth["views"]] == np.asarray(scene.mask).sum(axis=1).tolist()
 
 
@@ -55,7 +90,9 @@ def test_save_detections_json_round_trip(tmp_path):
     for f in range(2):
         order = detection_order(mask[f])
         m, i = np.nonzero(mask[f])
-        np.testing.assert_array_equal(det.xy[f][m, order[m, i]], xy[f][m, i])  # exact: repr round trip
+        np.testing.assert_array_equal(
+            det.xy[f][m, order[m, i]], xy[f][m, i]
+        )  # exact: repr round trip
         np.testing.assert_array_equal(det.confidence[f][m, order[m, i]], conf[f][m, i])
         assert det.mask[f].sum() == mask[f].sum()
     save_detections_json(path, xy[0], mask[0])  # one scene: {"views": …}

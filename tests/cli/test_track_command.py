@@ -30,25 +30,44 @@ def stream(tmp_path_factory):
     xy, mask, cls = (np.asarray(a) for a in (sk.xy, sk.mask, sk.class_id))
     lines = []
     for f in range(3):
-        views = [[[float(v) for v in xy[f, m, i]] for i in np.flatnonzero(mask[f, m])] for m in range(M)]
-        names = [[SKELETON_JOINTS[cls[f, m, i]] for i in np.flatnonzero(mask[f, m])] for m in range(M)]
+        views = [
+            [[float(v) for v in xy[f, m, i]] for i in np.flatnonzero(mask[f, m])] for m in range(M)
+        ]
+        names = [
+            [SKELETON_JOINTS[cls[f, m, i]] for i in np.flatnonzero(mask[f, m])] for m in range(M)
+        ]
         lines.append(json.dumps({"views": views, "classes": names, "frame": 100 + f}))
     return folder / "rig.json", lines, rig, (xy, mask, cls)
 
 
 def test_frames_stream_through_a_pipe(stream):
     rig_path, lines, rig, (xy, mask, cls) = stream
-    command = [sys.executable, "-m", "cdog_jax", "track", "--rig", str(rig_path), "--keypoints", "COCO_17"]
-    with subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) as child:
+    command = [
+        sys.executable,
+        "-m",
+        "cdog_jax",
+        "track",
+        "--rig",
+        str(rig_path),
+        "--keypoints",
+        "COCO_17",
+    ]
+    with subprocess.Popen(
+        command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    ) as child:
         answers = []
         for line in (lines[0], "{not json", lines[1], '{"views": [[[1, 2]]]}', lines[2]):
             child.stdin.write(line + "\n")
             child.stdin.flush()
-            answers.append(json.loads(child.stdout.readline()))  # written before the next line is sent
+            answers.append(
+                json.loads(child.stdout.readline())
+            )  # written before the next line is sent
         child.stdin.close()
         assert child.wait(timeout=120) == 0, child.stderr.read()
         assert child.stdout.read() == ""
-    assert answers[1] == {"line": 2, "error": answers[1]["error"]} and answers[1]["error"].startswith("line 2: not JSON")
+    assert answers[1] == {"line": 2, "error": answers[1]["error"]} and answers[1][
+        "error"
+    ].startswith("line 2: not JSON")
     assert answers[3]["line"] == 4 and "views" in answers[3]["error"]
     frames = [answers[0], answers[2], answers[4]]
     assert [a["frame"] for a in frames] == [100, 101, 102]
@@ -59,7 +78,11 @@ def test_frames_stream_through_a_pipe(stream):
         out = live.update(xy[f], mask[f], classes=np.where(mask[f], cls[f], 0))
         assert len(answer["groups"]) == len(out.groups) > 5
         for group, g in zip(answer["groups"], range(len(out.groups))):
-            members = [[m, int(np.flatnonzero(order[m] == s)[0])] for m, s in enumerate(out.groups[g]) if s >= 0]
+            members = [
+                [m, int(np.flatnonzero(order[m] == s)[0])]
+                for m, s in enumerate(out.groups[g])
+                if s >= 0
+            ]
             assert group["members"] == members and group["track"] == int(out.track_id[g])
             np.testing.assert_allclose(group["point"], out.points3d[g], atol=1e-5)
 

@@ -44,7 +44,9 @@ def test_default_rig_with_scene_has_no_warnings(rig, scene):
     assert len(text.splitlines()) >= rig.num_views + 4
     assert describe_rig(rig).warnings == []  # without detections
     # K[2,2] = -1 (OpenMVG style) in two views: same pixels, same verdict, same centroid.
-    neg = describe_rig(negate_intrinsics(rig, [0, 3]), xy=scene.xy, mask=scene.mask, image_size=IMAGE_SIZE)
+    neg = describe_rig(
+        negate_intrinsics(rig, [0, 3]), xy=scene.xy, mask=scene.mask, image_size=IMAGE_SIZE
+    )
     assert neg.warnings == []
     np.testing.assert_allclose(neg.centroid, desc.centroid, atol=1e-6)
 
@@ -63,8 +65,11 @@ def test_numbers_match_numpy(rig):
     assert (desc.focal_px > 1000).all()
     d = np.array([[np.linalg.norm(a - b) for b in centers] for a in centers])
     pairs = d[np.triu_indices(len(K), 1)]
-    np.testing.assert_allclose([desc.baseline_min, desc.baseline_median, desc.baseline_max],
-                               [pairs.min(), np.median(pairs), pairs.max()], rtol=1e-5)
+    np.testing.assert_allclose(
+        [desc.baseline_min, desc.baseline_median, desc.baseline_max],
+        [pairs.min(), np.median(pairs), pairs.max()],
+        rtol=1e-5,
+    )
     i, j = desc.closest_pair
     assert d[i, j] == pytest.approx(pairs.min(), rel=1e-5)
     assert desc.names[0] == "cam0" and "cam9" in str(desc)
@@ -85,7 +90,9 @@ def test_camera_to_world_rig_is_flagged(rig, scene):
     bad = _camera_to_world(rig)
     for kwargs in ({"xy": scene.xy, "mask": scene.mask, "image_size": IMAGE_SIZE}, {}):
         desc = describe_rig(bad, **kwargs)
-        pointing = [w for w in desc.warnings if "points away" in w or "outside its" in w or "converge" in w]
+        pointing = [
+            w for w in desc.warnings if "points away" in w or "outside its" in w or "converge" in w
+        ]
         assert len(pointing) >= 2, desc.warnings
         assert any("camera→world" in w for w in desc.warnings), desc.warnings
     assert "WARNINGS" in describe_rig(bad, xy=scene.xy, mask=scene.mask).format()
@@ -101,7 +108,9 @@ def test_identical_cameras_are_flagged(rig, scene):
 def test_padding_is_ignored_and_distortion_is_undone(rig, scene):
     base = describe_rig(rig, xy=scene.xy, mask=scene.mask)
     garbage = jnp.where(scene.mask[..., None], scene.xy, 1e7)
-    np.testing.assert_allclose(describe_rig(rig, xy=garbage, mask=scene.mask).centroid, base.centroid, atol=1e-9)
+    np.testing.assert_allclose(
+        describe_rig(rig, xy=garbage, mask=scene.mask).centroid, base.centroid, atol=1e-9
+    )
     # Strong barrel distortion for the default rig's narrow field of view (r ≤ 0.31 at the
     # corners): up to ~50 px, so that the naive centroid moves.
     dist = jnp.tile(jnp.asarray([[-2.0, 5.0, 2e-3, 1e-3, 0.0]], jnp.float32), (rig.num_views, 1))
@@ -119,7 +128,9 @@ def test_bad_input_raises(rig, scene):
         describe_rig(rig, xy=scene.xy[:3])
     with pytest.raises(ValueError, match="image_size"):
         describe_rig(rig, image_size=(640, 480, 3))
-    assert isinstance(describe_rig(rig.select([0])), RigDescription)  # one view: no baselines, no error
+    assert isinstance(
+        describe_rig(rig.select([0])), RigDescription
+    )  # one view: no baselines, no error
 
 
 def test_near_zero_baseline_is_warned_about():
@@ -136,5 +147,7 @@ def test_near_zero_baseline_is_warned_about():
     short = [w for w in desc.warnings if "views 0 and 1 are only 0.001 apart" in w]
     assert len(short) == 1 and "0.0181°" in short[0], desc.warnings
     assert len(desc.warnings) == 1
-    healthy = describe_rig(rig_at([(3.0, 0.0, 1.0), (3.0, 0.3, 1.0), (0.0, 3.0, 1.0)]))  # 5.4° at the origin
+    healthy = describe_rig(
+        rig_at([(3.0, 0.0, 1.0), (3.0, 0.3, 1.0), (0.0, 3.0, 1.0)])
+    )  # 5.4° at the origin
     assert healthy.warnings == []

@@ -28,7 +28,9 @@ K_NP = np.array(
 # dominates the run time of these tests.
 distort = jax.jit(distort_pixels)
 undistort = jax.jit(undistort_pixels)
-grad_undistort = jax.jit(jax.grad(lambda K, d, p: jnp.sum(undistort_pixels(K, d, p) ** 2), argnums=(0, 1, 2)))
+grad_undistort = jax.jit(
+    jax.grad(lambda K, d, p: jnp.sum(undistort_pixels(K, d, p) ** 2), argnums=(0, 1, 2))
+)
 
 
 def _image_grid(nx=11, ny=9):
@@ -83,8 +85,12 @@ def test_negative_K22_gives_the_same_pixels():
     K, dist, xy = (jnp.asarray(a, jnp.float32) for a in (K_NP, DIST, _image_grid()))
     K_neg = K * jnp.asarray([-1.0, 1.0], jnp.float32)[:, None, None]  # view 0: K[2,2] = -1
     distorted = distort(K, dist, xy)
-    np.testing.assert_allclose(np.asarray(distort(K_neg, dist, xy)), np.asarray(distorted), atol=1e-3)
-    np.testing.assert_allclose(np.asarray(undistort(K_neg, dist, distorted)), np.asarray(xy), atol=1e-3)
+    np.testing.assert_allclose(
+        np.asarray(distort(K_neg, dist, xy)), np.asarray(distorted), atol=1e-3
+    )
+    np.testing.assert_allclose(
+        np.asarray(undistort(K_neg, dist, distorted)), np.asarray(xy), atol=1e-3
+    )
 
 
 def test_padded_garbage_and_zero_distortion_give_finite_values_and_gradients():
@@ -127,11 +133,16 @@ def test_gradients_match_finite_differences_float64():
 def test_vmap_over_scenes_equals_a_loop():
     B = 3
     K = jnp.asarray(K_NP, jnp.float32)
-    dist = jnp.asarray(DIST, jnp.float32)[None] * jnp.asarray([0.5, 1.0, 1.5], jnp.float32)[:, None, None]  # (B, 2, 5)
+    dist = (
+        jnp.asarray(DIST, jnp.float32)[None]
+        * jnp.asarray([0.5, 1.0, 1.5], jnp.float32)[:, None, None]
+    )  # (B, 2, 5)
     xy = jnp.broadcast_to(jnp.asarray(_image_grid(), jnp.float32), (B,) + _image_grid().shape)
     batched = jax.jit(jax.vmap(undistort_pixels, in_axes=(None, 0, 0)))(K, dist, xy)
     for b in range(B):
-        np.testing.assert_allclose(np.asarray(batched[b]), np.asarray(undistort(K, dist[b], xy[b])), atol=1e-4)
+        np.testing.assert_allclose(
+            np.asarray(batched[b]), np.asarray(undistort(K, dist[b], xy[b])), atol=1e-4
+        )
     back = jax.jit(jax.vmap(distort_pixels, in_axes=(None, 0, 0)))(K, dist, batched)
     np.testing.assert_allclose(np.asarray(back), np.asarray(xy), atol=1e-3)
 

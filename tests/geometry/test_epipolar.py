@@ -37,7 +37,9 @@ def _dist_np(rig, xy, mask):
                 continue
             R_rel = R[n] @ R[m].T
             t_rel = t[n] - R_rel @ t[m]
-            tx = np.array([[0, -t_rel[2], t_rel[1]], [t_rel[2], 0, -t_rel[0]], [-t_rel[1], t_rel[0], 0]])
+            tx = np.array(
+                [[0, -t_rel[2], t_rel[1]], [t_rel[2], 0, -t_rel[0]], [-t_rel[1], t_rel[0], 0]]
+            )
             F = np.linalg.inv(K[n]).T @ tx @ R_rel @ np.linalg.inv(K[m])
             for i in range(P):
                 if not mask[m, i]:
@@ -45,7 +47,9 @@ def _dist_np(rig, xy, mask):
                 line = F @ np.array([*xy[m, i], 1.0])
                 for j in range(P):
                     if mask[n, j]:
-                        d[m, i, n, j] = abs(line @ np.array([*xy[n, j], 1.0])) / np.hypot(line[0], line[1])
+                        d[m, i, n, j] = abs(line @ np.array([*xy[n, j], 1.0])) / np.hypot(
+                            line[0], line[1]
+                        )
     return d
 
 

@@ -43,14 +43,19 @@ def test_distortion_is_the_published_formula_and_inverts():
     xy = _grid()
     with x64(True):
         got = np.asarray(distort(jnp.asarray(K_NP), Fisheye(jnp.asarray(COEFFS)), jnp.asarray(xy)))
-        back = np.asarray(undistort(jnp.asarray(K_NP), Fisheye(jnp.asarray(COEFFS)), jnp.asarray(got)))
+        back = np.asarray(
+            undistort(jnp.asarray(K_NP), Fisheye(jnp.asarray(COEFFS)), jnp.asarray(got))
+        )
     expected = np.stack([_fisheye_np(K_NP[m], COEFFS[m], xy[m]) for m in range(2)])
     np.testing.assert_allclose(got, expected, atol=1e-9)
     assert np.abs(got - xy).max() > 20  # a real lens: tens of pixels at the corners
     np.testing.assert_allclose(back, xy, atol=1e-8)
     # The centre stays put (θ_d / r → 1 there).
     centre = K_NP[:, None, :2, 2]
-    np.testing.assert_array_equal(np.asarray(distort(jnp.asarray(K_NP), Fisheye(jnp.asarray(COEFFS)), jnp.asarray(centre))), centre)
+    np.testing.assert_array_equal(
+        np.asarray(distort(jnp.asarray(K_NP), Fisheye(jnp.asarray(COEFFS)), jnp.asarray(centre))),
+        centre,
+    )
 
 
 def test_float32_round_trip_and_finite_gradients():
@@ -85,9 +90,14 @@ def test_undistortion_gradient_is_the_implicit_derivative():
 
 
 def test_wrong_shape_names_the_fisheye_coefficients():
-    with pytest.raises(ValueError, match=r"Fisheye.coeffs must have shape \(M, 4\) = \(k1, k2, k3, k4\) per view; got \(2, 5\)"):
+    with pytest.raises(
+        ValueError,
+        match=r"Fisheye.coeffs must have shape \(M, 4\) = \(k1, k2, k3, k4\) per view; got \(2, 5\)",
+    ):
         Fisheye(jnp.zeros((2, 5)))
-    with pytest.raises(ValueError, match=r"Fisheye.coeffs must have shape \(M, 4\).*M=2; got \(3, 4\)"):
+    with pytest.raises(
+        ValueError, match=r"Fisheye.coeffs must have shape \(M, 4\).*M=2; got \(3, 4\)"
+    ):
         distort_pixels(jnp.asarray(K_NP), Fisheye(jnp.zeros((3, 4))), jnp.zeros((2, 3, 2)))
 
 
@@ -104,5 +114,7 @@ def test_matches_opencv_when_installed():
         ref = cv2.fisheye.distortPoints(normalised[:, None, :], K[m], COEFFS[m])[:, 0]
         np.testing.assert_allclose(got[m], ref, atol=1e-9)
         criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-15)
-        ref_back = cv2.fisheye.undistortPoints(got[m][:, None, :], K[m], COEFFS[m], P=K[m], criteria=criteria)[:, 0]
+        ref_back = cv2.fisheye.undistortPoints(
+            got[m][:, None, :], K[m], COEFFS[m], P=K[m], criteria=criteria
+        )[:, 0]
         np.testing.assert_allclose(back[m], ref_back, atol=1e-8)

@@ -36,7 +36,9 @@ def random_rotvecs(n, seed=0):
     rng = np.random.default_rng(seed)
     axis = rng.standard_normal((n, 3))
     axis /= np.linalg.norm(axis, axis=1, keepdims=True)
-    angle = np.concatenate([[0.0, 1e-9, 1e-6, 1e-3, 0.05, 0.2, 0.3], rng.uniform(0, np.pi - 1e-3, n - 7)])
+    angle = np.concatenate(
+        [[0.0, 1e-9, 1e-6, 1e-3, 0.05, 0.2, 0.3], rng.uniform(0, np.pi - 1e-3, n - 7)]
+    )
     return axis * angle[:, None]
 
 
@@ -61,7 +63,9 @@ def test_log_inverts_exp(dtype):
         R_back = jax.jit(so3_exp)(w_back)
     assert np.all(np.isfinite(np.asarray(w_back)))
     assert np.array_equal(np.asarray(w_back[0]), np.zeros(3))  # the identity, exactly
-    assert np.abs(np.asarray(R_back, np.float64) - np.asarray(R, np.float64)).max() < 8 * ATOL[dtype]
+    assert (
+        np.abs(np.asarray(R_back, np.float64) - np.asarray(R, np.float64)).max() < 8 * ATOL[dtype]
+    )
     # Away from θ = π the vector itself comes back.
     inner = np.linalg.norm(w, axis=1) < np.pi - 1e-2
     assert np.abs(np.asarray(w_back, np.float64)[inner] - w[inner]).max() < 8 * ATOL[dtype]
@@ -115,7 +119,9 @@ def test_skew_and_nonunit_K22_are_kept():
     K = rig.K.at[:, 0, 1].set(jnp.asarray([0.5, -2.0, 0.0])) * 2.5  # K[2,2] = 2.5
     params = params_from_rig(type(rig)(K, rig.R, rig.t))
     assert np.allclose(np.asarray(params.skew), [0.5, -2.0, 0.0], atol=1e-5)
-    assert np.allclose(np.asarray(jax.jit(rig_from_params)(params).K), np.asarray(K) / 2.5, rtol=1e-6)
+    assert np.allclose(
+        np.asarray(jax.jit(rig_from_params)(params).K), np.asarray(K) / 2.5, rtol=1e-6
+    )
 
 
 def test_finite_differences_of_rig_from_params():

@@ -20,8 +20,12 @@ def test_a_transposed_K_is_refused_naming_the_view():
     with pytest.raises(ValueError, match=r"K of view 1 is not upper-triangular.*transposed"):
         rig_from_arrays(bad, R, t)
     with pytest.raises(ValueError, match="not upper-triangular"):  # and wherever a rig is checked
-        cdog_jax.associate(cdog_jax.Rig(jnp.asarray(bad, jnp.float32), RIG.R, RIG.t), np.zeros((3, 4, 2), np.float32),
-                           np.zeros((3, 4), bool), sigma=1.0)  # fmt: skip
+        cdog_jax.associate(
+            cdog_jax.Rig(jnp.asarray(bad, jnp.float32), RIG.R, RIG.t),
+            np.zeros((3, 4, 2), np.float32),
+            np.zeros((3, 4), bool),
+            sigma=1.0,
+        )
 
 
 @pytest.mark.parametrize("entry", [(0, 0), (1, 1)], ids=["fx", "fy"])
@@ -36,7 +40,9 @@ def test_K22_of_minus_one_is_still_a_camera():
     flipped = -K  # K / K[2, 2] is the same camera
     rig = rig_from_arrays(flipped, R, t)
     X = jnp.asarray([[0.1, 0.2, 0.3]], jnp.float32)
-    np.testing.assert_allclose(np.asarray(cdog_jax.project(rig, X)[0]), np.asarray(cdog_jax.project(RIG, X)[0]), atol=1e-3)
+    np.testing.assert_allclose(
+        np.asarray(cdog_jax.project(rig, X)[0]), np.asarray(cdog_jax.project(RIG, X)[0]), atol=1e-3
+    )
 
 
 def test_half_precision_rigs_are_refused():

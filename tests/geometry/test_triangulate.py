@@ -30,9 +30,13 @@ def test_masked_views_ignored_and_single_view_flagged():
     xy, _ = project_np(rig, X)
     tracks = xy.copy()
     tracks[3, 0] = [1e6, -1e6]  # garbage where masked
-    got, ok = triangulate(rig, jnp.asarray(tracks, jnp.float32), jnp.array([[True], [True], [False], [False]]))
+    got, ok = triangulate(
+        rig, jnp.asarray(tracks, jnp.float32), jnp.array([[True], [True], [False], [False]])
+    )
     assert bool(ok[0]) and np.abs(np.asarray(got[0]) - X[0]).max() < 1e-4
-    _, ok1 = triangulate(rig, jnp.asarray(tracks, jnp.float32), jnp.array([[True], [False], [False], [False]]))
+    _, ok1 = triangulate(
+        rig, jnp.asarray(tracks, jnp.float32), jnp.array([[True], [False], [False], [False]])
+    )
     assert not bool(ok1[0])
 
 
@@ -81,7 +85,9 @@ def test_masked_entries_change_nothing(garbage):
     assert np.asarray(ok0).all()
     np.testing.assert_array_equal(np.asarray(ok1), np.asarray(ok0))
     np.testing.assert_array_equal(np.asarray(p1), np.asarray(p0))
-    g = jax.grad(lambda tr: jnp.sum(triangulate(rig, tr, jnp.asarray(mask))[0] ** 2))(jnp.asarray(dirty, jnp.float32))
+    g = jax.grad(lambda tr: jnp.sum(triangulate(rig, tr, jnp.asarray(mask))[0] ** 2))(
+        jnp.asarray(dirty, jnp.float32)
+    )
     assert np.all(np.isfinite(np.asarray(g)))
 
 
@@ -111,7 +117,12 @@ def test_single_views_are_never_ok_in_float32():
     mask2 = mask.copy()
     mask2[(np.arange(n) + 1) % 4, np.arange(n)] = True
     weights = np.where(mask, 0.0, 1.0)
-    _, ok2 = triangulate(rig, jnp.asarray(tracks, jnp.float32), jnp.asarray(mask2), weights=jnp.asarray(weights, jnp.float32))
+    _, ok2 = triangulate(
+        rig,
+        jnp.asarray(tracks, jnp.float32),
+        jnp.asarray(mask2),
+        weights=jnp.asarray(weights, jnp.float32),
+    )
     assert int(np.sum(ok2)) == 0
     _, ok3 = triangulate(rig, jnp.asarray(tracks, jnp.float32), jnp.asarray(mask2))
     assert np.asarray(ok3).all()

@@ -19,7 +19,17 @@ def _compose(rig, X):
     xy, ok = project(rig, X)
     points, determined = triangulate(rig, xy, ok)
     N, r, _ = dlt_blocks(rig, xy)
-    return xy, ok, points, determined, N, r, reprojection_errors(rig, points, xy), camera_points(rig, X), in_front(rig, X)
+    return (
+        xy,
+        ok,
+        points,
+        determined,
+        N,
+        r,
+        reprojection_errors(rig, points, xy),
+        camera_points(rig, X),
+        in_front(rig, X),
+    )
 
 
 def test_project_and_triangulate_compose_view_axis_first():
@@ -47,8 +57,13 @@ def _through_lens(rig, X, lens):
 
 def test_dist_on_project_and_triangulate():
     rig = ring_rig(4)
-    for lens in (jnp.asarray(DIST, jnp.float32), Fisheye(jnp.asarray([[0.05, -0.01, 0.0, 0.0]] * 4, jnp.float32))):
-        ideal, ok, recorded, ok_d, points, determined, wrong = _through_lens(rig, jnp.asarray(X, jnp.float32), lens)
+    for lens in (
+        jnp.asarray(DIST, jnp.float32),
+        Fisheye(jnp.asarray([[0.05, -0.01, 0.0, 0.0]] * 4, jnp.float32)),
+    ):
+        ideal, ok, recorded, ok_d, points, determined, wrong = _through_lens(
+            rig, jnp.asarray(X, jnp.float32), lens
+        )
         assert float(jnp.nanmax(jnp.abs(recorded - ideal))) > 1.0  # the lens moves pixels
         np.testing.assert_array_equal(np.asarray(ok_d), np.asarray(ok))
         assert bool(determined.all())

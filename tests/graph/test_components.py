@@ -43,7 +43,9 @@ def test_long_path_converges():
     n = 200
     perm = np.random.default_rng(0).permutation(n)
     src, dst = perm[:-1], perm[1:]
-    edges = EdgeTable(jnp.asarray(src, jnp.int32), jnp.asarray(dst, jnp.int32), jnp.ones(n - 1, bool))
+    edges = EdgeTable(
+        jnp.asarray(src, jnp.int32), jnp.asarray(dst, jnp.int32), jnp.ones(n - 1, bool)
+    )
     got = np.asarray(connected_components(edges, jnp.ones(n - 1, bool), n))
     assert np.all(got == 0)
 
@@ -53,7 +55,9 @@ def test_round_bound_is_reported():
     # a bound of 2 rounds does not and says so.
     n = 200
     perm = np.random.default_rng(0).permutation(n)
-    edges = EdgeTable(jnp.asarray(perm[:-1], jnp.int32), jnp.asarray(perm[1:], jnp.int32), jnp.ones(n - 1, bool))
+    edges = EdgeTable(
+        jnp.asarray(perm[:-1], jnp.int32), jnp.asarray(perm[1:], jnp.int32), jnp.ones(n - 1, bool)
+    )
     alive = jnp.ones(n - 1, bool)
     labels, capped = connected_components_capped(edges, alive, n)
     assert not bool(capped) and np.all(np.asarray(labels) == 0)

@@ -7,14 +7,21 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from helpers import random_scene, ring_rig
-from oracle import epipolar_distance_table, estimate_sigma as oracle_auto, estimate_sigma_robust as oracle_robust
-from oracle import focal_scale as oracle_focal
+from oracle import (
+    epipolar_distance_table,
+    estimate_sigma as oracle_auto,
+    estimate_sigma_robust as oracle_robust,
+    focal_scale as oracle_focal,
+)
 
 from cdog_jax.geometry import epipolar_distances
 from cdog_jax.graph._sigma import FALLBACK_SIGMA_PX, estimate_sigma, focal_scale
 from cdog_jax.graph._sigma_robust import GAUSS_COVERAGE, estimate_noise, estimate_sigma_robust
 
-ESTIMATORS = {"auto": (estimate_sigma, oracle_auto), "robust": (estimate_sigma_robust, oracle_robust)}
+ESTIMATORS = {
+    "auto": (estimate_sigma, oracle_auto),
+    "robust": (estimate_sigma_robust, oracle_robust),
+}
 # The robust fit with its gate (the 95.4 % quantile of the true-pair distance) beside σ.
 _JITTED = {
     "auto": jax.jit(estimate_sigma),
@@ -89,14 +96,19 @@ def test_clutter_does_not_move_the_estimate(estimator):
     # 1–2 points at σ = 1 px, then 3 clutter detections per view (the previous estimator:
     # 12 and 15 px on two of these scenes).
     fit = ESTIMATORS[estimator][0]
-    estimates = jax.jit(jax.vmap(lambda xy, mask: fit(epipolar_distances(RIG, xy, mask), mask, focal_scale(RIG.K))))
+    estimates = jax.jit(
+        jax.vmap(lambda xy, mask: fit(epipolar_distances(RIG, xy, mask), mask, focal_scale(RIG.K)))
+    )
     clean, cluttered = [], []
     for seed in range(8):
         xy, mask, _, _ = random_scene(RIG, 1 + seed % 2, 12, sigma=1.0, seed=seed)
         clean.append((xy, mask))
         cluttered.append(_with_clutter(xy, mask, 3, np.random.default_rng(seed)))
     (s0, f0), (s1, f1) = (
-        estimates(jnp.asarray(np.stack([a for a, _ in s]), jnp.float32), jnp.asarray(np.stack([b for _, b in s])))
+        estimates(
+            jnp.asarray(np.stack([a for a, _ in s]), jnp.float32),
+            jnp.asarray(np.stack([b for _, b in s])),
+        )
         for s in (clean, cluttered)
     )
     s0, s1 = np.asarray(s0), np.asarray(s1)
@@ -109,7 +121,9 @@ def _oracle_cases():
     rng = np.random.default_rng(2)
     K, R, t = (np.asarray(a, np.float64) for a in (RIG.K, RIG.R, RIG.t))
     cases = []
-    for seed, (n, sigma, clutter) in enumerate([(6, 1.0, 0), (2, 1.0, 3), (8, 2.0, 2), (1, 0.0, 0), (3, 0.5, 4)]):
+    for seed, (n, sigma, clutter) in enumerate(
+        [(6, 1.0, 0), (2, 1.0, 3), (8, 2.0, 2), (1, 0.0, 0), (3, 0.5, 4)]
+    ):
         xy, mask, _, _ = random_scene(RIG, n, 12, sigma=sigma, seed=10 + seed, clutter=clutter)
         cases.append((epipolar_distance_table(K, R, t, xy, mask), mask))
     far = rng.uniform(0, 200, (5, 12, 5, 12))  # unrelated points only
@@ -124,7 +138,9 @@ def test_matches_oracle(estimator):
     with jax.enable_x64(True):
         for d, mask in cases:
             if estimator == "robust":  # σ, the gate and the fallback
-                got = _estimate(jnp.asarray(d, jnp.float64), jnp.asarray(mask), focal, estimator, with_gate=True)
+                got = _estimate(
+                    jnp.asarray(d, jnp.float64), jnp.asarray(mask), focal, estimator, with_gate=True
+                )
                 want = oracle_robust(d, mask, focal, with_gate=True)
                 assert got[1] == pytest.approx(want[1], rel=1e-6, nan_ok=True)
                 got, want = (got[0], got[2]), (want[0], want[2])

@@ -1,11 +1,14 @@
+import jax
 import jax.numpy as jnp
 import numpy as np
 
-import jax
-
 from cdog_jax import Status
-from cdog_jax.graph import EdgeTable, alive_edges, connected_components
-from cdog_jax.graph import split_conflicts as _split_conflicts
+from cdog_jax.graph import (
+    EdgeTable,
+    alive_edges,
+    connected_components,
+    split_conflicts as _split_conflicts,
+)
 
 split_conflicts = jax.jit(_split_conflicts, static_argnums=(6, 7))
 
@@ -36,7 +39,9 @@ def test_ties_broken_by_larger_distance():
     edges, A = _edges([(0, 2), (2, 4), (4, 1)], N)
     theta = jnp.full((3,), 0.5, jnp.float32)
     dist = jnp.asarray([1.0, 2.0, 3.0], jnp.float32)
-    A2, _, _ = split_conflicts(A, edges, theta, dist, jnp.arange(N) // 2, jnp.ones(N, bool), M, max_iters=8)
+    A2, _, _ = split_conflicts(
+        A, edges, theta, dist, jnp.arange(N) // 2, jnp.ones(N, bool), M, max_iters=8
+    )
     assert not bool(A2[4, 1]) and bool(A2[0, 2]) and bool(A2[2, 4])
 
 
@@ -52,9 +57,13 @@ def test_random_graphs_end_view_unique():
         dist = jnp.asarray(rng.random(E), jnp.float32)
         view = jnp.arange(N) // P
         for iters in (1, 64):  # the last resort alone, and the edge-removal loop
-            A2, labels, _ = split_conflicts(A, edges, theta, dist, view, jnp.ones(N, bool), M, max_iters=iters)
+            A2, labels, _ = split_conflicts(
+                A, edges, theta, dist, view, jnp.ones(N, bool), M, max_iters=iters
+            )
             labels = np.asarray(labels)
-            assert np.array_equal(labels, np.asarray(connected_components(edges, alive_edges(edges, A2), N)))
+            assert np.array_equal(
+                labels, np.asarray(connected_components(edges, alive_edges(edges, A2), N))
+            )
             for c in np.unique(labels):
                 views = np.asarray(view)[labels == c]
                 assert len(views) == len(set(views))
@@ -69,10 +78,14 @@ def test_split_reports_its_iteration_bound():
     theta = jnp.asarray([0.9, 0.3, 0.1], jnp.float32)
     dist = jnp.ones(3, jnp.float32)
     view = jnp.arange(N) // 2
-    _, labels, status = split_conflicts(A, edges, theta, dist, view, jnp.ones(N, bool), M, max_iters=8)
+    _, labels, status = split_conflicts(
+        A, edges, theta, dist, view, jnp.ones(N, bool), M, max_iters=8
+    )
     assert int(status) == 0
     assert np.array_equal(np.asarray(labels), [0, 1, 0, 3, 4, 5])
-    _, labels, status = split_conflicts(A, edges, theta, dist, view, jnp.ones(N, bool), M, max_iters=1)
+    _, labels, status = split_conflicts(
+        A, edges, theta, dist, view, jnp.ones(N, bool), M, max_iters=1
+    )
     assert int(status) == Status.SPLIT_CAPPED  # the last resort decided the rest
     for c in np.unique(np.asarray(labels)):
         views = np.asarray(view)[np.asarray(labels) == c]
@@ -99,15 +112,29 @@ def test_split_equals_the_numpy_oracle_with_duplicate_proposals():
         e = np.minimum(e, e.T)  # symmetric distances, as the pipeline's are
         pairs = []
         for u, v in zip(*np.nonzero(np.triu(A))):
-            pairs += [(u, v), (v, u)] if rng.random() < 0.5 else [(u, v) if rng.random() < 0.5 else (v, u)]
+            pairs += (
+                [(u, v), (v, u)]
+                if rng.random() < 0.5
+                else [(u, v) if rng.random() < 0.5 else (v, u)]
+            )
         src = np.asarray([p[0] for p in pairs], np.int32)
         dst = np.asarray([p[1] for p in pairs], np.int32)
         edges = EdgeTable(jnp.asarray(src), jnp.asarray(dst), jnp.ones(len(pairs), bool))
         for iters in (1, 2, 64):
             A_expected, labels_expected = split_view_unique(A, theta, e, M, P, max_iters=iters)
             A2, labels, _ = split_conflicts(
-                jnp.asarray(A), edges, jnp.asarray(theta[src, dst], jnp.float32), jnp.asarray(e[src, dst], jnp.float32),
-                jnp.asarray(view), jnp.ones(N, bool), M, max_iters=iters,
+                jnp.asarray(A),
+                edges,
+                jnp.asarray(theta[src, dst], jnp.float32),
+                jnp.asarray(e[src, dst], jnp.float32),
+                jnp.asarray(view),
+                jnp.ones(N, bool),
+                M,
+                max_iters=iters,
             )
-            np.testing.assert_array_equal(np.asarray(A2), A_expected, err_msg=f"trial {trial}, {iters} iterations")
-            np.testing.assert_array_equal(np.asarray(labels), labels_expected, err_msg=f"trial {trial}, {iters} iterations")
+            np.testing.assert_array_equal(
+                np.asarray(A2), A_expected, err_msg=f"trial {trial}, {iters} iterations"
+            )
+            np.testing.assert_array_equal(
+                np.asarray(labels), labels_expected, err_msg=f"trial {trial}, {iters} iterations"
+            )

@@ -54,7 +54,9 @@ def _check_scene(records, xy, mask, assoc):
         assert g["err_px"] == float(assoc.err_px[k])
         assert g["n_views"] == int(assoc.n_views[k]) == len(g["members"])
         slots = np.asarray(assoc.groups[k])
-        assert sorted((r[0], r[1]) for r in g["members"]) == [(m, int(slots[m])) for m in np.flatnonzero(slots >= 0)]
+        assert sorted((r[0], r[1]) for r in g["members"]) == [
+            (m, int(slots[m])) for m in np.flatnonzero(slots >= 0)
+        ]
     labels = np.asarray(assoc.labels)
     assert all(labels[m, i] == -1 for m, i, *_ in records["unassigned"])
 
@@ -107,7 +109,18 @@ def test_npz_round_trip(result, tmp_path):
     path = tmp_path / "assoc.npz"
     save_association_npz(path, assoc, xy=xy, mask=mask)
     with np.load(path) as npz:
-        for k in ("labels", "groups", "valid", "points3d", "bpe", "err_px", "n_views", "num_groups", "sigma_px", "tau_px"):
+        for k in (
+            "labels",
+            "groups",
+            "valid",
+            "points3d",
+            "bpe",
+            "err_px",
+            "n_views",
+            "num_groups",
+            "sigma_px",
+            "tau_px",
+        ):
             np.testing.assert_array_equal(npz[k], np.asarray(getattr(assoc, k)))
         np.testing.assert_array_equal(npz["xy"], xy)
         np.testing.assert_array_equal(npz["mask"], mask)
@@ -139,9 +152,21 @@ def test_mismatched_inputs_raise(result, tmp_path):
     member = np.argwhere(np.asarray(assoc.labels) >= 0)[0]
     holes = mask.copy()
     holes[tuple(member)] = False
-    with pytest.raises(ValueError, match="where mask is False; are assoc and xy from the same scene"):
+    with pytest.raises(
+        ValueError, match="where mask is False; are assoc and xy from the same scene"
+    ):
         association_records(assoc, xy, holes)
     path = tmp_path / "bad.json"
-    path.write_text(json.dumps({"groups": [{"members": [[0, 1, 2.0]], "point3d": [0, 0, 0], "n_views": 1}], "unassigned": []}))
-    with pytest.raises(ValueError, match=re.escape(f"{path}, group 0, member 0: expected [view, slot, x, y(, confidence)]")):
+    path.write_text(
+        json.dumps(
+            {
+                "groups": [{"members": [[0, 1, 2.0]], "point3d": [0, 0, 0], "n_views": 1}],
+                "unassigned": [],
+            }
+        )
+    )
+    with pytest.raises(
+        ValueError,
+        match=re.escape(f"{path}, group 0, member 0: expected [view, slot, x, y(, confidence)]"),
+    ):
         load_association_json(path)

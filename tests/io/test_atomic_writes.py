@@ -61,13 +61,26 @@ def _figure(path):
     G_full = M * P // 2  # the static group capacity of an Association
     pad = lambda v, fill: np.concatenate([v, np.full((G_full - G, *v.shape[1:]), fill, v.dtype)])  # noqa: E731
     result = Association(
-        labels=jnp.asarray(a.labels, jnp.int32), groups=jnp.asarray(pad(a.groups, -1), jnp.int32),
-        valid=jnp.asarray(pad(a.valid, False)), points3d=jnp.asarray(pad(a.points3d, 0.0), jnp.float32),
-        bpe=jnp.asarray(pad(a.bpe, 0.0), jnp.float32), err_px=jnp.asarray(pad(a.err_px, 0.0), jnp.float32),
-        n_views=jnp.asarray(pad(a.n_views, 0), jnp.int32), num_groups=jnp.int32(G), sigma_px=jnp.float32(1.0),
-        tau_px=jnp.float32(2.0), status=jnp.int32(0),
-    )  # fmt: skip
-    plot_association(RIG, jnp.asarray(XY, jnp.float32), jnp.asarray(MASK), result, image_size=IMAGE_SIZE, path=path)
+        labels=jnp.asarray(a.labels, jnp.int32),
+        groups=jnp.asarray(pad(a.groups, -1), jnp.int32),
+        valid=jnp.asarray(pad(a.valid, False)),
+        points3d=jnp.asarray(pad(a.points3d, 0.0), jnp.float32),
+        bpe=jnp.asarray(pad(a.bpe, 0.0), jnp.float32),
+        err_px=jnp.asarray(pad(a.err_px, 0.0), jnp.float32),
+        n_views=jnp.asarray(pad(a.n_views, 0), jnp.int32),
+        num_groups=jnp.int32(G),
+        sigma_px=jnp.float32(1.0),
+        tau_px=jnp.float32(2.0),
+        status=jnp.int32(0),
+    )
+    plot_association(
+        RIG,
+        jnp.asarray(XY, jnp.float32),
+        jnp.asarray(MASK),
+        result,
+        image_size=IMAGE_SIZE,
+        path=path,
+    )
 
 
 WRITERS = {

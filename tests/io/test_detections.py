@@ -36,7 +36,9 @@ def _encoded(kind):
     elif kind == "sentinel":
         rows[~MASK] = -1.0
     elif kind == "confidence":
-        rows = np.concatenate([rows + 7.0 * ~MASK[..., None], CONF[..., None]], axis=-1)  # garbage coords
+        rows = np.concatenate(
+            [rows + 7.0 * ~MASK[..., None], CONF[..., None]], axis=-1
+        )  # garbage coords
     return rows
 
 
@@ -68,7 +70,8 @@ def test_missing_encodings_give_the_same_xy_and_mask(kind, explicit):
         assert conf is None
     if not explicit:
         assert any(
-            "missing='auto'" in n and {"nan": "NaN", "sentinel": "sentinel", "confidence": "confidence 0"}[kind] in n
+            "missing='auto'" in n
+            and {"nan": "NaN", "sentinel": "sentinel", "confidence": "confidence 0"}[kind] in n
             for n in det.notes
         )
 
@@ -83,7 +86,9 @@ def test_sentinel_is_a_detection_under_nan_encoding():
 
 def test_ragged_lists_and_mask_npz_match_the_array_encodings(tmp_path):
     # The lists hold view 1's detection in slot 0; a NaN placeholder keeps its array slot.
-    det = detections_from_lists([[[10, 20], [30, 40]], [[NAN, NAN], [50, 60]], [[70, 80], [90, 100], [110, 120]]])
+    det = detections_from_lists(
+        [[[10, 20], [30, 40]], [[NAN, NAN], [50, 60]], [[70, 80], [90, 100], [110, 120]]]
+    )
     np.testing.assert_array_equal(det.mask[0], MASK)
     np.testing.assert_array_equal(det.xy[0], np.where(MASK[..., None], XY, 0.0))
     path = tmp_path / "det.npz"
@@ -110,7 +115,10 @@ def test_confidence_entries():
 
 
 def test_json_frames(tmp_path):
-    frames = [{"views": _scene_views()}, {"views": [[[1, 2]], [], [[3, 4], [5, 6], [7, 8], [9, 10]]]}]
+    frames = [
+        {"views": _scene_views()},
+        {"views": [[[1, 2]], [], [[3, 4], [5, 6], [7, 8], [9, 10]]]},
+    ]
     det = load_detections(_write_json(tmp_path, {"frames": frames}), num_views=3)
     assert det.frames is True
     assert det.xy.shape == (2, 3, 4, 2)
@@ -140,7 +148,9 @@ def test_npz_with_and_without_frame_axis_and_mask(tmp_path, frame_axis, with_mas
     assert det.frames is frame_axis
     assert det.xy.shape == (F, 3, 3, 2)
     np.testing.assert_array_equal(det.mask, np.broadcast_to(MASK, (F, 3, 3)))
-    np.testing.assert_array_equal(det.xy, np.broadcast_to(np.where(MASK[..., None], XY, 0.0), (F, 3, 3, 2)))
+    np.testing.assert_array_equal(
+        det.xy, np.broadcast_to(np.where(MASK[..., None], XY, 0.0), (F, 3, 3, 2))
+    )
     assert (det.confidence is not None) is with_mask
 
 
@@ -165,20 +175,27 @@ def test_capacity_packs_views_and_says_so():
 def test_capacity_refuses_to_truncate(tmp_path):
     frames = [{"views": [[[1, 2]], [[3, 4]]]}, {"views": [[[1, 2], [5, 6], [7, 8]], [[3, 4]]]}]
     path = _write_json(tmp_path, {"frames": frames})
-    with pytest.raises(ValueError, match=re.escape(f"{path}: frame 1, view 0: 3 detections exceed the capacity of 2")):
+    with pytest.raises(
+        ValueError,
+        match=re.escape(f"{path}: frame 1, view 0: 3 detections exceed the capacity of 2"),
+    ):
         load_detections(path, capacity=2)
 
 
 def test_non_numeric_entry(tmp_path):
     path = _write_json(tmp_path, {"views": [[[1, 2]], [[3, 4], [5, "x"]]]})
-    with pytest.raises(ValueError, match=re.escape(f"{path}: view 1, detection 1: non-numeric entry [5, 'x']")):
+    with pytest.raises(
+        ValueError, match=re.escape(f"{path}: view 1, detection 1: non-numeric entry [5, 'x']")
+    ):
         load_detections(path)
 
 
 def test_non_numeric_entry_in_frames(tmp_path):
     frames = [{"views": [[[1, 2]], [[3, 4]]]}, {"views": [[[1, None]], [[3, 4]]]}]
     path = _write_json(tmp_path, {"frames": frames})
-    with pytest.raises(ValueError, match=re.escape(f"{path}: frame 1, view 0, detection 0: non-numeric entry")):
+    with pytest.raises(
+        ValueError, match=re.escape(f"{path}: frame 1, view 0, detection 0: non-numeric entry")
+    ):
         load_detections(path)
 
 
@@ -192,26 +209,37 @@ def test_non_numeric_npz(tmp_path):
 @pytest.mark.parametrize("entry", [[1], [1, 2, 0.5, 4]])
 def test_wrong_entry_length(tmp_path, entry):
     path = _write_json(tmp_path, {"views": [[[1, 2]], [[3, 4], entry]]})
-    with pytest.raises(ValueError, match=re.escape(f"{path}: view 1, detection 1: entry {entry!r} has {len(entry)} numbers")):
+    with pytest.raises(
+        ValueError,
+        match=re.escape(f"{path}: view 1, detection 1: entry {entry!r} has {len(entry)} numbers"),
+    ):
         load_detections(path)
 
 
 def test_mixed_entry_lengths(tmp_path):
     path = _write_json(tmp_path, {"views": [[[1, 2, 0.5]], [[3, 4]]]})
     with pytest.raises(
-        ValueError, match=re.escape(f"{path}: view 1, detection 0: entry has 2 numbers but view 0, detection 0 has 3")
+        ValueError,
+        match=re.escape(
+            f"{path}: view 1, detection 0: entry has 2 numbers but view 0, detection 0 has 3"
+        ),
     ):
         load_detections(path)
 
 
 @pytest.mark.parametrize(
     ("row", "text"),
-    [([1.0, NAN], "one NaN coordinate and one finite"), ([float("inf"), 2.0], "an infinite coordinate")],
+    [
+        ([1.0, NAN], "one NaN coordinate and one finite"),
+        ([float("inf"), 2.0], "an infinite coordinate"),
+    ],
 )
 def test_malformed_rows_are_not_missing(tmp_path, row, text):
     rows = _encoded("nan")
     rows[2, 1] = row
-    with pytest.raises(ValueError, match=re.escape(f"view 2, detection 1: ({row[0]}, {row[1]}) has {text}")):
+    with pytest.raises(
+        ValueError, match=re.escape(f"view 2, detection 1: ({row[0]}, {row[1]}) has {text}")
+    ):
         detections_from_array(rows)
     path = tmp_path / "det.npz"
     np.savez(path, xy=np.stack([rows, rows]))
@@ -221,7 +249,10 @@ def test_malformed_rows_are_not_missing(tmp_path, row, text):
 
 def test_nan_in_json_entry(tmp_path):
     path = _write_json(tmp_path, {"views": [[[1, 2]], [[NAN, 4]]]})
-    with pytest.raises(ValueError, match=re.escape(f"{path}: view 1, detection 0: (nan, 4.0) has one NaN coordinate")):
+    with pytest.raises(
+        ValueError,
+        match=re.escape(f"{path}: view 1, detection 0: (nan, 4.0) has one NaN coordinate"),
+    ):
         load_detections(path)
 
 
@@ -238,7 +269,10 @@ def test_nan_where_it_does_not_mean_missing(tmp_path):
     path = tmp_path / "det.npz"
     np.savez(path, xy=xy, mask=MASK)
     with pytest.raises(
-        ValueError, match=re.escape(f"{path}: view 0, detection 1: (nan, nan) has NaN coordinates where mask is True")
+        ValueError,
+        match=re.escape(
+            f"{path}: view 0, detection 1: (nan, nan) has NaN coordinates where mask is True"
+        ),
     ):
         load_detections(path)
 
@@ -247,7 +281,10 @@ def test_duplicates_name_both_indices(tmp_path):
     frames = [{"views": _scene_views()}, {"views": [[[1, 2]], [[3, 4]], [[5, 6], [7, 8], [5, 6]]]}]
     path = _write_json(tmp_path, {"frames": frames})
     with pytest.raises(
-        ValueError, match=re.escape(f"{path}: frame 1, view 2: detections 0 and 2 are duplicates (both at (5.0, 6.0))")
+        ValueError,
+        match=re.escape(
+            f"{path}: frame 1, view 2: detections 0 and 2 are duplicates (both at (5.0, 6.0))"
+        ),
     ):
         load_detections(path)
 
@@ -257,7 +294,9 @@ def test_far_outside_the_image(tmp_path):
     load_detections(path, image_size=(1000, 1000))  # inside the margin: fine
     with pytest.raises(
         ValueError,
-        match=re.escape(f"{path}: view 1, detection 1: (1000, -300) lies 360 px right of and 300 px above the 640×480 image"),
+        match=re.escape(
+            f"{path}: view 1, detection 1: (1000, -300) lies 360 px right of and 300 px above the 640×480 image"
+        ),
     ):
         load_detections(path, image_size=(640, 480))
 
@@ -291,14 +330,22 @@ def test_fewer_than_two_views_with_detections(tmp_path):
     det = load_detections(path)  # frame 1 cannot give a group: kept, with a note
     assert "frame 1 (1 of 2): fewer than 2 views with detections; they get zero groups" in det.notes
     path = _write_json(tmp_path, {"views": [[], [[1, 2]], []]})
-    with pytest.raises(ValueError, match=re.escape(f"{path}: 1 view(s) with detections (view 1); association needs at least 2")):
+    with pytest.raises(
+        ValueError,
+        match=re.escape(
+            f"{path}: 1 view(s) with detections (view 1); association needs at least 2"
+        ),
+    ):
         load_detections(path)
 
 
 @pytest.mark.parametrize("c", [1.5, -0.25, NAN])
 def test_confidence_outside_unit_interval(tmp_path, c):
     path = _write_json(tmp_path, {"views": [[[1, 2, 0.5]], [[3, 4, 0.5], [5, 6, c]]]})
-    with pytest.raises(ValueError, match=re.escape(f"{path}: view 1, detection 1: confidence {c} is outside [0, 1] or NaN")):
+    with pytest.raises(
+        ValueError,
+        match=re.escape(f"{path}: view 1, detection 1: confidence {c} is outside [0, 1] or NaN"),
+    ):
         load_detections(path)
     path = tmp_path / "det.npz"
     conf = CONF.copy()
@@ -324,16 +371,22 @@ def test_bad_files_and_options(tmp_path):
         detections_from_lists(_scene_views(), image_size=(640, -480))
     with pytest.raises(ValueError, match="missing must be one of"):
         detections_from_lists(_scene_views(), missing="zero")
-    with pytest.raises(ValueError, match=re.escape("missing='confidence' needs a confidence column")):
+    with pytest.raises(
+        ValueError, match=re.escape("missing='confidence' needs a confidence column")
+    ):
         detections_from_array(XY, missing="confidence")
-    with pytest.raises(ValueError, match=re.escape(f"{tmp_path / 'det.txt'}: cannot tell the detections format")):
+    with pytest.raises(
+        ValueError, match=re.escape(f"{tmp_path / 'det.txt'}: cannot tell the detections format")
+    ):
         load_detections(tmp_path / "det.txt")
 
 
 def test_result_type():
     det = detections_from_lists(_scene_views())
     assert isinstance(det, Detections)
-    assert det.xy.dtype == np.float64 and det.mask.dtype == np.bool_ and det.counts.dtype == np.int64
+    assert (
+        det.xy.dtype == np.float64 and det.mask.dtype == np.bool_ and det.counts.dtype == np.int64
+    )
 
 
 def test_json_with_a_byte_order_mark_reads(tmp_path):

@@ -10,6 +10,13 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from helpers import x64
+from test_rig_formats import (
+    ANIPOSE_TOML,
+    EASYMOCAP_EXTRI,
+    EASYMOCAP_INTRI,
+    _easymocap_folder,
+    _write,
+)
 
 import cdog_jax
 from cdog_jax.geometry import Fisheye
@@ -24,7 +31,6 @@ from cdog_jax.io import (
 )
 from cdog_jax.io._rotations import rotation_from_rodrigues
 from cdog_jax.synthetic import default_rig
-from test_rig_formats import ANIPOSE_TOML, EASYMOCAP_EXTRI, EASYMOCAP_INTRI, _easymocap_folder, _write
 
 X = np.array([[0.3, -0.2, 1.5], [0.1, 0.2, 0.3]])
 FISHEYE = np.array([[0.05, -0.01, 0.002, -0.0004], [0.02, 0.0, 0.0, 0.001], [0.0, 0.01, 0.0, 0.0]])
@@ -43,11 +49,19 @@ def test_colmap_full_opencv_written_for_k3_and_read_back(tmp_path):
         dist[1] = [0.1, -0.05, 0.001, 0.002, 0.01]  # k3 ≠ 0: FULL_OPENCV
         dist[2, :4] = [0.1, 0.0, 0.0, 0.0]  # OPENCV
         save_rig_colmap(tmp_path, rig, image_size=(640, 480), dist=dist)
-        models = [line.split()[1] for line in (tmp_path / "cameras.txt").read_text().splitlines() if not line.startswith("#")]
+        models = [
+            line.split()[1]
+            for line in (tmp_path / "cameras.txt").read_text().splitlines()
+            if not line.startswith("#")
+        ]
         assert models == ["PINHOLE", "FULL_OPENCV", "OPENCV"]
         loaded = load_rig(tmp_path, dtype=jnp.float64)
         np.testing.assert_array_equal(loaded.dist, dist)
-        np.testing.assert_allclose(_pixels(loaded), np.asarray(cdog_jax.project(rig, jnp.asarray(X), dist=dist)[0]), atol=1e-10)
+        np.testing.assert_allclose(
+            _pixels(loaded),
+            np.asarray(cdog_jax.project(rig, jnp.asarray(X), dist=dist)[0]),
+            atol=1e-10,
+        )
 
 
 def test_colmap_fisheye_round_trip_and_rational_refused(tmp_path):
@@ -61,9 +75,14 @@ def test_colmap_fisheye_round_trip_and_rational_refused(tmp_path):
     text = (tmp_path / "cameras.txt").read_text()
     first = next(line for line in text.splitlines() if not line.startswith("#"))
     fields = first.split()
-    rational = " ".join([fields[0], "FULL_OPENCV", *fields[2:8], "0.1", "0", "0", "0", "0", "0.5", "0", "0"])
+    rational = " ".join(
+        [fields[0], "FULL_OPENCV", *fields[2:8], "0.1", "0", "0", "0", "0", "0.5", "0", "0"]
+    )
     (tmp_path / "cameras.txt").write_text(text.replace(first, rational))
-    with pytest.raises(ValueError, match=r"camera 1: FULL_OPENCV with k4, k5, k6 = \[0.5, 0.0, 0.0\] \(the rational model\)"):
+    with pytest.raises(
+        ValueError,
+        match=r"camera 1: FULL_OPENCV with k4, k5, k6 = \[0.5, 0.0, 0.0\] \(the rational model\)",
+    ):
         load_rig(tmp_path)
 
 
@@ -71,15 +90,23 @@ def test_easymocap_prefers_R_and_reads_the_image_size(tmp_path):
     # Rot_01 rounded to 6 digits: within the agreement check, and EasyMocap uses R_01.
     rvec = np.array([0.0, 0.0, 1.5707963267948966])
     rot = np.round(rotation_from_rodrigues(rvec) + 3e-6, 6)
-    extri = EASYMOCAP_EXTRI.replace("data: [ 0., -1., 0., 1., 0., 0., 0., 0., 1. ]", "data: [ " + ", ".join(repr(float(v)) for v in rot.ravel()) + " ]")
+    extri = EASYMOCAP_EXTRI.replace(
+        "data: [ 0., -1., 0., 1., 0., 0., 0., 0., 1. ]",
+        "data: [ " + ", ".join(repr(float(v)) for v in rot.ravel()) + " ]",
+    )
     intri = EASYMOCAP_INTRI + "H_01: 480\nW_01: 640\nH_02: 720\nW_02: 1280\n"
     with x64():
         loaded = load_rig(_easymocap_folder(tmp_path, intri=intri, extri=extri), dtype=jnp.float64)
-    np.testing.assert_allclose(np.asarray(loaded.rig.R[0]), rotation_from_rodrigues(rvec), atol=1e-15)
+    np.testing.assert_allclose(
+        np.asarray(loaded.rig.R[0]), rotation_from_rodrigues(rvec), atol=1e-15
+    )
     assert np.abs(np.asarray(loaded.rig.R[0]) - rot).max() > 1e-6
     np.testing.assert_array_equal(loaded.view_sizes, [[640, 480], [1280, 720]])
     bad = EASYMOCAP_INTRI + "H_01: 480\nW_01: wide\nH_02: 720\nW_02: 1280\n"
-    with pytest.raises(ValueError, match=r"view 0 \(camera '01'\), key \"W_01\": expected a positive integer; got 'wide'"):
+    with pytest.raises(
+        ValueError,
+        match=r"view 0 \(camera '01'\), key \"W_01\": expected a positive integer; got 'wide'",
+    ):
         load_rig(_easymocap_folder(tmp_path, intri=bad))
     with pytest.raises(ValueError, match=r"view 1 \(camera '02'\): missing \"H_02\" / \"W_02\""):
         load_rig(_easymocap_folder(tmp_path, intri=EASYMOCAP_INTRI + "H_01: 480\nW_01: 640\n"))
@@ -96,11 +123,18 @@ def test_easymocap_writes_the_image_size_and_refuses_fisheye(tmp_path):
 
 def test_anipose_size_is_required_and_sections_sort_as_strings_too(tmp_path):
     rig = default_rig(num_views=12)
-    with pytest.raises(ValueError, match=r"image_size is required: aniposelib cannot load a calibration.toml camera without size"):
+    with pytest.raises(
+        ValueError,
+        match=r"image_size is required: aniposelib cannot load a calibration.toml camera without size",
+    ):
         save_rig_anipose(tmp_path / "c.toml", rig)
     save_rig_anipose(tmp_path / "c.toml", rig, image_size=(640, 480))
     sections = re.findall(r"^\[(cam_\d+)\]$", (tmp_path / "c.toml").read_text(), flags=re.M)
-    assert sections == sorted(sections) and sections[:2] == ["cam_00", "cam_01"] and len(sections) == 12
+    assert (
+        sections == sorted(sections)
+        and sections[:2] == ["cam_00", "cam_01"]
+        and len(sections) == 12
+    )
     assert load_rig(tmp_path / "c.toml").names == tuple(f"cam_{m}" for m in range(12))
 
 
@@ -112,7 +146,9 @@ def test_anipose_cameras_matched_by_name(tmp_path):
     np.testing.assert_array_equal(np.asarray(swapped.rig.K), np.asarray(loaded.rig.K)[::-1])
     np.testing.assert_array_equal(swapped.dist, loaded.dist[::-1])
     np.testing.assert_array_equal(swapped.view_sizes, loaded.view_sizes[::-1])
-    with pytest.raises(ValueError, match=r"camera 'centre' is not in this rig; its cameras are \['left', 'right'\]"):
+    with pytest.raises(
+        ValueError, match=r"camera 'centre' is not in this rig; its cameras are \['left', 'right'\]"
+    ):
         loaded.select(["centre"])
 
 
@@ -121,14 +157,26 @@ def test_fisheye_round_trips(tmp_path, fmt):
     with x64():
         rig = default_rig(num_views=3, dtype=jnp.float64)
         writers = {
-            "anipose": lambda: save_rig_anipose(tmp_path / "c.toml", rig, image_size=(640, 480), dist=Fisheye(FISHEYE)),
+            "anipose": lambda: save_rig_anipose(
+                tmp_path / "c.toml", rig, image_size=(640, 480), dist=Fisheye(FISHEYE)
+            ),
             "json": lambda: save_rig_json(tmp_path / "r.json", rig, dist=Fisheye(FISHEYE)),
             "npz": lambda: save_rig_npz(tmp_path / "r.npz", rig, dist=Fisheye(FISHEYE)),
-            "colmap": lambda: save_rig_colmap(tmp_path, rig, image_size=(640, 480), dist=Fisheye(FISHEYE)),
-            "nerfstudio": lambda: save_rig_nerfstudio(tmp_path / "transforms.json", rig, image_size=(640, 480), dist=Fisheye(FISHEYE)),
+            "colmap": lambda: save_rig_colmap(
+                tmp_path, rig, image_size=(640, 480), dist=Fisheye(FISHEYE)
+            ),
+            "nerfstudio": lambda: save_rig_nerfstudio(
+                tmp_path / "transforms.json", rig, image_size=(640, 480), dist=Fisheye(FISHEYE)
+            ),
         }
         writers[fmt]()
-        path = {"anipose": "c.toml", "json": "r.json", "npz": "r.npz", "colmap": ".", "nerfstudio": "transforms.json"}[fmt]
+        path = {
+            "anipose": "c.toml",
+            "json": "r.json",
+            "npz": "r.npz",
+            "colmap": ".",
+            "nerfstudio": "transforms.json",
+        }[fmt]
         loaded = load_rig(tmp_path / path, dtype=jnp.float64)
         assert isinstance(loaded.dist, Fisheye)
         np.testing.assert_array_equal(loaded.dist.coeffs, FISHEYE)
@@ -150,9 +198,20 @@ NERFSTUDIO = {
     "p2": 0.002,
     "frames": [
         # camera at (0, 0, 5) looking down -z (OpenGL: the camera looks along its -z).
-        {"file_path": "images/a.png", "transform_matrix": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 5], [0, 0, 0, 1]]},
-        {"file_path": "images/b.png", "fl_x": 1000.0, "fl_y": 1000.0, "cx": 640.5, "cy": 360.5, "w": 1280, "h": 720,
-         "transform_matrix": [[0, 0, 1, 4], [0, 1, 0, 0], [-1, 0, 0, 0], [0, 0, 0, 1]]},
+        {
+            "file_path": "images/a.png",
+            "transform_matrix": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 5], [0, 0, 0, 1]],
+        },
+        {
+            "file_path": "images/b.png",
+            "fl_x": 1000.0,
+            "fl_y": 1000.0,
+            "cx": 640.5,
+            "cy": 360.5,
+            "w": 1280,
+            "h": 720,
+            "transform_matrix": [[0, 0, 1, 4], [0, 1, 0, 0], [-1, 0, 0, 0], [0, 0, 0, 1]],
+        },
     ],
 }
 
@@ -183,15 +242,26 @@ def test_nerfstudio_projects_as_by_hand_and_round_trips(tmp_path):
         assert loaded.names == ("images/a.png", "images/b.png")
         np.testing.assert_array_equal(loaded.view_sizes, [[640, 480], [1280, 720]])
         (tmp_path / "out").mkdir()
-        save_rig_nerfstudio(tmp_path / "out" / "transforms.json", loaded.rig, image_size=loaded.view_sizes, dist=loaded.dist, names=loaded.names)
+        save_rig_nerfstudio(
+            tmp_path / "out" / "transforms.json",
+            loaded.rig,
+            image_size=loaded.view_sizes,
+            dist=loaded.dist,
+            names=loaded.names,
+        )
         again = load_rig(tmp_path / "out" / "transforms.json", dtype=jnp.float64)
         np.testing.assert_allclose(_pixels(again), got, atol=1e-9)
     bad = dict(NERFSTUDIO, camera_model="EQUIRECTANGULAR")
     path.write_text(json.dumps(bad))
-    with pytest.raises(ValueError, match=r"frame 0: camera_model 'EQUIRECTANGULAR' is not supported"):
+    with pytest.raises(
+        ValueError, match=r"frame 0: camera_model 'EQUIRECTANGULAR' is not supported"
+    ):
         load_rig(path)
 
 
 def test_float64_without_x64_raises():
-    with x64(False), pytest.raises(ValueError, match=r"load_rig: dtype=float64 needs 64-bit JAX, which is off"):
+    with (
+        x64(False),
+        pytest.raises(ValueError, match=r"load_rig: dtype=float64 needs 64-bit JAX, which is off"),
+    ):
         load_rig("unused.json", dtype=np.float64)

@@ -22,7 +22,12 @@ from cdog_jax.io import (
 )
 
 X = np.array([[0.3, -0.2, 1.5], [-0.4, 0.1, 0.7], [0.0, 0.0, 0.0]])
-K = np.array([[[800.0, 0.0, 320.0], [0.0, 790.0, 240.0], [0.0, 0.0, 1.0]], [[1000.0, 0.0, 640.0], [0.0, 1000.0, 360.0], [0.0, 0.0, 1.0]]])
+K = np.array(
+    [
+        [[800.0, 0.0, 320.0], [0.0, 790.0, 240.0], [0.0, 0.0, 1.0]],
+        [[1000.0, 0.0, 640.0], [0.0, 1000.0, 360.0], [0.0, 0.0, 1.0]],
+    ]
+)
 RVEC = np.array([[0.0, 0.5, 0.0], [0.3, -0.2, 0.1]])
 TVEC = np.array([[0.1, -0.2, 4.0], [0.5, 0.1, 3.0]])
 DIST = np.array([[0.1, -0.05, 0.001, 0.002, 0.0], [-0.2, 0.03, 0.0, 0.0, 0.01]])
@@ -98,29 +103,42 @@ class CameraGroup:
 
 
 def test_rig_from_aniposelib_projects_as_opencv():
-    group = CameraGroup([Camera(K[m], DIST[m], [640 + m, 480], RVEC[m], TVEC[m], f"c{m}") for m in range(2)])
+    group = CameraGroup(
+        [Camera(K[m], DIST[m], [640 + m, 480], RVEC[m], TVEC[m], f"c{m}") for m in range(2)]
+    )
     with x64():
         loaded = rig_from_aniposelib(group, dtype=jnp.float64)
         ours = _ours(loaded)
     for m in range(2):
-        np.testing.assert_allclose(ours[m], _opencv_pixels(K[m], DIST[m], RVEC[m], TVEC[m], X), atol=1e-9)
+        np.testing.assert_allclose(
+            ours[m], _opencv_pixels(K[m], DIST[m], RVEC[m], TVEC[m], X), atol=1e-9
+        )
     assert loaded.names == ("c0", "c1")
     np.testing.assert_array_equal(loaded.view_sizes, [[640, 480], [641, 480]])
     np.testing.assert_array_equal(loaded.dist, DIST)
 
 
 def test_rig_from_aniposelib_fisheye_and_refusals():
-    fish = [FisheyeCamera(K[m], [0.05, -0.01, 0.0, 0.0], [640, 480], RVEC[m], TVEC[m], f"c{m}") for m in range(2)]
+    fish = [
+        FisheyeCamera(K[m], [0.05, -0.01, 0.0, 0.0], [640, 480], RVEC[m], TVEC[m], f"c{m}")
+        for m in range(2)
+    ]
     loaded = rig_from_aniposelib(CameraGroup(fish))
     assert isinstance(loaded.dist, Fisheye)
     np.testing.assert_array_equal(loaded.dist.coeffs, [[0.05, -0.01, 0.0, 0.0]] * 2)
     with pytest.raises(ValueError, match=r"cameras \[0\] are FisheyeCamera and the others are not"):
-        rig_from_aniposelib(CameraGroup([fish[0], Camera(K[1], DIST[1], [640, 480], RVEC[1], TVEC[1], "c1")]))
+        rig_from_aniposelib(
+            CameraGroup([fish[0], Camera(K[1], DIST[1], [640, 480], RVEC[1], TVEC[1], "c1")])
+        )
     with pytest.raises(ValueError, match=r"camera 1 \('c1'\) has no size and others have one"):
-        rig_from_aniposelib(CameraGroup([fish[0], FisheyeCamera(K[1], [0.0] * 4, None, RVEC[1], TVEC[1], "c1")]))
+        rig_from_aniposelib(
+            CameraGroup([fish[0], FisheyeCamera(K[1], [0.0] * 4, None, RVEC[1], TVEC[1], "c1")])
+        )
     bad = Camera(K[1], DIST[1], [640, 480], [0.1, 0.2], TVEC[1], "c1")
     with pytest.raises(ValueError, match=r"rvec\[1\]: expected shape \(3,\); got \(2,\)"):
-        rig_from_aniposelib(CameraGroup([Camera(K[0], DIST[0], [640, 480], RVEC[0], TVEC[0], "c0"), bad]))
+        rig_from_aniposelib(
+            CameraGroup([Camera(K[0], DIST[0], [640, 480], RVEC[0], TVEC[0], "c0"), bad])
+        )
 
 
 # pycolmap stand-ins -----------------------------------------------------------------------
@@ -147,7 +165,12 @@ class Image:
 
 class ColmapCamera:
     def __init__(self, model_name, params, width, height):
-        self.model_name, self.params, self.width, self.height = model_name, np.asarray(params), width, height
+        self.model_name, self.params, self.width, self.height = (
+            model_name,
+            np.asarray(params),
+            width,
+            height,
+        )
 
 
 class Reconstruction:
@@ -160,18 +183,31 @@ def test_rig_from_pycolmap_shifts_pixel_centres_and_reads_models():
     # FULL_OPENCV with k4 = k5 = k6 = 0 is OpenCV's 5-coefficient model.
     cameras = {
         7: ColmapCamera("OPENCV", [800.0, 790.0, 320.5, 240.5, *DIST[0, :4]], 640, 480),
-        3: ColmapCamera("FULL_OPENCV", [1000.0, 1000.0, 640.5, 360.5, *DIST[1], 0.0, 0.0, 0.0], 1280, 720),
+        3: ColmapCamera(
+            "FULL_OPENCV", [1000.0, 1000.0, 640.5, 360.5, *DIST[1], 0.0, 0.0, 0.0], 1280, 720
+        ),
     }
-    images = {20: Image(3, "b.png", R[1], TVEC[1]), 5: Image(7, "a.png", R[0], TVEC[0]), 9: Image(7, "x.png", R[0], TVEC[0], posed=False)}
+    images = {
+        20: Image(3, "b.png", R[1], TVEC[1]),
+        5: Image(7, "a.png", R[0], TVEC[0]),
+        9: Image(7, "x.png", R[0], TVEC[0], posed=False),
+    }
     with x64():
         loaded = rig_from_pycolmap(Reconstruction(cameras, images), dtype=jnp.float64)
         ours = _ours(loaded)
     assert loaded.names == ("a.png", "b.png")  # ascending image_id, unposed images skipped
     for m in range(2):
-        np.testing.assert_allclose(ours[m], _opencv_pixels(K[m], DIST[m], RVEC[m], TVEC[m], X), atol=1e-9)
+        np.testing.assert_allclose(
+            ours[m], _opencv_pixels(K[m], DIST[m], RVEC[m], TVEC[m], X), atol=1e-9
+        )
     np.testing.assert_array_equal(loaded.view_sizes, [[640, 480], [1280, 720]])
-    cameras[3] = ColmapCamera("FULL_OPENCV", [1000.0, 1000.0, 640.5, 360.5, *DIST[1], 0.1, 0.0, 0.0], 1280, 720)
-    with pytest.raises(ValueError, match=r"image 20 \('b.png'\), camera 3: FULL_OPENCV with k4, k5, k6 = \[0.1, 0.0, 0.0\]"):
+    cameras[3] = ColmapCamera(
+        "FULL_OPENCV", [1000.0, 1000.0, 640.5, 360.5, *DIST[1], 0.1, 0.0, 0.0], 1280, 720
+    )
+    with pytest.raises(
+        ValueError,
+        match=r"image 20 \('b.png'\), camera 3: FULL_OPENCV with k4, k5, k6 = \[0.1, 0.0, 0.0\]",
+    ):
         rig_from_pycolmap(Reconstruction(cameras, images))
     cameras[3] = ColmapCamera("FOV", [1000.0, 1000.0, 640.5, 360.5, 0.1], 1280, 720)
     with pytest.raises(ValueError, match=r"unsupported camera model 'FOV'"):
@@ -183,9 +219,19 @@ def test_rig_from_pycolmap_shifts_pixel_centres_and_reads_models():
 
 def test_opencv_arrays_round_trip_and_project_as_opencv():
     with x64():
-        loaded = rig_from_opencv(list(K), list(DIST), [r[:, None] for r in RVEC], list(TVEC), image_size=(640, 480), names=["a", "b"], dtype=jnp.float64)
+        loaded = rig_from_opencv(
+            list(K),
+            list(DIST),
+            [r[:, None] for r in RVEC],
+            list(TVEC),
+            image_size=(640, 480),
+            names=["a", "b"],
+            dtype=jnp.float64,
+        )
         for m in range(2):
-            np.testing.assert_allclose(_ours(loaded)[m], _opencv_pixels(K[m], DIST[m], RVEC[m], TVEC[m], X), atol=1e-9)
+            np.testing.assert_allclose(
+                _ours(loaded)[m], _opencv_pixels(K[m], DIST[m], RVEC[m], TVEC[m], X), atol=1e-9
+            )
         back = opencv_from_rig(loaded.rig, dist=loaded.dist, image_size=loaded.image_size)
     np.testing.assert_allclose(back.rvec, RVEC, atol=1e-15)
     np.testing.assert_array_equal(back.tvec, TVEC)
@@ -194,9 +240,13 @@ def test_opencv_arrays_round_trip_and_project_as_opencv():
     assert back.image_size.tolist() == [[640, 480]] * 2 and not back.fisheye
     fish = rig_from_opencv(K, [[0.1, 0.0, 0.0, 0.0]] * 2, RVEC, TVEC, fisheye=True)
     assert isinstance(fish.dist, Fisheye) and opencv_from_rig(fish.rig, dist=fish.dist).fisheye
-    with pytest.raises(ValueError, match=r"dist\[1\]: expected 4 or 5 OpenCV distortion coefficients.*got 6"):
+    with pytest.raises(
+        ValueError, match=r"dist\[1\]: expected 4 or 5 OpenCV distortion coefficients.*got 6"
+    ):
         rig_from_opencv(K, [DIST[0], np.zeros(6)], RVEC, TVEC)
-    with pytest.raises(ValueError, match=r"tvec: expected 2 entries \(one per camera, M=2 from K\); got 1"):
+    with pytest.raises(
+        ValueError, match=r"tvec: expected 2 entries \(one per camera, M=2 from K\); got 1"
+    ):
         rig_from_opencv(K, None, RVEC, TVEC[:1])
 
 
@@ -205,4 +255,6 @@ def test_rotation_helpers_are_public_and_exact():
         R = rotation_from_rodrigues(r)
         np.testing.assert_allclose(R, _rotation(r), atol=1e-15)
         np.testing.assert_allclose(rodrigues_from_rotation(R), r, atol=1e-15)
-        np.testing.assert_allclose(rotation_from_quaternion(quaternion_from_rotation(R)), R, atol=1e-15)
+        np.testing.assert_allclose(
+            rotation_from_quaternion(quaternion_from_rotation(R)), R, atol=1e-15
+        )

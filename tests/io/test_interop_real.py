@@ -9,7 +9,15 @@ from helpers import x64
 
 import cdog_jax
 from cdog_jax.geometry import Fisheye
-from cdog_jax.io import aniposelib_from_rig, load_rig, opencv_from_rig, pycolmap_from_rig, rig_from_aniposelib, rig_from_pycolmap, save_rig_anipose
+from cdog_jax.io import (
+    aniposelib_from_rig,
+    load_rig,
+    opencv_from_rig,
+    pycolmap_from_rig,
+    rig_from_aniposelib,
+    rig_from_pycolmap,
+    save_rig_anipose,
+)
 from cdog_jax.synthetic import default_rig
 
 X = np.random.default_rng(3).uniform(-0.4, 0.4, (25, 3))
@@ -73,14 +81,20 @@ def test_pycolmap_reconstruction():
         rig = default_rig(num_views=3, dtype=jnp.float64)
         dist = DIST[:3].copy()
         dist[0, 4] = 0.0  # one OPENCV camera, two FULL_OPENCV
-        reconstruction = pycolmap_from_rig(rig, image_size=(640, 480), dist=dist, names=["a", "b", "c"])
+        reconstruction = pycolmap_from_rig(
+            rig, image_size=(640, 480), dist=dist, names=["a", "b", "c"]
+        )
         assert isinstance(reconstruction, pycolmap.Reconstruction)
         ours = _ours(rig, dist)
         for m, image_id in enumerate(sorted(reconstruction.images)):
             image = reconstruction.images[image_id]
-            pose = image.cam_from_world() if callable(image.cam_from_world) else image.cam_from_world
+            pose = (
+                image.cam_from_world() if callable(image.cam_from_world) else image.cam_from_world
+            )
             camera = reconstruction.cameras[image.camera_id]
-            theirs = np.array([camera.img_from_cam(pose * x) for x in X]) - 0.5  # COLMAP's pixel centres
+            theirs = (
+                np.array([camera.img_from_cam(pose * x) for x in X]) - 0.5
+            )  # COLMAP's pixel centres
             assert np.abs(theirs - ours[m]).max() < PX
         back = rig_from_pycolmap(reconstruction, dtype=jnp.float64)
         assert back.names == ("a", "b", "c")

@@ -35,7 +35,10 @@ def test_openpose_folders_slots_classes_frames(tmp_path):
     folder = _write_openpose(
         tmp_path,
         {
-            "cam2_json": {"v_000000000005_keypoints.json": [A, B], "v_000000000007_keypoints.json": [B]},
+            "cam2_json": {
+                "v_000000000005_keypoints.json": [A, B],
+                "v_000000000007_keypoints.json": [B],
+            },
             "cam10_json": {"v_000000000005_keypoints.json": [B, A]},
         },
     )
@@ -63,7 +66,9 @@ def test_openpose_skeleton_names_and_errors(tmp_path):
     bad = _write_openpose(tmp_path / "bad", {"a": {"f1.json": [A]}, "b": {"f1.json": [A, A[:2]]}})
     with pytest.raises(InputError, match=r"f1\.json: person 1: 2 keypoints; .* has 3"):
         load_openpose(bad)
-    neg = _write_openpose(tmp_path / "neg", {"a": {"f1.json": [A]}, "b": {"f1.json": [[(1.0, 2.0, -0.5)] * 3]}})
+    neg = _write_openpose(
+        tmp_path / "neg", {"a": {"f1.json": [A]}, "b": {"f1.json": [[(1.0, 2.0, -0.5)] * 3]}}
+    )
     with pytest.raises(InputError, match="score -0.5 is negative"):
         load_openpose(neg)
     nonum = _write_openpose(tmp_path / "nonum", {"a": {"x.json": [A]}, "b": {"x.json": [B]}})
@@ -72,8 +77,14 @@ def test_openpose_skeleton_names_and_errors(tmp_path):
 
 
 def test_openpose_two_people_of_one_class_at_one_pixel_refused_but_classes_may_coincide(tmp_path):
-    same = [(10.0, 20.0, 0.9), (10.0, 20.0, 0.9), (50.0, 60.0, 0.8)]  # keypoints 0 and 1 coincide: fine
-    det = load_openpose(_write_openpose(tmp_path / "ok", {"a": {"f1.json": [same]}, "b": {"f1.json": [B]}}))
+    same = [
+        (10.0, 20.0, 0.9),
+        (10.0, 20.0, 0.9),
+        (50.0, 60.0, 0.8),
+    ]  # keypoints 0 and 1 coincide: fine
+    det = load_openpose(
+        _write_openpose(tmp_path / "ok", {"a": {"f1.json": [same]}, "b": {"f1.json": [B]}})
+    )
     assert det.mask[0, 0].sum() == 3
     dup = _write_openpose(tmp_path / "dup", {"a": {"f1.json": [A, A]}, "b": {"f1.json": [B]}})
     with pytest.raises(InputError, match="duplicates"):
@@ -104,12 +115,24 @@ def test_table_csv_names_and_npz_ids(tmp_path):
     assert det.xy.shape == (2, 2, 3, 2)
     assert det.classes[0, 0].tolist() == [0, 1, -1]  # the nose row of score 0 is no detection
     assert det.mask[0, 0].tolist() == [True, True, False]
-    np.testing.assert_allclose(det.confidence[0, 0, :2], [0.9 / 12, 0.8 / 12])  # largest 12 > 1.1: divided
+    np.testing.assert_allclose(
+        det.confidence[0, 0, :2], [0.9 / 12, 0.8 / 12]
+    )  # largest 12 > 1.1: divided
     assert det.classes[1, 1, 0] == 1
     npz_path = tmp_path / "t.npz"
-    np.savez(npz_path, frame=[0, 0, 0], view=[0, 1, 1], **{"class": [2, 2, 0]}, xy=[[1, 2], [3, 4], [3, 4]])
+    np.savez(
+        npz_path,
+        frame=[0, 0, 0],
+        view=[0, 1, 1],
+        **{"class": [2, 2, 0]},
+        xy=[[1, 2], [3, 4], [3, 4]],
+    )
     det = load_keypoint_table(npz_path, num_views=3)
-    assert det.class_names is None and det.classes[0, 1].tolist() == [2, 0] and det.mask.shape == (1, 3, 2)
+    assert (
+        det.class_names is None
+        and det.classes[0, 1].tolist() == [2, 0]
+        and det.mask.shape == (1, 3, 2)
+    )
     assert det.confidence is not None and (det.confidence[det.mask] == 1.0).all()
 
 
@@ -139,8 +162,16 @@ def test_readers_carry_the_per_view_instance(tmp_path):
     assert det.instances[0, 1].tolist() == [0, 0, 0, 1, -1, 1]
     packed = load_openpose(str(folder), capacity=6)
     np.testing.assert_array_equal(packed.instances, det.instances)
-    assert load_keypoint_table(_csv(tmp_path, "frame,view,class,x,y\n0,0,a,1,2\n0,1,a,3,4\n")).instances is None
-    p = _csv(tmp_path, "frame,view,class,x,y,score,instance\n0,0,a,1,2,1,3\n0,1,a,3,4,1,-1\n0,1,a,5,6,0,2\n0,0,b,1,2,1,0\n")
+    assert (
+        load_keypoint_table(
+            _csv(tmp_path, "frame,view,class,x,y\n0,0,a,1,2\n0,1,a,3,4\n")
+        ).instances
+        is None
+    )
+    p = _csv(
+        tmp_path,
+        "frame,view,class,x,y,score,instance\n0,0,a,1,2,1,3\n0,1,a,3,4,1,-1\n0,1,a,5,6,0,2\n0,0,b,1,2,1,0\n",
+    )
     det = load_keypoint_table(p)
     assert det.instances[0].tolist() == [[3, 0], [-1, -1]]  # the score-0 row is no detection
     p.write_text("frame,view,class,x,y,instance\n0,0,a,1,2,-2\n")
@@ -159,10 +190,20 @@ def _csv(tmp_path, text):
 
 def test_detections_json_classes_per_detection_and_by_class(tmp_path):
     p = tmp_path / "d.json"
-    p.write_text(json.dumps({"class_names": ["a", "b"], "views": [[[1, 2], [1, 2]], [[3, 4]]], "classes": [["a", "b"], ["b"]]}))
+    p.write_text(
+        json.dumps(
+            {
+                "class_names": ["a", "b"],
+                "views": [[[1, 2], [1, 2]], [[3, 4]]],
+                "classes": [["a", "b"], ["b"]],
+            }
+        )
+    )
     det = load_detections(p)
     assert det.class_names == ("a", "b") and det.classes[0].tolist() == [[0, 1], [1, -1]]
-    p.write_text(json.dumps({"frames": [{"by_class": {"x": [[[1, 2]], [[3, 4]]], "y": [[[5, 6]], []]}}]}))
+    p.write_text(
+        json.dumps({"frames": [{"by_class": {"x": [[[1, 2]], [[3, 4]]], "y": [[[5, 6]], []]}}]})
+    )
     det = load_detections(p)
     assert det.class_names == ("x", "y") and det.classes[0].tolist() == [[0, 1], [0, -1]]
     np.testing.assert_allclose(det.xy[0, 0], [[1, 2], [5, 6]])
@@ -170,7 +211,9 @@ def test_detections_json_classes_per_detection_and_by_class(tmp_path):
     with pytest.raises(InputError, match="duplicates"):  # one class, one pixel
         load_detections(p)
     p.write_text(json.dumps({"views": [[[1, 2]], [[3, 4]]], "classes": [[0], [0, 1]]}))
-    with pytest.raises(InputError, match=r"view 1: \"classes\" must hold one class per detection \(1\); got 2"):
+    with pytest.raises(
+        InputError, match=r"view 1: \"classes\" must hold one class per detection \(1\); got 2"
+    ):
         load_detections(p)
     p.write_text(json.dumps({"views": [[[1, 2]], [[3, 4]]], "classes": [[0], ["a"]]}))
     with pytest.raises(InputError, match="mixes class ids and class names"):

@@ -29,7 +29,9 @@ def _pose2sim(M, C_mm, fu, fv, cu, cv, left, top):
 
 def _write(path, cams):
     body = "".join(CAMERA.format(**c) for c in cams)
-    path.write_text(f"<?xml version='1.0' encoding='ASCII'?>\n<calibration>\n  <cameras>\n{body}  </cameras>\n</calibration>\n")
+    path.write_text(
+        f"<?xml version='1.0' encoding='ASCII'?>\n<calibration>\n  <cameras>\n{body}  </cameras>\n</calibration>\n"
+    )
 
 
 def _cams():
@@ -39,13 +41,31 @@ def _cams():
         M, _ = np.linalg.qr(rng.standard_normal((3, 3)))
         M *= np.sign(np.linalg.det(M))
         C = rng.uniform(-3000, 3000, 3)
-        transform = " ".join(f'r{i + 1}{j + 1}="{float(M[i, j])!r}"' for i in range(3) for j in range(3))
+        transform = " ".join(
+            f'r{i + 1}{j + 1}="{float(M[i, j])!r}"' for i in range(3) for j in range(3)
+        )
         transform += f' x="{float(C[0])!r}" y="{float(C[1])!r}" z="{float(C[2])!r}"'
-        out.append(dict(
-            model="none" if k < 2 else "Miqus", serial=serial, left=8 * k, top=4 * k, right=1087 + 8 * k, bottom=1919 + 4 * k,
-            transform=transform, cu=34000.0 + 100 * k, cv=61000.0, fu=107600.0 + 50 * k, fv=107500.0,
-            k1=-0.046, k2=0.14, p1=0.0006, p2=-0.0007, M=M, C=C,
-        ))  # fmt: skip
+        out.append(
+            dict(
+                model="none" if k < 2 else "Miqus",
+                serial=serial,
+                left=8 * k,
+                top=4 * k,
+                right=1087 + 8 * k,
+                bottom=1919 + 4 * k,
+                transform=transform,
+                cu=34000.0 + 100 * k,
+                cv=61000.0,
+                fu=107600.0 + 50 * k,
+                fv=107500.0,
+                k1=-0.046,
+                k2=0.14,
+                p1=0.0006,
+                p2=-0.0007,
+                M=M,
+                C=C,
+            )
+        )
     return out
 
 
@@ -62,7 +82,9 @@ def test_qualisys_as_pose2sim_converts_it(tmp_path):
         np.testing.assert_allclose(np.asarray(rf.rig.K[view]), K, rtol=1e-6, atol=1e-6)
         np.testing.assert_allclose(np.asarray(rf.rig.R[view]), R, atol=1e-6)
         np.testing.assert_allclose(np.asarray(rf.rig.t[view]), t, atol=1e-5)
-        np.testing.assert_allclose(rf.dist[view], np.array([-0.046, 0.14, 0.0006, -0.0007, 0.0]) / 64)
+        np.testing.assert_allclose(
+            rf.dist[view], np.array([-0.046, 0.14, 0.0006, -0.0007, 0.0]) / 64
+        )
         # The camera centre is the transform's position, in metres.
         R32, t32 = np.asarray(rf.rig.R[view], np.float64), np.asarray(rf.rig.t[view], np.float64)
         np.testing.assert_allclose(-R32.T @ t32, c["C"] / 1000, atol=1e-5)
@@ -73,7 +95,9 @@ def test_qualisys_malformed_files_named(tmp_path):
     cams[1]["transform"] = cams[1]["transform"].replace('r11="', 'q11="')
     path = tmp_path / "bad.qca.txt"
     _write(path, cams)
-    with pytest.raises(InputError, match=r"bad\.qca\.txt: camera 'cam_2': <transform> has no attribute 'r11'"):
+    with pytest.raises(
+        InputError, match=r"bad\.qca\.txt: camera 'cam_2': <transform> has no attribute 'r11'"
+    ):
         load_rig(path)
     path.write_text("<calibration><cameras>")
     with pytest.raises(InputError, match="invalid XML"):

@@ -71,7 +71,12 @@ def _json_file(tmp_path, views=None, name="rig.json"):
 
 
 def _npz_file(tmp_path, name="rig.npz", **override):
-    arrays = {"K": np.array([K0, K1]), "R": np.array([R0, R1]), "t": np.array([T, T]), "image_size": np.array([640, 480])}
+    arrays = {
+        "K": np.array([K0, K1]),
+        "R": np.array([R0, R1]),
+        "t": np.array([T, T]),
+        "image_size": np.array([640, 480]),
+    }
     arrays.update(override)
     arrays = {k: v for k, v in arrays.items() if v is not None}
     path = tmp_path / name
@@ -148,7 +153,11 @@ def test_round_trip_is_exact(tmp_path, fmt, which):
     rig = RIGS[which]()
     loaded = load_rig(_save(fmt, tmp_path, rig))
     _assert_same_rig(loaded.rig, rig)
-    assert loaded.image_size is None and loaded.dist.shape == (rig.num_views, 5) and not np.any(loaded.dist)
+    assert (
+        loaded.image_size is None
+        and loaded.dist.shape == (rig.num_views, 5)
+        and not np.any(loaded.dist)
+    )
 
 
 @pytest.mark.parametrize("fmt", ["json", "npz"])
@@ -178,7 +187,9 @@ def test_round_trip_is_exact_in_float64(tmp_path, fmt):
 
 def test_writer_rejects_bad_dist_and_stale_easyvis_files(tmp_path):
     rig = default_rig(num_views=2)
-    with pytest.raises(ValueError, match=re.escape("dist must have shape (M, 5) = (2, 5); got (2, 4)")):
+    with pytest.raises(
+        ValueError, match=re.escape("dist must have shape (M, 5) = (2, 5); got (2, 4)")
+    ):
         save_rig_json(tmp_path / "rig.json", rig, dist=np.zeros((2, 4)))
     save_rig_easyvis(tmp_path / "ev", default_rig(num_views=3))
     with pytest.raises(ValueError, match="K2.txt, beyond the 2 views"):
@@ -201,7 +212,15 @@ def test_easyvis_missing_file(tmp_path):
 
 def test_easyvis_gap_in_indices(tmp_path):
     folder = _easyvis_folder(tmp_path, indices=(0, 2))
-    assert sorted(p.name for p in folder.iterdir()) == ["K0.txt", "K2.txt", "P0.txt", "R0.txt", "R2.txt", "T0.txt", "T2.txt"]
+    assert sorted(p.name for p in folder.iterdir()) == [
+        "K0.txt",
+        "K2.txt",
+        "P0.txt",
+        "R0.txt",
+        "R2.txt",
+        "T0.txt",
+        "T2.txt",
+    ]
     with _raises(folder, "missing K1.txt", "[0, 2]"):
         load_rig(folder)
 
@@ -215,7 +234,8 @@ def test_easyvis_zero_views(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "text", ["[[1, 0, 0], [0, 1", "__import__('os').getcwd()", "[[1, 0, 0], [0, 1, 0], [0, 0, nan]]"]
+    "text",
+    ["[[1, 0, 0], [0, 1", "__import__('os').getcwd()", "[[1, 0, 0], [0, 1, 0], [0, 0, nan]]"],
 )
 def test_easyvis_bad_literal(tmp_path, text):
     folder = _easyvis_folder(tmp_path)
@@ -282,7 +302,9 @@ def test_json_wrong_shape(tmp_path):
 
 
 def test_json_non_finite(tmp_path):
-    path = _write(tmp_path / "rig.json", json.dumps({"views": _json_views()}).replace("800.0", "NaN", 1))
+    path = _write(
+        tmp_path / "rig.json", json.dumps({"views": _json_views()}).replace("800.0", "NaN", 1)
+    )
     with _raises(path, 'view 0, key "K"', "non-finite"):
         load_rig(path)
 

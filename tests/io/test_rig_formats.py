@@ -115,10 +115,19 @@ def test_anipose_projects_as_by_hand(tmp_path):
     c, s = np.cos(0.5), np.sin(0.5)
     R_left = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])  # 0.5 rad about y
     expected = [
-        _pixel(np.array([[800.0, 0, 320], [0, 790, 240], [0, 0, 1]]), R_left, np.array([0.1, -0.2, 4.0]), X_WORLD),
-        _pixel(np.diag([1000.0, 1000.0, 1.0]) + [[0, 0, 640], [0, 0, 360], [0, 0, 0]],
-               _expm_skew(np.array([0.3, -0.2, 0.1])), np.array([0.5, 0.1, 3.0]), X_WORLD),
-    ]  # fmt: skip
+        _pixel(
+            np.array([[800.0, 0, 320], [0, 790, 240], [0, 0, 1]]),
+            R_left,
+            np.array([0.1, -0.2, 4.0]),
+            X_WORLD,
+        ),
+        _pixel(
+            np.diag([1000.0, 1000.0, 1.0]) + [[0, 0, 640], [0, 0, 360], [0, 0, 0]],
+            _expm_skew(np.array([0.3, -0.2, 0.1])),
+            np.array([0.5, 0.1, 3.0]),
+            X_WORLD,
+        ),
+    ]
     np.testing.assert_allclose(_project(loaded), expected, atol=2e-3)
 
 
@@ -126,7 +135,7 @@ def test_anipose_round_trip(tmp_path):
     with x64():
         rig = negate_intrinsics(default_rig(), [3])
         dist = np.random.default_rng(0).normal(size=(10, 5)) * 0.1
-        names = [f"cam \"{m}\"\t✓" for m in range(10)]  # quotes, a tab, non-ASCII
+        names = [f'cam "{m}"\t✓' for m in range(10)]  # quotes, a tab, non-ASCII
         sizes = np.array([[640 + m, 480] for m in range(10)])
         save_rig_anipose(tmp_path / "calib.toml", rig, image_size=sizes, dist=dist, names=names)
         loaded = load_rig(tmp_path / "calib.toml")
@@ -134,7 +143,9 @@ def test_anipose_round_trip(tmp_path):
         np.testing.assert_allclose(np.asarray(loaded.rig.K), K / K[:, 2:3, 2:3], rtol=1e-15)
         np.testing.assert_allclose(np.asarray(loaded.rig.R), np.asarray(rig.R), atol=1e-14)
         np.testing.assert_array_equal(np.asarray(loaded.rig.t), np.asarray(rig.t))
-        np.testing.assert_allclose(_project(loaded), np.asarray(cdog_jax.project(rig, jnp.asarray(X_WORLD))[0]), rtol=1e-12)
+        np.testing.assert_allclose(
+            _project(loaded), np.asarray(cdog_jax.project(rig, jnp.asarray(X_WORLD))[0]), rtol=1e-12
+        )
     np.testing.assert_array_equal(loaded.dist, dist)
     np.testing.assert_array_equal(loaded.view_sizes, sizes)
     assert loaded.names == tuple(names)
@@ -146,8 +157,17 @@ def _anipose_file(tmp_path, old, new):
 
 
 def test_anipose_too_many_distortions(tmp_path):
-    path = _anipose_file(tmp_path, "0.002,]", "0.002, 0.0, 0.1, 0.0, 0.0]")  # k4 = 0.1: the rational model
-    with _raises(path, "view 0 (camera 'left', section [cam_2])", 'key "distortions"', "expected 4 or 5", "got 8", "rational"):
+    path = _anipose_file(
+        tmp_path, "0.002,]", "0.002, 0.0, 0.1, 0.0, 0.0]"
+    )  # k4 = 0.1: the rational model
+    with _raises(
+        path,
+        "view 0 (camera 'left', section [cam_2])",
+        'key "distortions"',
+        "expected 4 or 5",
+        "got 8",
+        "rational",
+    ):
         load_rig(path)
 
 
@@ -159,10 +179,18 @@ def test_anipose_missing_key(tmp_path):
 
 def test_anipose_fisheye_on_some_cameras_only(tmp_path):
     path = _anipose_file(tmp_path, 'name = "right"\n', 'name = "right"\nfisheye = true\n')
-    with _raises(path, "view 1 (camera 'right'", '"distortions" (fisheye: k1, k2, k3, k4)', "expected shape (4,)"):
+    with _raises(
+        path,
+        "view 1 (camera 'right'",
+        '"distortions" (fisheye: k1, k2, k3, k4)',
+        "expected shape (4,)",
+    ):
         load_rig(path)
     text = ANIPOSE_TOML.replace('name = "right"\n', 'name = "right"\nfisheye = true\n')
-    path = _write(tmp_path / "calibration.toml", text.replace("[0.0, 0.0, 0.0, 0.0, 0.0]", "[0.0, 0.0, 0.0, 0.0]"))
+    path = _write(
+        tmp_path / "calibration.toml",
+        text.replace("[0.0, 0.0, 0.0, 0.0, 0.0]", "[0.0, 0.0, 0.0, 0.0]"),
+    )
     with _raises(path, "view 0 is an OpenCV (k1, k2, p1, p2, k3) lens and view 1 is not"):
         load_rig(path)
 
@@ -187,7 +215,13 @@ def test_anipose_no_cameras_duplicates_and_bad_toml(tmp_path):
 
 def test_anipose_bad_values_name_the_camera(tmp_path):
     path = _anipose_file(tmp_path, "translation = [0.5, 0.1, 3.0]", "translation = [0.5, 0.1]")
-    with _raises(path, "view 1 (camera 'right', section [cam_10])", 'key "translation"', "expected shape (3,)", "got (2,)"):
+    with _raises(
+        path,
+        "view 1 (camera 'right', section [cam_10])",
+        'key "translation"',
+        "expected shape (3,)",
+        "got (2,)",
+    ):
         load_rig(path)
     # A singular K is caught by rig_from_arrays: the message still names file and camera.
     path = _anipose_file(tmp_path, "[0.0, 1000.0, 360.0]", "[0.0, 0.0, 0.0]")
@@ -244,7 +278,9 @@ def test_colmap_projects_as_by_hand(tmp_path):
     np.testing.assert_allclose(_project(loaded), np.array(colmap_px) - 0.5, atol=2e-3)
     # The path of either file reads the folder.
     for file in ("cameras.txt", "images.txt"):
-        np.testing.assert_array_equal(np.asarray(load_rig(folder / file).rig.K), np.asarray(loaded.rig.K))
+        np.testing.assert_array_equal(
+            np.asarray(load_rig(folder / file).rig.K), np.asarray(loaded.rig.K)
+        )
 
 
 def test_colmap_round_trip_with_negated_K(tmp_path):
@@ -252,15 +288,21 @@ def test_colmap_round_trip_with_negated_K(tmp_path):
         rig = negate_intrinsics(default_rig(), [0, 4])  # K[2,2] = -1: written as K / K[2,2]
         M = rig.num_views
         dist = np.zeros((M, 5))
-        dist[::2, :4] = np.random.default_rng(1).normal(size=(5, 4)) * 0.05  # OPENCV; odd views PINHOLE
+        dist[::2, :4] = (
+            np.random.default_rng(1).normal(size=(5, 4)) * 0.05
+        )  # OPENCV; odd views PINHOLE
         sizes = np.array([[640, 480]] * (M - 1) + [[1920, 1080]])
         save_rig_colmap(tmp_path / "model", rig, image_size=sizes, dist=dist)
         loaded = load_rig(tmp_path / "model")
         K = np.asarray(rig.K)
-        np.testing.assert_allclose(np.asarray(loaded.rig.K), K / K[:, 2:3, 2:3], rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(
+            np.asarray(loaded.rig.K), K / K[:, 2:3, 2:3], rtol=1e-12, atol=1e-12
+        )
         np.testing.assert_allclose(np.asarray(loaded.rig.R), np.asarray(rig.R), atol=1e-14)
         np.testing.assert_array_equal(np.asarray(loaded.rig.t), np.asarray(rig.t))
-        np.testing.assert_allclose(_project(loaded), np.asarray(cdog_jax.project(rig, jnp.asarray(X_WORLD))[0]), rtol=1e-12)
+        np.testing.assert_allclose(
+            _project(loaded), np.asarray(cdog_jax.project(rig, jnp.asarray(X_WORLD))[0]), rtol=1e-12
+        )
     np.testing.assert_array_equal(loaded.dist, dist)
     np.testing.assert_array_equal(loaded.view_sizes, sizes)
     assert loaded.image_size is None and loaded.names == tuple(f"view_{m}" for m in range(M))
@@ -281,20 +323,35 @@ def test_colmap_writer_refuses_what_colmap_cannot_hold(tmp_path):
 
 
 def test_colmap_unknown_model(tmp_path):
-    folder = _colmap_folder(tmp_path, cameras=COLMAP_CAMERAS.replace("SIMPLE_RADIAL", "THIN_PRISM_FISHEYE"))
-    with _raises(folder / "cameras.txt", "line 5, camera 3", "unsupported camera model 'THIN_PRISM_FISHEYE'", "PINHOLE"):
+    folder = _colmap_folder(
+        tmp_path, cameras=COLMAP_CAMERAS.replace("SIMPLE_RADIAL", "THIN_PRISM_FISHEYE")
+    )
+    with _raises(
+        folder / "cameras.txt",
+        "line 5, camera 3",
+        "unsupported camera model 'THIN_PRISM_FISHEYE'",
+        "PINHOLE",
+    ):
         load_rig(folder)
 
 
 def test_colmap_wrong_parameter_count(tmp_path):
     folder = _colmap_folder(tmp_path, cameras=COLMAP_CAMERAS.replace("320.5 240.5", "320.5"))
-    with _raises(folder / "cameras.txt", "line 4, camera 1", "PINHOLE takes 4 parameters (fx, fy, cx, cy); got 3"):
+    with _raises(
+        folder / "cameras.txt",
+        "line 4, camera 1",
+        "PINHOLE takes 4 parameters (fx, fy, cx, cy); got 3",
+    ):
         load_rig(folder)
 
 
 def test_colmap_bad_quaternion_norm(tmp_path):
-    folder = _colmap_folder(tmp_path, images=COLMAP_IMAGES.replace("7 0.5 0.5 0.5 0.5", "7 0.5 0.5 0.5 0.6"))
-    with _raises(folder / "images.txt", "line 5", "view 1 (image 7 'cam7.png')", "norm 1.0", "expected 1"):
+    folder = _colmap_folder(
+        tmp_path, images=COLMAP_IMAGES.replace("7 0.5 0.5 0.5 0.5", "7 0.5 0.5 0.5 0.6")
+    )
+    with _raises(
+        folder / "images.txt", "line 5", "view 1 (image 7 'cam7.png')", "norm 1.0", "expected 1"
+    ):
         load_rig(folder)
 
 
@@ -306,15 +363,27 @@ def test_colmap_dropped_points_line_and_unknown_camera(tmp_path):
         "100.0 200.0 -1 300.0 400.0 5\n"
     )
     folder = _colmap_folder(tmp_path, images=images)
-    with _raises(folder / "images.txt", "line 2", "POINTS2D line of image 2 'cam2.png'", "got 10 fields"):
+    with _raises(
+        folder / "images.txt", "line 2", "POINTS2D line of image 2 'cam2.png'", "got 10 fields"
+    ):
         load_rig(folder)
-    folder = _colmap_folder(tmp_path, images=COLMAP_IMAGES.replace("4.0 1 cam2.png", "4.0 9 cam2.png"))
-    with _raises(folder / "images.txt", "line 8", "view 0 (image 2 'cam2.png')", "CAMERA_ID 9 is not in", "[1, 3]"):
+    folder = _colmap_folder(
+        tmp_path, images=COLMAP_IMAGES.replace("4.0 1 cam2.png", "4.0 9 cam2.png")
+    )
+    with _raises(
+        folder / "images.txt",
+        "line 8",
+        "view 0 (image 2 'cam2.png')",
+        "CAMERA_ID 9 is not in",
+        "[1, 3]",
+    ):
         load_rig(folder)
 
 
 def test_colmap_singular_K_names_the_image(tmp_path):
-    folder = _colmap_folder(tmp_path, cameras=COLMAP_CAMERAS.replace("640 480 800 790", "640 480 800 0"))
+    folder = _colmap_folder(
+        tmp_path, cameras=COLMAP_CAMERAS.replace("640 480 800 790", "640 480 800 0")
+    )
     with _raises(folder, "K of view 0 (camera 'cam2.png') is singular"):
         load_rig(folder)
 
@@ -408,13 +477,23 @@ def test_easymocap_projects_as_by_hand(tmp_path):
     folder = _easymocap_folder(tmp_path)
     loaded = load_rig(folder)
     assert loaded.names == ("01", "02") and loaded.view_sizes is None and loaded.image_size is None
-    np.testing.assert_array_equal(loaded.dist, [[0.1, -0.05, 0.001, 0.002, 0.003], [0.01, 0.02, 0.0, 0.0, 0.0]])
+    np.testing.assert_array_equal(
+        loaded.dist, [[0.1, -0.05, 0.001, 0.002, 0.003], [0.01, 0.02, 0.0, 0.0, 0.0]]
+    )
     expected = [
-        _pixel(np.array([[800.0, 0, 320], [0, 790, 240], [0, 0, 1]]), np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]]),
-               np.array([0.1, -0.2, 4.0]), X_WORLD),
-        _pixel(np.array([[1000.0, 0, 640], [0, 1000, 360], [0, 0, 1]]), _expm_skew(np.array([0.3, -0.2, 0.1])),
-               np.array([0.5, 0.1, 3.0]), X_WORLD),
-    ]  # fmt: skip
+        _pixel(
+            np.array([[800.0, 0, 320], [0, 790, 240], [0, 0, 1]]),
+            np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]]),
+            np.array([0.1, -0.2, 4.0]),
+            X_WORLD,
+        ),
+        _pixel(
+            np.array([[1000.0, 0, 640], [0, 1000, 360], [0, 0, 1]]),
+            _expm_skew(np.array([0.3, -0.2, 0.1])),
+            np.array([0.5, 0.1, 3.0]),
+            X_WORLD,
+        ),
+    ]
     np.testing.assert_allclose(_project(loaded), expected, atol=2e-3)
     assert load_rig(folder / "extri.yml").names == ("01", "02")
 
@@ -428,12 +507,17 @@ def test_easymocap_round_trip(tmp_path):
         loaded = load_rig(tmp_path / "out")
         K = np.asarray(rig.K)
         np.testing.assert_allclose(np.asarray(loaded.rig.K), K / K[:, 2:3, 2:3], rtol=1e-15)
-        np.testing.assert_allclose(np.asarray(loaded.rig.R), np.asarray(rig.R), atol=1e-14)  # R_, as EasyMocap reads it
+        np.testing.assert_allclose(
+            np.asarray(loaded.rig.R), np.asarray(rig.R), atol=1e-14
+        )  # R_, as EasyMocap reads it
         np.testing.assert_array_equal(np.asarray(loaded.rig.t), np.asarray(rig.t))
     np.testing.assert_array_equal(loaded.dist, dist)
     assert loaded.names == tuple(names)
     text = (tmp_path / "out" / "extri.yml").read_text()
-    assert text.startswith("%YAML:1.0\n---\nnames:\n   - \"cam-0_x\"\n") and "Rot_cam-9_x: !!opencv-matrix" in text
+    assert (
+        text.startswith('%YAML:1.0\n---\nnames:\n   - "cam-0_x"\n')
+        and "Rot_cam-9_x: !!opencv-matrix" in text
+    )
     with _raises("names[0] = 'a.b'", "letters, digits"):
         save_rig_easymocap(tmp_path / "bad", default_rig(num_views=1), names=["a.b"])
 
@@ -457,24 +541,43 @@ def test_easymocap_missing_key(tmp_path):
 
 
 def test_easymocap_too_many_distortion_coefficients(tmp_path):
-    intri = EASYMOCAP_INTRI.replace("rows: 4\n  cols: 1\n  dt: d\n  data: [0.01, 0.02, 0.0, 0.0]",
-                                    "rows: 8\n  cols: 1\n  dt: d\n  data: [0.01, 0.02, 0, 0, 0, 0.1, 0, 0]")  # fmt: skip
+    intri = EASYMOCAP_INTRI.replace(
+        "rows: 4\n  cols: 1\n  dt: d\n  data: [0.01, 0.02, 0.0, 0.0]",
+        "rows: 8\n  cols: 1\n  dt: d\n  data: [0.01, 0.02, 0, 0, 0, 0.1, 0, 0]",
+    )
     folder = _easymocap_folder(tmp_path, intri=intri)
-    with _raises(folder / "intri.yml", "line 22", "view 1 (camera '02')", 'key "dist_02"', "expected 4 or 5", "got 8"):
+    with _raises(
+        folder / "intri.yml",
+        "line 22",
+        "view 1 (camera '02')",
+        'key "dist_02"',
+        "expected 4 or 5",
+        "got 8",
+    ):
         load_rig(folder)
 
 
 def test_easymocap_rotation_disagrees(tmp_path):
     extri = EASYMOCAP_EXTRI.replace("1.5707963267948966", "1.4")
     folder = _easymocap_folder(tmp_path, extri=extri)
-    with _raises(folder / "extri.yml", "line 9", "view 0 (camera '01')", '"Rot_01" and the rotation of "R_01" (line 4) differ'):
+    with _raises(
+        folder / "extri.yml",
+        "line 9",
+        "view 0 (camera '01')",
+        '"Rot_01" and the rotation of "R_01" (line 4) differ',
+    ):
         load_rig(folder)
 
 
 def test_easymocap_malformed_matrix_and_names(tmp_path):
     extri = EASYMOCAP_EXTRI.replace("data: [ 0.1, -0.2, 4.0 ]", "data: [ 0.1, -0.2 ]")
     folder = _easymocap_folder(tmp_path, extri=extri)
-    with _raises(folder / "extri.yml", "line 14", 'key "T_01"', "rows × cols = 3 × 1 but 'data' holds 2 numbers"):
+    with _raises(
+        folder / "extri.yml",
+        "line 14",
+        'key "T_01"',
+        "rows × cols = 3 × 1 but 'data' holds 2 numbers",
+    ):
         load_rig(folder)
     extri = EASYMOCAP_EXTRI.replace('names: [ "01", "02" ]', 'names: [ "01", "03" ]')
     folder = _easymocap_folder(tmp_path, extri=extri)

@@ -20,14 +20,26 @@ def test_header_rows_and_missing_markers(tmp_path):
     save_trc(path, _markers(), NAMES, rate=25, units="m")
     lines = path.read_text().split("\n")
     assert lines[0] == "PathFileType\t4\t(X/Y/Z)\twalk.trc"
-    assert lines[1].split("\t") == ["DataRate", "CameraRate", "NumFrames", "NumMarkers", "Units", "OrigDataRate",
-                                    "OrigDataStartFrame", "OrigNumFrames"]  # fmt: skip
+    assert lines[1].split("\t") == [
+        "DataRate",
+        "CameraRate",
+        "NumFrames",
+        "NumMarkers",
+        "Units",
+        "OrigDataRate",
+        "OrigDataStartFrame",
+        "OrigNumFrames",
+    ]
     assert lines[2].split("\t") == ["25", "25", "4", "3", "m", "25", "1", "4"]
     assert lines[3] == "Frame#\tTime\tNose\t\t\tNeck\t\t\tRWrist"
     assert lines[4] == "\t\tX1\tY1\tZ1\tX2\tY2\tZ2\tX3\tY3\tZ3"
     assert lines[5] == ""
     row = lines[7].split("\t")
-    assert row[:2] == ["2", "0.04"] and row[-3:] == ["", "", ""] and float(row[2]) == _markers()[1, 0, 0]
+    assert (
+        row[:2] == ["2", "0.04"]
+        and row[-3:] == ["", "", ""]
+        and float(row[2]) == _markers()[1, 0, 0]
+    )
     assert len(lines) == 6 + 4 + 1 and lines[-1] == ""
 
 

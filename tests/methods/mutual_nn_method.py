@@ -10,7 +10,13 @@ import jax.numpy as jnp
 
 from cdog_jax import register_method
 from cdog_jax._method import GroupTableMethod
-from cdog_jax.graph import adjacency_from_edges, alive_edges, connected_components, groups_from_labels, nearest_neighbour_edges
+from cdog_jax.graph import (
+    adjacency_from_edges,
+    alive_edges,
+    connected_components,
+    groups_from_labels,
+    nearest_neighbour_edges,
+)
 from cdog_jax.graph._components import component_view_counts
 
 

@@ -15,14 +15,14 @@ Every test runs each method at the same shapes (4 views, 8 slots padded to 32, b
 from __future__ import annotations
 
 import jax
+import mutual_nn_method  # noqa: F401  (registers "mutual_nn": a method from one module)
 import numpy as np
 import pytest
+from helpers import random_scene, ring_rig
 
 import cdog_jax
-import mutual_nn_method  # noqa: F401  (registers "mutual_nn": a method from one module)
 from cdog_jax import associate, associate_batch, method_from, method_names
 from cdog_jax.geometry import epipolar_distances
-from helpers import random_scene, ring_rig
 
 RIG = ring_rig(4)
 P = 8
@@ -67,8 +67,14 @@ def _unambiguous(xy, mask, inst, tau=1.0):
 def test_noise_free_scenes_associate_exactly(name):
     clear = [s for s in SCENES if _unambiguous(*s)][:4]
     assert len(clear) == 4, "too few unambiguous scenes to test"
-    batch = associate_batch(RIG, np.stack([s[0] for s in clear]), np.stack([s[1] for s in clear]), method=name, sigma=SIGMA)
-    for b, (xy, mask, inst) in enumerate(clear):
+    batch = associate_batch(
+        RIG,
+        np.stack([s[0] for s in clear]),
+        np.stack([s[1] for s in clear]),
+        method=name,
+        sigma=SIGMA,
+    )
+    for b, (_xy, mask, inst) in enumerate(clear):
         assert _partition(batch.labels[b], mask) == _truth(inst, mask), f"{name}: scene {b}"
 
 
@@ -92,7 +98,9 @@ def test_batch_equals_a_loop_and_padding_changes_nothing(name):
 @pytest.mark.parametrize("name", METHODS)
 def test_slot_permutation_permutes_the_groups(name):
     xy, mask, _ = SCENES[1]
-    xy = xy + np.float32(0.3) * np.random.default_rng(0).standard_normal(xy.shape).astype(np.float32)
+    xy = xy + np.float32(0.3) * np.random.default_rng(0).standard_normal(xy.shape).astype(
+        np.float32
+    )
     perm = np.stack([np.random.default_rng(m).permutation(P) for m in range(RIG.num_views)])
     xy_p = np.take_along_axis(xy, perm[..., None], axis=1)
     mask_p = np.take_along_axis(mask, perm, axis=1)
@@ -113,7 +121,14 @@ def test_jit_equals_eager(name):
     xy, mask, _ = SCENES[2]
     jitted = associate(RIG, xy, mask, method=name, sigma=1.0)
     pad = ((0, 0), (0, 32 - P))
-    obs = cdog_jax.Observations(jax.numpy.asarray(np.pad(xy, (*pad, (0, 0)))), jax.numpy.asarray(np.pad(mask, pad)))
+    obs = cdog_jax.Observations(
+        jax.numpy.asarray(np.pad(xy, (*pad, (0, 0)))), jax.numpy.asarray(np.pad(mask, pad))
+    )
     eager = method.associate_scene(RIG, obs, method.thresholds(1.0))
     np.testing.assert_array_equal(jitted.labels, np.asarray(eager.labels)[:, :P])
-    np.testing.assert_allclose(jitted.points3d, np.asarray(eager.points3d)[: jitted.points3d.shape[0]], rtol=1e-4, atol=1e-4)
+    np.testing.assert_allclose(
+        jitted.points3d,
+        np.asarray(eager.points3d)[: jitted.points3d.shape[0]],
+        rtol=1e-4,
+        atol=1e-4,
+    )

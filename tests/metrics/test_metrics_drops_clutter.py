@@ -34,14 +34,25 @@ def case(detections, labels):
     valid = (groups >= 0).any(1)
     pts = np.zeros((P, 3), np.float32)
     scene = Scene(
-        xy=jnp.zeros((M, P, 2)), mask=jnp.asarray(mask), instance=jnp.asarray(inst), points3d=jnp.asarray(pts),
-        num_points=jnp.asarray(2, jnp.int32), num_clutter=jnp.asarray((mask & (inst < 0)).sum(1).astype(np.int32)),
+        xy=jnp.zeros((M, P, 2)),
+        mask=jnp.asarray(mask),
+        instance=jnp.asarray(inst),
+        points3d=jnp.asarray(pts),
+        num_points=jnp.asarray(2, jnp.int32),
+        num_clutter=jnp.asarray((mask & (inst < 0)).sum(1).astype(np.int32)),
     )
     assoc = Association(
-        labels=jnp.asarray(lab), groups=jnp.asarray(groups), valid=jnp.asarray(valid),
-        points3d=jnp.zeros((G, 3)), bpe=jnp.zeros((G,)), err_px=jnp.zeros((G,)),
-        n_views=jnp.asarray((groups >= 0).sum(1).astype(np.int32)), num_groups=jnp.asarray(int(valid.sum()), jnp.int32),
-        sigma_px=jnp.asarray(0.0), tau_px=jnp.asarray(0.0), status=jnp.int32(0),
+        labels=jnp.asarray(lab),
+        groups=jnp.asarray(groups),
+        valid=jnp.asarray(valid),
+        points3d=jnp.zeros((G, 3)),
+        bpe=jnp.zeros((G,)),
+        err_px=jnp.zeros((G,)),
+        n_views=jnp.asarray((groups >= 0).sum(1).astype(np.int32)),
+        num_groups=jnp.asarray(int(valid.sum()), jnp.int32),
+        sigma_px=jnp.asarray(0.0),
+        tau_px=jnp.asarray(0.0),
+        status=jnp.int32(0),
     )
     return metrics(RIG, assoc, scene)
 

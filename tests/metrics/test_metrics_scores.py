@@ -119,7 +119,9 @@ def random_case(rng, M, P):
         labels[labels == a] = b
     valid = np.zeros(G, bool)
     valid[labels[labels >= 0]] = True
-    if rng.random() < 0.3:  # a valid group without members, and a label pointing at an invalid group
+    if (
+        rng.random() < 0.3
+    ):  # a valid group without members, and a label pointing at an invalid group
         valid[rng.integers(0, G)] = True
         valid[rng.integers(0, G)] = False
     points3d = rng.uniform(-0.6, 0.6, (G, 3))
@@ -233,11 +235,17 @@ def reference_metrics(rig, result, scene):
 
 def assert_matches(metrics, ref, atol_px=2e-3):
     for k in FIELDS:
-        np.testing.assert_allclose(float(getattr(metrics, k)), ref[k], rtol=1e-5, atol=1e-6, err_msg=k)
+        np.testing.assert_allclose(
+            float(getattr(metrics, k)), ref[k], rtol=1e-5, atol=1e-6, err_msg=k
+        )
     for k in COUNTS:
         assert int(getattr(metrics, k)) == int(ref[k]), k
-    np.testing.assert_allclose(float(metrics.err3d), ref["err3d"], rtol=1e-4, atol=1e-5, err_msg="err3d")
-    np.testing.assert_allclose(float(metrics.bpe_px), ref["bpe_px"], rtol=1e-4, atol=atol_px, err_msg="bpe_px")
+    np.testing.assert_allclose(
+        float(metrics.err3d), ref["err3d"], rtol=1e-4, atol=1e-5, err_msg="err3d"
+    )
+    np.testing.assert_allclose(
+        float(metrics.bpe_px), ref["bpe_px"], rtol=1e-4, atol=atol_px, err_msg="bpe_px"
+    )
 
 
 def assert_same(a, b):
@@ -309,7 +317,11 @@ def test_everything_unassigned(three_points):
     m = jit_metrics(make_rig(), make_assoc(-np.ones((4, 3), np.int32)), scene)
     for k in FIELDS + ("err3d", "bpe_px"):
         assert float(getattr(m, k)) == 0.0, k
-    assert (int(m.num_pred_groups), int(m.num_gt_groups), int(m.num_unassigned)) == (0, 3, int(mask.sum()))
+    assert (int(m.num_pred_groups), int(m.num_gt_groups), int(m.num_unassigned)) == (
+        0,
+        3,
+        int(mask.sum()),
+    )
     assert not bool(m.has_groups)
 
 
@@ -347,7 +359,9 @@ def test_merged_group_majority():
 def test_merged_group_tie_does_not_match():
     scene, assoc = column_case([0, 0, 1, 1], [0, 0, 0, 0])
     m = jit_metrics(make_rig(), assoc, scene)
-    check(m, dict(g_p=0, g_r=0, g_f1=0, g_iou=0, mp_p=0.5, mp_r=1, mp_f1=2 / 3, mp_iou=0.5, pg_f1=0))
+    check(
+        m, dict(g_p=0, g_r=0, g_f1=0, g_iou=0, mp_p=0.5, mp_r=1, mp_f1=2 / 3, mp_iou=0.5, pg_f1=0)
+    )
 
 
 def test_duplicate_group_of_one_instance():

@@ -4,8 +4,10 @@ import pytest
 from helpers import project_np, ring_rig
 
 from cdog_jax import Config
+from cdog_jax.cdog._pipeline import stage_options
 from cdog_jax.geometry import dlt_blocks
 from cdog_jax.refine import iqr_outliers, percentile_linear, remove_outliers
+from cdog_jax.refine._outliers import IQR
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -17,8 +19,6 @@ def test_percentile_matches_numpy(seed):
     for q in (25.0, 75.0):
         got = float(percentile_linear(padded, jnp.int32(k), q))
         assert got == pytest.approx(np.percentile(vals, q), rel=1e-5)
-from cdog_jax.cdog._pipeline import stage_options
-from cdog_jax.refine._outliers import IQR
 
 
 def _iqr(config):
@@ -44,7 +44,12 @@ def test_reference_guards():
     small = jnp.asarray([1.0, 1.0, 9.0], jnp.float32)  # an outlier by IQR, but all below 10 px
     assert not np.any(np.asarray(iqr_outliers(small, jnp.ones(3, bool), th, _iqr(cfg))))
     flat = jnp.asarray([60.0, 61.0, 62.0, 60.5], jnp.float32)  # no IQR outlier, max > 50 px
-    assert np.asarray(iqr_outliers(flat, jnp.ones(4, bool), th, _iqr(cfg))).tolist() == [False, False, True, False]
+    assert np.asarray(iqr_outliers(flat, jnp.ones(4, bool), th, _iqr(cfg))).tolist() == [
+        False,
+        False,
+        True,
+        False,
+    ]
 
 
 def test_planted_outlier_removed_from_group():
@@ -56,7 +61,15 @@ def test_planted_outlier_removed_from_group():
     N, r, origin = dlt_blocks(rig, jnp.asarray(obs, jnp.float32))
     member = jnp.ones((1, 6), bool)
     cfg = Config.paper()
-    args = (rig, N[None], r[None], origin, jnp.asarray(obs, jnp.float32)[None], member, cfg.thresholds(0.5))
+    args = (
+        rig,
+        N[None],
+        r[None],
+        origin,
+        jnp.asarray(obs, jnp.float32)[None],
+        member,
+        cfg.thresholds(0.5),
+    )
     out, capped = remove_outliers(*args, _iqr(cfg))
     assert np.asarray(out)[0].tolist() == [True, True, True, False, True, True]
     assert not bool(capped)  # the second round changed nothing

@@ -18,15 +18,26 @@ RIG = ring_rig(4)
 M, P = 4, 4
 SIGMA = 1.0
 TAU = 2.0 * np.sqrt(2.0) * SIGMA
-CORNERS = np.array([[5.0, 5.0], [635.0, 475.0]])  # slots 0 and 1 of every view: the detection area is the image
+CORNERS = np.array(
+    [[5.0, 5.0], [635.0, 475.0]]
+)  # slots 0 and 1 of every view: the detection area is the image
 
 
 def _scene(xy, mask):
     xy, mask = jnp.asarray(xy, jnp.float32), jnp.asarray(mask)
     th = Config.best().thresholds(SIGMA)
     th = th._replace(**{k: jnp.asarray(v) for k, v in th._asdict().items()})
-    return Scene(RIG, xy, mask, mask.reshape(-1), epipolar_distances(RIG, xy, mask), dlt_blocks(RIG, xy),
-                 jnp.asarray(SIGMA, jnp.float32), jnp.asarray(TAU, jnp.float32), th)
+    return Scene(
+        RIG,
+        xy,
+        mask,
+        mask.reshape(-1),
+        epipolar_distances(RIG, xy, mask),
+        dlt_blocks(RIG, xy),
+        jnp.asarray(SIGMA, jnp.float32),
+        jnp.asarray(TAU, jnp.float32),
+        th,
+    )
 
 
 def _layout():
@@ -44,7 +55,9 @@ def _layout():
 
 def _partition(table):
     groups, valid = np.asarray(table.groups), np.asarray(table.valid)
-    return {frozenset((m, int(g[m])) for m in range(M) if g[m] >= 0) for g, v in zip(groups, valid) if v}
+    return {
+        frozenset((m, int(g[m])) for m in range(M) if g[m] >= 0) for g, v in zip(groups, valid) if v
+    }
 
 
 def test_seeding_refuses_a_pair_whose_point_other_views_see_without_a_detection():

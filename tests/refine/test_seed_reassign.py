@@ -27,8 +27,17 @@ def _scene(sigma=0.0, seed=3, two_view=(), **numbers):
     th = Config.best(**numbers).thresholds(1.0)
     th = th._replace(**{k: jnp.asarray(v) for k, v in th._asdict().items()})
     tau = jnp.asarray(2.0 * np.sqrt(2.0), jnp.float32)  # τ at σ = 1 px
-    scene = Scene(RIG, xy, mask, mask.reshape(-1), epipolar_distances(RIG, xy, mask), dlt_blocks(RIG, xy),
-                  jnp.asarray(1.0, jnp.float32), tau, th)
+    scene = Scene(
+        RIG,
+        xy,
+        mask,
+        mask.reshape(-1),
+        epipolar_distances(RIG, xy, mask),
+        dlt_blocks(RIG, xy),
+        jnp.asarray(1.0, jnp.float32),
+        tau,
+        th,
+    )
     return scene, inst
 
 
@@ -48,7 +57,9 @@ def _truth(inst, mask):
 def _partition(table, M):
     """The groups as a set of frozensets of (view, slot)."""
     groups, valid = np.asarray(table.groups), np.asarray(table.valid)
-    return {frozenset((m, int(g[m])) for m in range(M) if g[m] >= 0) for g, v in zip(groups, valid) if v}
+    return {
+        frozenset((m, int(g[m])) for m in range(M) if g[m] >= 0) for g, v in zip(groups, valid) if v
+    }
 
 
 def _empty(M):
@@ -69,10 +80,14 @@ def test_seeding_leaves_the_groups_it_is_given_and_uses_only_free_detections():
     scene, inst = _scene(two_view=(8, 9), seed_support_frac=1e6)
     groups, valid = _truth(inst, scene.mask)
     kept = np.arange(len(valid)) < 4  # the first 4 points stay; the rest are left over
-    given = GroupTable(jnp.asarray(np.where((valid & kept)[:, None], groups, -1)), jnp.asarray(valid & kept))
+    given = GroupTable(
+        jnp.asarray(np.where((valid & kept)[:, None], groups, -1)), jnp.asarray(valid & kept)
+    )
     state = seed_stage(scene, State(given, None, jnp.int32(0)), SeedOptions(2))
     assert _partition(given, 4) <= _partition(state.table, 4)
-    assert _partition(state.table, 4) == _partition(GroupTable(jnp.asarray(groups), jnp.asarray(valid)), 4)
+    assert _partition(state.table, 4) == _partition(
+        GroupTable(jnp.asarray(groups), jnp.asarray(valid)), 4
+    )
     # 3-member seeds only: the 2-view points 8 and 9 stay unassigned, the others are found.
     three = seed_stage(scene, State(given, None, jnp.int32(0)), SeedOptions(3))
     new = _partition(three.table, 4) - _partition(given, 4)
@@ -95,7 +110,9 @@ def _split_and_swap(groups, valid, swap):
     free = int(np.flatnonzero(~valid)[0])
     wrong[free, 2:], wrong[c, 2:] = groups[c, 2:], -1
     table = GroupTable(jnp.asarray(wrong), jnp.asarray(valid | (np.arange(len(valid)) == free)))
-    assert _partition(table, 4) != _partition(GroupTable(jnp.asarray(groups), jnp.asarray(valid)), 4)
+    assert _partition(table, 4) != _partition(
+        GroupTable(jnp.asarray(groups), jnp.asarray(valid)), 4
+    )
     return table, c, free
 
 
@@ -105,12 +122,16 @@ def test_merging_joins_a_point_split_over_disjoint_views():
     table, c, free = _split_and_swap(groups, valid, swap=False)
     X = fit_groups(scene, table).X
     merged = merge_split_groups(scene, table, X, 2.0 * scene.tau)
-    np.testing.assert_array_equal(np.asarray(merged.groups)[c], groups[c])  # the equal-sized later row moves
+    np.testing.assert_array_equal(
+        np.asarray(merged.groups)[c], groups[c]
+    )  # the equal-sized later row moves
     assert not bool(merged.valid[free]) and (np.asarray(merged.groups)[free] == -1).all()
     truth = _partition(GroupTable(jnp.asarray(groups), jnp.asarray(valid)), 4)
     assert _partition(merged, 4) == truth
     # A narrower gate than the points' distances to the members: nothing moves.
-    assert _partition(merge_split_groups(scene, table, X, jnp.float32(0.0)), 4) == _partition(table, 4)
+    assert _partition(merge_split_groups(scene, table, X, jnp.float32(0.0)), 4) == _partition(
+        table, 4
+    )
 
 
 def test_reassignment_detaches_wrong_members_and_seeding_again_restores_them():
@@ -135,7 +156,9 @@ def test_seeding_a_chunk_of_free_detections_at_a_time_is_seeding_at_once(monkeyp
     scene, inst = _scene(sigma=1.0, seed=5, two_view=(7,))
     groups, valid = _truth(inst, scene.mask)
     kept = np.arange(len(valid)) < 3
-    given = GroupTable(jnp.asarray(np.where((valid & kept)[:, None], groups, -1)), jnp.asarray(valid & kept))
+    given = GroupTable(
+        jnp.asarray(np.where((valid & kept)[:, None], groups, -1)), jnp.asarray(valid & kept)
+    )
     start = State(given, None, jnp.int32(0))
     whole = seed_stage(scene, start, SeedOptions(2))
     assert 4 * P <= seed_module.SOURCE_CHUNK  # one chunk: every detection's hypotheses at once

@@ -3,17 +3,19 @@
 import jax
 import jax.numpy as jnp
 import numpy as np
+from helpers import project_np, ring_rig
 
 from cdog_jax import Config, associate
 from cdog_jax.refine._support import support_keep
-from helpers import project_np, ring_rig
 
 RIG = ring_rig(5)  # 5 views around the origin, all see the box near the origin
 M, P = 5, 4
 
 
 def _points():
-    return np.array([[0.1, 0.0, 0.1], [-0.2, 0.15, 0.0], [0.05, -0.2, -0.1], [0.2, 0.2, 0.2]], np.float32)
+    return np.array(
+        [[0.1, 0.0, 0.1], [-0.2, 0.15, 0.0], [0.05, -0.2, -0.1], [0.2, 0.2, 0.2]], np.float32
+    )
 
 
 def test_support_keep_hand_built():
@@ -35,7 +37,15 @@ def test_support_keep_hand_built():
     mask[3:, 3] = False
     member = np.array([[1, 1, 1, 1, 1], [1, 1, 0, 0, 0], [1, 1, 0, 0, 0], [1, 1, 1, 0, 0]], bool)
     valid = np.ones(4, bool)
-    args = (RIG, jnp.asarray(xy), jnp.asarray(mask), jnp.asarray(X), jnp.asarray(member), jnp.asarray(valid), tau)
+    args = (
+        RIG,
+        jnp.asarray(xy),
+        jnp.asarray(mask),
+        jnp.asarray(X),
+        jnp.asarray(member),
+        jnp.asarray(valid),
+        tau,
+    )
     keep = jax.jit(support_keep)(*args, th)
     np.testing.assert_array_equal(np.asarray(keep), [True, True, False, False])
     # At a miss rate of 0.1, 2 misses of 5 are plausible (0.081), 3 are not (0.0086); at 0.3
@@ -46,7 +56,9 @@ def test_support_keep_hand_built():
         (dict(support_alpha=1e-5), [True, True, True, True]),
     ):
         th2 = th._replace(**{k: np.float32(v) for k, v in changes.items()})
-        np.testing.assert_array_equal(np.asarray(support_keep(*args, th2)), expected, err_msg=str(changes))
+        np.testing.assert_array_equal(
+            np.asarray(support_keep(*args, th2)), expected, err_msg=str(changes)
+        )
     # The miss rate is estimated from the groups with >= support_ref_views members: with
     # every group as a reference (ref views 2), q = 5 / 17 and nothing is dropped.
     th3 = th._replace(support_ref_views=np.float32(2.0))
@@ -55,7 +67,16 @@ def test_support_keep_hand_built():
     behind = X.copy()
     cam0 = -np.asarray(RIG.R)[0].T @ np.asarray(RIG.t)[0]
     behind[0] = cam0 - 1.0 * np.asarray(RIG.R)[0][2]  # 1 unit behind camera 0 along its axis
-    keep = support_keep(RIG, jnp.asarray(xy), jnp.asarray(mask), jnp.asarray(behind), jnp.asarray(member), jnp.asarray([True, False, True, True]), tau, th._replace(support_alpha=np.float32(1e-5)))
+    keep = support_keep(
+        RIG,
+        jnp.asarray(xy),
+        jnp.asarray(mask),
+        jnp.asarray(behind),
+        jnp.asarray(member),
+        jnp.asarray([True, False, True, True]),
+        tau,
+        th._replace(support_alpha=np.float32(1e-5)),
+    )
     np.testing.assert_array_equal(np.asarray(keep), [False, False, True, True])
 
 

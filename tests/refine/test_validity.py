@@ -6,9 +6,8 @@ The hand-built scenes share one shape (3 views, 20 slots; views without detectio
 masked out) so that they share one compiled program."""
 
 import jax
-import numpy as np
 import jax.numpy as jnp
-import pytest
+import numpy as np
 from helpers import look_at
 
 import cdog_jax
@@ -74,9 +73,13 @@ def test_ghost_detections_behind_the_cameras_form_no_group():
     # projections (dehomogenised through a negative depth) fall inside the images.
     rig = _rig([(-1.0, 0.0, 0.0), (0.0, 0.0, 0.2), (1.0, 0.0, 0.0)], [(0.0, 5.0, 0.0)] * 3)
     rng = np.random.default_rng(0)
-    X = np.column_stack([rng.uniform(-1.5, 1.5, 1000), rng.uniform(-7, -4, 1000), rng.uniform(-1, 1, 1000)])
+    X = np.column_stack(
+        [rng.uniform(-1.5, 1.5, 1000), rng.uniform(-7, -4, 1000), rng.uniform(-1, 1, 1000)]
+    )
     xy, depth = _project(rig, X)
-    inside = np.all((xy[..., 0] >= 0) & (xy[..., 0] < 640) & (xy[..., 1] >= 0) & (xy[..., 1] < 480), axis=0)
+    inside = np.all(
+        (xy[..., 0] >= 0) & (xy[..., 0] < 640) & (xy[..., 1] >= 0) & (xy[..., 1] < 480), axis=0
+    )
     X = X[inside][:P]
     assert len(X) >= 10 and (depth[:, inside] < 0).all()
     res = cdog_jax.associate(rig, *_scene(rig, X, 0.5), sigma=0.5)
@@ -84,7 +87,10 @@ def test_ghost_detections_behind_the_cameras_form_no_group():
 
 
 def test_two_cameras_at_one_centre_give_no_group_behind_a_camera():
-    rig = _rig([(3.0, 0.0, 1.0), (3.0, 0.0, 1.0), (0.0, 3.0, 1.0)], [(0.0, 0.3, 0.0), (0.0, -0.3, 0.0), (0.0, 0.0, 0.0)])
+    rig = _rig(
+        [(3.0, 0.0, 1.0), (3.0, 0.0, 1.0), (0.0, 3.0, 1.0)],
+        [(0.0, 0.3, 0.0), (0.0, -0.3, 0.0), (0.0, 0.0, 0.0)],
+    )
     X = np.random.default_rng(1).uniform(-0.5, 0.5, (P, 3))
     res = cdog_jax.associate(rig, *_scene(rig, X, 1.0), sigma=1.0)
     depth, parallax = _valid_groups(rig, res)
@@ -123,7 +129,9 @@ def test_extended_recovery_does_not_merge_two_points():
     # (instances 5, 1, 1) with a 156 px mean reprojection error.
     # (Scene 15 of generate_scenes(PRNGKey(0), …) for 48 scenes.)
     rig = default_rig()
-    scene = generate_scene(jax.random.split(jax.random.PRNGKey(0), 48)[15], rig, 40, 1.0, capacity=40)
+    scene = generate_scene(
+        jax.random.split(jax.random.PRNGKey(0), 48)[15], rig, 40, 1.0, capacity=40
+    )
     res = cdog_jax.associate(rig, scene.xy, scene.mask, method=Config.extended(), sigma=1.0)
     valid = np.asarray(res.valid)
     groups = np.asarray(res.groups)[valid]
@@ -136,5 +144,9 @@ def test_extended_recovery_does_not_merge_two_points():
     # Two views of two points can be consistent (within τ of each other's epipolar lines);
     # a third view cannot: no group of ≥ 3 views mixes points.
     inst = np.asarray(scene.instance)
-    mixed = [g for g in groups if (g >= 0).sum() >= 3 and len(set(inst[views[g >= 0], g[g >= 0]].tolist())) > 1]
+    mixed = [
+        g
+        for g in groups
+        if (g >= 0).sum() >= 3 and len(set(inst[views[g >= 0], g[g >= 0]].tolist())) > 1
+    ]
     assert not mixed

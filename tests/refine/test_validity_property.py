@@ -11,8 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from helpers import look_at
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, given, settings, strategies as st
 
 import cdog_jax
 from cdog_jax import Config, Rig
@@ -27,7 +26,9 @@ def _rig(rng, active, near_pair):
     centers = []
     for m in range(M):
         az, el = rng.uniform(0, 2 * np.pi), rng.uniform(0.1, 1.2)
-        c = rng.uniform(2.5, 4.0) * np.array([np.cos(az) * np.cos(el), np.sin(az) * np.cos(el), np.sin(el)])
+        c = rng.uniform(2.5, 4.0) * np.array(
+            [np.cos(az) * np.cos(el), np.sin(az) * np.cos(el), np.sin(el)]
+        )
         if near_pair and m == 1:  # 1e-4 … 1e-2 units from camera 0
             c = centers[0] + rng.uniform(1e-4, 1e-2) * rng.standard_normal(3)
         centers.append(c)
@@ -50,7 +51,13 @@ def _scene(seed, n_active, near_pair, behind, sigma):
     with np.errstate(divide="ignore", invalid="ignore"):
         xy = h[..., :2] / h[..., 2:3]  # through negative depths too: ghost detections
     xy = xy + sigma * rng.standard_normal(xy.shape)
-    inside = np.isfinite(xy).all(-1) & (xy[..., 0] >= 0) & (xy[..., 0] < W) & (xy[..., 1] >= 0) & (xy[..., 1] < H)
+    inside = (
+        np.isfinite(xy).all(-1)
+        & (xy[..., 0] >= 0)
+        & (xy[..., 0] < W)
+        & (xy[..., 1] >= 0)
+        & (xy[..., 1] < H)
+    )
     inside[n_active:] = False
     perm = np.stack([rng.permutation(P) for _ in range(M)])
     xy = np.take_along_axis(np.where(inside[..., None], xy, 0.0), perm[..., None], axis=1)
@@ -80,7 +87,9 @@ def _check_valid_groups(rig, xy, res, cfg):
 
 
 @pytest.mark.parametrize("preset", sorted(CONFIGS))
-@settings(max_examples=20, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@settings(
+    max_examples=20, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow]
+)
 @given(
     seed=st.integers(0, 2**31 - 1),
     n_active=st.integers(2, M),
@@ -89,13 +98,21 @@ def _check_valid_groups(rig, xy, res, cfg):
     sigma=st.sampled_from([0.0, 0.5, 2.0]),
     garbage=st.sampled_from([np.nan, np.inf, -np.inf, 1e30]),
 )
-def test_valid_groups_pass_the_gate_and_masked_slots_change_nothing(preset, seed, n_active, near_pair, behind, sigma, garbage):
+def test_valid_groups_pass_the_gate_and_masked_slots_change_nothing(
+    preset, seed, n_active, near_pair, behind, sigma, garbage
+):
     cfg = CONFIGS[preset]
     (K, R, t), xy, mask = _scene(seed, n_active, near_pair, behind, sigma)
     rig = Rig(*(jnp.asarray(a, jnp.float32) for a in (K, R, t)))
-    res = cdog_jax.associate(rig, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), method=cfg, sigma=max(sigma, 0.5))
+    res = cdog_jax.associate(
+        rig, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), method=cfg, sigma=max(sigma, 0.5)
+    )
     _check_valid_groups(rig, np.asarray(jnp.asarray(xy, jnp.float32), np.float64), res, cfg)
     dirty = np.where(mask[..., None], xy, garbage)
-    res2 = cdog_jax.associate(rig, jnp.asarray(dirty, jnp.float32), jnp.asarray(mask), method=cfg, sigma=max(sigma, 0.5))
+    res2 = cdog_jax.associate(
+        rig, jnp.asarray(dirty, jnp.float32), jnp.asarray(mask), method=cfg, sigma=max(sigma, 0.5)
+    )
     for field in ("labels", "groups", "valid", "points3d", "err_px"):
-        np.testing.assert_array_equal(np.asarray(getattr(res2, field)), np.asarray(getattr(res, field)), err_msg=field)
+        np.testing.assert_array_equal(
+            np.asarray(getattr(res2, field)), np.asarray(getattr(res, field)), err_msg=field
+        )

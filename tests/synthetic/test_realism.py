@@ -37,7 +37,9 @@ def _opts(**kw):
 def test_student_t_mad_known_values():
     mad = jax.jit(jax.vmap(student_t_mad))(jnp.asarray([1.0, 2.0, 3.0, 1e5], jnp.float32))
     # ν = 1: Cauchy, MAD 1; ν = 2: √(2/3); ν = 3: 0.7649 (tables); large ν: the Gaussian's.
-    np.testing.assert_allclose(np.asarray(mad), [1.0, math.sqrt(2.0 / 3.0), 0.76489, GAUSS_MAD], rtol=2e-4)
+    np.testing.assert_allclose(
+        np.asarray(mad), [1.0, math.sqrt(2.0 / 3.0), 0.76489, GAUSS_MAD], rtol=2e-4
+    )
 
 
 @pytest.mark.parametrize("nu", [3.0, 1000.0])
@@ -86,7 +88,9 @@ def test_perturb_rig_rms_errors():
 
 
 def _scene(seed, sigma=1.0, **realism):
-    return generate_realistic_scene(jax.random.PRNGKey(seed), RIG, 20, sigma, realism=Realism(**realism), **SHAPE)
+    return generate_realistic_scene(
+        jax.random.PRNGKey(seed), RIG, 20, sigma, realism=Realism(**realism), **SHAPE
+    )
 
 
 def test_pose_errors_move_detections_not_points():
@@ -100,15 +104,23 @@ def test_pose_errors_move_detections_not_points():
         xy_true, _ = project(s.rig, s.points3d)  # (M, I, 2)
         xy_nominal, _ = project(RIG, s.points3d)
         m, p = np.nonzero(mask)
-        np.testing.assert_allclose(np.asarray(s.xy)[m, p], np.asarray(xy_true)[m, inst[m, p]], atol=1e-2)
-        off = np.linalg.norm(np.asarray(s.xy)[m, p] - np.asarray(xy_nominal)[m, inst[m, p]], axis=-1)
+        np.testing.assert_allclose(
+            np.asarray(s.xy)[m, p], np.asarray(xy_true)[m, inst[m, p]], atol=1e-2
+        )
+        off = np.linalg.norm(
+            np.asarray(s.xy)[m, p] - np.asarray(xy_nominal)[m, inst[m, p]], axis=-1
+        )
         assert (np.median(off) > 1.0) == nominal_off
 
 
 def test_sweep_compiles_once():
     _scene(0, nu=5.0)
     size = _realistic_scene._cache_size()
-    for kw in (dict(nu=2.0, view_spread=0.3), dict(far_share=0.1, double_rate=0.2), dict(rotation_deg=0.1, clutter_rate=1.0)):
+    for kw in (
+        dict(nu=2.0, view_spread=0.3),
+        dict(far_share=0.1, double_rate=0.2),
+        dict(rotation_deg=0.1, clutter_rate=1.0),
+    ):
         _scene(1, sigma=2.0, **kw)
     assert _realistic_scene._cache_size() == size
 
@@ -117,7 +129,10 @@ def test_jit_equals_eager():
     """The numerically delicate kernels (the t radius through expm1 and the MAD search, the
     rotation exponential); the rest of the renderer is indexing. Eager runs op by op, and
     every op compiles on first use, so the whole renderer would take most of the test budget."""
-    key, realism = jax.random.PRNGKey(4), _opts(nu=3.0, far_share=0.3, rotation_deg=0.5, translation=0.1)
+    key, realism = (
+        jax.random.PRNGKey(4),
+        _opts(nu=3.0, far_share=0.3, rotation_deg=0.5, translation=0.1),
+    )
     kernels = (
         lambda key, realism: unit_noise(key, (7,), realism, jnp.float32),
         lambda key, realism: perturb_rig(key, RIG, realism),
@@ -128,8 +143,17 @@ def test_jit_equals_eager():
             np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-5)
 
 
-@pytest.mark.parametrize("name, value", [("nu", 0.0), ("far_share", 1.5), ("view_spread", -0.1), ("double_rate", -1.0),
-                                         ("rotation_deg", -1.0), ("clutter_rate", -2.0)])  # fmt: skip
+@pytest.mark.parametrize(
+    "name, value",
+    [
+        ("nu", 0.0),
+        ("far_share", 1.5),
+        ("view_spread", -0.1),
+        ("double_rate", -1.0),
+        ("rotation_deg", -1.0),
+        ("clutter_rate", -2.0),
+    ],
+)
 def test_bad_options_raise(name, value):
     with pytest.raises(ValueError, match=f"Realism.{name}"):
         Realism(**{name: value})

@@ -22,7 +22,13 @@ TRACES = []
 def _batch_jit(key, num_points, sigma_px, drop_rate, clutter_rate, *, clutter_capacity):
     TRACES.append(None)
     return generate_scenes(
-        key, RIG, num_points, sigma_px, capacity=P, drop_rate=drop_rate, clutter_rate=clutter_rate,
+        key,
+        RIG,
+        num_points,
+        sigma_px,
+        capacity=P,
+        drop_rate=drop_rate,
+        clutter_rate=clutter_rate,
         clutter_capacity=clutter_capacity,
     )
 
@@ -47,7 +53,12 @@ def one(scenes, b=0):
 def detections(scene):
     """``{(view, instance): xy}`` of the real (instance ≥ 0) valid detections of one scene."""
     mask, inst, xy = (np.asarray(a) for a in (scene.mask, scene.instance, scene.xy))
-    return {(m, int(inst[m, i])): tuple(xy[m, i]) for m in range(M) for i in range(mask.shape[1]) if inst[m, i] >= 0}
+    return {
+        (m, int(inst[m, i])): tuple(xy[m, i])
+        for m in range(M)
+        for i in range(mask.shape[1])
+        if inst[m, i] >= 0
+    }
 
 
 def test_defaults_are_the_paper_scene():
@@ -83,8 +94,15 @@ def test_drop_rate_drops_that_share():
     assert n > 2500
     assert abs((n - kept) / n - 0.3) < 0.04
     # A point may be left with fewer than 2 detections: it is still an instance of the scene.
-    per_point = np.stack([np.bincount(np.asarray(s)[np.asarray(s) >= 0], minlength=P) for s in dropped.instance])
-    assert np.all(per_point <= np.stack([np.bincount(np.asarray(s)[np.asarray(s) >= 0], minlength=P) for s in full.instance]))
+    per_point = np.stack(
+        [np.bincount(np.asarray(s)[np.asarray(s) >= 0], minlength=P) for s in dropped.instance]
+    )
+    assert np.all(
+        per_point
+        <= np.stack(
+            [np.bincount(np.asarray(s)[np.asarray(s) >= 0], minlength=P) for s in full.instance]
+        )
+    )
     assert np.any(per_point == 1)
     # Rate 1 drops everything, clutter only remains.
     none = batch(key, drop_rate=1.0, clutter_rate=2.0, clutter_capacity=C)
@@ -115,7 +133,9 @@ def test_clutter_count_ids_and_positions():
     clipped = batch(jax.random.PRNGKey(6), clutter_rate=20.0)
     cnt = np.asarray(clipped.num_clutter)
     assert cnt.max() == C and 5 <= np.sum(cnt == C) <= 50 and abs(cnt.mean() - 19.5) < 1.5
-    np.testing.assert_array_equal((np.asarray(clipped.mask) & (np.asarray(clipped.instance) == -1)).sum(-1), cnt)
+    np.testing.assert_array_equal(
+        (np.asarray(clipped.mask) & (np.asarray(clipped.instance) == -1)).sum(-1), cnt
+    )
 
 
 def test_shuffle_mixes_clutter_with_real_detections():
@@ -147,10 +167,17 @@ def _truth_association(scene):
     pts = np.zeros((G, 3), np.float32)
     pts[: len(ids)] = np.asarray(scene.points3d)[ids]
     return Association(
-        labels=jnp.asarray(labels), groups=jnp.asarray(groups), valid=jnp.asarray(valid),
-        points3d=jnp.asarray(pts), bpe=jnp.zeros((G,)), err_px=jnp.zeros((G,)),
-        n_views=jnp.asarray((groups >= 0).sum(1).astype(np.int32)), num_groups=jnp.asarray(len(ids), jnp.int32),
-        sigma_px=jnp.asarray(0.0), tau_px=jnp.asarray(0.0), status=jnp.int32(0),
+        labels=jnp.asarray(labels),
+        groups=jnp.asarray(groups),
+        valid=jnp.asarray(valid),
+        points3d=jnp.asarray(pts),
+        bpe=jnp.zeros((G,)),
+        err_px=jnp.zeros((G,)),
+        n_views=jnp.asarray((groups >= 0).sum(1).astype(np.int32)),
+        num_groups=jnp.asarray(len(ids), jnp.int32),
+        sigma_px=jnp.asarray(0.0),
+        tau_px=jnp.asarray(0.0),
+        status=jnp.int32(0),
     ), len(ids)
 
 
@@ -200,4 +227,11 @@ def test_bad_arguments():
     with pytest.raises(ValueError, match="clutter_capacity"):
         generate_scene(jax.random.PRNGKey(0), RIG, 3, 1.0, capacity=P, clutter_capacity=-1)
     with pytest.raises(ValueError, match=r"shape \(B,\)"):
-        generate_scenes(jax.random.PRNGKey(0), RIG, jnp.ones((B,), jnp.int32), jnp.ones((B,)), capacity=P, drop_rate=jnp.ones((3,)))
+        generate_scenes(
+            jax.random.PRNGKey(0),
+            RIG,
+            jnp.ones((B,), jnp.int32),
+            jnp.ones((B,)),
+            capacity=P,
+            drop_rate=jnp.ones((3,)),
+        )

@@ -26,7 +26,9 @@ F, K, J = 12, 5, len(SKELETON_JOINTS)
 
 @functools.partial(jax.jit, static_argnames=("max_people",))
 def _motion(key, num_people, max_people=K):
-    return skeleton_motion(key, num_people, max_people=max_people, num_frames=F, fps=10.0, dtype=jnp.float32)
+    return skeleton_motion(
+        key, num_people, max_people=max_people, num_frames=F, fps=10.0, dtype=jnp.float32
+    )
 
 
 def _bone_lengths(joints):
@@ -44,8 +46,12 @@ def test_limbs_rigid_and_in_range_over_frames():
         ratio = L / template
         assert (ratio >= HEIGHT_SCALE[0] - 1e-5).all() and (ratio <= HEIGHT_SCALE[1] + 1e-5).all()
         # One scale per person: every bone of a person has the same ratio to the template.
-        np.testing.assert_allclose(ratio, ratio[..., :1].repeat(ratio.shape[-1], axis=-1), atol=1e-4)
-        assert np.abs(joints[..., 2].min()) < 0.2 and (joints[..., 2] > 0).all()  # feet near the floor
+        np.testing.assert_allclose(
+            ratio, ratio[..., :1].repeat(ratio.shape[-1], axis=-1), atol=1e-4
+        )
+        assert (
+            np.abs(joints[..., 2].min()) < 0.2 and (joints[..., 2] > 0).all()
+        )  # feet near the floor
 
 
 def test_frames_move_smoothly_and_people_start_apart():
@@ -63,14 +69,30 @@ def test_frames_move_smoothly_and_people_start_apart():
 
 def test_scenes_truth_doubles_and_clutter():
     # The shapes of experiments/robustness_realistic.py --quick (one compile for both).
-    sk = generate_skeleton_scenes(jax.random.PRNGKey(0), RIG, 5, 2.0, realism=Realism(double_rate=0.3, double_offset_px=2.0, clutter_rate=4.0),
-                                  num_frames=2, double_capacity=40, clutter_capacity=48)  # fmt: skip
+    sk = generate_skeleton_scenes(
+        jax.random.PRNGKey(0),
+        RIG,
+        5,
+        2.0,
+        realism=Realism(double_rate=0.3, double_offset_px=2.0, clutter_rate=4.0),
+        num_frames=2,
+        double_capacity=40,
+        clutter_capacity=48,
+    )
     fr = sk.frames
-    mask, kind, inst, cls, xy = (np.asarray(a) for a in (fr.mask, fr.kind, fr.instance, fr.class_id, fr.xy))
+    mask, kind, inst, cls, xy = (
+        np.asarray(a) for a in (fr.mask, fr.kind, fr.instance, fr.class_id, fr.xy)
+    )
     assert xy.shape == (2, RIG.num_views, K * J + 40 + 48, 2)
     real, double, clutter = kind == REAL, kind == DOUBLE, kind == CLUTTER
-    assert ((kind == -1) == ~mask).all() and (inst[clutter] == -1).all() and (inst[real | double] >= 0).all()
-    np.testing.assert_array_equal(cls[real | double], inst[real | double] % J)  # a joint's class is its joint type
+    assert (
+        ((kind == -1) == ~mask).all()
+        and (inst[clutter] == -1).all()
+        and (inst[real | double] >= 0).all()
+    )
+    np.testing.assert_array_equal(
+        cls[real | double], inst[real | double] % J
+    )  # a joint's class is its joint type
     assert ((cls >= 0) & (cls < J)).all()
     np.testing.assert_array_equal(double.sum(axis=2), np.asarray(fr.num_doubles))
     np.testing.assert_array_equal(clutter.sum(axis=2), np.asarray(fr.num_clutter))
@@ -83,7 +105,11 @@ def test_scenes_truth_doubles_and_clutter():
     # Real detections lie near the projections of the true joints (σ = 2 px).
     X = np.asarray(sk.joints3d).reshape(2, K * J, 3)
     f, m, p = np.nonzero(real)
-    xy_true = np.stack([np.asarray(project(sk.rig, jnp.asarray(X[i]))[0]) for i in range(2)])  # (2, M, I, 2)
+    xy_true = np.stack(
+        [np.asarray(project(sk.rig, jnp.asarray(X[i]))[0]) for i in range(2)]
+    )  # (2, M, I, 2)
     err = np.linalg.norm(xy[f, m, p] - xy_true[f, m, inst[f, m, p]], axis=-1)
     assert np.median(err) < 4.0
-    assert real.sum(axis=(1, 2)).min() >= 0.9 * K * J * RIG.num_views  # people near the centre are in view
+    assert (
+        real.sum(axis=(1, 2)).min() >= 0.9 * K * J * RIG.num_views
+    )  # people near the centre are in view

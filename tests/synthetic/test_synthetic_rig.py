@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 
 from cdog_jax.geometry._projection import project
-from cdog_jax.synthetic import DEFAULT_BOX, IMAGE_SIZE, default_rig, look_at_rotation, negate_intrinsics
+from cdog_jax.synthetic import (
+    DEFAULT_BOX,
+    IMAGE_SIZE,
+    default_rig,
+    look_at_rotation,
+    negate_intrinsics,
+)
 
 LO, HI = (np.asarray(c) for c in DEFAULT_BOX)
 CENTER = 0.5 * (LO + HI)
@@ -50,7 +56,9 @@ def test_intrinsics_like_easyvis():
 
 def test_rotations_orthonormal():
     R = np.asarray(default_rig().R, np.float64)
-    np.testing.assert_allclose(np.einsum("mji,mjk->mik", R, R), np.broadcast_to(np.eye(3), R.shape), atol=1e-5)
+    np.testing.assert_allclose(
+        np.einsum("mji,mjk->mik", R, R), np.broadcast_to(np.eye(3), R.shape), atol=1e-5
+    )
     np.testing.assert_allclose(np.linalg.det(R), 1.0, atol=1e-5)
 
 
@@ -59,7 +67,9 @@ def test_cameras_one_side_at_1_to_5_units():
     C = np.asarray(rig.centers, np.float64)
     dist_center = np.linalg.norm(C - CENTER[None], axis=-1)
     assert np.all((dist_center >= 1.0) & (dist_center <= 5.0)), dist_center
-    corners = np.array([[a, b, c] for a in (LO[0], HI[0]) for b in (LO[1], HI[1]) for c in (LO[2], HI[2])])
+    corners = np.array(
+        [[a, b, c] for a in (LO[0], HI[0]) for b in (LO[1], HI[1]) for c in (LO[2], HI[2])]
+    )
     dist_points = np.linalg.norm(C[:, None] - corners[None], axis=-1)
     assert dist_points.min() >= 1.0 and dist_points.max() <= 5.0
     # One side: every camera is above the box top and looks down towards the box centre.

@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 
 from cdog_jax.geometry._projection import project
-from cdog_jax.synthetic import IMAGE_SIZE, default_rig, generate_scene, generate_scenes, negate_intrinsics
+from cdog_jax.synthetic import (
+    IMAGE_SIZE,
+    default_rig,
+    generate_scene,
+    generate_scenes,
+    negate_intrinsics,
+)
 
 RIG = default_rig()
 M = RIG.num_views
@@ -166,7 +172,9 @@ def test_too_few_candidates_and_empty_scene(getkey):
     np.testing.assert_array_equal(scene.instance, -1)
     np.testing.assert_array_equal(scene.xy, 0.0)
     # A huge box: few of the 4 P candidates are seen twice, so fewer instances than asked.
-    scene = gen(getkey(), RIG, P, 1.0, capacity=P, box=np.array([[-20.0, -20.0, 0.0], [20.0, 20.0, 0.5]]))
+    scene = gen(
+        getkey(), RIG, P, 1.0, capacity=P, box=np.array([[-20.0, -20.0, 0.0], [20.0, 20.0, 0.5]])
+    )
     assert int(scene.num_points) < P
     _check_invariants(RIG, scene, P)
 

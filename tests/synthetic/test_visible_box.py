@@ -12,9 +12,10 @@ from cdog_jax.synthetic import (
     IMAGE_SIZE,
     default_rig,
     generate_scene,
+    intrinsics_image_size,
     negate_intrinsics,
+    visible_box,
 )
-from cdog_jax.synthetic import intrinsics_image_size, visible_box
 from cdog_jax.synthetic._box import _seen
 
 LO, HI = (np.asarray(c) for c in DEFAULT_BOX)

@@ -7,9 +7,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from cdog_jax.metrics import Metrics
 from cdog_jax.viz import heatmaps, metrics_vs_sigma, surfaces, time_vs_count, views_ablation
 from cdog_jax.viz._benchmark_common import cell_means, scenes_for
-from cdog_jax.metrics import Metrics
 
 PNG = b"\x89PNG\r\n\x1a\n"
 FIELDS = tuple(f.name for f in dataclasses.fields(Metrics))
@@ -18,7 +18,9 @@ FIELDS = tuple(f.name for f in dataclasses.fields(Metrics))
 def _grid(seed=0, sigmas=(0.0, 1.0, 3.0, 5.0), counts=(1, 5, 20, 40, 130), scenes=2):
     """Fake sweep: per-scene sigma, count, and random metrics/times for two methods."""
     rng = np.random.default_rng(seed)
-    s, c, _ = np.meshgrid(np.asarray(sigmas, np.float32), np.asarray(counts), np.arange(scenes), indexing="ij")
+    s, c, _ = np.meshgrid(
+        np.asarray(sigmas, np.float32), np.asarray(counts), np.arange(scenes), indexing="ij"
+    )
     sigma, count = s.ravel(), c.ravel()
     S = sigma.size
 
@@ -61,7 +63,9 @@ def test_cell_means_exact():
     # keep drops scenes; a cell without kept scenes is NaN.
     keep = np.array([True, False, False, True, True, True, True])
     _, _, table = cell_means(sigma, count, values, keep=keep)
-    np.testing.assert_allclose(table, [[0.2, 0.7], [np.nan, 0.2], [0.9, np.nan]], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(
+        table, [[0.2, 0.7], [np.nan, 0.2], [0.9, np.nan]], rtol=0, atol=1e-15
+    )
 
 
 def test_cell_means_rejects_mismatched_shapes():
@@ -82,8 +86,9 @@ def test_err3d_average_skips_scenes_without_scored_groups():
     _, _, table = cell_means(sigma, count, m["err3d"], keep=scenes_for(m, "err3d"))
     np.testing.assert_allclose(table[:, 0], [0.2, 0.5])
     # The curves of metrics_vs_sigma use the same rule: err3d skips, pg_f1 does not.
-    fig = metrics_vs_sigma(sigma, {"a": m}, fields=("err3d", "pg_f1"), paper_reference=False,
-                           original_reference=False)
+    fig = metrics_vs_sigma(
+        sigma, {"a": m}, fields=("err3d", "pg_f1"), paper_reference=False, original_reference=False
+    )
     err_ax, pg_ax = fig.axes
     np.testing.assert_allclose(err_ax.get_lines()[0].get_ydata(), [0.2, 0.5])
     np.testing.assert_allclose(pg_ax.get_lines()[0].get_ydata(), [0.5, 0.5])
@@ -132,7 +137,9 @@ def test_time_vs_count(tmp_path):
     first = ax.get_lines()[0]
     np.testing.assert_array_equal(first.get_xdata(), np.unique(count))
     t_ms = np.asarray(time_s["paper()"]) * 1e3
-    np.testing.assert_allclose(first.get_ydata(), [np.median(t_ms[count == c]) for c in np.unique(count)])
+    np.testing.assert_allclose(
+        first.get_ydata(), [np.median(t_ms[count == c]) for c in np.unique(count)]
+    )
 
 
 def test_metrics_vs_sigma(tmp_path):
@@ -143,12 +150,22 @@ def test_metrics_vs_sigma(tmp_path):
     assert len(fig.axes) == len(fields)
     _png_ok(path)
     labels = [t.get_text() for t in fig.legends[0].get_texts()]
-    assert "paper, full grid (docs/BENCHMARK.md §3)" in labels and "paper()" in labels and "reference()" in labels
+    assert (
+        "paper, full grid (docs/BENCHMARK.md §3)" in labels
+        and "paper()" in labels
+        and "reference()" in labels
+    )
     # The paper's star markers sit at σ = 0, 1, 3, 5 with its PG-F1 values (docs/BENCHMARK.md §3).
-    (star,) = [ln for ln in fig.axes[0].get_lines() if ln.get_label() == "paper, full grid (docs/BENCHMARK.md §3)"]
+    (star,) = [
+        ln
+        for ln in fig.axes[0].get_lines()
+        if ln.get_label() == "paper, full grid (docs/BENCHMARK.md §3)"
+    ]
     np.testing.assert_allclose(star.get_xdata(), [0, 1, 3, 5])
     np.testing.assert_allclose(star.get_ydata(), [0.937, 0.880, 0.761, 0.636])
-    fig = metrics_vs_sigma(sigma, metrics, fields=("err3d", "bpe_px", "num_unassigned"), paper_reference=False)
+    fig = metrics_vs_sigma(
+        sigma, metrics, fields=("err3d", "bpe_px", "num_unassigned"), paper_reference=False
+    )
     assert len(fig.axes) == 3
 
 
@@ -178,7 +195,9 @@ def test_time_vs_count_says_it_is_the_padded_bucket_time():
     assert "padded bucket" in ax.get_ylabel()
     assert "flat within a bucket" in fig.legends[0].get_title().get_text()
     bucket_lines = [ln for ln in ax.get_lines() if ln.get_linestyle() == ":"]
-    np.testing.assert_allclose(sorted(ln.get_xdata()[0] for ln in bucket_lines), np.unique(capacity))
+    np.testing.assert_allclose(
+        sorted(ln.get_xdata()[0] for ln in bucket_lines), np.unique(capacity)
+    )
     assert any(t.get_text() == f"P = {int(count.max())}" for t in ax.texts)
 
 
@@ -213,7 +232,9 @@ def test_curves_take_per_method_scenes_and_many_methods():
     with pytest.raises(ValueError, match="lacks"):
         metrics_vs_sigma({"paper()": sigma}, metrics, fields=("pg_f1",))
     views = {"a": np.array([2, 2, 3]), "b": np.array([3, 4])}
-    fig = views_ablation(views, {"a": np.array([0.2, 0.4, 0.5]), "b": np.array([0.6, 0.8])}, paper=None)
+    fig = views_ablation(
+        views, {"a": np.array([0.2, 0.4, 0.5]), "b": np.array([0.6, 0.8])}, paper=None
+    )
     a_line, b_line = fig.axes[0].get_lines()
     np.testing.assert_allclose(a_line.get_ydata(), [0.3, 0.5])
     np.testing.assert_array_equal(b_line.get_xdata(), [3, 4])

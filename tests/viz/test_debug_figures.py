@@ -10,8 +10,8 @@ import pytest
 
 import cdog_jax
 from cdog_jax import plot_association, plot_bpe_histogram, plot_epipolar, plot_rays
-from cdog_jax.viz._plot import group_style, wrong_groups
 from cdog_jax.synthetic import default_rig, generate_scene
+from cdog_jax.viz._plot import group_style, wrong_groups
 
 
 @pytest.fixture(scope="module")
@@ -36,8 +36,12 @@ def test_wrong_groups_hand_built():
     instance = np.array([[0, 1, -1], [1, 0, 2]])  # (M=2, P=3)
     groups = np.array([[0, 1], [1, 0], [2, 2], [0, -1]])  # right, right, clutter, one member
     valid = np.array([True, True, True, False])
-    np.testing.assert_array_equal(wrong_groups(groups, valid, instance), [False, False, True, False])
-    np.testing.assert_array_equal(wrong_groups(np.array([[0, 0]]), np.array([True]), instance), [True])
+    np.testing.assert_array_equal(
+        wrong_groups(groups, valid, instance), [False, False, True, False]
+    )
+    np.testing.assert_array_equal(
+        wrong_groups(np.array([[0, 0]]), np.array([True]), instance), [True]
+    )
 
 
 def test_association_figure_marks_wrong_groups_and_is_legible(tmp_path, tiny):
@@ -65,7 +69,9 @@ def test_epipolar_figure(tmp_path, tiny):
     view = 0
     slot = int(np.flatnonzero(mask[view])[0])
     path = tmp_path / "epi.png"
-    fig = plot_epipolar(rig, scene.xy, scene.mask, view, slot, result=result, instance=scene.instance, path=path)
+    fig = plot_epipolar(
+        rig, scene.xy, scene.mask, view, slot, result=result, instance=scene.instance, path=path
+    )
     width, height = _png_size(path)
     assert 1000 <= width <= 1800 and 400 <= height <= 1000, (width, height)
     assert len(fig.axes) == rig.num_views
@@ -86,8 +92,14 @@ def test_epipolar_figure(tmp_path, tiny):
     assert checked >= 1
     assert "τ = " in fig.get_suptitle()
     with pytest.raises(ValueError, match="is not a detection"):
-        plot_epipolar(rig, scene.xy, scene.mask, view, int(np.flatnonzero(~mask[view])[0]) if (~mask[view]).any() else 99,
-                      tau_px=3.0)
+        plot_epipolar(
+            rig,
+            scene.xy,
+            scene.mask,
+            view,
+            int(np.flatnonzero(~mask[view])[0]) if (~mask[view]).any() else 99,
+            tau_px=3.0,
+        )
     with pytest.raises(ValueError, match="give tau_px or result"):
         plot_epipolar(rig, scene.xy, scene.mask, view, slot)
 
@@ -114,7 +126,7 @@ def test_rays_meet_at_the_group_points(tmp_path, tiny):
     mask = np.asarray(scene.mask)
     ax = plot_rays(rig, scene.xy, scene.mask, result=result)
     ax.figure.savefig(tmp_path / "rays.png")
-    rays = ax.lines[-int(mask.sum()):]
+    rays = ax.lines[-int(mask.sum()) :]
     centers = np.asarray(rig.centers, np.float64)
     labels = np.asarray(result.labels)
     points = np.asarray(result.points3d, np.float64)

@@ -4,8 +4,8 @@ import matplotlib
 import numpy as np
 import pytest
 
-from cdog_jax.viz import plot_rig
 from cdog_jax.synthetic import IMAGE_SIZE, default_rig, negate_intrinsics
+from cdog_jax.viz import plot_rig
 
 
 def test_default_rig_to_png(tmp_path):
