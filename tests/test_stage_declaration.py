@@ -4,6 +4,7 @@ file changes. The stage here is declared in this module only."""
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Literal, NamedTuple
 
 import numpy as np
@@ -12,7 +13,7 @@ from helpers import random_scene, ring_rig
 
 from cdog_jax import STAGES, Config, associate
 from cdog_jax.cdog._config import Number, Range, Switch
-from cdog_jax.cdog._pipeline import make_config
+from cdog_jax.cdog._pipeline import config_field_problems, make_config
 from cdog_jax.cdog._stage import Stage
 
 TRACES = []
@@ -58,6 +59,32 @@ def test_the_new_options_are_config_fields_with_their_defaults():
     th = Gated(error_gate_px=7.0).thresholds(1.0)
     assert th.error_gate_px == np.float32(7.0) and th.delta == np.float32(0.5)
     assert "error_gate_px = 5.0 (traced)" in Gated.__doc__
+
+
+def test_config_is_written_as_its_stages_declare():
+    """Config's fields are written in its class body; a stage whose options have no field,
+    a field no stage declares, or a field whose type or default is not the declared one is
+    named (and stops the import for Config itself)."""
+    assert config_field_problems(Config, STAGES) == []
+    assert config_field_problems(Config, GATED_STAGES) == [
+        "error_gate: declared by stage 'error_gate'; no field of Config",
+        "error_kind: declared by stage 'error_gate'; no field of Config",
+        "error_gate_px: declared by stage 'error_gate'; no field of Config",
+    ]
+
+    @dataclasses.dataclass(frozen=True)
+    class Drifted(Config):
+        delta: float = 0.4
+        max_split_iters: float = 64.0
+        extra: int = 0
+
+    assert config_field_problems(Drifted, STAGES) == [
+        "max_split_iters: type float; stage 'graph' declares <class 'int'>",
+        "max_split_iters: default 64.0; stage 'graph' declares 64",
+        "delta: default 0.4; stage 'graph' declares 0.5",
+        "extra: a field no stage declares",
+    ]
+    assert config_field_problems(Gated, GATED_STAGES) == []
 
 
 def test_the_new_options_are_checked():

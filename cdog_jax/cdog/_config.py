@@ -4,9 +4,10 @@ stage"), and the epipolar gate τ.
 A stage's options are declared once, in the file of its rule: its structural options are the
 fields (with defaults) of its options ``NamedTuple`` (static: part of the jit key), its
 numbers are :class:`Number` entries (traced: a sweep over them compiles once), and the
-switch that turns it on is a :class:`Switch`. ``cdog_jax/cdog/_pipeline.py`` derives from those
-declarations :class:`cdog_jax.Config` (hashable, a static argument of ``jax.jit``), the
-traced :class:`cdog_jax.Thresholds` and the ranges of the numbers.
+switch that turns it on is a :class:`Switch`. ``cdog_jax/cdog/_pipeline.py`` writes each
+declared option as a field of :class:`cdog_jax.Config` (hashable, a static argument of
+``jax.jit``; checked against the declarations on import) and derives from them the traced
+:class:`cdog_jax.Thresholds` and the ranges of the numbers.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """From the stages' declarations to one table of options (docs/ARCHITECTURE.md, "How to add
 a stage"): every option's name, owner, default, kind and check, read once from the stage
-list, so that ``Config``'s fields, the ``Thresholds`` type and the ranges of the numbers
-are derived and never listed by hand.
+list: ``Config``'s written fields are checked against it, and the ``Thresholds`` type and
+the ranges of the numbers are derived from it.
 
 A declaration is a stage (``cdog_jax/cdog/_stage.py``) or an :class:`~cdog_jax.cdog._config.OptionGroup`:
 its ``when`` may be a :class:`~cdog_jax.cdog._config.Switch` (a ``bool`` option), the fields of

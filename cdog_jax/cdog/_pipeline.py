@@ -13,6 +13,7 @@ decide which stages run.
 from __future__ import annotations
 
 import dataclasses
+import sys
 from typing import ClassVar, NamedTuple
 
 import jax
@@ -44,9 +45,13 @@ from ..refine._seed import SEED
 from ..refine._support import SUPPORT
 from ..refine._validity import VALIDITY
 from ._config import (
+    Adjacency,
+    IqrQuartiles,
+    IqrScore,
     Number,
     Numbers,
     OptionGroup,
+    PruneScope,
     SigmaMode,
     Switch,
     TauMode,
@@ -376,8 +381,8 @@ def scene_tables(
 
 
 class ConfigMethods(Method):
-    """What every C-DOG :class:`Config` does; the fields come from its stage list
-    (:func:`make_config`)."""
+    """What every C-DOG :class:`Config` does; its fields are the options its stage list
+    declares (:func:`config_field_problems`)."""
 
     stages: ClassVar[tuple[Stage, ...]]
     options: ClassVar[dict]  # name -> OptionSpec, in field order
@@ -516,48 +521,225 @@ def _numbers(config_type: type) -> tuple[str, ...]:
     return tuple(name for name, spec in config_type.options.items() if spec.kind == NUMERIC)
 
 
-_CONFIG_DOC = """C-DOG, the method: its options and presets. Structural options change the compiled
-program; numbers do not (they become a traced :class:`Thresholds`, :meth:`thresholds`).
-
-Each option is declared once, by the stage that reads it (``graph/``, ``refine/``; the
-stage list is :data:`cdog_jax.STAGES`, docs/ARCHITECTURE.md); this class is derived from
-those declarations. Each field, with its default, under its stage (static: part of the jit
-key; traced: a number):
-
-{fields}
-
-Presets: :meth:`paper` (the paper's method, our defaults), :meth:`extended` (beyond the
-paper), :meth:`best` (the most accurate; the default method of ``associate``) and
-:meth:`reference` (the original public implementation's behaviour, docs/BENCHMARK.md §5).
-"""
-
-
-def make_config(
-    stages: tuple[Stage, ...], *, name: str = "Config", base: type = ConfigMethods
-) -> type:
-    """The frozen, hashable dataclass of C-DOG run as ``stages``: one field per option the
-    stages (and :data:`SCENE`) declare, with its default and its check, and the
-    ``Thresholds`` type of its numbers. :class:`Config` is ``make_config(STAGES)``; a
-    variant with one more stage is ``make_config(stages, base=Config)``."""
-    groups = (SCENE, *stages)
-    options = declared_options(groups)
-    fields = [
-        (n, spec.type, dataclasses.field(default=spec.default)) for n, spec in options.items()
-    ]
-    namespace = {
-        "__module__": __name__,
-        "__qualname__": name,
-        "__doc__": _CONFIG_DOC.format(fields=describe(options, groups)),
+def _declarations(stages: tuple[Stage, ...]) -> dict:
+    """What a config class of C-DOG run as ``stages`` holds besides its fields: the stage
+    list, every declared option (name -> OptionSpec, structural first), the ``Thresholds``
+    type of its numbers, their ranges and units."""
+    options = declared_options((SCENE, *stages))
+    return {
         "stages": stages,
         "options": options,
         "numbers_type": thresholds_type(options, __name__),
         "ranges": ranges(options),
         "units": units(options),
     }
+
+
+def _fields_doc(options: dict, stages: tuple[Stage, ...]) -> str:
+    return describe(options, (SCENE, *stages))
+
+
+_CONFIG_HEAD = """C-DOG, the method: its options and presets. Structural options change the compiled
+program; numbers do not (they become a traced :class:`Thresholds`, :meth:`thresholds`).
+
+Each option is declared once, by the stage that reads it (``graph/``, ``refine/``; the
+stage list is :data:`cdog_jax.STAGES`, docs/ARCHITECTURE.md), and written here as a field,
+under its stage, with its default; a field that no stage declares, or a declared option
+without its field, stops the import (:func:`config_field_problems`).
+
+Presets: :meth:`paper` (the paper's method, our defaults), :meth:`extended` (beyond the
+paper), :meth:`best` (the most accurate; the default method of ``associate``) and
+:meth:`reference` (the original public implementation's behaviour, docs/BENCHMARK.md §5).
+
+Each field, with its default, under its stage (static: part of the jit key; traced: a
+number):
+
+"""
+
+
+@dataclasses.dataclass(frozen=True)
+class Config(ConfigMethods):
+    __doc__ = _CONFIG_HEAD  # and the fields, listed from the declarations below the class
+
+    # scene: where σ comes from, the gate τ and the unit of lengths -------------------------
+    # σ given by the caller ("given"), or estimated from the scene's epipolar distances
+    # ("auto": a half-normal fit; "robust": half-t fits too; ALGORITHM.md §0.1).
+    sigma_mode: SigmaMode = "given"
+    # τ from σ and the two numbers below ("gaussian"), or the fitted quantile of the
+    # true-pair distance ("fitted", with sigma_mode="robust" only).
+    tau_mode: TauMode = "gaussian"
+    # Lengths in pixels ("px"), or in pixels of a camera of focal length 1000 px ("focal").
+    threshold_unit: ThresholdUnit = "px"
+    # Traced, ≥ 0: the gate τ = max(alpha_tau · √2 · σ, tau_min_px).
+    alpha_tau: float = 2.0
+    # Traced, ≥ 0, pixels: the gate's lower bound.
+    tau_min_px: float = 1.0
+
+    # graph: the epipolar graph, its components and δ-overlap pruning (Alg. 1–2) -----------
+    # An edge where both ends propose each other ("mutual") or either does ("union").
+    adjacency: Adjacency = "mutual"
+    # Which components δ-pruning may touch: all, those with a view conflict, or none.
+    prune_scope: PruneScope = "all"
+    # The most rounds of the component-splitting loop.
+    max_split_iters: int = 64
+    # Traced, in (0, 1]: the δ-overlap threshold (Alg. 2).
+    delta: float = 0.5
+
+    # iqr: outlier removal inside groups (Alg. 3) --------------------------------------------
+    iqr: bool = True
+    # A member's score: the mean error of the pairs without it ("exclude_own", the paper's)
+    # or of all pairs ("include_own", the reference's).
+    iqr_score: IqrScore = "exclude_own"
+    # Quartiles of the scores and one 0 ("zero_pad"), or of the positive scores ("positive").
+    iqr_quartiles: IqrQuartiles = "zero_pad"
+    # The reference code's guards: iqr_min_px and iqr_force_px below.
+    iqr_guards: bool = False
+    # The most rounds of the removal loop.
+    max_iqr_iters: int = 16
+    # Traced, ≥ 0: the IQR fence multiplier.
+    iqr_alpha: float = 2.0
+    # Traced, ≥ 0, pixels: an outlier's score must also exceed this.
+    iqr_floor_px: float = 1.0
+    # Traced, ≥ 0, pixels (with iqr_guards): no outlier if the largest score is below this.
+    iqr_min_px: float = 10.0
+    # Traced, ≥ 0, pixels (with iqr_guards): the largest score is dropped above this.
+    iqr_force_px: float = 50.0
+
+    # second_association: leftover detections attached by epipolar cost (the reference's) ---
+    second_association: bool = False
+    # Traced, ≥ 0: attach where the mean cost is below second_frac · τ.
+    second_frac: float = 0.5
+
+    # bpe_filter: drop the groups after the first jump of the sorted BPEs --------------------
+    bpe_filter: bool = True
+    # Gaps needed before a jump can be declared.
+    jump_min_gaps: int = 3
+    # Traced, ≥ 0: a jump is a gap > jump_kappa · the median of the previous gaps ...
+    jump_kappa: float = 10.0
+    # Traced, ≥ 0, pixels²: ... and > jump_floor_px2 + (jump_floor_sigma · σ)².
+    jump_floor_px2: float = 4.0
+    # Traced, ≥ 0: see jump_floor_px2.
+    jump_floor_sigma: float = 3.0
+
+    # support: drop groups that views seeing their point do not detect ----------------------
+    support_filter: bool = False
+    # Traced, ≥ 0: a detection within support_frac · τ explains a view.
+    support_frac: float = 3.0
+    # Traced, in [0, 1]: drop a group where P(that many misses) < support_alpha.
+    support_alpha: float = 0.01
+    # Traced, in [0, 1]: the floor of the estimated miss rate.
+    support_min_rate: float = 0.02
+    # Traced, ≥ 0: members of the groups that estimate the miss rate.
+    support_ref_views: float = 4.0
+
+    # recover: leftovers attached to groups by reprojection (beyond the paper) ---------------
+    recover: bool = False
+    # Traced, ≥ 0: attach where the reprojection error is below recover_frac · τ.
+    recover_frac: float = 1.0
+
+    # regroup: Alg. 1–3 again on what is left (beyond the paper) -----------------------------
+    regroup: bool = False
+
+    # seed: groups from two-view hypotheses on what is still left (beyond the paper) ---------
+    seed: bool = False
+    # The fewest members (the pair and its voters) a seeded group needs; at least 2.
+    seed_min_views: int = 2
+    # Traced, > 0: a detection within seed_frac · τ votes for a two-view point.
+    seed_frac: float = 1.5
+    # Traced, > 0: no seed where a view sees the point with no detection within
+    # seed_support_frac · τ.
+    seed_support_frac: float = 1.5
+
+    # reassign: each detection to its nearest group point, refitting and merging ------------
+    reassign: bool = False
+    # Rounds of re-assignment, refitting and merging.
+    reassign_iters: int = 3
+    # Traced, > 0: a detection joins its nearest point within reassign_frac · τ.
+    reassign_frac: float = 2.0
+
+    # detach_ambiguous: from each group of ≥ 3, its worst member where another detection of
+    # its view fits as well (beyond the paper) -----------------------------------------------
+    detach_ambiguous: bool = False
+    # Traced, ≥ 0: "as well" is within ambiguous_frac · τ.
+    ambiguous_frac: float = 0.1
+
+    # refine: each point refined by Levenberg–Marquardt --------------------------------------
+    refine: bool = False
+    # The solver's step bound.
+    refine_max_steps: int = 20
+
+    # validity_gate: in front of the cameras, enough parallax, bounded error ----------------
+    # Traced, in [0, 90), degrees: the largest angle between members' lines of sight must
+    # reach this.
+    min_parallax_deg: float = 1.0
+    # Traced, > 0: every member's reprojection error at most max_err_frac · τ.
+    max_err_frac: float = 3.0
+
+
+def _field_type(cls: type, field: dataclasses.Field) -> object:
+    """The type of a dataclass field, its annotation string evaluated where it was written."""
+    if not isinstance(field.type, str):
+        return field.type
+    owner = next(k for k in cls.__mro__ if field.name in vars(k).get("__annotations__", {}))
+    return eval(field.type, vars(sys.modules[owner.__module__]))
+
+
+def config_field_problems(cls: type, stages: tuple[Stage, ...]) -> list[str]:
+    """How the fields written in the dataclass ``cls`` differ from the options that
+    ``stages`` (and :data:`SCENE`) declare: a declared option without its field, a field
+    that no stage declares, or a field whose type or default is not the declared one. Empty
+    when they agree; :class:`Config` is checked when the module is imported."""
+    options = declared_options((SCENE, *stages))
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    problems = []
+    for name, spec in options.items():
+        field = fields.get(name)
+        if field is None:
+            problems.append(f"{name}: declared by stage {spec.owner!r}; no field of {cls.__name__}")
+            continue
+        hint = _field_type(cls, field)
+        if hint != spec.type:
+            problems.append(
+                f"{name}: type {field.type}; stage {spec.owner!r} declares {spec.type!r}"
+            )
+        if type(field.default) is not type(spec.default) or field.default != spec.default:
+            problems.append(
+                f"{name}: default {field.default!r}; stage {spec.owner!r} declares {spec.default!r}"
+            )
+    problems += [f"{name}: a field no stage declares" for name in fields if name not in options]
+    return problems
+
+
+for _name, _value in _declarations(STAGES).items():
+    setattr(Config, _name, _value)
+Config.__doc__ = _CONFIG_HEAD + _fields_doc(Config.options, STAGES)
+if _problems := config_field_problems(Config, STAGES):
+    raise TypeError("Config's fields differ from its stages' declarations: " + "; ".join(_problems))
+
+
+_VARIANT_DOC = """A variant of :class:`Config` run as its own stage list (:func:`make_config`): its
+fields are derived from those stages' declarations. Each field, with its default, under its
+stage (static: part of the jit key; traced: a number):
+
+"""
+
+
+def make_config(stages: tuple[Stage, ...], *, name: str = "Config", base: type = Config) -> type:
+    """A frozen, hashable dataclass of C-DOG run as ``stages`` (a test or an experiment
+    adding a stage): one field per option the stages (and :data:`SCENE`) declare, with its
+    default and its check, and the ``Thresholds`` type of its numbers; methods and presets
+    those of ``base``."""
+    namespace = _declarations(stages)
+    options = namespace["options"]
+    fields = [
+        (n, spec.type, dataclasses.field(default=spec.default)) for n, spec in options.items()
+    ]
+    namespace.update(
+        __module__=__name__, __qualname__=name, __doc__=_VARIANT_DOC + _fields_doc(options, stages)
+    )
     return dataclasses.make_dataclass(name, fields, bases=(base,), namespace=namespace, frozen=True)
 
 
-Config = make_config(STAGES)
 Thresholds = Config.numbers_type
 RANGES = Config.ranges
 """Every number's allowed range (``sigma_px`` included), from the stages' declarations."""
