@@ -447,7 +447,7 @@ WRONG_TYPES = [
         "default_rig: num_views must be an int; got float 2.0",
     ),
     (
-        cdog_jax.synthetic.negate_intrinsics,
+        cdog_jax.synthetic._rig.negate_intrinsics,
         ([0], _RIG),
         {},
         "negate_intrinsics: rig must be Rig; got list",

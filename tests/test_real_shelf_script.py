@@ -9,7 +9,7 @@ import runpy
 import numpy as np
 import pytest
 
-from cdog_jax.synthetic import look_at_rotation
+from cdog_jax.synthetic._rig import look_at_rotation
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REAL = os.path.join(HERE, "..", "experiments", "real")

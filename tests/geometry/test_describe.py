@@ -7,14 +7,8 @@ import pytest
 from helpers import look_at
 
 from cdog_jax.geometry import Rig, RigDescription, describe_rig, distort_pixels
-from cdog_jax.synthetic import (
-    DEFAULT_BOX,
-    IMAGE_SIZE,
-    default_rig,
-    generate_scene,
-    look_at_rotation,
-    negate_intrinsics,
-)
+from cdog_jax.synthetic import DEFAULT_BOX, IMAGE_SIZE, default_rig, generate_scene
+from cdog_jax.synthetic._rig import look_at_rotation, negate_intrinsics
 
 
 @pytest.fixture(scope="module")

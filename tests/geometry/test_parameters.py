@@ -14,7 +14,8 @@ from cdog_jax.geometry._parameters import (
     so3_exp,
     so3_log,
 )
-from cdog_jax.synthetic import default_rig, negate_intrinsics
+from cdog_jax.synthetic import default_rig
+from cdog_jax.synthetic._rig import negate_intrinsics
 
 DTYPES = ["float32", "float64"]
 ATOL = {"float32": 1e-6, "float64": 1e-14}

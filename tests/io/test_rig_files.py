@@ -12,7 +12,8 @@ from helpers import x64
 import cdog_jax
 from cdog_jax.geometry import rig_from_arrays
 from cdog_jax.io import RigFile, load_rig, save_rig_easyvis, save_rig_json, save_rig_npz
-from cdog_jax.synthetic import default_rig, negate_intrinsics
+from cdog_jax.synthetic import default_rig
+from cdog_jax.synthetic._rig import negate_intrinsics
 
 # Two hand-made views: view 0 at (0, 0, -5) looking along +z; view 1 turned 90° about y,
 # with a skewed K stored negated (K[2,2] = -1, as OpenMVG/EasyVis exports).

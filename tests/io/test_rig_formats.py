@@ -24,7 +24,8 @@ from cdog_jax.io._rotations import (
     rotation_from_quaternion,
     rotation_from_rodrigues,
 )
-from cdog_jax.synthetic import default_rig, negate_intrinsics
+from cdog_jax.synthetic import default_rig
+from cdog_jax.synthetic._rig import negate_intrinsics
 
 X_WORLD = np.array([0.3, -0.2, 1.5])
 

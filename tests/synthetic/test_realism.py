@@ -8,15 +8,8 @@ import numpy as np
 import pytest
 
 from cdog_jax import Rig, project
-from cdog_jax.synthetic import (
-    Realism,
-    default_rig,
-    generate_realistic_scene,
-    perturb_rig,
-    student_t_mad,
-    unit_noise,
-    view_sigmas,
-)
+from cdog_jax.synthetic import Realism, default_rig, generate_realistic_scene, perturb_rig
+from cdog_jax.synthetic._realism import student_t_mad, unit_noise, view_sigmas
 from cdog_jax.synthetic._render import _realistic_scene
 
 RIG = default_rig()

@@ -6,13 +6,8 @@ import numpy as np
 import pytest
 
 from cdog_jax.geometry._projection import project
-from cdog_jax.synthetic import (
-    DEFAULT_BOX,
-    IMAGE_SIZE,
-    default_rig,
-    look_at_rotation,
-    negate_intrinsics,
-)
+from cdog_jax.synthetic import DEFAULT_BOX, IMAGE_SIZE, default_rig
+from cdog_jax.synthetic._rig import look_at_rotation, negate_intrinsics
 
 LO, HI = (np.asarray(c) for c in DEFAULT_BOX)
 CENTER = 0.5 * (LO + HI)

@@ -8,13 +8,8 @@ import numpy as np
 import pytest
 
 from cdog_jax.geometry._projection import project
-from cdog_jax.synthetic import (
-    IMAGE_SIZE,
-    default_rig,
-    generate_scene,
-    generate_scenes,
-    negate_intrinsics,
-)
+from cdog_jax.synthetic import IMAGE_SIZE, default_rig, generate_scene, generate_scenes
+from cdog_jax.synthetic._rig import negate_intrinsics
 
 RIG = default_rig()
 M = RIG.num_views

@@ -13,10 +13,10 @@ from cdog_jax.synthetic import (
     default_rig,
     generate_scene,
     intrinsics_image_size,
-    negate_intrinsics,
     visible_box,
 )
 from cdog_jax.synthetic._box import _seen
+from cdog_jax.synthetic._rig import negate_intrinsics
 
 LO, HI = (np.asarray(c) for c in DEFAULT_BOX)
 

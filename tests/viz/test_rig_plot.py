@@ -4,7 +4,8 @@ import matplotlib
 import numpy as np
 import pytest
 
-from cdog_jax.synthetic import IMAGE_SIZE, default_rig, negate_intrinsics
+from cdog_jax.synthetic import IMAGE_SIZE, default_rig
+from cdog_jax.synthetic._rig import negate_intrinsics
 from cdog_jax.viz import plot_rig
 
 
