@@ -258,7 +258,7 @@ def finish_groups(
 
     BPE and the mean error stay the plain (unweighted) means over members;
     ``xy`` are the pixels the association used (undistorted). The groups then pass the
-    validity gate again (:func:`cdog_jax.refine.validity_gate`, with ``th.max_err_frac``,
+    validity gate again (`refine/_validity.py`, with ``th.max_err_frac``,
     ``th.min_parallax_deg`` and the result's τ): a member of weight 0 does not count as a
     view, and a re-weighted point must still lie in front of its cameras with parallax and
     bounded errors. Groups are compacted to the front again and the labels rebuilt, as

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import cdog_jax
-from cdog_jax.benchmark import compact_scene
+from cdog_jax.benchmark._grid import compact_scene
 from cdog_jax.metrics import scene_metrics
 from cdog_jax.synthetic import default_rig, generate_scenes
 

@@ -12,18 +12,12 @@ from ._methods import (
 # The rest loads on first use: the command line lists the named methods in its help (above)
 # without loading the sweep, the grid and the file writers for every command.
 _LATER = {
-    "DRAW_CAPACITY": "._grid",
     "Grid": "._grid",
-    "GridIndex": "._grid",
-    "bucket_of": "._grid",
-    "compact_scene": "._grid",
-    "scene_keys": "._grid",
     "load_results": "._io",
     "save_results": "._io",
     "summary_table": "._io",
     "SweepProgress": "._sweep",
     "SweepResult": "._sweep",
-    "default_mesh": "._sweep",
     "metric_fields": "._sweep",
     "print_progress": "._sweep",
     "sweep": "._sweep",

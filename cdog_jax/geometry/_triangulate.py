@@ -118,7 +118,7 @@ def triangulate(
         ``points (*S, 3)`` (scene units, 0 where undetermined) and ``ok (*S,)``: the point is
         determined, i.e. ≥ 2 views count and the normal equations are well conditioned (see
         :func:`solve_normal_3x3`). ``ok`` says nothing about cheirality or parallax: see
-        :func:`cdog_jax.geometry.in_front` and :func:`cdog_jax.refine.max_parallax_deg`.
+        :func:`cdog_jax.geometry.in_front` and the validity gate's parallax (`refine/_validity.py`).
     """
     if mask is None:
         mask = jnp.all(jnp.isfinite(jnp.asarray(xy)), axis=-1)

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from cdog_jax import Config, associate
-from cdog_jax.benchmark import Grid, compact_scene, load_results, save_results, summary_table, sweep
+from cdog_jax.benchmark import Grid, load_results, save_results, summary_table, sweep
+from cdog_jax.benchmark._grid import compact_scene
 from cdog_jax.metrics import scene_metrics
 from cdog_jax.synthetic import default_rig, generate_scene
 

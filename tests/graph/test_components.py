@@ -2,7 +2,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from cdog_jax.graph import EdgeTable, connected_components, connected_components_capped
+from cdog_jax.graph import EdgeTable, connected_components
+from cdog_jax.graph._components import connected_components_capped
 
 
 def _union_find(n, pairs):

@@ -2,7 +2,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from cdog_jax.graph import adjacency_from_edges, alive_edges, edge_overlap, nearest_neighbour_edges
+from cdog_jax.graph import adjacency_from_edges, alive_edges, nearest_neighbour_edges
+from cdog_jax.graph._overlap import edge_overlap
 
 
 def _random_distances(rng, M, P, fill=0.7):

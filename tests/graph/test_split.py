@@ -3,12 +3,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from cdog_jax import Status
-from cdog_jax.graph import (
-    EdgeTable,
-    alive_edges,
-    connected_components,
-    split_conflicts as _split_conflicts,
-)
+from cdog_jax.graph import EdgeTable, alive_edges, connected_components
+from cdog_jax.graph._split import split_conflicts as _split_conflicts
 
 split_conflicts = jax.jit(_split_conflicts, static_argnums=(6, 7))
 

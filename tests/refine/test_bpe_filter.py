@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from cdog_jax import Config
-from cdog_jax.refine import bpe_jump_keep
+from cdog_jax.refine._bpe_filter import bpe_jump_keep
 
 
 def test_jump_cuts_after_sudden_increase():

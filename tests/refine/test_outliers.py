@@ -6,8 +6,7 @@ from helpers import project_np, ring_rig
 from cdog_jax import Config
 from cdog_jax.cdog._pipeline import stage_options
 from cdog_jax.geometry import dlt_blocks
-from cdog_jax.refine import iqr_outliers, percentile_linear, remove_outliers
-from cdog_jax.refine._outliers import IQR
+from cdog_jax.refine._outliers import IQR, iqr_outliers, percentile_linear, remove_outliers
 
 
 @pytest.mark.parametrize("seed", range(5))
