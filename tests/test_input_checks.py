@@ -435,7 +435,7 @@ WRONG_TYPES = [
         f"load_association_json: path must be {_PATH_MSG}; got int 3",
     ),
     (
-        cdog_jax.io.association_records,
+        cdog_jax.io._association_files.association_records,
         (_XY, _XY, _MASK),
         {},
         "association_records: assoc must be an Association (or an object with its fields); got ArrayImpl",

@@ -19,20 +19,10 @@ from ._epipolar import (
     essential_from_rig as essential_from_rig,
     fundamental_from_rig as fundamental_from_rig,
 )
-from ._homogeneous import (
-    homogeneous_from_points as homogeneous_from_points,
-    points_from_homogeneous as points_from_homogeneous,
-)
 from ._parameters import (
     CameraParams as CameraParams,
     params_from_rig as params_from_rig,
     rig_from_params as rig_from_params,
-    so3_exp as so3_exp,
-    so3_log as so3_log,
 )
 from ._projection import project as project, reprojection_errors as reprojection_errors
-from ._triangulate import (
-    dlt_blocks as dlt_blocks,
-    triangulate as triangulate,
-    triangulate_pairs as triangulate_pairs,
-)
+from ._triangulate import dlt_blocks as dlt_blocks, triangulate as triangulate

@@ -18,7 +18,6 @@ content raises :class:`InputError` (a ``ValueError``) naming the file.
 
 from ._anipose import save_rig_anipose as save_rig_anipose
 from ._association_files import (
-    association_records as association_records,
     load_association_json as load_association_json,
     save_association_csv as save_association_csv,
     save_association_json as save_association_json,
@@ -56,7 +55,7 @@ from ._opencv_arrays import (
     rig_from_opencv as rig_from_opencv,
 )
 from ._rig_easyvis import save_rig_easyvis as save_rig_easyvis
-from ._rig_files import FORMATS as FORMATS, RigFile as RigFile
+from ._rig_files import RigFile as RigFile
 from ._rig_json import save_rig_json as save_rig_json
 from ._rig_npz import save_rig_npz as save_rig_npz
 from ._rotations import (

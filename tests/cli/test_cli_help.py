@@ -8,7 +8,7 @@ import re
 import pytest
 
 from cdog_jax.cli import build_parser
-from cdog_jax.io import FORMATS
+from cdog_jax.io._rig_files import FORMATS
 
 # Words of a rig format that a help text naming it must contain (one per format).
 _FORMAT_WORDS = {

@@ -5,7 +5,8 @@ import pytest
 from helpers import TOL, project_np, ring_rig, x64
 
 from cdog_jax import triangulate
-from cdog_jax.geometry import dlt_blocks, project, triangulate_pairs
+from cdog_jax.geometry import dlt_blocks, project
+from cdog_jax.geometry._triangulate import triangulate_pairs
 
 
 @pytest.mark.parametrize("dtype", ["float32", "float64"])

@@ -4,7 +4,8 @@ here literally), found by suffix, and malformed files named."""
 import numpy as np
 import pytest
 
-from cdog_jax.io import FORMATS, InputError, load_rig
+from cdog_jax.io import InputError, load_rig
+from cdog_jax.io._rig_files import FORMATS
 
 CAMERA = """    <camera active="1" avg-residual="0.4" model="{model}" point-count="9" serial="{serial}" viewrotation="0">
       <fov_video bottom="{bottom}" left="{left}" right="{right}" top="{top}"/>

@@ -11,13 +11,13 @@ from helpers import x64
 
 import cdog_jax
 from cdog_jax.io import (
-    FORMATS,
     load_rig,
     save_rig_anipose,
     save_rig_colmap,
     save_rig_easymocap,
     save_rig_json,
 )
+from cdog_jax.io._rig_files import FORMATS
 from cdog_jax.io._rotations import (
     quaternion_from_rotation,
     rodrigues_from_rotation,
