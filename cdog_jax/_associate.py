@@ -199,16 +199,27 @@ def _capacity(where, M, P, method, dtype, batch_size, budget_gb, vmapped) -> int
     return capacity
 
 
-def _check_extras(dist, weights, min_views, mask_shape, dtype):
-    """Checked ``(dist, weights, min_views)`` as NumPy arrays of ``dtype``, or None when all
-    are defaults (then the plain pipeline runs)."""
+def check_min_views(min_views, num_views: int) -> None:
+    """``min_views`` is an int in ``[2, num_views]``: a group needs two views and has at most
+    one detection per view. Raises ``ValueError`` saying which bound it breaks."""
     if not isinstance(min_views, (int, np.integer)) or isinstance(min_views, bool) or min_views < 2:
         raise ValueError(
             f"min_views must be an int >= 2 (a group needs two views); got {min_views!r}"
         )
+    if min_views > num_views:
+        raise ValueError(
+            f"min_views must be at most the number of views, {num_views} (no group has more); "
+            f"got {min_views!r}"
+        )
+
+
+def _check_extras(dist, weights, min_views, mask_shape, dtype):
+    """Checked ``(dist, weights, min_views)`` as NumPy arrays of ``dtype``, or None when all
+    are defaults (then the plain pipeline runs)."""
+    M = mask_shape[-2]
+    check_min_views(min_views, M)
     if dist is None and weights is None and min_views == 2:
         return None
-    M = mask_shape[-2]
     if isinstance(dist, Fisheye):
         coeffs = np.asarray(dist.coeffs)
         if coeffs.shape != (M, 4) or not np.isfinite(coeffs).all():

@@ -141,6 +141,8 @@ def test_bad_classes_refused(scene):
         associate_classes(rig, xy, mask, bad)
     with pytest.raises(ValueError, match="class id 2 at frame 0, .* is >= num_classes = 2"):
         associate_classes(rig, xy, mask, classes, num_classes=2)
+    with pytest.raises(ValueError, match=f"min_views must be at most the number of views, {M} "):
+        associate_classes(rig, xy, mask, classes, min_views=M + 1)
 
 
 def test_results_carry_the_class(scene, tmp_path):

@@ -112,6 +112,8 @@ def test_batch_options_match_single_scene_calls(scene_and_plain):
     ("kwargs", "message"),
     [
         (dict(min_views=1), r"min_views must be an int >= 2"),
+        (dict(min_views=2**40), r"min_views must be at most the number of views, 10"),
+        (dict(min_views=11), r"min_views must be at most the number of views, 10 .*; got 11"),
         (dict(dist=np.zeros((3, 5))), r"dist must have shape \(M, 5\) = \(10, 5\)"),
         (dict(dist=np.full((10, 5), np.nan)), r"dist of view 0 has non-finite entries"),
         (dict(weights=np.ones((10, 3))), r"weights must have the shape of mask \(10, 14\)"),

@@ -14,7 +14,7 @@ import time
 from ..benchmark._methods import DEFAULT_METHODS, METHODS
 from ..io._rig_files import FORMATS
 from ._associate_command import _RIG_FORMATS_TEXT
-from ._common import _nonnegative_float, _nonnegative_int, _positive_int
+from ._common import _nonnegative_float, _nonnegative_int, _positive_int, seed_int
 
 
 def _method_list(text: str) -> tuple[str, ...]:
@@ -77,7 +77,7 @@ def add_parser(subparsers) -> None:
     p.add_argument(
         "--views", type=_nonnegative_int, nargs="+", help="rig view indices to use (default: all)"
     )
-    p.add_argument("--seed", type=int, default=0, help="PRNG seed of the scenes (default 0)")
+    p.add_argument("--seed", type=seed_int, default=0, help="PRNG seed of the scenes (default 0)")
     p.add_argument(
         "--buckets",
         type=_positive_int,

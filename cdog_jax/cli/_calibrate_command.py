@@ -8,7 +8,13 @@ import argparse
 
 import numpy as np
 
-from ._common import _FIGURE_EXTENSIONS, _nonnegative_float, _positive_int, check_sigma_fits
+from ._common import (
+    _FIGURE_EXTENSIONS,
+    _nonnegative_float,
+    _positive_int,
+    check_sigma_fits,
+    seed_int,
+)
 
 
 def format_table(rows: list[dict]) -> str:
@@ -76,7 +82,7 @@ def add_parser(subparsers) -> None:
         default=3,
         help="fine rounds (after one coarse round per gate)",
     )
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=seed_int, default=0)
     p.add_argument(
         "--out", default="calibration.png", help="convergence figure, .png/.pdf/.svg/.jpg"
     )

@@ -24,6 +24,20 @@ def int_at_least(low: int, why: str = ""):
     return parse
 
 
+def seed_int(text: str) -> int:
+    """An argparse ``type``: a PRNG seed, an integer that fits in 64 bits (what JAX's keys
+    take)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer; got {text!r}") from None
+    if not -(2**63) <= value < 2**63:
+        raise argparse.ArgumentTypeError(
+            f"must be an integer in [-2**63, 2**63) (a 64-bit seed); got {text}"
+        )
+    return value
+
+
 _positive_int = int_at_least(1)
 _nonnegative_int = int_at_least(0)
 

@@ -16,6 +16,7 @@ from ._common import (
     _positive_int,
     add_method_argument,
     check_sigma_fits,
+    seed_int,
 )
 
 # Rows of the metrics table: (Metrics field, docs/BENCHMARK.md §2 name, format, unit / meaning).
@@ -52,7 +53,7 @@ def add_parser(subparsers) -> None:
         "--sigma", type=_nonnegative_float, default=1.0, help="pixel noise std σ (default 1.0)"
     )
     add_method_argument(p)
-    p.add_argument("--seed", type=int, default=0, help="PRNG seed of the scene (default 0)")
+    p.add_argument("--seed", type=seed_int, default=0, help="PRNG seed of the scene (default 0)")
     p.add_argument(
         "--sigma-auto",
         action="store_true",

@@ -71,6 +71,22 @@ class Rig(eqx.Module):
         return Rig(self.K[..., views, :, :], self.R[..., views, :, :], self.t[..., views, :])
 
 
+def _check_camera_dtype(dtype, name: str) -> None:
+    """Cameras are real numbers of at least 32 bits (integers are converted): float16 and
+    bfloat16 have already rounded a focal length or a translation to 3 significant digits,
+    which moves every epipolar line by pixels."""
+    dtype = np.dtype(dtype)
+    if dtype != np.bool_ and jnp.issubdtype(dtype, jnp.integer):
+        return
+    if not jnp.issubdtype(dtype, jnp.floating):
+        raise ValueError(f"rig_from_arrays: {name} must hold real numbers; got dtype {dtype}")
+    if jnp.finfo(dtype).bits < 32:
+        raise ValueError(
+            f"rig_from_arrays: {name} has dtype {dtype}, too coarse for a camera (about 3 "
+            "significant digits); give float32 or float64"
+        )
+
+
 def rig_from_arrays(K, R, t, *, dtype=None) -> Rig:
     """Build a :class:`Rig` from array-likes, with eager shape and value checks.
 
@@ -78,13 +94,18 @@ def rig_from_arrays(K, R, t, *, dtype=None) -> Rig:
     offending view for wrong shapes, non-finite values, a singular ``K``, a ``K`` that is not
     upper-triangular or whose focal lengths are not positive (relative to ``K[2, 2]``: a
     transposed or mirrored ``K``), a rotation that is not orthonormal (tolerance 1e-3), or a
-    ``dtype`` other than float32 and float64 (integer arrays are converted).
+    ``dtype`` other than float32 and float64, or inputs of float16, bfloat16, bool or
+    complex (integer arrays are converted).
     """
     expect_args("rig_from_arrays", K=(K, ARRAY), R=(R, ARRAY), t=(t, ARRAY))
     dtype = np.dtype(dtype or jnp.asarray(0.0).dtype)
     if dtype not in (np.dtype(np.float32), np.dtype(np.float64)):
         raise ValueError(
             f"rig_from_arrays: dtype must be float32 or float64; got {dtype} (too few digits for pixels at a distance)"
+        )
+    for name, value in (("K", K), ("R", R), ("t", t)):
+        _check_camera_dtype(
+            value.dtype if hasattr(value, "dtype") else np.asarray(value).dtype, name
         )
     K, R, t = (np.asarray(a, dtype=np.float64) for a in (K, R, t))
     if K.ndim != 3 or K.shape[1:] != (3, 3):

@@ -37,6 +37,7 @@ def _finish(
         instances = np.where(mask, instances, -1)
     counts = mask.sum(axis=-1).astype(np.int64)
     if capacity is not None:
+        _check_padded_size(mask.shape, capacity, counts, where, conf, classes, instances)
         xy, mask, conf, classes, instances = _fit_capacity(
             xy, mask, conf, counts, capacity, where, notes, classes, instances
         )
@@ -49,6 +50,30 @@ def _finish(
     return Detections(
         xy, mask, conf, bool(frames), counts, notes, classes, names, frame_ids, instances
     )
+
+
+def _size(num_bytes: int) -> str:
+    return f"{num_bytes / 1e9:,.1f} GB" if num_bytes >= 1e9 else f"{num_bytes / 1e6:,.1f} MB"
+
+
+def _check_padded_size(shape, capacity, counts, where, *optional) -> None:
+    """Refuse a ``capacity`` whose padded arrays (``(F, M, capacity)`` coordinates, mask and
+    the ``optional`` per-slot arrays given) would take more than half this machine's
+    memory, before they are made: the kernel would kill the process instead."""
+    from .._runtime.memory import _physical_memory
+
+    F, M, P = shape
+    total = _physical_memory()
+    if capacity <= P or not total:
+        return
+    per_slot = 2 * 8 + 1 + 8 * sum(a is not None for a in optional)
+    need = F * M * capacity * per_slot
+    if need > total / 2:
+        raise where.error(
+            f"capacity {capacity}: padding {F} frame(s) × {M} view(s) to {capacity} slots takes "
+            f"{_size(need)}, more than half of this machine's {_size(total)}; the "
+            f"fullest view holds {int(counts.max()) if counts.size else 0} detections"
+        )
 
 
 def _check_groups_possible(

@@ -5,6 +5,7 @@ reported with its file and offset."""
 from __future__ import annotations
 
 import os
+import stat
 from typing import NamedTuple
 
 
@@ -38,10 +39,37 @@ class _Where(NamedTuple):
         return InputError(": ".join([*head, text]))
 
 
+MAX_INPUT_BYTES = 2**31
+"""The largest file a reader reads whole (2 GiB): a rig, a detections file, a table."""
+
+
+def check_regular_file(path: str | os.PathLike) -> None:
+    """Refuse, before reading, a ``path`` that is not a regular file (a FIFO would block
+    forever, a device such as ``/dev/zero`` read until memory runs out) or that is larger
+    than :data:`MAX_INPUT_BYTES`. A missing file or a folder is left to ``open``."""
+    try:
+        info = os.stat(path)
+    except OSError:
+        return
+    if stat.S_ISDIR(info.st_mode):
+        return
+    if not stat.S_ISREG(info.st_mode):
+        raise InputError(
+            f"{os.fspath(path)}: not a regular file (a pipe, a device or a socket); "
+            "files are read whole, so they must be regular files"
+        )
+    if info.st_size > MAX_INPUT_BYTES:
+        raise InputError(
+            f"{os.fspath(path)}: {info.st_size:,} bytes; a file read whole may hold at most "
+            f"{MAX_INPUT_BYTES:,} bytes"
+        )
+
+
 def read_text(path: str | os.PathLike) -> str:
     """The UTF-8 text of ``path``, without the byte-order mark that spreadsheets and some
     Windows editors put first; a byte that is not UTF-8 raises :class:`InputError` with the
     file and the byte's offset (from 0)."""
+    check_regular_file(path)
     with open(path, "rb") as f:
         data = f.read()
     try:

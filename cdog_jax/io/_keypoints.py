@@ -125,6 +125,12 @@ SKELETONS: dict[str, tuple[str, ...]] = {
 }
 TABLE_COLUMNS = ("frame", "view", "class", "x", "y", "score", "instance")
 _DIGITS = re.compile(r"\d+")
+TABLE_INT_LIMIT = 2**31
+"""Frames, views and instances of a table are integers of magnitude below this (32 bits): a
+larger one is a corrupt or misread column, not a frame number."""
+MAX_VIEWS = 1024
+"""The most views a table may name when the number of views is not given (a rig gives it):
+the views are allocated up to the largest index."""
 
 
 def natural_key(name: str) -> list:
@@ -447,6 +453,10 @@ def _from_table(path, columns, row_names, num_views, capacity, image_size) -> De
                 raise InputError(
                     f"{path}: {row_names[k]}: {name} {v!r} is not {'an integer' if integer else 'a number'}"
                 )
+            if integer and not -TABLE_INT_LIMIT < x < TABLE_INT_LIMIT:
+                raise InputError(
+                    f"{path}: {row_names[k]}: {name} {v!r} is out of range (a 32-bit integer)"
+                )
             out[k] = int(x) if integer else x
         return out
 
@@ -459,11 +469,13 @@ def _from_table(path, columns, row_names, num_views, capacity, image_size) -> De
         raise InputError(
             f"{path}: {row_names[k]}: instance {instance[k]} must be >= -1 (-1: unknown)"
         )
-    bad = view < 0 if num_views is None else (view < 0) | (view >= num_views)
+    bad = (view < 0) | (view >= (MAX_VIEWS if num_views is None else num_views))
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
         rule = (
-            ">= 0" if num_views is None else f"in 0…{num_views - 1} (the rig has {num_views} views)"
+            f"in 0…{MAX_VIEWS - 1} (without num_views, the most views a table may name)"
+            if num_views is None
+            else f"in 0…{num_views - 1} (the rig has {num_views} views)"
         )
         raise InputError(f"{path}: {row_names[k]}: view {view[k]} must be {rule}")
     cls, names = _table_classes(columns["class"], row_names, path)

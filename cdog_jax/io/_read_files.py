@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from ._errors import InputError, read_text
+from ._errors import InputError, check_regular_file, read_text
 
 
 def read_json(path: str) -> Any:
@@ -43,6 +43,7 @@ def open_npz(path: str) -> _NpzFile:
     """``np.load`` of an ``.npz`` without pickles. An unreadable file, or an array that is
     unreadable or holds Python objects, raises :class:`InputError` naming the file (and the
     array); a missing file stays ``FileNotFoundError``, a folder ``IsADirectoryError``."""
+    check_regular_file(path)
     try:
         return _NpzFile(np.load(path, allow_pickle=False), path)
     except (ValueError, OSError, EOFError, zipfile.BadZipFile) as e:

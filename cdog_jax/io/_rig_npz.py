@@ -68,6 +68,11 @@ def _npz_array(npz, key: str, path: str) -> np.ndarray:
     a = npz[key]
     if not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer)):
         raise ValueError(f'{path}: array "{key}": expected real numbers; got dtype {a.dtype}')
+    if np.issubdtype(a.dtype, np.floating) and np.finfo(a.dtype).bits < 32:
+        raise ValueError(
+            f'{path}: array "{key}" has dtype {a.dtype}, too coarse for a camera (about 3 '
+            "significant digits); save it as float32 or float64"
+        )
     return a.astype(np.float64)
 
 

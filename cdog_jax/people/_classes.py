@@ -21,7 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._associate import associate_batch_at
+from .._associate import associate_batch_at, check_min_views
 from .._expect import INT, expect, expect_args
 from .._method import method_argument
 from .._result import Association, batched_association
@@ -201,6 +201,7 @@ def associate_classes_at(
             f"tau_mode='fitted' fits the gate per scene: it needs sigma_pool='scene'; got sigma_pool={sigma_pool!r}"
         )
     F, M, P = mask.shape
+    check_min_views(min_views, M)  # before the σ fit
     scenes = _regroup(xy, mask, classes, C, weights)
     B = len(scenes.frame)
     if B and (min_scenes or min_slots):

@@ -223,6 +223,13 @@ def test_associate_refuses_bad_input_before_any_work(data, tmp_path, capsys):
     assert "extension must be one of" in capsys.readouterr().err
     with pytest.raises(ValueError, match=r"detections\.json.*10 views; the rig has 3"):
         main(["associate", "--debug", "--rig", rig_path, "--points", points])
+    ten = tmp_path / "ten.json"
+    save_rig_json(ten, rig)
+    assert main(["associate", "--rig", ten, "--points", points, "--min-views", "11"]) == 2
+    assert capsys.readouterr().err == (
+        "cdog-jax: error: min_views must be at most the number of views, 10 "
+        "(no group has more); got 11\n"
+    )
 
 
 def test_associate_with_the_robust_sigma_estimator(data, capsys):

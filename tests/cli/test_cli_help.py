@@ -65,3 +65,14 @@ def test_every_rig_flag_names_every_format():
         text = f"{sub.description} {rig_help}"
         missing = [w for w in _FORMAT_WORDS.values() if w not in text]
         assert not missing, f"{name}: help of --rig lacks {missing}"
+
+
+@pytest.mark.parametrize("command", ["demo", "benchmark", "calibrate"])
+def test_a_seed_beyond_64_bits_is_refused_by_the_parser(command, capsys):
+    parser = build_parser()
+    assert parser.parse_args([command, "--seed", str(-(2**63))]).seed == -(2**63)
+    with pytest.raises(SystemExit):
+        parser.parse_args([command, "--seed", str(2**70)])
+    assert "--seed: must be an integer in [-2**63, 2**63) (a 64-bit seed); got 11805" in (
+        capsys.readouterr().err
+    )

@@ -50,6 +50,16 @@ def test_half_precision_rigs_are_refused():
         rig_from_arrays(K, R, t, dtype=jnp.float16)
     rig = rig_from_arrays(K.round().astype(np.int64), R, t)  # integers are converted
     assert rig.K.dtype == jnp.float32
+    # Arrays already rounded to float16 are refused, whatever dtype is asked for.
+    with pytest.raises(ValueError, match="t has dtype float16, too coarse for a camera"):
+        rig_from_arrays(K, R, t.astype(np.float16))
+    with pytest.raises(ValueError, match="K has dtype bfloat16, too coarse"):
+        rig_from_arrays(jnp.asarray(K, jnp.bfloat16), R, t, dtype=jnp.float32)
+    for kind in (bool, np.complex64):
+        with pytest.raises(
+            ValueError, match=f"R must hold real numbers; got dtype {np.dtype(kind)}"
+        ):
+            rig_from_arrays(K, R.astype(kind), t)
 
 
 def test_select_refuses_an_index_out_of_range():

@@ -182,6 +182,22 @@ def test_capacity_refuses_to_truncate(tmp_path):
         load_detections(path, capacity=2)
 
 
+def test_a_capacity_beyond_the_machine_is_refused_before_padding(tmp_path, monkeypatch):
+    import cdog_jax._runtime.memory as memory
+
+    monkeypatch.setattr(memory, "_physical_memory", lambda: 10**6)  # a 1 MB machine
+    path = _write_json(tmp_path, {"frames": [{"views": [[[1, 2]], [[3, 4]]]}] * 2})
+    assert load_detections(path, capacity=1000).mask.shape == (2, 2, 1000)  # 68 kB: padded
+    with pytest.raises(
+        ValueError,
+        match=re.escape(
+            f"{path}: capacity 100000: padding 2 frame(s) × 2 view(s) to 100000 slots takes "
+            "6.8 MB, more than half of this machine's 1.0 MB; the fullest view holds 1 detections"
+        ),
+    ):
+        load_detections(path, capacity=100_000)
+
+
 def test_non_numeric_entry(tmp_path):
     path = _write_json(tmp_path, {"views": [[[1, 2]], [[3, 4], [5, "x"]]]})
     with pytest.raises(

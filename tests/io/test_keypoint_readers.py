@@ -147,6 +147,23 @@ def test_table_errors_name_the_row(tmp_path):
     p.write_text("frame,view,class,x,y\n0,0,a,1,2\n0,1,a,one,2\n")
     with pytest.raises(InputError, match=r"line 3: x 'one' is not a number"):
         load_keypoint_table(p)
+    # Numbers no frame or view can have are refused before anything is allocated for them.
+    p.write_text("frame,view,class,x,y\n100000000000000000000,0,a,1,2\n0,1,a,1,2\n")
+    with pytest.raises(InputError, match=r"line 2: frame '1000.*' is out of range \(a 32-bit"):
+        load_keypoint_table(p)
+    p.write_text("frame,view,class,x,y\n0,0,a,1,2\n0,2000000000,a,1,2\n")
+    with pytest.raises(InputError, match=r"line 3: view 2000000000 must be in 0…1023 \(without"):
+        load_keypoint_table(p)
+    np.savez(
+        tmp_path / "t.npz",
+        frame=np.array([0, 2**40]),
+        view=np.array([0, 1]),
+        **{"class": np.array([0, 0])},
+        x=np.array([1.0, 2.0]),
+        y=np.array([1.0, 2.0]),
+    )
+    with pytest.raises(InputError, match=r"frame 1099511627776 is out of range"):
+        load_keypoint_table(tmp_path / "t.npz")
 
 
 def test_readers_carry_the_per_view_instance(tmp_path):

@@ -350,6 +350,9 @@ def test_npz_errors(tmp_path):
     path = _npz_file(tmp_path, "singular.npz", K=np.array([K0, np.zeros((3, 3))]))
     with _raises(path, "K of view 1 is singular"):
         load_rig(path)
+    path = _npz_file(tmp_path, "half.npz", t=np.array([T, T], np.float16))
+    with _raises(path, 'array "t" has dtype float16, too coarse for a camera'):
+        load_rig(path)
 
 
 def test_unknown_format(tmp_path):
