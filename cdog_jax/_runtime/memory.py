@@ -62,7 +62,8 @@ def estimate_peak_bytes(
     return int(_MARGIN * batch_size * per_scene)
 
 
-def _physical_memory() -> int | None:
+def physical_memory() -> int | None:
+    """This machine's physical memory in bytes, or None where the system does not say."""
     try:
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):
@@ -96,7 +97,7 @@ def memory_budget_bytes(budget_gb: float | None = None) -> tuple[float, str]:
         limit = stats.get("bytes_limit")
         where = f"{device.platform} memory"
     if limit is None:
-        limit = _physical_memory()
+        limit = physical_memory()
         where = "physical memory"
     if limit is None:
         return float("inf"), "unknown memory size"

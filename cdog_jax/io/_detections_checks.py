@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from .._runtime import memory
 from ._detections_type import Detections
 from ._errors import _Where
 from ._scores import clip_scores
@@ -60,10 +61,8 @@ def _check_padded_size(shape, capacity, counts, where, *optional) -> None:
     """Refuse a ``capacity`` whose padded arrays (``(F, M, capacity)`` coordinates, mask and
     the ``optional`` per-slot arrays given) would take more than half this machine's
     memory, before they are made: the kernel would kill the process instead."""
-    from .._runtime.memory import _physical_memory
-
     F, M, P = shape
-    total = _physical_memory()
+    total = memory.physical_memory()
     if capacity <= P or not total:
         return
     per_slot = 2 * 8 + 1 + 8 * sum(a is not None for a in optional)

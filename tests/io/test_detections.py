@@ -185,7 +185,7 @@ def test_capacity_refuses_to_truncate(tmp_path):
 def test_a_capacity_beyond_the_machine_is_refused_before_padding(tmp_path, monkeypatch):
     import cdog_jax._runtime.memory as memory
 
-    monkeypatch.setattr(memory, "_physical_memory", lambda: 10**6)  # a 1 MB machine
+    monkeypatch.setattr(memory, "physical_memory", lambda: 10**6)  # a 1 MB machine
     path = _write_json(tmp_path, {"frames": [{"views": [[[1, 2]], [[3, 4]]]}] * 2})
     assert load_detections(path, capacity=1000).mask.shape == (2, 2, 1000)  # 68 kB: padded
     with pytest.raises(
