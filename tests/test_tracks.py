@@ -340,3 +340,26 @@ def test_float64_links_and_recovers_alike(seq):
     np.testing.assert_allclose(
         np.asarray(got.association.points3d), np.asarray(want.association.points3d), atol=1e-4
     )
+
+
+def _cheapest_first_oracle(cost):
+    """Plain NumPy: one pair a step, the cheapest left (ties: the smaller flat index)."""
+    cost, match = cost.astype(np.float64), np.full(cost.shape[0], -1)
+    while np.isfinite(cost).any():
+        a, b = np.unravel_index(np.argmin(cost), cost.shape)
+        match[a], cost[a, :], cost[:, b] = b, np.inf, np.inf
+    return match
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_matching_in_rounds_equals_cheapest_first(seed):
+    """The rounds of mutual best pairs give the cheapest-first matching, ties included."""
+    from cdog_jax.tracking._matching import greedy_match
+
+    match = jax.jit(greedy_match)
+    rng = np.random.default_rng(seed)
+    for _ in range(40):
+        A, B = rng.integers(1, 10, 2)
+        cost = rng.integers(0, 4, (A, B)).astype(np.float32)  # few values: many ties
+        cost[rng.random((A, B)) < 0.4] = np.inf
+        np.testing.assert_array_equal(np.asarray(match(cost)), _cheapest_first_oracle(cost))

@@ -11,20 +11,32 @@ from .._types import Array, Float, Int
 def greedy_match(cost: Float[Array, "A B"]) -> Int[Array, " A"]:
     """One-to-one matching of rows and columns, cheapest pair first: ``(A,)`` the column of
     every row, ``-1`` where unmatched. ``cost (A, B)``: ``+inf`` where a pair is not allowed.
-    Ties go to the smaller flat index ``a · B + b``."""
+    Ties go to the smaller flat index ``a · B + b``.
+
+    Computed in rounds of mutual best pairs rather than one pair a step: a pair that is the
+    cheapest of its row and of its column among the rows and columns still free (ties by
+    flat index) is taken by the cheapest-first order too, since no cheaper pair could claim
+    its row or column first; so every round takes all such pairs at once and the result is
+    the same. The cheapest remaining pair is always mutual, so each round takes at least
+    one; a frame's tables need a few rounds where one pair a step needed one per match.
+    """
     A, B = cost.shape
+    cols = jnp.arange(B, dtype=jnp.int32)
 
     def step(carry):
         k, cost, match, _ = carry
-        flat = jnp.argmin(cost)
-        a, b = flat // B, flat % B
-        ok = jnp.isfinite(cost[a, b])
-        match = jnp.where(ok, match.at[a].set(b.astype(jnp.int32)), match)
-        cost = jnp.where(ok, cost.at[a, :].set(jnp.inf).at[:, b].set(jnp.inf), cost)
-        return k + 1, cost, match, ok
+        finite = jnp.isfinite(cost)
+        best_col = jnp.argmin(cost, axis=1).astype(jnp.int32)  # (A,) first of ties: smaller b
+        best_row = jnp.argmin(cost, axis=0).astype(jnp.int32)  # (B,) first of ties: smaller a
+        row_ok = jnp.any(finite, axis=1)
+        mutual = row_ok & (best_row[best_col] == jnp.arange(A, dtype=jnp.int32))  # (A,)
+        match = jnp.where(mutual, best_col, match)
+        taken_col = jnp.any(mutual[:, None] & (best_col[:, None] == cols[None, :]), axis=0)
+        cost = jnp.where(mutual[:, None] | taken_col[None, :], jnp.inf, cost)
+        return k + 1, cost, match, jnp.any(mutual)
 
-    # Each step matches a pair or finds none left (then every later step would do nothing
-    # too, so the loop stops), so at most min(A, B) steps match them all.
+    # Every round with a finite pair left matches at least one; a round that matches none
+    # has none left, and the loop stops.
     init = (jnp.int32(0), cost, jnp.full((A,), -1, jnp.int32), jnp.bool_(True))
     _, _, match, _ = lax.while_loop(lambda c: (c[0] < min(A, B)) & c[3], step, init)
     return match
