@@ -306,6 +306,13 @@ def test_cli_person_vote_reads_the_instance_column(swapped, tmp_path, capsys):
         all(len({int(person[s]) for s in g if s >= 0}) == 1 for g in groups[valid])
         and valid.sum() == 2 * J
     )
+    assert main(args) == 0  # on by default when the detections carry the person index
+    with np.load(out) as z:
+        np.testing.assert_array_equal(z["groups"][0], groups)
+    assert main(args + ["--no-person-vote"]) == 0
+    with np.load(out) as z:
+        off = z["groups"][0][z["valid"][0]]
+    assert any(len({int(person[s]) for s in g if s >= 0}) > 1 for g in off)
     plain = tmp_path / "plain.csv"
     plain.write_text("frame,view,class,x,y\n" + "\n".join(r.rsplit(",", 2)[0] for r in rows) + "\n")
     capsys.readouterr()

@@ -337,19 +337,19 @@ def test_the_table_of_settings(standin, tmp_path):
             "--runs",
             "1",
             "--settings",
-            "defaults (best),--person-vote",
+            "defaults,--no-person-vote --no-temporal-prior",
             "--markdown",
             str(tmp_path / "t.md"),
         ]
     )
     assert [r["setting"] for r in rows] == [
-        "defaults (best)",
-        "--person-vote",
+        "defaults",
+        "--no-person-vote --no-temporal-prior",
     ]  # no skel.txt: no 4D row
     assert all(r["pcp_mean"] == 100.0 and r["recall_10cm"] == 1.0 for r in rows)
     text = (tmp_path / "t.md").read_text().splitlines()
     assert text[0].startswith("| setting (all frames of 3)") and text[2].startswith(
-        "| defaults (best) | 100.0 / 100.0 /"
+        "| defaults | 100.0 / 100.0 /"
     )
     with pytest.raises(SystemExit):
         table["main"]([folder, "--settings", "no such"])

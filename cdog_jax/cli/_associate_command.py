@@ -160,9 +160,11 @@ def add_parsers(subparsers) -> None:
     )
     p.add_argument(
         "--person-vote",
-        action="store_true",
+        action=argparse.BooleanOptionalAction,
+        default=None,
         help="keypoints with a per-view person index (OpenPose, or a table's instance column): make each frame's "
-        "joint groups consistent with the people (a person-level vote, then re-association of the joints that disagree)",
+        "joint groups consistent with the people (a person-level vote, then re-association of the joints that "
+        "disagree; default: on when the detections carry that index)",
     )
     p.add_argument(
         "--capacity",
@@ -205,8 +207,10 @@ def add_parsers(subparsers) -> None:
     )
     p.add_argument(
         "--temporal-prior",
-        action="store_true",
-        help="many frames: recover a point missed in a frame from the unassigned detections near its last point's reprojections",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="many frames: recover a point missed in a frame from the unassigned detections near its last "
+        "point's reprojections (default: on for a sequence)",
     )
     p.add_argument(
         "--track-step-px",
@@ -408,11 +412,15 @@ def run_associate(args: argparse.Namespace) -> int:
         raise InputError(
             f"{args.points}: --confidence-weights: the file has no confidences (entries [x, y, c])"
         )
-    if args.person_vote and (det.classes is None or det.instances is None):
+    people_known = det.classes is not None and det.instances is not None
+    if args.person_vote and not people_known:
         raise InputError(
             f"{args.points}: --person-vote: the detections carry no per-view person index "
             "(an OpenPose folder, or a table with an instance column)"
         )
+    # On by default where the data allow them: both win on real recordings (docs/GUIDE.md).
+    vote = people_known if args.person_vote is None else args.person_vote
+    prior = args.temporal_prior is not False
     rig = rig_file.rig
     dtype = rig.K.dtype
     trc = args.out is not None and os.path.splitext(args.out)[1].lower() == ".trc"
@@ -475,8 +483,8 @@ def run_associate(args: argparse.Namespace) -> int:
             weights=weights,
             min_views=args.min_views,
             batch_size=max(args.batch_size, 64),
-            instances=det.instances if args.person_vote else None,
-            person_vote=args.person_vote,
+            instances=det.instances if vote else None,
+            person_vote=vote,
         )
         result = classed.association
     else:
@@ -505,7 +513,7 @@ def run_associate(args: argparse.Namespace) -> int:
             xy=np.asarray(det.xy, dtype),
             mask=det.mask,
             classes=det.classes,
-            temporal_prior=args.temporal_prior,
+            temporal_prior=prior,
             max_step_px=args.track_step_px,
             min_views=args.min_views,
             dist=dist,
@@ -531,7 +539,7 @@ def run_associate(args: argparse.Namespace) -> int:
         lines.append(_class_summary(classed, det))
     if people is not None:
         lines.append(_people_summary(people))
-    if tracked is None and args.temporal_prior:
+    if tracked is None and args.temporal_prior:  # asked for explicitly
         lines.append(
             "  note: --temporal-prior needs a sequence of frames; one scene has nothing to carry over"
         )
@@ -540,7 +548,7 @@ def run_associate(args: argparse.Namespace) -> int:
             f"  tracks: {tracked.num_tracks} over {F} frame(s)"
             + (
                 f"; {int(np.asarray(tracked.recovered).sum())} point(s) recovered by the temporal prior"
-                if args.temporal_prior
+                if prior
                 else ""
             )
         )

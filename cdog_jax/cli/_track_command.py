@@ -64,8 +64,9 @@ def add_parser(subparsers) -> None:
     add_method_argument(p)
     p.add_argument(
         "--temporal-prior",
-        action="store_true",
-        help="recover a tracked point missed in a frame near its last point",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="recover a tracked point missed in a frame near its last point (default: on)",
     )
     p.add_argument(
         "--max-gap",

@@ -88,8 +88,9 @@ class LiveAssociator:
             ``C`` class ids, or their names; neither: the detections carry no class.
         method, sigma, dist, min_views, person_vote: as in :func:`cdog_jax.associate_classes`
             (``sigma="auto"``: estimated in every frame from that frame).
-        temporal_prior, max_step, max_step_px, max_err_px, max_gap: as in
-            :func:`cdog_jax.track_groups`.
+        temporal_prior: recover a track missed in a frame from that frame's unassigned
+            detections (default on, as in :func:`cdog_jax.associate_sequence`).
+        max_step, max_step_px, max_err_px, max_gap: as in :func:`cdog_jax.track_groups`.
         slots: detections of one class in one view (all detections of a view without
             classes) that the first programs hold (at least 4); a frame with more raises it
             to the next rung of the shape ladder (one compile, a warning).
@@ -110,7 +111,7 @@ class LiveAssociator:
         dist: Any = None,
         min_views: int = 2,
         person_vote: Any = None,
-        temporal_prior: bool = False,
+        temporal_prior: bool = True,
         max_step: float | None = None,
         max_step_px: float = DEFAULT_MAX_STEP_PX,
         max_err_px: float | None = None,

@@ -22,7 +22,7 @@ def associate_sequence(
     mask: Any,
     *,
     classes: Any = None,
-    temporal_prior: bool = False,
+    temporal_prior: bool = True,
     max_step: float | None = None,
     max_step_px: float = DEFAULT_MAX_STEP_PX,
     max_err_px: float | None = None,
@@ -39,7 +39,10 @@ def associate_sequence(
         classes: optional ``(F, M, P)`` int class ids: the frames are then associated by
             :func:`cdog_jax.associate_classes` and tracks never change class; without them,
             by :func:`cdog_jax.associate_batch`.
-        temporal_prior, max_step, max_step_px, max_err_px, max_gap: as in :func:`cdog_jax.track_groups`.
+        temporal_prior: recover a track missed in a frame from that frame's unassigned
+            detections (as in :func:`cdog_jax.track_groups`); on by default here: it raised
+            recall on real and synthetic recordings (docs/GUIDE.md).
+        max_step, max_step_px, max_err_px, max_gap: as in :func:`cdog_jax.track_groups`.
         min_views, dist: shared by the association and the prior.
         options: passed to the association (``method``, ``sigma``, ``batch_size``, …;
             ``associate_batch``'s σ defaults to ``"auto"`` here).

@@ -26,9 +26,9 @@ shelf = runpy.run_path(os.path.join(HERE, "shelf.py"), run_name="shelf")
 shelf_score = runpy.run_path(os.path.join(HERE, "shelf_score.py"), run_name="shelf_score")
 
 SETTINGS: dict[str, list[str]] = {
-    "defaults (best)": [],
-    "--person-vote": ["--person-vote"],
-    "--person-vote --temporal-prior": ["--person-vote", "--temporal-prior"],
+    "defaults": [],  # best(), the person vote and the temporal prior
+    "--no-temporal-prior": ["--no-temporal-prior"],
+    "--no-person-vote --no-temporal-prior": ["--no-person-vote", "--no-temporal-prior"],
     "--method extended": ["--method", "extended"],
     "--method paper": ["--method", "paper"],
     "--method reference": ["--method", "reference"],

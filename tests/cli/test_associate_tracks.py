@@ -51,6 +51,9 @@ def test_associate_writes_track_ids(tmp_path, capsys):
     assert track_of_slot[0] == track_of_slot[2] == {0: track_of_slot[0][0], 1: track_of_slot[0][1]}
     assert track_of_slot[1] == {0: track_of_slot[0][1], 1: track_of_slot[0][0]}
     assert main([*common, "--out", tmp_path / "a.csv"]) == 0
+    assert "recovered by the temporal prior" in capsys.readouterr().out  # on by default
+    assert main([*common, "--no-temporal-prior"]) == 0
+    assert "recovered by the temporal prior" not in capsys.readouterr().out
     with open(tmp_path / "a.csv") as f:
         rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
     assert sorted({r["track"] for r in rows}) == ["0", "1"] and len(rows) == 6
