@@ -12,6 +12,7 @@ import os
 import time
 
 from ..benchmark._methods import DEFAULT_METHODS, METHODS
+from ..io._errors import InputError
 from ..io._rig_files import FORMATS
 from ._associate_command import _RIG_FORMATS_TEXT
 from ._common import _nonnegative_float, _nonnegative_int, _positive_int, seed_int
@@ -150,18 +151,23 @@ def _scene_setup(args, grid):
     the rig file of ``--rig`` with the box the (selected) views see, unless ``--box``."""
     from ..synthetic import DEFAULT_BOX, IMAGE_SIZE, default_rig, intrinsics_image_size, visible_box
 
+    def check_views(rig, name):
+        if grid.views is not None and max(grid.views) >= rig.num_views:
+            raise InputError(
+                f"--views {list(grid.views)} out of range for {name} ({rig.num_views} views)"
+            )
+
     if not args.rig:
         image_size = tuple(args.image_size) if args.image_size else IMAGE_SIZE
         box = (tuple(args.box[:3]), tuple(args.box[3:])) if args.box else DEFAULT_BOX
-        return default_rig(), box, image_size, "the built-in 10-view rig"
+        rig = default_rig()
+        check_views(rig, "the built-in rig")
+        return rig, box, image_size, "the built-in 10-view rig"
     from ..io import load_rig
 
     loaded = load_rig(args.rig, format=args.rig_format)
     rig = loaded.rig
-    if grid.views is not None and max(grid.views) >= rig.num_views:
-        raise ValueError(
-            f"--views {list(grid.views)} out of range for {args.rig} ({rig.num_views} views)"
-        )
+    check_views(rig, args.rig)
     if args.image_size:
         image_size, source = tuple(args.image_size), "--image-size"
     elif loaded.image_size is not None:

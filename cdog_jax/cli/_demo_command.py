@@ -72,7 +72,13 @@ def add_parser(subparsers) -> None:
         metavar="DIR",
         default=None,
         help="also write the scene into DIR: rig.json, detections.json (input of 'cdog-jax associate') and "
-        "truth.json (the true 3D points and the point of every detection)",
+        "truth.json (the true 3D points and the point of every detection); refused where DIR holds "
+        "one of them already, unless --force",
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="let --save-scene replace the rig.json, detections.json and truth.json that DIR holds",
     )
     p.set_defaults(func=run, parser=p)
 
@@ -127,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
     if args.save_scene is not None:
         from ._paths import check_output_folder
 
-        check_output_folder(args.save_scene, "--save-scene", _SCENE_FILES, {})
+        check_output_folder(args.save_scene, "--save-scene", _SCENE_FILES, {}, replace=args.force)
     from ..synthetic import IMAGE_SIZE as _SIZE
 
     check_sigma_fits(args.sigma, math.hypot(*_SIZE), f"the built-in rig ({_SIZE[0]}×{_SIZE[1]} px)")

@@ -57,11 +57,9 @@ def check_output(
         )
     if os.path.isdir(path):
         raise InputError(f"{path}: {flag}: is a folder; expected a file name")
+    _check_not_dangling(path, flag)
     _check_folder_writable(path, flag, os.path.dirname(os.path.abspath(path)))
-    if os.path.exists(path) and not os.access(path, os.W_OK):
-        raise InputError(
-            f"{path}: {flag}: the file exists and is read-only; it is kept (choose another name)"
-        )
+    _check_not_read_only(path, flag)
     for in_flag, files in inputs.items():
         for file in files:
             if _same_file(path, file):
@@ -71,11 +69,36 @@ def check_output(
                 )
 
 
+def _check_not_dangling(path: str, flag: str) -> None:
+    """``path`` is not a symbolic link to nothing (writing through it would fail at the end,
+    after all the work)."""
+    if os.path.islink(path) and not os.path.exists(path):
+        raise InputError(
+            f"{path}: {flag}: a symbolic link to {os.readlink(path)!r}, which does not exist"
+        )
+
+
+def _check_not_read_only(path: str, flag: str) -> None:
+    """An existing ``path`` may be replaced: writable for this user and not read-only by its
+    mode bits (root may write anything, but a file no one may write was meant to be kept)."""
+    if os.path.exists(path) and (not os.access(path, os.W_OK) or not os.stat(path).st_mode & 0o222):
+        raise InputError(
+            f"{path}: {flag}: the file exists and is read-only; it is kept (choose another name)"
+        )
+
+
 def check_output_folder(
-    folder: str, flag: str, names: Iterable[str], inputs: Mapping[str, Iterable[str]]
+    folder: str,
+    flag: str,
+    names: Iterable[str],
+    inputs: Mapping[str, Iterable[str]],
+    *,
+    replace: bool = True,
 ) -> None:
     """``folder`` is a folder that exists and is writable, or can be created in a writable
-    folder; none of the files ``names`` it will get is an input."""
+    folder; none of the files ``names`` it will get is an input or read-only, and with
+    ``replace=False`` none exists yet."""
+    _check_not_dangling(folder, flag)
     if os.path.exists(folder):
         if not os.path.isdir(folder):
             raise InputError(f"{folder}: {flag}: not a folder (the results are a folder of files)")
@@ -85,6 +108,13 @@ def check_output_folder(
         _check_folder_writable(folder, flag, os.path.dirname(os.path.abspath(folder)))
     for name in names:
         path = os.path.join(folder, name)
+        _check_not_dangling(path, flag)
+        if not replace and os.path.lexists(path):
+            raise InputError(
+                f"{path}: {flag} would replace {name}, which is already there; choose another "
+                "folder or pass --force"
+            )
+        _check_not_read_only(path, flag)
         for in_flag, files in inputs.items():
             if any(_same_file(path, file) for file in files):
                 raise InputError(

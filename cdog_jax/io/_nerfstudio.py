@@ -103,6 +103,11 @@ def read_nerfstudio(path: str) -> _Views:
         else:
             dists.append(None)
         c2w = _to_array(get["transform_matrix"], (4, 4), f'{where}, key "transform_matrix"')
+        if not np.allclose(c2w[3], (0.0, 0.0, 0.0, 1.0), rtol=0.0, atol=1e-6):
+            raise ValueError(
+                f'{where}, key "transform_matrix": the last row must be [0, 0, 0, 1] (a rigid '
+                f"transform, camera to world); got {c2w[3].tolist()}"
+            )
         R_c2w = c2w[:3, :3] @ _OPENGL_FROM_OPENCV
         Rs.append(R_c2w.T)  # not a rotation (a scaled world): rig_from_arrays names the view
         ts.append(-R_c2w.T @ c2w[:3, 3])

@@ -178,6 +178,44 @@ def test_out_existing_read_only_file(files, capsys, monkeypatch):
     refused(_associate(rig, points, "--out", out), capsys, "old.json", "read-only")
 
 
+def test_out_read_only_by_its_mode_bits(files, capsys):
+    """A file no one may write is kept, also when the user is root (who may write anyway)."""
+    folder, rig, _, points = files
+    out = folder / "kept.json"
+    out.write_text("{}")
+    out.chmod(0o444)
+    refused(_associate(rig, points, "--out", out), capsys, "kept.json", "read-only")
+    assert out.read_text() == "{}"
+
+
+def test_dangling_links_and_views_out_of_range_refused_before_work(files, capsys):
+    folder, rig, _, points = files
+    link = folder / "gone.json"
+    link.symlink_to(folder / "missing" / "x.json")
+    refused(_associate(rig, points, "--out", link), capsys, "gone.json", "symbolic link")
+    out = folder / "results"
+    out.symlink_to(folder / "missing")
+    bench = ["benchmark", "--quick", "--no-figures", "--no-progress"]
+    refused([*bench, "--out", out], capsys, "results", "symbolic link")
+    line = refused([*bench, "--out", folder / "b", "--views", "0", "1", "99"], capsys, "99")
+    assert "out of range" in line and not (folder / "b").exists()
+
+
+def test_save_scene_replaces_nothing_unless_forced(tmp_path, capsys):
+    folder = tmp_path / "scene"
+    folder.mkdir()
+    (folder / "rig.json").write_text("mine")
+    demo = ["demo", "--points", "5", "--out", tmp_path / "d.png", "--save-scene", folder]
+    line = refused(demo, capsys, "rig.json", "already there", "--force")
+    assert (folder / "rig.json").read_text() == "mine" and not (tmp_path / "d.png").exists()
+    (folder / "truth.json").write_text("{}")
+    (folder / "truth.json").chmod(0o444)
+    refused([*demo, "--force"], capsys, "truth.json", "read-only")
+    (folder / "truth.json").chmod(0o644)
+    assert main([*demo, "--force"]) == 0
+    assert (folder / "rig.json").read_text() != "mine" and line
+
+
 def test_out_and_plot_extensions(files, capsys):
     folder, rig, _, points = files
     refused(_associate(rig, points, "--out", folder / "x.txt"), capsys, "x.txt", ".json")

@@ -259,6 +259,19 @@ def test_nerfstudio_projects_as_by_hand_and_round_trips(tmp_path):
         load_rig(path)
 
 
+def test_nerfstudio_transform_must_be_rigid(tmp_path):
+    """A 4×4 transform whose last row is not [0, 0, 0, 1] (a projective matrix, or the rows
+    of a 3×4 padded with anything) is refused naming the frame."""
+    path = tmp_path / "transforms.json"
+    frames = [dict(f) for f in NERFSTUDIO["frames"]]
+    frames[1]["transform_matrix"] = [*frames[1]["transform_matrix"][:3], [0, 0, 0.5, 1]]
+    path.write_text(json.dumps(dict(NERFSTUDIO, frames=frames)))
+    with pytest.raises(
+        ValueError, match=r"frame 1.*transform_matrix.*last row must be \[0, 0, 0, 1\]"
+    ):
+        load_rig(path)
+
+
 def test_float64_without_x64_raises():
     with (
         x64(False),
