@@ -138,14 +138,18 @@ def _parse(line: str, n: int, live, ids):
 
     from ..io import detections_from_lists
     from ..io._class_labels import views_and_labels
+    from ..io._read_files import DuplicateKeyError, check_keys, unique_keys
 
     where = f"line {n}"
     try:
-        obj = json.loads(line)
+        obj = json.loads(line, object_pairs_hook=unique_keys)
     except json.JSONDecodeError as error:
         raise ValueError(f"{where}: not JSON ({error.msg} at column {error.colno})") from None
+    except DuplicateKeyError as e:
+        raise ValueError(f'{where}: the key "{e.args[0]}" appears twice in one object') from None
     if not isinstance(obj, dict) or not ("views" in obj or "by_class" in obj):
         raise ValueError(f'{where}: expected an object {{"views": [[[x, y], …], …]}}')
+    check_keys(obj, ("frame", "views", "by_class", "classes"), where)
     views, labels = views_and_labels(obj, where)
     det = detections_from_lists(views, num_views=live.rig.num_views)
     xy, mask = det.xy[0], det.mask[0]

@@ -18,7 +18,7 @@ from ._detections_rows import (
 )
 from ._detections_type import Detections
 from ._errors import _Where
-from ._read_files import open_npz, read_json
+from ._read_files import check_keys, open_npz, read_json
 
 
 def _read_json(path: str) -> tuple[list, bool, list, Any]:
@@ -26,6 +26,7 @@ def _read_json(path: str) -> tuple[list, bool, list, Any]:
     class labels of every frame (``None`` entries without classes) and ``class_names``."""
     data = read_json(path)
     names = data.get("class_names") if isinstance(data, dict) else None
+    known = ("views", "by_class", "classes", "class_names", "frames")
     if isinstance(data, dict) and "frames" in data:
         beside = [k for k in ("views", "by_class", "classes") if k in data]
         if beside:
@@ -33,6 +34,7 @@ def _read_json(path: str) -> tuple[list, bool, list, Any]:
                 f'{path}: "{beside[0]}" beside "frames": a file holds one scene ({{"views": …}}) or '
                 'frames ({"frames": [{"views": …}, …]}), not both'
             )
+        check_keys(data, known, path)
         frames = data["frames"]
         if not isinstance(frames, list) or not frames:
             raise ValueError(f'{path}: "frames" must be a non-empty list of {{"views": …}} objects')
@@ -42,11 +44,13 @@ def _read_json(path: str) -> tuple[list, bool, list, Any]:
                 raise ValueError(
                     f'{path}: frame {f}: expected an object {{"views": [[[x, y], …], …]}}'
                 )
+            check_keys(frame, ("views", "by_class", "classes"), f"{path}: frame {f}")
             views, labs = views_and_labels(frame, f"{path}: frame {f}")
             out.append(views)
             labels.append(labs)
         return out, True, labels, names
     if isinstance(data, dict) and ("views" in data or "by_class" in data):
+        check_keys(data, known, path)
         views, labs = views_and_labels(data, path)
         return [views], False, [labs], names
     raise ValueError(

@@ -42,7 +42,7 @@ from ._detections_checks import _finish
 from ._detections_rows import _check_coordinates, _check_options
 from ._detections_type import Detections
 from ._errors import InputError, _Where, read_text
-from ._read_files import open_npz, read_json
+from ._read_files import check_keys, open_npz, read_json
 from ._scores import normalise_keypoint_scores
 
 PathLike = str | os.PathLike
@@ -391,6 +391,10 @@ def _read_csv_table(path: str) -> tuple[dict[str, list], list[str]]:
         )
     rows = list(csv.reader([line for _, line in lines]))
     header = [h.strip().lower() for h in rows[0]]
+    twice = next((c for k, c in enumerate(header) if c in header[:k]), None)
+    if twice is not None:
+        raise InputError(f'{path}: line {lines[0][0]}: the column "{twice}" appears twice')
+    check_keys(dict.fromkeys(header), TABLE_COLUMNS, f"{path}: line {lines[0][0]}", "column")
     missing = [c for c in TABLE_COLUMNS[:5] if c not in header]
     if missing:
         raise InputError(
@@ -417,6 +421,7 @@ def _read_npz_table(path: str) -> tuple[dict[str, list], list[str]]:
         if xy.ndim != 2 or xy.shape[1] != 2:
             raise InputError(f'{path}: array "xy": expected shape (N, 2); got {xy.shape}')
         arrays["x"], arrays["y"] = xy[:, 0], xy[:, 1]
+    check_keys(arrays, TABLE_COLUMNS, path, "array")
     missing = [c for c in TABLE_COLUMNS[:5] if c not in arrays]
     if missing:
         raise InputError(

@@ -3,11 +3,13 @@ errors that name the file (and the array), never a pickle."""
 
 from __future__ import annotations
 
+import difflib
 import json
 import re
 import sys
 import zipfile
 import zlib
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
@@ -15,14 +17,48 @@ import numpy as np
 from ._errors import InputError, check_regular_file, read_text
 
 
+class DuplicateKeyError(ValueError):
+    """A JSON object names one key twice (``args[0]``: the key)."""
+
+
+def unique_keys(pairs: list[tuple[str, Any]]) -> dict:
+    """An object's members as a dict; a key given twice is refused (JSON readers would keep
+    the last one silently)."""
+    out = dict(pairs)
+    if len(out) != len(pairs):
+        seen = set()
+        raise DuplicateKeyError(next(k for k, _ in pairs if k in seen or seen.add(k)))
+    return out
+
+
+def check_keys(obj: dict, known: Iterable[str], where: str, what: str = "key") -> None:
+    """Every key of the JSON object ``obj`` (or column of a table, ``what="column"``) is one
+    of ``known``: an unknown one (a misspelt ``"distortion"`` for ``"dist"``) raises
+    :class:`InputError` naming the nearest known one, rather than being dropped with what it
+    held."""
+    known = tuple(known)
+    for key in obj:
+        if key not in known:
+            near = difflib.get_close_matches(str(key), known, n=1, cutoff=0.5)
+            hint = f' (did you mean "{near[0]}"?)' if near else ""
+            raise InputError(
+                f'{where}: unknown {what} "{key}"{hint}; the {what}s read here are '
+                + ", ".join(f'"{k}"' for k in known)
+            )
+
+
 def read_json(path: str) -> Any:
     """The parsed JSON file. Raises :class:`InputError` naming the file for invalid JSON, a
-    byte that is not UTF-8 (with its offset), nesting deeper than Python's recursion limit,
-    and an integer with more digits than Python reads (4300); a missing file stays
-    ``FileNotFoundError``."""
+    key given twice in one object, a byte that is not UTF-8 (with its offset), nesting
+    deeper than Python's recursion limit, and an integer with more digits than Python reads
+    (4300); a missing file stays ``FileNotFoundError``."""
     text = read_text(path)
     try:
-        return json.loads(text)
+        return json.loads(text, object_pairs_hook=unique_keys)
+    except DuplicateKeyError as e:
+        raise InputError(
+            f'{path}: the key "{e.args[0]}" appears twice in one object; which one is meant?'
+        ) from None
     except json.JSONDecodeError as e:
         raise InputError(f"{path}: not valid JSON ({e})") from None
     except RecursionError:

@@ -12,7 +12,7 @@ from .._expect import PATH, expect_args
 from ..geometry._camera import Rig
 from ..geometry._distortion import Fisheye
 from ._atomic import atomic_write
-from ._read_files import read_json
+from ._read_files import check_keys, read_json
 from ._rig_files import PathLike, _Views
 from ._rig_values import (
     _check_dist,
@@ -23,6 +23,8 @@ from ._rig_values import (
     stack_dists,
 )
 
+_VIEW_KEYS = ("K", "R", "t", "dist", "fisheye", "image_size")
+
 
 def read_json_rig(path: str):
     data = read_json(path)
@@ -30,6 +32,7 @@ def read_json_rig(path: str):
         raise ValueError(
             f'{path}: missing key "views" (expected {{"views": [{{"K", "R", "t"}}, …]}})'
         )
+    check_keys(data, ("views",), path)
     views = data["views"]
     if not isinstance(views, list) or not views:
         raise ValueError(f'{path}: "views" must be a non-empty list of view objects')
@@ -40,6 +43,7 @@ def read_json_rig(path: str):
             raise ValueError(
                 f"{where}: expected an object with keys K, R, t; got {type(view).__name__}"
             )  # noqa: TRY004 (bad file content, not a bad argument)
+        check_keys(view, _VIEW_KEYS, where)
         for key in ("K", "R", "t"):
             if key not in view:
                 raise ValueError(f'{where}: missing key "{key}"')

@@ -56,7 +56,8 @@ def test_frames_stream_through_a_pipe(stream):
         command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     ) as child:
         answers = []
-        for line in (lines[0], "{not json", lines[1], '{"views": [[[1, 2]]]}', lines[2]):
+        bad = ("{not json", '{"views": [[[1, 2]]]}', '{"views": [[[1, 2]]], "clases": [[0]]}')
+        for line in (lines[0], bad[0], lines[1], bad[1], bad[2], lines[2]):
             child.stdin.write(line + "\n")
             child.stdin.flush()
             answers.append(
@@ -69,7 +70,8 @@ def test_frames_stream_through_a_pipe(stream):
         "error"
     ].startswith("line 2: not JSON")
     assert answers[3]["line"] == 4 and "views" in answers[3]["error"]
-    frames = [answers[0], answers[2], answers[4]]
+    assert answers[4]["line"] == 5 and 'unknown key "clases"' in answers[4]["error"]
+    frames = [answers[0], answers[2], answers[5]]
     assert [a["frame"] for a in frames] == [100, 101, 102]
     # The same as the live associator on the same frames (slots are the input's order).
     live = LiveAssociator(rig, class_names=list(SKELETON_JOINTS))
