@@ -53,16 +53,26 @@ def nearest_samples(
     return jnp.where(ok, x, 0.0), jnp.where(ok, 0.5, 0.0).astype(d.dtype), count
 
 
-def _log_parts(x, count, c, inv_kappa, pi, width):
-    """Log joint density ``(4, S)`` of every sample under match / hidden / none / uniform."""
+def half_normal_beyond_moment(x: Float[Array, " S"], c: Float[Array, ""]) -> Float[Array, " S"]:
+    """``E[T² | T > x]`` (px²) of a half-normal ``T`` of scale ``c``, per sample:
+    ``c² (1 + a φ(a) / Q(a))`` with ``a = x / c``."""
     a = x / c
+    # a < φ(a) / Q(a) < a + 1/a bounds the round-off of the ratio far in the tail.
+    mills = jnp.exp(-0.5 * a * a - 0.5 * jnp.log(2.0 * jnp.pi) - log_ndtr(-a))
+    mills = jnp.clip(mills, a, a + 1.0 / jnp.maximum(a, MIN_SCALE_PX))
+    return c * c * (1.0 + a * mills)
+
+
+def mixture_log_parts(x, count, log_t, log_t_beyond, inv_kappa, pi, width):
+    """Log joint density ``(4, S)`` of every sample ``x`` under match / hidden / none /
+    uniform, given the true-pair distance's log density at ``x`` (``log_t``) and the log
+    probability that it lies beyond where a hidden match must (``log_t_beyond``); shared by
+    every shape of the true-pair distance."""
     lam_true = (count - 1.0) / inv_kappa  # rate of the nearest unrelated point beside a true match
     lam_none = count / inv_kappa
-    log_hn = 0.5 * jnp.log(2.0 / jnp.pi) - jnp.log(c) - 0.5 * a * a
-    log_t_beyond = jnp.log(2.0) + log_ndtr(-a)  # log P(T > x)
     has_other = count > 1.0
     log_lam_true = jnp.log(jnp.where(has_other, lam_true, 1.0))
-    match = log_hn - lam_true * x
+    match = log_t - lam_true * x
     hidden = jnp.where(has_other, log_lam_true - lam_true * x + log_t_beyond, -jnp.inf)
     none = jnp.log(lam_none) - lam_none * x
     uniform = jnp.broadcast_to(-jnp.log(width), x.shape)
@@ -76,25 +86,30 @@ def _log_parts(x, count, c, inv_kappa, pi, width):
     )
 
 
-def _em(x, w, count, c0, inv_kappa0, width, spread_min):
-    """EM from half-normal scale ``c0``; returns the scale, the expected number of pairs
-    with a true match (``match`` or ``hidden``) and the log-likelihood."""
+def _log_parts(x, count, c, inv_kappa, pi, width):
+    """Log joint density ``(4, S)`` of every sample, the true-pair distance half-normal."""
+    a = x / c
+    log_hn = 0.5 * jnp.log(2.0 / jnp.pi) - jnp.log(c) - 0.5 * a * a
+    log_t_beyond = jnp.log(2.0) + log_ndtr(-a)  # log P(T > x)
+    return mixture_log_parts(x, count, log_hn, log_t_beyond, inv_kappa, pi, width)
+
+
+def run_em(log_parts, true_moments, x, w, count, c0, inv_kappa0, width, spread_min):
+    """:data:`EM_ITERS` steps of the censored mixture from the scale ``c0`` and the unrelated
+    points' spread ``inv_kappa0``; returns ``(c, inv_kappa, pi)``. ``log_parts(c, inv_kappa,
+    pi)``: the ``(4, S)`` log joint densities; ``true_moments(c, match, hidden)``: ``(S,)``
+    each sample's share of ``Σ E[T²]`` over the true pairs (its responsibilities
+    ``match``, ``hidden`` times the squared distance they imply), so that ``c² = Σ / n_true``."""
     total = jnp.maximum(jnp.sum(w), MIN_SCALE_PX)
     max_count = jnp.maximum(jnp.max(jnp.where(w > 0, count, 1.0)), 1.0)
 
     def step(_, state):
         c, inv_kappa, pi = state
-        resp = jax.nn.softmax(_log_parts(x, count, c, inv_kappa, pi, width), axis=0) * w[None]
+        resp = jax.nn.softmax(log_parts(c, inv_kappa, pi), axis=0) * w[None]
         match, hidden, none, uniform = resp
-        a = x / c
-        # E[T² | T > x] = c² (1 + a φ(a) / Q(a)) for T half-normal with scale c.
-        # a < φ(a) / Q(a) < a + 1/a bounds the round-off of the ratio far in the tail.
-        mills = jnp.exp(-0.5 * a * a - 0.5 * jnp.log(2.0 * jnp.pi) - log_ndtr(-a))
-        mills = jnp.clip(mills, a, a + 1.0 / jnp.maximum(a, MIN_SCALE_PX))
-        t2_beyond = c * c * (1.0 + a * mills)
         n_true = jnp.sum(match + hidden)
         c_new = jnp.sqrt(
-            jnp.sum(match * x * x + hidden * t2_beyond) / jnp.maximum(n_true, MIN_SCALE_PX)
+            jnp.sum(true_moments(c, match, hidden)) / jnp.maximum(n_true, MIN_SCALE_PX)
         )
         # (count − 1)·U is exponential with mean 1/κ; beside a match it is only known to exceed x.
         others = jnp.where(count > 1.0, count - 1.0, 0.0)
@@ -107,8 +122,23 @@ def _em(x, w, count, c0, inv_kappa0, width, spread_min):
         return c, inv_kappa, pi / jnp.sum(pi)
 
     pi0 = jnp.asarray([0.6, 0.3, 0.1], x.dtype)
-    c, inv_kappa, pi = jax.lax.fori_loop(0, EM_ITERS, step, (c0, inv_kappa0, pi0))
-    parts = _log_parts(x, count, c, inv_kappa, pi, width)
+    return jax.lax.fori_loop(0, EM_ITERS, step, (c0, inv_kappa0, pi0))
+
+
+def _em(x, w, count, c0, inv_kappa0, width, spread_min):
+    """EM from half-normal scale ``c0``; returns the scale, the expected number of pairs
+    with a true match (``match`` or ``hidden``) and the log-likelihood."""
+
+    def log_parts(c, inv_kappa, pi):
+        return _log_parts(x, count, c, inv_kappa, pi, width)
+
+    def true_moments(c, match, hidden):
+        return match * x * x + hidden * half_normal_beyond_moment(x, c)
+
+    c, inv_kappa, pi = run_em(
+        log_parts, true_moments, x, w, count, c0, inv_kappa0, width, spread_min
+    )
+    parts = log_parts(c, inv_kappa, pi)
     log_lik = jnp.sum(w * jax.nn.logsumexp(parts, axis=0))
     resp = jax.nn.softmax(parts, axis=0)
     n_match = jnp.sum(w * (resp[0] + resp[1]))

@@ -25,7 +25,6 @@ from jax.scipy.special import log_ndtr
 
 from .._types import Array, Bool, Float
 from ._sigma import (
-    EM_ITERS,
     FALLBACK_SIGMA_PX,
     MAX_SIGMA_PER_FOCAL,
     MIN_MATCHES,
@@ -33,7 +32,10 @@ from ._sigma import (
     START_QUANTILES,
     TIE_RELATIVE,
     em_start,
+    half_normal_beyond_moment,
+    mixture_log_parts,
     nearest_samples,
+    run_em,
 )
 
 # Degrees of freedom of the match distance's fits (inf: half-normal); the most likely wins.
@@ -119,37 +121,17 @@ def _log_match(a, c, nu):
 def _log_parts(x, x2, count, c, inv_kappa, pi, width, nu):
     """Log joint density ``(4, S)`` of every sample under match / hidden / none / uniform.
     A hidden true match is another detection of the view: at or beyond ``x2``."""
-    a = x / c
-    lam_true = (count - 1.0) / inv_kappa  # rate of the nearest unrelated point beside a true match
-    lam_none = count / inv_kappa
-    log_t = _log_match(a, c, nu)[0]  # density of T at x
+    log_t = _log_match(x / c, c, nu)[0]  # density of T at x
     log_t_beyond = _log_match(x2 / c, c, nu)[1]  # log P(T > x2)
-    has_other = count > 1.0
-    log_lam_true = jnp.log(jnp.where(has_other, lam_true, 1.0))
-    match = log_t - lam_true * x
-    hidden = jnp.where(has_other, log_lam_true - lam_true * x + log_t_beyond, -jnp.inf)
-    none = jnp.log(lam_none) - lam_none * x
-    uniform = jnp.broadcast_to(-jnp.log(width), x.shape)
-    return jnp.stack(
-        [
-            match + jnp.log(pi[0]),
-            hidden + jnp.log(pi[0]),
-            none + jnp.log(pi[1]),
-            uniform + jnp.log(pi[2]),
-        ]
-    )
+    return mixture_log_parts(x, count, log_t, log_t_beyond, inv_kappa, pi, width)
 
 
 def _second_moments(x, c, nu):
     """Per sample, the M-step's ``(E[u T²] of a match at x, E[u T² | T > x])`` (``u = 1`` for
     the half-normal): the scale update is ``c² = Σ`` of these, weighted, over the true pairs."""
-    a = x / c
     if math.isinf(nu):
-        # E[T² | T > x] = c² (1 + a φ(a) / Q(a)) for T half-normal with scale c.
-        # a < φ(a) / Q(a) < a + 1/a bounds the round-off of the ratio far in the tail.
-        mills = jnp.exp(-0.5 * a * a - 0.5 * jnp.log(2.0 * jnp.pi) - log_ndtr(-a))
-        mills = jnp.clip(mills, a, a + 1.0 / jnp.maximum(a, MIN_SCALE_PX))
-        return x * x, c * c * (1.0 + a * mills)
+        return x * x, half_normal_beyond_moment(x, c)
+    a = x / c
     weight = (nu + 1.0) / (nu + a * a)  # E[u | x], the latent precision
     return weight * x * x, c * c * _log_t_tail(a, nu)[1]
 
@@ -157,35 +139,17 @@ def _second_moments(x, c, nu):
 def _em(x, x2, w, count, c0, inv_kappa0, width, spread_min, nu):
     """EM from half-normal scale ``c0`` with the match distance's ``nu``; returns the scale,
     the unrelated points' spread ``1/κ``, the shares ``π`` and the log-likelihood."""
-    total = jnp.maximum(jnp.sum(w), MIN_SCALE_PX)
-    max_count = jnp.maximum(jnp.max(jnp.where(w > 0, count, 1.0)), 1.0)
 
-    def step(_, state):
-        c, inv_kappa, pi = state
-        resp = (
-            jax.nn.softmax(_log_parts(x, x2, count, c, inv_kappa, pi, width, nu), axis=0) * w[None]
-        )
-        match, hidden, none, uniform = resp
-        t2_match = _second_moments(x, c, nu)[0]
-        t2_beyond = _second_moments(x2, c, nu)[1]
-        n_true = jnp.sum(match + hidden)
-        c_new = jnp.sqrt(
-            jnp.sum(match * t2_match + hidden * t2_beyond) / jnp.maximum(n_true, MIN_SCALE_PX)
-        )
-        # (count − 1)·U is exponential with mean 1/κ; beside a match it is only known to exceed x.
-        others = jnp.where(count > 1.0, count - 1.0, 0.0)
-        censored = jnp.where(count > 1.0, match, 0.0)
-        seen = jnp.sum(hidden * others * x + none * count * x + censored * (others * x + inv_kappa))
-        inv_kappa = seen / jnp.maximum(jnp.sum(hidden + none + censored), MIN_SCALE_PX)
-        c = jnp.clip(c_new, MIN_SCALE_PX, width)
-        inv_kappa = jnp.clip(inv_kappa, spread_min, width * max_count)
-        pi = jnp.clip(jnp.stack([n_true, jnp.sum(none), jnp.sum(uniform)]) / total, 1e-4, 1.0)
-        return c, inv_kappa, pi / jnp.sum(pi)
+    def log_parts(c, inv_kappa, pi):
+        return _log_parts(x, x2, count, c, inv_kappa, pi, width, nu)
 
-    pi0 = jnp.asarray([0.6, 0.3, 0.1], x.dtype)
-    c, inv_kappa, pi = jax.lax.fori_loop(0, EM_ITERS, step, (c0, inv_kappa0, pi0))
-    parts = _log_parts(x, x2, count, c, inv_kappa, pi, width, nu)
-    log_lik = jnp.sum(w * jax.nn.logsumexp(parts, axis=0))
+    def true_moments(c, match, hidden):
+        return match * _second_moments(x, c, nu)[0] + hidden * _second_moments(x2, c, nu)[1]
+
+    c, inv_kappa, pi = run_em(
+        log_parts, true_moments, x, w, count, c0, inv_kappa0, width, spread_min
+    )
+    log_lik = jnp.sum(w * jax.nn.logsumexp(log_parts(c, inv_kappa, pi), axis=0))
     return c, inv_kappa, pi, log_lik
 
 
