@@ -373,6 +373,26 @@ def _load(args):
     return rig_file, detections
 
 
+def refuse_camera_to_world(rig_file, path: str, det=None) -> None:
+    """Refuse a rig that points wrong as given and right read as camera→world (the other
+    convention), judged on the frame with the most detections when ``det`` is given, else
+    on where the optical axes meet; before any work. The detections' rays are cast without
+    the lens: the test is coarse (cameras facing away), and stays on the host."""
+    from ..geometry import describe_rig
+
+    xy = mask = None
+    if det is not None and det.mask.any():
+        f = int(np.argmax(det.mask.sum(axis=(1, 2))))
+        xy, mask = det.xy[f], det.mask[f]
+    if describe_rig(rig_file.rig, xy=xy, mask=mask, image_size=rig_file.image_size).camera_to_world:
+        raise InputError(
+            f"{path}: the cameras point away from the scene as given, and at it when R, t are "
+            "read as camera→world: the rig was probably written camera→world; this library "
+            "expects world→camera (X_cam = R X + t, i.e. R' = Rᵀ, t' = −Rᵀ t of what the file "
+            "holds); 'cdog-jax rig' shows the details"
+        )
+
+
 def _image_diagonal(rig_file) -> tuple[float, str]:
     """The image diagonal (px) and where it comes from: the rig file's image sizes (the
     largest view), else twice the principal point of ``K / K[2,2]`` (the largest view)."""
@@ -408,6 +428,7 @@ def run_associate(args: argparse.Namespace) -> int:
         args, {"--out": (args.out, _OUT_FORMATS), "--plot": (args.plot, _FIGURE_EXTENSIONS)}
     )
     rig_file, det = _load(args)
+    refuse_camera_to_world(rig_file, args.rig, det)
     if args.confidence_weights and det.confidence is None:
         raise InputError(
             f"{args.points}: --confidence-weights: the file has no confidences (entries [x, y, c])"

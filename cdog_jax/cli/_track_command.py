@@ -19,7 +19,7 @@ import sys
 from ..io._errors import InputError
 from ..io._keypoints import SKELETONS
 from ..io._rig_files import FORMATS
-from ._associate_command import _has_lens
+from ._associate_command import _has_lens, refuse_camera_to_world
 from ._common import _positive_int, add_method_argument
 
 _DESCRIPTION = """Associate and track frames as they arrive: one JSON object per line on standard input
@@ -102,6 +102,7 @@ def run_track(args: argparse.Namespace) -> int:
     if args.max_gap < 0:
         raise InputError(f"--max-gap: expected an integer >= 0; got {args.max_gap}")
     rig_file = load_rig(args.rig, format=args.rig_format)
+    refuse_camera_to_world(rig_file, args.rig)
     live = LiveAssociator(
         rig_file.rig,
         num_classes=args.classes,

@@ -50,6 +50,10 @@ class RigDescription:
         centroid_pixel: ``(M, 2)`` ``centroid`` projected into every view (pixels; NaN
             without a centroid or where it is behind the camera).
         warnings: one sentence per problem found; empty for a healthy rig.
+        camera_to_world: the cameras point wrong as given (away from the detections, or
+            their axes meet behind them) and right when ``R, t`` are read as camera→world:
+            the rig was almost surely written in the other convention (a warning says so;
+            the command line refuses such a rig).
     """
 
     names: list[str]
@@ -69,6 +73,7 @@ class RigDescription:
     centroid_angle_deg: np.ndarray
     centroid_pixel: np.ndarray
     warnings: list[str]
+    camera_to_world: bool = False
 
     def format(self) -> str:
         """The multi-line text of :meth:`Rig.describe`."""
@@ -113,6 +118,7 @@ def describe_rig(
         )
         checked = inv.centroid is not None or inv.axes_point is not None  # else nothing was tested
         if checked and not pointing_inv:
+            desc = dataclasses.replace(desc, camera_to_world=True)
             desc.warnings.append(
                 "read as camera→world (world→camera R' = Rᵀ, t' = −Rᵀ t), the same rig has none of "
                 "these pointing problems: R, t were probably given camera→world; this library "

@@ -201,6 +201,26 @@ def test_dangling_links_and_views_out_of_range_refused_before_work(files, capsys
     assert "out of range" in line and not (folder / "b").exists()
 
 
+def test_a_rig_written_camera_to_world_is_refused_by_every_command(tmp_path, capsys):
+    """The same rig with R, t inverted (camera→world): `associate` (judged on the
+    detections) and `track` (on where the optical axes meet) refuse it before any work."""
+    import jax
+
+    from cdog_jax.geometry import rig_from_arrays
+    from cdog_jax.io import save_detections_json
+    from cdog_jax.synthetic import generate_scene
+
+    scene = generate_scene(jax.random.PRNGKey(0), RIG, 12, 1.0, capacity=12)
+    points = tmp_path / "det.json"
+    save_detections_json(points, np.asarray(scene.xy), np.asarray(scene.mask))
+    R_inv = np.swapaxes(np.asarray(RIG.R), 1, 2)
+    t_inv = -np.einsum("mij,mj->mi", R_inv, np.asarray(RIG.t))
+    rig = tmp_path / "c2w.json"
+    save_rig_json(rig, rig_from_arrays(np.asarray(RIG.K), R_inv, t_inv), image_size=IMAGE_SIZE)
+    refused(_associate(rig, points), capsys, "c2w.json", "camera→world")
+    refused(["track", "--rig", rig], capsys, "c2w.json", "camera→world")
+
+
 def test_save_scene_replaces_nothing_unless_forced(tmp_path, capsys):
     folder = tmp_path / "scene"
     folder.mkdir()
