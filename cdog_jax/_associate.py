@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from functools import partial
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -22,6 +23,7 @@ from ._runtime.devices import chunk_devices
 from ._runtime.memory import check_memory
 from ._runtime.shapes import chunk_size, occupied_slots, pad_scenes, pad_slots, slot_capacity, trim
 from ._runtime.stored_programs import call_stored
+from ._status import Status
 from ._types import Array, ArrayLike, Float, Int
 from ._validate import (
     as_array,
@@ -32,7 +34,7 @@ from ._validate import (
     check_threshold_shapes,
 )
 from .geometry._camera import Rig
-from .geometry._distortion import Fisheye, undistorted
+from .geometry._distortion import Fisheye, undistorted_checked
 from .geometry._projection import group_errors
 from .geometry._triangulate import triangulate_views_last
 from .graph._groups import gather_groups
@@ -304,12 +306,20 @@ def _associate_one(rig, xy, mask, th, dist, weights, min_views, method):
     """One scene with undistortion before and :func:`finish_groups` after the method;
     ``dist``/``weights`` may be None (static absence)."""
     if dist is not None:
-        xy = undistorted(rig, xy, mask, dist)
+        xy, lens_failed = undistorted_checked(rig, xy, mask, dist)
     result = method.associate_scene(rig, Observations(xy, mask, weights), th)
+    if dist is not None:
+        result = _flag_lens(result, lens_failed)
     return finish_groups(rig, jnp.where(mask[..., None], xy, 0.0), result, weights, min_views, th)
 
 
-_undistorted_jit = jax.jit(undistorted)
+def _flag_lens(result: Association, failed) -> Association:
+    """``result`` with :attr:`Status.LENS_NOT_INVERTED` raised where ``failed``."""
+    flag = jnp.where(failed, jnp.int32(int(Status.LENS_NOT_INVERTED)), jnp.int32(0))
+    return eqx.tree_at(lambda r: r.status, result, result.status | flag)
+
+
+_undistorted_jit = jax.jit(undistorted_checked)
 _finish_jit = jax.jit(finish_groups)
 
 
@@ -320,8 +330,11 @@ def _associate_host(rig, xy, mask, th, extras, method):
         return method.associate_scene(rig, Observations(xy, mask), th)
     dist, weights, min_views = extras
     if dist is not None:
-        xy = np.asarray(_undistorted_jit(rig, xy, mask, dist))
+        xy, lens_failed = _undistorted_jit(rig, xy, mask, dist)
+        xy = np.asarray(xy)
     result = method.associate_scene(rig, Observations(xy, mask, weights), th)
+    if dist is not None:
+        result = _flag_lens(result, lens_failed)
     return _finish_jit(rig, np.where(mask[..., None], xy, 0.0), result, weights, min_views, th)
 
 

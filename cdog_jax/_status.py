@@ -23,6 +23,7 @@ class Status(enum.IntFlag):
     COMPONENTS_CAPPED = 4  # connected components stopped at their round bound
     SIGMA_FALLBACK = 8  # sigma="auto" had too little evidence and used its fallback
     REFINE_CAPPED = 16  # point refinement stopped at Config.refine_max_steps
+    LENS_NOT_INVERTED = 32  # undistortion failed at some detection (the lens model folds there)
 
 
 _MESSAGES = {
@@ -34,6 +35,10 @@ _MESSAGES = {
     Status.SIGMA_FALLBACK: 'sigma="auto" found too few likely-true matches to estimate the noise (or an '
     "implausibly large one) and used its fallback value, 1 px; pass sigma= explicitly if you know it",
     Status.REFINE_CAPPED: "point refinement stopped at its step bound (Config.refine_max_steps)",
+    Status.LENS_NOT_INVERTED: "the lens model could not be inverted at some detection (distorting "
+    "its undistorted pixel again misses it by more than 0.1 px: the distortion coefficients fold "
+    "the image there, e.g. a large negative k1); those detections' points are unreliable: check "
+    "the distortion",
 }
 
 

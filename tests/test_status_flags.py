@@ -36,3 +36,24 @@ def test_a_loop_stopped_at_its_bound_sets_its_flag_per_scene():
     ):
         check_status(split)
     assert len(status_messages(split[0])) == 1 and status_messages(0) == []
+
+
+def test_a_lens_that_cannot_be_inverted_is_flagged_per_scene():
+    """Detections a lens model cannot have produced (k1 = −5 folds the image inside these
+    views: no ideal pixel distorts onto their outer detections) raise LENS_NOT_INVERTED in
+    that scene only; an invertible lens raises nothing."""
+    from cdog_jax.geometry._distortion import _folded
+
+    folding = np.zeros((5, 5), np.float32)
+    folding[:, 0] = -5.0
+    mild = np.zeros((5, 5), np.float32)
+    mild[:, 0] = -0.05
+    for dist, expected in ((folding, Status.LENS_NOT_INVERTED), (mild, 0)):
+        status = associate_batch(RIG, XY, MASK, sigma=4.0, dist=dist, batch_size=2).status
+        assert [int(s) & Status.LENS_NOT_INVERTED for s in np.asarray(status)] == [expected] * 2
+    assert "could not be inverted" in status_messages(Status.LENS_NOT_INVERTED)[0]
+    # The radial model turns back at r² = 1 / 15 for k1 = −5: beyond it, two ideal points
+    # share a detection.
+    r = np.array([[0.2, 0.25, 0.26, 0.4]], np.float32)
+    folded = np.asarray(_folded(folding[:1], r, np.zeros_like(r)))
+    assert folded.tolist() == [[False, False, True, True]]

@@ -304,6 +304,44 @@ def undistorted(
     )
 
 
+LENS_RESIDUAL_PX = 0.1
+"""How far (pixels) the lens may map an undistorted detection from where it was seen before
+the undistortion counts as failed: a fraction of any detector's noise, far above the
+round-off of a converged inversion."""
+
+
+def undistorted_checked(
+    rig: Rig,
+    xy: Float[Array, "M P 2"],
+    mask: Bool[Array, "M P"],
+    dist: Float[Array, "M 5"] | Fisheye,
+) -> tuple[Float[Array, "M P 2"], Bool[Array, ""]]:
+    """:func:`undistorted`, and whether the inversion failed at any detection: its result
+    distorted again lands more than :data:`LENS_RESIDUAL_PX` from the detection (or is not
+    finite), as where the model folds the image (a large negative ``k1``: no ideal pixel maps
+    there, and the Newton steps stop anywhere)."""
+    ideal = undistorted(rig, xy, mask, dist)
+    miss = jnp.linalg.norm(distort_pixels(rig.K, dist, ideal) - xy, axis=-1)  # (M, P)
+    bad = ~(miss <= LENS_RESIDUAL_PX)
+    if not isinstance(dist, Fisheye):
+        bad = bad | _folded(dist, *_normalise(rig.K, ideal))
+    return ideal, jnp.any(mask & bad)
+
+
+def _folded(dist, x, y, samples: int = 8):
+    """``(M, P)``: the radial model is not increasing all the way from the centre to the
+    ideal point ``(x, y)`` (normalised): the distorted radius ``r (1 + k1 r² + k2 r⁴ + k3 r⁶)``
+    turns back before it (its derivative ``1 + 3 k1 r² + 5 k2 r⁴ + 7 k3 r⁶ ≤ 0``), so a second
+    ideal point has the same detection and the inversion may have found either."""
+    k1, k2, _, _, k3 = _coefficients(dist)
+    r2 = x * x + y * y
+    folded = jnp.zeros(r2.shape, bool)
+    for k in range(1, samples + 1):  # the radii r·k/samples, the last the point's own
+        q = r2 * (k / samples) ** 2
+        folded = folded | (1.0 + q * (3.0 * k1 + q * (5.0 * k2 + q * 7.0 * k3)) <= 0.0)
+    return folded
+
+
 undistorted_frames = jax.jit(jax.vmap(undistorted, in_axes=(None, 0, 0, None)))
 """:func:`undistorted` of every frame, ``xy (F, M, P, 2)`` → same, as one compiled program
 (run eagerly, its Newton loop would be compiled again on every call)."""
