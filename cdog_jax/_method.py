@@ -73,6 +73,18 @@ class Observations(NamedTuple):
     weights: Float[Array, "M P"] | None = None
 
 
+def finite_observations(
+    xy: Float[Array, "M P 2"], mask: Bool[Array, "M P"]
+) -> tuple[Float[Array, "M P 2"], Bool[Array, "M P"], Bool[Array, ""]]:
+    """``(xy, mask, dropped)``: a detection that is not finite (NaN or inf) left out (its slot
+    becomes padding holding 0), and whether a valid slot held one. Inside a compiled program
+    nothing can be refused; one such detection would otherwise spread through every table it
+    enters (a NaN distance undoes other groups) and go unsaid."""
+    finite = jnp.all(jnp.isfinite(xy), axis=-1)
+    dropped = jnp.any(mask & ~finite)
+    return jnp.where(finite[..., None], xy, 0.0), mask & finite, dropped
+
+
 class Method(abc.ABC):
     """An association method. Subclasses are frozen dataclasses (hashable, compared by value).
 
@@ -313,6 +325,8 @@ class GroupTableMethod(Method):
         self, rig: Rig, observations: Observations, thresholds: tuple
     ) -> Association:
         th = type(thresholds)(*(jnp.asarray(v) for v in thresholds))
+        xy, mask, dropped = finite_observations(observations.xy, observations.mask)
+        observations = observations._replace(xy=xy, mask=mask)
         xy, d, sigma, tau, fallback = scene_gate(rig, observations, th, self.sigma_mode)
         groups, valid, status = self.group_table(rig, xy, observations.mask, d, sigma, tau, th)
         return finish_table(
@@ -320,7 +334,9 @@ class GroupTableMethod(Method):
             xy,
             groups,
             valid,
-            status | raise_flag(fallback, Status.SIGMA_FALLBACK),
+            status
+            | raise_flag(fallback, Status.SIGMA_FALLBACK)
+            | raise_flag(dropped, Status.NONFINITE_DETECTION),
             sigma,
             tau,
             th,

@@ -24,6 +24,7 @@ class Status(enum.IntFlag):
     SIGMA_FALLBACK = 8  # sigma="auto" had too little evidence and used its fallback
     REFINE_CAPPED = 16  # point refinement stopped at Config.refine_max_steps
     LENS_NOT_INVERTED = 32  # undistortion failed at some detection (the lens model folds there)
+    NONFINITE_DETECTION = 64  # a valid slot held NaN or inf (under jit): left out
 
 
 _MESSAGES = {
@@ -35,6 +36,8 @@ _MESSAGES = {
     Status.SIGMA_FALLBACK: 'sigma="auto" found too few likely-true matches to estimate the noise (or an '
     "implausibly large one) and used its fallback value, 1 px; pass sigma= explicitly if you know it",
     Status.REFINE_CAPPED: "point refinement stopped at its step bound (Config.refine_max_steps)",
+    Status.NONFINITE_DETECTION: "a detection in a valid slot was not finite (NaN or inf) and was "
+    "left out of the association (inside a compiled program it cannot be refused)",
     Status.LENS_NOT_INVERTED: "the lens model could not be inverted at some detection (distorting "
     "its undistorted pixel again misses it by more than 0.1 px: the distortion coefficients fold "
     "the image there, e.g. a large negative k1); those detections' points are unreliable: check "

@@ -5,6 +5,7 @@ import pytest
 from helpers import random_scene, ring_rig
 
 from cdog_jax import Config, Status, associate_batch, check_status, status_messages
+from cdog_jax._method import Observations
 
 RIG = ring_rig(5)
 # Scene 0: ten points in a small box with clutter and σ = 4 px (components with several
@@ -57,3 +58,32 @@ def test_a_lens_that_cannot_be_inverted_is_flagged_per_scene():
     r = np.array([[0.2, 0.25, 0.26, 0.4]], np.float32)
     folded = np.asarray(_folded(folding[:1], r, np.zeros_like(r)))
     assert folded.tolist() == [[False, False, True, True]]
+
+
+@pytest.mark.parametrize("method", ["best", "greedy"])
+def test_a_non_finite_detection_under_jit_is_left_out_and_said(method):
+    """NaN or inf in one valid slot, inside the user's own jit (no input checks there): the
+    detection leaves its group, every other group is unchanged, NONFINITE_DETECTION is set."""
+    import jax
+
+    from cdog_jax import method_from
+
+    m = method_from(method, "test")
+    th = m.thresholds(0.5)
+    xy, mask, _, _ = random_scene(RIG, 8, 10, sigma=0.5, seed=3)
+    run = jax.jit(lambda xy, mask: m.associate_scene(RIG, Observations(xy, mask), th))
+    before = run(xy, mask)
+    groups = np.asarray(before.groups)[np.asarray(before.valid)]
+    view, slot = 1, int(groups[groups[:, 1] >= 0][0, 1])
+    for bad in (np.nan, np.inf):
+        poisoned = np.array(xy)
+        poisoned[view, slot] = bad
+        after = run(poisoned, mask)
+        expected = {
+            tuple(int(s) if (v, s) != (view, slot) else -1 for v, s in enumerate(g)) for g in groups
+        }
+        got = {tuple(map(int, g)) for g in np.asarray(after.groups)[np.asarray(after.valid)]}
+        assert got == {g for g in expected if sum(s >= 0 for s in g) >= 2}
+        assert int(after.status) & Status.NONFINITE_DETECTION
+        assert np.isfinite(np.asarray(after.points3d)[np.asarray(after.valid)]).all()
+    assert not int(before.status) & Status.NONFINITE_DETECTION

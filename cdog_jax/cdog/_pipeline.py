@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._expect import expect_args
-from .._method import Method, Observations, register_method
+from .._method import Method, Observations, finite_observations, register_method
 from .._result import Association, association_from_groups
 from .._status import Status
 from .._types import Array, Bool, Float, Int
@@ -323,13 +323,15 @@ def associate_traced(
     expect_args(
         "associate_traced", rig=(rig, Rig), thresholds=(thresholds, kind), config=(config, Config)
     )
+    xy, mask, dropped = finite_observations(xy, mask)
     scene, fallback = scene_tables(rig, xy, mask, thresholds, config, classes=classes)
     M, P = mask.shape
     G = max(M * P // 2, 1)
     empty = GroupTable(jnp.full((G, M), -1, jnp.int32), jnp.zeros((G,), bool))
-    state = run_plan(
-        plan(config), scene, State(empty, None, raise_flag(fallback, Status.SIGMA_FALLBACK))
+    status = raise_flag(fallback, Status.SIGMA_FALLBACK) | raise_flag(
+        dropped, Status.NONFINITE_DETECTION
     )
+    state = run_plan(plan(config), scene, State(empty, None, status))
     fit = state.fit
     return association_from_groups(
         state.table.groups,
