@@ -121,6 +121,15 @@ def rig_file_from_views(views: _Views, dtype: Any, path: str) -> RigFile:
     """The :class:`RigFile` of a reader's views: the rig checked and in ``dtype``, zeros for
     a missing ``dist``, the common image size. ``path`` names the source in errors."""
     _check_float_range(views, dtype, path)
+    if views.names is not None:
+        names = list(views.names)
+        twice = next((n for k, n in enumerate(names) if n in names[:k]), None)
+        if twice is not None:
+            views_of = [m for m, n in enumerate(names) if n == twice]
+            raise InputError(
+                f"{path}: two cameras are named {twice!r} (views {views_of[0]} and "
+                f"{views_of[1]}); selecting cameras by name could not tell them apart"
+            )
     try:
         rig = rig_from_arrays(views.K, views.R, views.t, dtype=dtype)
     except ValueError as e:

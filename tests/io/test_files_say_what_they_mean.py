@@ -74,3 +74,12 @@ def test_table_columns(tmp_path):
     columns = {"frame": [0, 0], "view": [0, 1], "class": [0, 0], "x": [1.0, 3.0], "y": [2.0, 4.0]}
     np.savez(npz, **{k: np.asarray(v) for k, v in columns.items()}, instanse=np.zeros(2, int))
     _refused(load_keypoint_table, npz, 'unknown array "instanse"', 'did you mean "instance"')
+
+
+def test_two_cameras_with_one_name_are_refused(tmp_path):
+    from cdog_jax.io import save_rig_colmap
+
+    save_rig_colmap(tmp_path, default_rig(num_views=3), image_size=(640, 480))
+    images = tmp_path / "images.txt"
+    images.write_text(images.read_text().replace(" view_1\n", " view_0\n"))
+    _refused(load_rig, images, "two cameras are named 'view_0'", "views 0 and 1")
