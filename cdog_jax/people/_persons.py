@@ -166,10 +166,14 @@ def _member_values(values: np.ndarray, groups: np.ndarray, valid: np.ndarray) ->
     return np.where((groups >= 0) & valid[:, None], out, -1)
 
 
-def _mode(values: np.ndarray) -> int:
-    """The most frequent value ``>= 0`` (ties: the smallest), -1 when there is none."""
-    values = values[values >= 0]
-    return int(np.argmax(np.bincount(values))) if values.size else -1
+def _row_modes(values: np.ndarray) -> np.ndarray:
+    """``(G,)`` the most frequent value ``>= 0`` of every row of ``values (G, M)`` (ties: the
+    smallest), -1 for a row with none; one count table for all rows."""
+    top = int(values.max()) + 1 if values.size else 0
+    if top <= 0:
+        return np.full(len(values), -1, np.int64)
+    counts = (values[:, :, None] == np.arange(top)[None, None, :]).sum(axis=1)  # (G, top)
+    return np.where(counts.any(axis=1), np.argmax(counts, axis=1), -1).astype(np.int64)
 
 
 class FramePeople(NamedTuple):
@@ -198,7 +202,7 @@ def frame_people(
     person = cluster_people(vote_matrix(groups, valid, node), node_view, min_votes)
     det_person = np.where(node >= 0, person[np.maximum(node, 0)], -1)  # (M, P)
     member_person = _member_values(det_person, groups, valid)
-    group_person = np.array([_mode(row) for row in member_person], np.int64).reshape(len(groups))
+    group_person = _row_modes(member_person.reshape(len(groups), -1))
     person_views = np.zeros((len(node_view), M), bool)
     person_views[person, node_view] = True
     clash = (
@@ -360,10 +364,10 @@ class _Camera:
         at = (np.arange(M)[None, :], np.maximum(table, 0))
         xy_g = np.where(member[..., None], xy[at], 0.0)
         w = np.where(member, 1.0 if weights is None else weights[at], 0.0)
-        dtype = self.rig.K.dtype
-        out = _retriangulate(
-            self.rig, jnp.asarray(xy_g, dtype), jnp.asarray(member), jnp.asarray(w, dtype)
-        )
+        dtype = np.dtype(self.rig.K.dtype)
+        # Host arrays straight into the compiled program: one eager jnp.asarray each would
+        # cost more than the program itself (three per call, two calls a frame).
+        out = _retriangulate(self.rig, xy_g.astype(dtype), member, w.astype(dtype))
         return tuple(np.asarray(a)[:K] for a in out)
 
 
