@@ -33,6 +33,7 @@ from ._validate import (
     check_sigma,
     check_threshold_shapes,
 )
+from .cdog._stage import raise_flag
 from .geometry._camera import Rig
 from .geometry._distortion import Fisheye, undistorted_checked
 from .geometry._projection import group_errors
@@ -315,7 +316,7 @@ def _associate_one(rig, xy, mask, th, dist, weights, min_views, method):
 
 def _flag_lens(result: Association, failed) -> Association:
     """``result`` with :attr:`Status.LENS_NOT_INVERTED` raised where ``failed``."""
-    flag = jnp.where(failed, jnp.int32(int(Status.LENS_NOT_INVERTED)), jnp.int32(0))
+    flag = raise_flag(failed, Status.LENS_NOT_INVERTED)
     return eqx.tree_at(lambda r: r.status, result, result.status | flag)
 
 

@@ -21,30 +21,13 @@ from jaxtyping import ArrayLike, PRNGKeyArray, Real
 from .._expect import ARRAY, expect_args
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
+from ..io._keypoints import SKELETONS
 from ._realism import Realism, perturb_rig, view_sigmas
 from ._render import RealScene, render_points
 from ._ring import RING_IMAGE_SIZE
 
-SKELETON_JOINTS: tuple[str, ...] = (
-    "nose",
-    "left_eye",
-    "right_eye",
-    "left_ear",
-    "right_ear",
-    "left_shoulder",
-    "right_shoulder",
-    "left_elbow",
-    "right_elbow",
-    "left_wrist",
-    "right_wrist",
-    "left_hip",
-    "right_hip",
-    "left_knee",
-    "right_knee",
-    "left_ankle",
-    "right_ankle",
-)
-"""The joint classes, in COCO-17 keypoint order."""
+SKELETON_JOINTS: tuple[str, ...] = SKELETONS["COCO_17"]
+"""The joint classes, in COCO-17 keypoint order (the names OpenPose readers use)."""
 
 SKELETON_TEMPLATE = np.array(
     [
