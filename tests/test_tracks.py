@@ -136,7 +136,7 @@ def test_the_prior_respects_its_gates(seq):
 
 def test_sequences_vmap_as_a_loop(seq):
     """The scan is a pure function of one sequence: vmapped over two, it equals two calls."""
-    from cdog_jax.tracking._tracks import _Frame, track_sequence
+    from cdog_jax.tracking._tracks import _Frame, initial_tracks, track_sequence
 
     G, P = seq.result.valid.shape[1], seq.mask.shape[2]
     tau = np.asarray(seq.result.tau_px)
@@ -159,9 +159,17 @@ def test_sequences_vmap_as_a_loop(seq):
         labels=frames.labels.at[1].set(jnp.where(frames.labels[1] == 0, -1, frames.labels[1])),
     )
     both = jax.tree.map(lambda x, y: jnp.stack([x, y]), frames, missed)
+    init = initial_tracks(2 * G, 0, np.float32)
     run = lambda fr: track_sequence(
-        seq.rig, fr, jnp.float32(np.nan), jnp.float32(60.0), prior=True, min_views=2, max_gap=0
-    )  # noqa: E731
+        seq.rig,
+        init,
+        fr,
+        jnp.float32(np.nan),
+        jnp.float32(60.0),
+        prior=True,
+        min_views=2,
+        max_gap=0,
+    )[1]  # noqa: E731
     batched = jax.vmap(run)(both)
     for i, fr in enumerate((frames, missed)):
         jax.tree.map(lambda b, one: np.testing.assert_array_equal(b[i], one), batched, run(fr))
@@ -363,3 +371,82 @@ def test_matching_in_rounds_equals_cheapest_first(seed):
         cost = rng.integers(0, 4, (A, B)).astype(np.float32)  # few values: many ties
         cost[rng.random((A, B)) < 0.4] = np.inf
         np.testing.assert_array_equal(np.asarray(match(cost)), _cheapest_first_oracle(cost))
+
+
+@pytest.mark.parametrize("max_gap", [0, 1])
+def test_a_recording_tracked_in_parts_equals_the_whole(max_gap):
+    """Parts tracked one after the other, each continuing from where the one before stopped
+    (the second with fewer group rows, the third with more: the tracks carried grow), give the
+    whole's groups, points and track ids."""
+    from cdog_jax import associate_classes
+    from cdog_jax._result import batched_association
+    from cdog_jax.synthetic import default_rig, generate_skeleton_scenes
+    from cdog_jax.tracking._tracks import track_part
+
+    rig = default_rig(num_views=4)
+    sk = generate_skeleton_scenes(jax.random.PRNGKey(3), rig, 2, 1.0, num_frames=7)
+    mask = np.array(sk.frames.mask)
+    xy, classes = np.asarray(sk.frames.xy, np.float32), np.asarray(sk.frames.class_id)
+    mask[3, 1:] &= classes[3, 1:] > 8  # a frame with fewer groups: recovered by the prior
+    classes = np.where(mask, classes, 0)
+    result = associate_classes(rig, xy, mask, classes)
+    options = dict(
+        xy=xy, mask=mask, classes=classes, temporal_prior=True, max_step=None,
+        max_step_px=60.0, max_err_px=None, max_gap=max_gap, min_views=2, dist=None,
+    )  # fmt: skip
+    whole, _ = track_part(rig, result, None, **options)
+    assert whole.num_tracks > 10, whole.num_tracks
+    assert np.asarray(whole.recovered).any()
+
+    a = result.association
+    rows = int(np.asarray(a.num_groups)[3])
+    assert rows < a.valid.shape[1] and not np.asarray(a.valid)[3, rows:].any()
+
+    def part(start, stop, cut):
+        frame = lambda v: np.asarray(v)[start:stop]  # noqa: E731
+        row = lambda v: frame(v)[:, :cut]  # noqa: E731
+        fields = {
+            k: frame(getattr(a, k))
+            for k in ("labels", "num_groups", "sigma_px", "tau_px", "status")
+        }
+        fields.update(
+            {
+                k: row(getattr(a, k))
+                for k in ("groups", "valid", "points3d", "bpe", "err_px", "n_views")
+            }
+        )
+        return result._replace(
+            association=batched_association(**fields), group_class=row(result.group_class)
+        )
+
+    state = None
+    for start, stop, cut in ((0, 3, None), (3, 4, rows), (4, 7, None)):
+        part_result = part(start, stop, cut)
+        opts = {
+            k: v[start:stop] if k in ("xy", "mask", "classes") else v for k, v in options.items()
+        }
+        tracked, state = track_part(rig, part_result, state, **opts)
+        for f in range(stop - start):
+            valid, ref = (
+                np.asarray(tracked.association.valid[f]),
+                np.asarray(whole.association.valid[start + f]),
+            )
+            np.testing.assert_array_equal(
+                tracked.track_id[f][valid], whole.track_id[start + f][ref]
+            )
+            np.testing.assert_array_equal(
+                np.asarray(tracked.association.groups[f])[valid],
+                np.asarray(whole.association.groups[start + f])[ref],
+            )
+            np.testing.assert_array_equal(
+                tracked.association.labels[f], whole.association.labels[start + f]
+            )
+            np.testing.assert_array_equal(
+                tracked.recovered[f][valid], whole.recovered[start + f][ref]
+            )
+            np.testing.assert_allclose(
+                np.asarray(tracked.association.points3d[f])[valid],
+                np.asarray(whole.association.points3d[start + f])[ref],
+                rtol=0, atol=1e-5,
+            )  # fmt: skip
+    assert state.rows == result.association.valid.shape[1]

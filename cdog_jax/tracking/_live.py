@@ -28,7 +28,14 @@ from ..geometry._camera import Rig
 from ..geometry._distortion import as_lens, undistorted_frames
 from ..people._classes import associate_classes_at, given_classes
 from ..people._persons import PersonLinker, PersonVote, people_of_frame
-from ._tracks import DEFAULT_MAX_STEP_PX, _check_gate, initial_tracks, track_one, tracking_frames
+from ._tracks import (
+    DEFAULT_MAX_STEP_PX,
+    _check_gate,
+    grown_tracks,
+    initial_tracks,
+    track_one,
+    tracking_frames,
+)
 
 DEFAULT_SLOTS = 8
 """Detections of one class in one view that the first compiled programs hold (a person
@@ -254,7 +261,7 @@ class LiveAssociator:
             self._raise("rows", ladder_rung(found), f"{found} groups")
             if self._carry is not None:
                 self._carry = jax.device_put(
-                    _grown(
+                    grown_tracks(
                         self._carry,
                         self._table_rows(old),
                         self._table_rows(self.rows),
@@ -395,27 +402,6 @@ def _most_per_class(mask: np.ndarray, classes: np.ndarray, C: int) -> int:
         return 0
     view = np.broadcast_to(np.arange(M)[:, None], mask.shape)[mask]
     return int(np.bincount(view * C + classes[mask], minlength=M * C).max())
-
-
-def _grown(carry: tuple, old: int, new: int, max_gap: int) -> tuple:
-    """The tracker's state for frame tables of ``old`` rows (two blocks of them with
-    ``max_gap``: the frame's tracks, then the unseen ones) as ``new`` rows: empty rows
-    appended to each block (they hold no track)."""
-    X, valid, cls, track, age, next_id = (np.asarray(a) for a in carry)
-    fills = (0, False, -1, -1, 0)
-    halves = 1 if max_gap == 0 else 2
-    out = []
-    for a, fill in zip((X, valid, cls, track, age), fills):
-        parts = np.split(a, halves)
-        out.append(
-            np.concatenate(
-                [
-                    np.concatenate([p, np.full((new - old, *a.shape[1:]), fill, a.dtype)])
-                    for p in parts
-                ]
-            )
-        )
-    return (*out, next_id)
 
 
 def _answer(frame: int, out, order: np.ndarray, P: int, classed: bool, assoc) -> LiveFrame:

@@ -229,6 +229,7 @@ def initial_tracks(rows: int, max_gap: int, dtype) -> tuple:
 @partial(jax.jit, static_argnames=("prior", "min_views", "max_gap"))
 def track_sequence(
     rig: Rig,
+    init: tuple,
     frames: _Frame,
     max_step: Float[Array, ""],
     max_step_px: Float[Array, ""],
@@ -236,10 +237,11 @@ def track_sequence(
     prior: bool,
     min_views: int,
     max_gap: int,
-) -> _Out:
+) -> tuple[tuple, _Out]:
     """:func:`track_step` over the ``F`` frames of ``frames`` (fields with a leading ``F``), as
-    one ``lax.scan``. Returns the frames' final tables, ``(F, …)``."""
-    init = initial_tracks(frames.valid.shape[1], max_gap, frames.X.dtype)
+    one ``lax.scan`` from the tracks ``init`` (:func:`initial_tracks`, or where an earlier
+    part of the recording stopped). Returns the tracks after the last frame and the frames'
+    final tables, ``(F, …)``."""
     step = partial(
         track_step,
         rig,
@@ -249,8 +251,7 @@ def track_sequence(
         min_views=min_views,
         max_gap=max_gap,
     )
-    _, out = lax.scan(step, init, frames)
-    return out
+    return lax.scan(step, init, frames)
 
 
 track_one = jax.jit(track_step, static_argnames=("prior", "min_views", "max_gap"))
@@ -311,6 +312,53 @@ def track_groups(
         A :class:`TrackedAssociation`. Raises ``ValueError`` before any work for a result of
         one scene, shapes that do not match, or a gate that is not a positive number.
     """
+    return track_part(
+        rig,
+        result,
+        None,
+        xy=xy,
+        mask=mask,
+        classes=classes,
+        temporal_prior=temporal_prior,
+        max_step=max_step,
+        max_step_px=max_step_px,
+        max_err_px=max_err_px,
+        max_gap=max_gap,
+        min_views=min_views,
+        dist=dist,
+    )[0]
+
+
+class TrackerState(NamedTuple):
+    """Where the tracker stopped in a recording: the tracks it carries (the layout of
+    :func:`initial_tracks`) for frame tables of ``rows`` group rows."""
+
+    carry: tuple
+    rows: int
+
+
+def track_part(
+    rig: Rig,
+    result: Any,
+    state: TrackerState | None,
+    *,
+    xy: Any,
+    mask: Any,
+    classes: Any,
+    temporal_prior: bool,
+    max_step: float | None,
+    max_step_px: float,
+    max_err_px: float | None,
+    max_gap: int,
+    min_views: int,
+    dist: Any,
+) -> tuple[TrackedAssociation, TrackerState]:
+    """:func:`track_groups` of one part of a recording, continued from where the part before
+    stopped (``state``; ``None``: the first part) with the same options; returns the part's
+    tracks and the state to continue from. The parts of a recording tracked one after the
+    other give the groups and track ids of the whole tracked at once (a long recording then
+    needs the memory of one part). A part may hold more group rows than the one before
+    (the tracks carried grow); track ids count on over the parts."""
     expect_args("track_groups", rig=(rig, Rig))
     assoc, group_class, names, C = _unpack(result)
     missing = [
@@ -372,20 +420,22 @@ def track_groups(
             np.zeros((F, M, P), bool),
             np.zeros((F, M, P), np.int32),
         )
+    rows = np.asarray(assoc.valid).shape[1]
+    table = lambda r: 2 * r if temporal_prior else r  # noqa: E731  (the prior's free rows)
+    if state is None:
+        carry = initial_tracks(table(rows), max_gap, dtype)
+    else:
+        carry = state.carry
+        if rows > state.rows:
+            carry = grown_tracks(carry, table(state.rows), table(rows), max_gap)
+        rows = max(rows, state.rows)
     frames = tracking_frames(
-        assoc,
-        group_class,
-        labels,
-        xy,
-        mask,
-        det_class,
-        max_err_px,
-        np.asarray(assoc.valid).shape[1],
-        temporal_prior,
+        assoc, group_class, labels, xy, mask, det_class, max_err_px, rows, temporal_prior
     )
     step_units = jnp.asarray(np.nan if max_step is None else max_step, dtype)
-    out = track_sequence(
+    carry, out = track_sequence(
         rig,
+        carry,
         frames,
         step_units,
         jnp.asarray(max_step_px, dtype),
@@ -393,7 +443,28 @@ def track_groups(
         min_views=int(min_views),
         max_gap=int(max_gap),
     )
-    return _tracked(assoc, out, group_class is not None, names, C)
+    return _tracked(assoc, out, group_class is not None, names, C), TrackerState(carry, rows)
+
+
+def grown_tracks(carry: tuple, old: int, new: int, max_gap: int) -> tuple:
+    """The tracker's state for frame tables of ``old`` rows (two blocks of them with
+    ``max_gap``: the frame's tracks, then the unseen ones) as ``new`` rows: empty rows
+    appended to each block (they hold no track)."""
+    X, valid, cls, track, age, next_id = (np.asarray(a) for a in carry)
+    fills = (0, False, -1, -1, 0)
+    halves = 1 if max_gap == 0 else 2
+    out = []
+    for a, fill in zip((X, valid, cls, track, age), fills):
+        parts = np.split(a, halves)
+        out.append(
+            np.concatenate(
+                [
+                    np.concatenate([p, np.full((new - old, *a.shape[1:]), fill, a.dtype)])
+                    for p in parts
+                ]
+            )
+        )
+    return (*out, next_id)
 
 
 def tracking_frames(
