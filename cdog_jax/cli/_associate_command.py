@@ -206,6 +206,13 @@ def add_parsers(subparsers) -> None:
         help="frames associated at once (memory bound)",
     )
     p.add_argument(
+        "--part-frames",
+        type=_positive_int,
+        default=PART_FRAMES,
+        help=f"a long recording is associated, tracked and identified in parts of this many frames, one "
+        f"after the other (memory: that of one part; default {PART_FRAMES})",
+    )
+    p.add_argument(
         "--temporal-prior",
         action=argparse.BooleanOptionalAction,
         default=None,
@@ -242,6 +249,10 @@ def add_parsers(subparsers) -> None:
     )
     r.set_defaults(func=run_rig)
 
+
+PART_FRAMES = 500
+"""Frames of a recording associated at once by ``cdog-jax associate``: a longer one goes in
+parts (the tracks and people continue from part to part), so its memory stays that of one."""
 
 _PROGRESS_STEPS = 20  # frames are associated in about this many calls, for the progress bar
 
@@ -415,14 +426,14 @@ def run_associate(args: argparse.Namespace) -> int:
         Status,
         associate_batch,
         associate_classes,
-        identify_people,
         method_from,
-        track_groups,
     )
     from ..geometry._distortion import Fisheye
     from ..graph._sigma import FALLBACK_SIGMA_PX
     from ..io import save_association_csv, save_association_json, save_association_npz
     from ..io._detections_checks import check_float_range
+    from ..people._persons import PersonLinker, concat_people, people_part
+    from ..tracking._tracks import concat_tracked, track_part
 
     _check_paths(
         args, {"--out": (args.out, _OUT_FORMATS), "--plot": (args.plot, _FIGURE_EXTENSIONS)}
@@ -490,59 +501,86 @@ def run_associate(args: argparse.Namespace) -> int:
     weights = jnp.asarray(det.confidence, dtype) if args.confidence_weights else None
 
     t0 = time.perf_counter()
-    classed = None
-    if det.classes is not None:
-        classed = associate_classes(
-            rig,
-            np.asarray(det.xy, dtype),
-            det.mask,
-            det.classes,
-            class_names=det.class_names,
-            method=method,
-            sigma=args.sigma,
-            dist=dist,
-            weights=weights,
-            min_views=args.min_views,
-            batch_size=max(args.batch_size, 64),
-            instances=det.instances if vote else None,
-            person_vote=vote,
-        )
-        result = classed.association
-    else:
-        result = _associate_frames(
-            lambda xy, mask, w: associate_batch(
+    sequence = bool(det.frames) or F > 1
+    xy_all = np.asarray(det.xy, dtype)
+
+    def associate_part(frames: slice):
+        """The association of ``frames`` (with classes: by class), then their tracks
+        (continuing the tracker) and people (continuing the linker)."""
+        nonlocal tracker
+        part = lambda a: None if a is None else a[frames]  # noqa: E731
+        classed = tracked = people = None
+        if det.classes is not None:
+            classed = associate_classes(
                 rig,
-                xy,
-                mask,
+                xy_all[frames],
+                det.mask[frames],
+                det.classes[frames],
+                class_names=det.class_names,
                 method=method,
                 sigma=args.sigma,
                 dist=dist,
-                weights=w,
+                weights=part(weights),
                 min_views=args.min_views,
-                batch_size=args.batch_size,
-            ),
-            jnp.asarray(det.xy, dtype),
-            jnp.asarray(det.mask),
-            weights,
-            args.batch_size,
-        )
-    tracked = None
-    if det.frames or F > 1:  # a sequence: every group gets a track id
-        tracked = track_groups(
-            rig,
-            classed if classed is not None else result,
-            xy=np.asarray(det.xy, dtype),
-            mask=det.mask,
-            classes=det.classes,
-            temporal_prior=prior,
-            max_step_px=args.track_step_px,
-            min_views=args.min_views,
-            dist=dist,
-        )
+                batch_size=max(args.batch_size, 64),
+                instances=part(det.instances) if vote else None,
+                person_vote=vote,
+            )
+            result = classed.association
+        else:
+            result = _associate_frames(
+                lambda xy, mask, w: associate_batch(
+                    rig,
+                    xy,
+                    mask,
+                    method=method,
+                    sigma=args.sigma,
+                    dist=dist,
+                    weights=w,
+                    min_views=args.min_views,
+                    batch_size=args.batch_size,
+                ),
+                jnp.asarray(xy_all[frames]),
+                jnp.asarray(det.mask[frames]),
+                part(weights),
+                args.batch_size,
+            )
+        if sequence:  # every group gets a track id
+            tracked, tracker = track_part(
+                rig,
+                classed if classed is not None else result,
+                tracker,
+                xy=xy_all[frames],
+                mask=det.mask[frames],
+                classes=part(det.classes),
+                temporal_prior=prior,
+                max_step=None,
+                max_step_px=args.track_step_px,
+                max_err_px=None,
+                max_gap=0,
+                min_views=args.min_views,
+                dist=dist,
+            )
+        if classed is not None and det.instances is not None:
+            people = people_part(
+                tracked if tracked is not None else classed, det.instances[frames], linker
+            )
+        return classed, tracked, people, result
+
+    # A long recording goes in parts of --part-frames frames, each continuing the tracks and
+    # the people of the one before: its memory is that of one part.
+    tracker, linker = None, PersonLinker(2.0)
+    parts = [
+        associate_part(slice(start, start + args.part_frames))
+        for start in range(0, max(F, 1), args.part_frames if sequence else max(F, 1))
+    ]
+    classed, tracked, people, result = parts[0]
+    class_counts = None if classed is None else np.concatenate([_class_counts(p[0]) for p in parts])
+    if len(parts) > 1:
+        tracked = concat_tracked([p[1] for p in parts])
+        people = None if people is None else concat_people([p[2] for p in parts])
+    if tracked is not None:
         result = tracked.association
-    people = None
-    if classed is not None and det.instances is not None:
-        people = identify_people(tracked if tracked is not None else classed, det.instances)
     elapsed = time.perf_counter() - t0
     num_groups = np.asarray(result.num_groups)
     n_views = np.asarray(result.n_views)[np.asarray(result.valid)]
@@ -557,7 +595,7 @@ def run_associate(args: argparse.Namespace) -> int:
         f"  detections assigned: {assigned} of {int(det.mask.sum())}",
     ]
     if classed is not None:
-        lines.append(_class_summary(classed, det))
+        lines.append(_class_summary(class_counts, classed.num_classes, det))
     if people is not None:
         lines.append(_people_summary(people))
     if tracked is None and args.temporal_prior:  # asked for explicitly
@@ -711,16 +749,20 @@ def _write_trc(args, people, tracked) -> str:
     return f"Wrote {args.out}: {len(names)} marker(s), one per track, {args.fps:g} frames/s"
 
 
-def _class_summary(classed, det) -> str:
-    """Groups per class per frame against the most detections of that class in one view."""
-    a = classed.association
-    valid = np.asarray(a.valid)
+def _class_counts(classed) -> np.ndarray:
+    """``(F, C)`` groups of every class in every frame of a classed result."""
+    valid = np.asarray(classed.association.valid)
     gc = np.asarray(classed.group_class)
-    C = classed.num_classes
-    F = valid.shape[0]
-    per = np.zeros((F, C), np.int64)
+    per = np.zeros((valid.shape[0], classed.num_classes), np.int64)
     f, g = np.nonzero(valid)
     np.add.at(per, (f, gc[f, g]), 1)
+    return per
+
+
+def _class_summary(per: np.ndarray, C: int, det) -> str:
+    """Groups per class per frame (``per (F, C)``) against the most detections of that class
+    in one view."""
+    F = per.shape[0]
     most = np.zeros((F, C), np.int64)  # the fullest view of each class
     for c in range(C):
         most[:, c] = ((det.classes == c) & det.mask).sum(axis=2).max(axis=1)

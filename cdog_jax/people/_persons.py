@@ -21,6 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._result import concat_frames
 from ..geometry._camera import Rig
 from ..geometry._distortion import as_lens, undistorted_frames
 from ..geometry._projection import group_errors
@@ -653,6 +654,13 @@ def identify_people(result, instances, *, min_votes: int | float = 2.0) -> Peopl
     the id of the person that owned most of its joints' tracks (:class:`PersonLinker`).
     Plain NumPy on the host (a frame holds a few dozen nodes).
     """
+    return people_part(result, instances, PersonLinker(min_votes), min_votes)
+
+
+def people_part(result, instances, linker: PersonLinker, min_votes: int | float = 2.0) -> People:
+    """:func:`identify_people` of one part of a recording, ids continued by ``linker`` (the
+    :class:`PersonLinker` of the parts before it: parts identified one after the other give
+    the whole's ids); ``num_people`` counts the ids given so far."""
     assoc = result.association
     group_class = getattr(result, "group_class", None)
     if group_class is None or getattr(result, "num_classes", None) is None:
@@ -676,7 +684,6 @@ def identify_people(result, instances, *, min_votes: int | float = 2.0) -> Peopl
     track = None if track is None else np.asarray(track)
     F, G, _ = groups.shape
     C = int(result.num_classes)
-    linker = PersonLinker(min_votes)
     group_person = np.full((F, G), -1, np.int32)
     mixed = np.zeros((F, G), bool)
     frames = []
@@ -713,3 +720,19 @@ def identify_people(result, instances, *, min_votes: int | float = 2.0) -> Peopl
         out.points[f, :n], out.person_id[f, :n] = skeleton[order], ids[order]
         out.merged[f, :n], out.split[f, :n] = merged[order], split[order]
     return out
+
+
+def concat_people(parts: list[People]) -> People:
+    """The people of the parts of one recording, identified one after the other
+    (:func:`people_part`, one linker), as one :class:`People`: frames in order, people and
+    group rows padded to the most of any part."""
+    return People(
+        points=concat_frames([p.points for p in parts], np.nan),
+        person_id=concat_frames([p.person_id for p in parts], -1),
+        group_person=concat_frames([p.group_person for p in parts], -1),
+        merged=concat_frames([p.merged for p in parts], False),
+        split=concat_frames([p.split for p in parts], False),
+        mixed=concat_frames([p.mixed for p in parts], False),
+        num_people=parts[-1].num_people,
+        class_names=parts[0].class_names,
+    )

@@ -93,3 +93,64 @@ def test_the_prior_on_one_scene_says_it_does_nothing(tmp_path, capsys):
     )
     text = capsys.readouterr().out
     assert "--temporal-prior needs a sequence of frames" in text and "tracks:" not in text
+
+
+def test_a_recording_in_parts_gives_the_whole_recordings_output(tmp_path, capsys):
+    """``--part-frames``: a recording associated, tracked and identified in parts, one after
+    the other, writes what the whole at once writes: every group, label, track id and person
+    (points within 1e-5, σ within its round-off; rows past the valid ones are padding)."""
+    from cdog_jax.synthetic import DEFAULT_BOX, default_rig
+
+    rig = default_rig(num_views=4)
+    rng = np.random.default_rng(0)
+    lo, hi = (np.asarray(b) for b in DEFAULT_BOX)
+    joints = rng.uniform(lo + 0.3 * (hi - lo), hi - 0.3 * (hi - lo), (2, 17, 3))
+    step = np.array([0.01, 0.0, 0.0]) * (hi - lo)
+    for m in range(4):  # one OpenPose file per view and frame; each view numbers people its way
+        (tmp_path / "pose" / f"cam{m}").mkdir(parents=True)
+    for f in range(7):
+        xy, _ = project_np(rig, (joints + f * step).reshape(-1, 3))
+        xy = (xy + rng.normal(0.0, 0.5, xy.shape)).reshape(4, 2, 17, 2)
+        seen = rng.random((4, 2, 17)) > 0.15  # some joints missed
+        for m in range(4):
+            people = np.concatenate([xy[m], np.full((2, 17, 1), 0.9)], axis=2) * seen[m][..., None]
+            (tmp_path / "pose" / f"cam{m}" / f"{f:06d}_keypoints.json").write_text(
+                json.dumps(
+                    {
+                        "people": [
+                            {"pose_keypoints_2d": p.ravel().tolist()}
+                            for p in people[[m % 2, 1 - m % 2]]
+                        ]
+                    }
+                )
+            )
+    save_rig_json(tmp_path / "rig.json", rig)
+    common = ["associate", "--rig", tmp_path / "rig.json", "--points", tmp_path / "pose"]
+    assert main([*common, "--out", tmp_path / "whole.npz"]) == 0
+    whole_text = capsys.readouterr().out
+    assert main([*common, "--part-frames", "3", "--out", tmp_path / "parts.npz"]) == 0
+    parts_text = capsys.readouterr().out
+    for line in ("3D points:", "tracks:", "people:", "classes:"):
+        assert [s for s in whole_text.splitlines() if line in s] == [
+            s for s in parts_text.splitlines() if line in s
+        ]
+    rows = {"groups": -1, "valid": False, "points3d": 0, "bpe": 0, "err_px": 0, "n_views": 0}
+    rows |= {"group_class": -1, "track_id": -1, "recovered": False, "person_id": -1}
+    rows |= {"mixed": False, "people_points": np.nan, "people_id": -1}
+    rows |= {"people_merged": False, "people_split": False}
+    with np.load(tmp_path / "whole.npz") as a, np.load(tmp_path / "parts.npz") as b:
+        assert sorted(a.files) == sorted(b.files)
+        assert int(a["valid"].sum()) > 100 and (a["person_id"] >= 0).sum() > 100
+        for name in a.files:
+            x, y = a[name], b[name]
+            if name in rows:  # the same rows, then padding
+                n = min(x.shape[1], y.shape[1])
+                for rest in (x[:, n:], y[:, n:]):
+                    np.testing.assert_array_equal(rest, np.full_like(rest, rows[name]))
+                x, y = x[:, :n], y[:, :n]
+            if name in ("points3d", "bpe", "err_px", "people_points"):
+                np.testing.assert_allclose(x, y, rtol=0, atol=1e-5, err_msg=name)
+            elif name in ("sigma_px", "tau_px"):  # a part's σ fit: the same up to round-off
+                np.testing.assert_allclose(x, y, rtol=1e-5, err_msg=name)
+            else:
+                np.testing.assert_array_equal(x, y, err_msg=name)
