@@ -425,13 +425,13 @@ def run_associate(args: argparse.Namespace) -> int:
     from .. import (
         Status,
         associate_batch,
-        associate_classes,
         method_from,
     )
     from ..geometry._distortion import Fisheye
     from ..graph._sigma import FALLBACK_SIGMA_PX
     from ..io import save_association_csv, save_association_json, save_association_npz
     from ..io._detections_checks import check_float_range
+    from ..people._classes import associate_classes_at
     from ..people._persons import PersonLinker, concat_people, people_part
     from ..tracking._tracks import concat_tracked, track_part
 
@@ -511,7 +511,7 @@ def run_associate(args: argparse.Namespace) -> int:
         part = lambda a: None if a is None else a[frames]  # noqa: E731
         classed = tracked = people = None
         if det.classes is not None:
-            classed = associate_classes(
+            classed = associate_classes_at(
                 rig,
                 xy_all[frames],
                 det.mask[frames],
@@ -525,6 +525,7 @@ def run_associate(args: argparse.Namespace) -> int:
                 batch_size=max(args.batch_size, 64),
                 instances=part(det.instances) if vote else None,
                 person_vote=vote,
+                **shapes,
             )
             result = classed.association
         else:
@@ -570,15 +571,19 @@ def run_associate(args: argparse.Namespace) -> int:
     # A long recording goes in parts of --part-frames frames, each continuing the tracks and
     # the people of the one before: its memory is that of one part.
     tracker, linker = None, PersonLinker(2.0)
-    parts = [
-        associate_part(slice(start, start + args.part_frames))
-        for start in range(0, max(F, 1), args.part_frames if sequence else max(F, 1))
-    ]
-    classed, tracked, people, result = parts[0]
-    class_counts = None if classed is None else np.concatenate([_class_counts(p[0]) for p in parts])
-    if len(parts) > 1:
-        tracked = concat_tracked([p[1] for p in parts])
-        people = None if people is None else concat_people([p[2] for p in parts])
+    starts = range(0, max(F, 1), args.part_frames if sequence else max(F, 1))
+    # Every part meets the programs the first compiled: the whole recording's shapes.
+    shapes = {} if det.classes is None or len(starts) == 1 else _class_shapes(det)
+    parts, counts = [], []
+    for start in starts:
+        classed, tracked, people, result = associate_part(slice(start, start + args.part_frames))
+        counts.append(None if classed is None else _class_counts(classed))
+        # Of a part, only what is written is kept (the next part's memory is the same).
+        parts.append((tracked, people) if len(starts) > 1 else (classed, tracked, people, result))
+    class_counts = None if counts[0] is None else np.concatenate(counts)
+    if len(starts) > 1:
+        tracked = concat_tracked([p[0] for p in parts])
+        people = None if people is None else concat_people([p[1] for p in parts])
     if tracked is not None:
         result = tracked.association
     elapsed = time.perf_counter() - t0
@@ -747,6 +752,20 @@ def _write_trc(args, people, tracked) -> str:
     markers, names = track_markers(tracked)
     _write(args.out, "--out", lambda: save_trc(args.out, markers, names, **options))
     return f"Wrote {args.out}: {len(names)} marker(s), one per track, {args.fps:g} frames/s"
+
+
+def _class_shapes(det) -> dict:
+    """The shapes of the classes' programs for every frame of ``det``: the most detections
+    of one class in one view, and a bound on a frame's σ samples (a detection's nearest
+    distance to each other view holding its class)."""
+    F, M, _ = det.mask.shape
+    C = int(det.classes[det.mask].max()) + 1 if det.mask.any() else 1
+    frame, view, _ = np.nonzero(det.mask)
+    counts = np.zeros((F, C, M), np.int64)
+    np.add.at(counts, (frame, det.classes[det.mask], view), 1)
+    holding = (counts > 0).sum(axis=2, keepdims=True)  # views holding the class
+    samples = (counts * (holding - (counts > 0))).sum(axis=(1, 2))
+    return {"min_slots": int(counts.max()), "min_samples": int(samples.max()) + 1}
 
 
 def _class_counts(classed) -> np.ndarray:
