@@ -26,6 +26,7 @@ import contextlib
 import math
 import os
 import time
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -356,6 +357,7 @@ def _points_format(path: str, given: str) -> str:
 def _load(args):
     """Rig file and detections, checked against each other (views, image size, capacity)."""
     from ..io import load_detections, load_keypoint_table, load_openpose, load_rig
+    from ..io._keypoints import OpenPoseParts, _OpenPoseFiles
 
     rig_file = load_rig(args.rig, format=args.rig_format)
     detections = None
@@ -376,12 +378,66 @@ def _load(args):
                 raise InputError(
                     f"--keypoints: expected one of {', '.join(SKELETONS)}; got {keypoints!r}"
                 )
+            part_frames = getattr(args, "part_frames", None)
+            if part_frames and len(_OpenPoseFiles(args.points, None).frame_ids) > part_frames:
+                tally = _Tally(rig_file.rig.K.dtype, args.points)
+                reader = OpenPoseParts(
+                    args.points,
+                    keypoints=keypoints,
+                    part_frames=part_frames,
+                    inspect=tally,
+                    **checks,
+                )
+                parts = _Parts(reader, tally.detections, tally.shapes)
+                return rig_file, reader.read(0)._replace(notes=reader.notes), parts
             detections = load_openpose(args.points, keypoints=keypoints, **checks)
         elif fmt == "table":
             detections = load_keypoint_table(args.points, **checks)
         else:
             detections = load_detections(args.points, **checks)
-    return rig_file, detections
+    return rig_file, detections, None
+
+
+class _Parts(NamedTuple):
+    """An OpenPose recording longer than ``--part-frames``, read a part at a time: the
+    reader, the detections of all its frames, the classes' program shapes for all of them
+    (:func:`_class_shapes`)."""
+
+    reader: Any
+    detections: int
+    shapes: dict
+
+
+class _Tally:
+    """What ``associate`` needs of every part of a recording before any work: each part's
+    coordinates checked against the float type, the detections counted, the largest class
+    shapes kept."""
+
+    def __init__(self, dtype, source: str):
+        self.dtype, self.source = dtype, source
+        self.detections, self.shapes = 0, {"min_slots": 0, "min_samples": 0}
+
+    def __call__(self, frames: slice, det) -> None:
+        from ..io._detections_checks import check_float_range
+
+        check_float_range(det, self.dtype, self.source, frames.start)
+        self.detections += int(det.mask.sum())
+        for key, value in _class_shapes(det).items():
+            self.shapes[key] = max(self.shapes[key], value)
+
+
+def _part_of(det, frames: slice):
+    """The detections of ``frames`` of a whole recording's ``det``."""
+    cut = lambda a: None if a is None else a[frames]  # noqa: E731
+    return det._replace(
+        xy=det.xy[frames],
+        mask=det.mask[frames],
+        confidence=cut(det.confidence),
+        counts=det.counts[frames],
+        classes=cut(det.classes),
+        frame_ids=cut(det.frame_ids),
+        instances=cut(det.instances),
+    )
 
 
 def refuse_camera_to_world(rig_file, path: str, det=None) -> None:
@@ -438,7 +494,7 @@ def run_associate(args: argparse.Namespace) -> int:
     _check_paths(
         args, {"--out": (args.out, _OUT_FORMATS), "--plot": (args.plot, _FIGURE_EXTENSIONS)}
     )
-    rig_file, det = _load(args)
+    rig_file, det, parts = _load(args)  # parts: a long OpenPose recording, det its first part
     refuse_camera_to_world(rig_file, args.rig, det)
     if args.confidence_weights and det.confidence is None:
         raise InputError(
@@ -466,7 +522,8 @@ def run_associate(args: argparse.Namespace) -> int:
             f"{args.out}: --out .trc: marker trajectories need a sequence of frames or per-view people "
             "(an OpenPose folder); one scene has neither"
         )
-    check_float_range(det, dtype, args.points)
+    if parts is None:  # a long recording's parts: checked as they were read
+        check_float_range(det, dtype, args.points)
     if not isinstance(args.sigma, str):
         diagonal, source = _image_diagonal(rig_file)
         check_sigma_fits(args.sigma, diagonal, f"{args.rig} ({source})")
@@ -481,12 +538,15 @@ def run_associate(args: argparse.Namespace) -> int:
             ) from None
         args.sigma = "auto"
     F, M, P = det.mask.shape
+    if parts is not None:
+        F = len(parts.reader.frame_ids)
     lines = [
         f"Rig: {args.rig} ({M} views"
         + (f", {rig_file.image_size[0]}×{rig_file.image_size[1]} px" if rig_file.image_size else "")
         + (", with lens distortion" if _has_lens(rig_file.dist) else "")
         + ")",
-        f"Detections: {args.points}: {F} frame(s), {int(det.mask.sum())} detections, at most {P} per view",
+        f"Detections: {args.points}: {F} frame(s), "
+        f"{int(det.mask.sum()) if parts is None else parts.detections} detections, at most {P} per view",
     ]
     lines += [f"  note: {n}" for n in det.notes[:_NOTES_SHOWN]]
     if len(det.notes) > _NOTES_SHOWN:
@@ -498,32 +558,33 @@ def run_associate(args: argparse.Namespace) -> int:
             if isinstance(rig_file.dist, Fisheye)
             else jnp.asarray(rig_file.dist, dtype)
         )
-    weights = jnp.asarray(det.confidence, dtype) if args.confidence_weights else None
+    weighted = args.confidence_weights
 
     t0 = time.perf_counter()
     sequence = bool(det.frames) or F > 1
-    xy_all = np.asarray(det.xy, dtype)
 
-    def associate_part(frames: slice):
-        """The association of ``frames`` (with classes: by class), then their tracks
-        (continuing the tracker) and people (continuing the linker)."""
+    def associate_part(part):
+        """The association of the detections ``part`` (with classes: by class), then their
+        tracks (continuing the tracker) and people (continuing the linker)."""
         nonlocal tracker
-        part = lambda a: None if a is None else a[frames]  # noqa: E731
+        xy = np.asarray(part.xy, dtype)
+        weights = np.asarray(part.confidence, dtype) if weighted else None
         classed = tracked = people = None
-        if det.classes is not None:
+        if part.classes is not None:
             classed = associate_classes_at(
                 rig,
-                xy_all[frames],
-                det.mask[frames],
-                det.classes[frames],
-                class_names=det.class_names,
+                xy,
+                part.mask,
+                part.classes,
+                class_names=part.class_names,
+                num_classes=num_classes,
                 method=method,
                 sigma=args.sigma,
                 dist=dist,
-                weights=part(weights),
+                weights=weights,
                 min_views=args.min_views,
                 batch_size=max(args.batch_size, 64),
-                instances=part(det.instances) if vote else None,
+                instances=part.instances if vote else None,
                 person_vote=vote,
                 **shapes,
             )
@@ -541,9 +602,9 @@ def run_associate(args: argparse.Namespace) -> int:
                     min_views=args.min_views,
                     batch_size=args.batch_size,
                 ),
-                jnp.asarray(xy_all[frames]),
-                jnp.asarray(det.mask[frames]),
-                part(weights),
+                jnp.asarray(xy),
+                jnp.asarray(part.mask),
+                None if weights is None else jnp.asarray(weights),
                 args.batch_size,
             )
         if sequence:  # every group gets a track id
@@ -551,9 +612,9 @@ def run_associate(args: argparse.Namespace) -> int:
                 rig,
                 classed if classed is not None else result,
                 tracker,
-                xy=xy_all[frames],
-                mask=det.mask[frames],
-                classes=part(det.classes),
+                xy=xy,
+                mask=part.mask,
+                classes=part.classes,
                 temporal_prior=prior,
                 max_step=None,
                 max_step_px=args.track_step_px,
@@ -562,28 +623,49 @@ def run_associate(args: argparse.Namespace) -> int:
                 min_views=args.min_views,
                 dist=dist,
             )
-        if classed is not None and det.instances is not None:
+        if classed is not None and part.instances is not None:
             people = people_part(
-                tracked if tracked is not None else classed, det.instances[frames], linker
+                tracked if tracked is not None else classed, part.instances, linker
             )
         return classed, tracked, people, result
 
     # A long recording goes in parts of --part-frames frames, each continuing the tracks and
-    # the people of the one before: its memory is that of one part.
+    # the people of the one before: its memory is that of one part (an OpenPose folder's
+    # part is read when its turn comes).
     tracker, linker = None, PersonLinker(2.0)
-    starts = range(0, max(F, 1), args.part_frames if sequence else max(F, 1))
+    frames = [slice(s, s + args.part_frames) for s in range(0, F, args.part_frames)]
+    if parts is not None:
+        frames = parts.reader.parts
+    elif not sequence or len(frames) < 2:
+        frames = [slice(None)]
     # Every part meets the programs the first compiled: the whole recording's shapes.
-    shapes = {} if det.classes is None or len(starts) == 1 else _class_shapes(det)
-    parts, counts = [], []
-    for start in starts:
-        classed, tracked, people, result = associate_part(slice(start, start + args.part_frames))
-        counts.append(None if classed is None else _class_counts(classed))
+    num_classes, shapes = None, {}
+    if len(frames) > 1 and det.classes is not None:
+        shapes = _class_shapes(det) if parts is None else parts.shapes
+        num_classes = (
+            len(det.class_names)
+            if det.class_names is not None
+            else (parts.reader.J if parts is not None else int(det.classes[det.mask].max()) + 1)
+        )
+    kept, counts, most = [], [], []
+    for k, part_frames in enumerate(frames):
+        if len(frames) == 1:
+            part = det
+        else:
+            part = _part_of(det, part_frames) if parts is None else parts.reader.read(k)
+        classed, tracked, people, result = associate_part(part)
+        if classed is not None:
+            counts.append(_class_counts(classed))
+            most.append(_class_most(part, classed.num_classes))
         # Of a part, only what is written is kept (the next part's memory is the same).
-        parts.append((tracked, people) if len(starts) > 1 else (classed, tracked, people, result))
-    class_counts = None if counts[0] is None else np.concatenate(counts)
-    if len(starts) > 1:
-        tracked = concat_tracked([p[0] for p in parts])
-        people = None if people is None else concat_people([p[1] for p in parts])
+        if len(frames) > 1:
+            kept.append((tracked, people, part.xy, part.mask, part.confidence, part.classes))
+    class_counts = None if not counts else (np.concatenate(counts), np.concatenate(most))
+    if len(frames) > 1:
+        tracked = concat_tracked([p[0] for p in kept])
+        people = None if people is None else concat_people([p[1] for p in kept])
+        cat = lambda i: None if kept[0][i] is None else np.concatenate([p[i] for p in kept])  # noqa: E731
+        det = det._replace(xy=cat(2), mask=cat(3), confidence=cat(4), classes=cat(5))
     if tracked is not None:
         result = tracked.association
     elapsed = time.perf_counter() - t0
@@ -600,7 +682,7 @@ def run_associate(args: argparse.Namespace) -> int:
         f"  detections assigned: {assigned} of {int(det.mask.sum())}",
     ]
     if classed is not None:
-        lines.append(_class_summary(class_counts, classed.num_classes, det))
+        lines.append(_class_summary(*class_counts))
     if people is not None:
         lines.append(_people_summary(people))
     if tracked is None and args.temporal_prior:  # asked for explicitly
@@ -778,13 +860,18 @@ def _class_counts(classed) -> np.ndarray:
     return per
 
 
-def _class_summary(per: np.ndarray, C: int, det) -> str:
-    """Groups per class per frame (``per (F, C)``) against the most detections of that class
-    in one view."""
-    F = per.shape[0]
-    most = np.zeros((F, C), np.int64)  # the fullest view of each class
+def _class_most(det, C: int) -> np.ndarray:
+    """``(F, C)`` the most detections of every class in one view of every frame."""
+    most = np.zeros((det.mask.shape[0], C), np.int64)
     for c in range(C):
         most[:, c] = ((det.classes == c) & det.mask).sum(axis=2).max(axis=1)
+    return most
+
+
+def _class_summary(per: np.ndarray, most: np.ndarray) -> str:
+    """Groups per class per frame (``per (F, C)``) against the most detections of that class
+    in one view (``most (F, C)``)."""
+    C = per.shape[1]
     seen = most > 0
     fewer = int(np.count_nonzero(per[seen] < most[seen]))
     more = int(np.count_nonzero(per[seen] > most[seen]))
@@ -799,7 +886,7 @@ def run_rig(args: argparse.Namespace) -> int:
     from ..geometry import describe_rig
 
     _check_paths(args, {"--plot": (args.plot, _FIGURE_EXTENSIONS)})
-    rig_file, det = _load(args)
+    rig_file, det, _ = _load(args)
     xy = mask = None
     if det is not None:
         xy, mask = det.xy[0], det.mask[0]

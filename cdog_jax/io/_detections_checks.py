@@ -27,7 +27,11 @@ def _finish(
     names=None,
     frame_ids=None,
     instances=None,
+    part: bool = False,
 ) -> Detections:
+    """The checks every reader's detections pass, and the :class:`Detections` (``part``: a
+    part of a longer recording, whose caller checks that some frame of the whole has
+    detections in 2 views)."""
     xy = np.where(mask[..., None], xy, 0.0)
     if conf is not None:
         conf, note = clip_scores(conf, mask, where.error)
@@ -45,7 +49,7 @@ def _finish(
     _check_duplicates(xy, mask, where, classes)
     if image_size is not None:
         _check_in_image(xy, mask, image_size, where)
-    _check_groups_possible(counts, frames, where, notes)
+    _check_groups_possible(counts, frames, where, notes, part)
     for f, m in np.argwhere(counts == 0):
         notes.append(f"{where.loc(int(f), int(m))}: empty view")
     return Detections(
@@ -76,7 +80,7 @@ def _check_padded_size(shape, capacity, counts, where, *optional) -> None:
 
 
 def _check_groups_possible(
-    counts: np.ndarray, frames: bool, where: _Where, notes: list[str]
+    counts: np.ndarray, frames: bool, where: _Where, notes: list[str], part: bool = False
 ) -> None:
     """A group needs detections in 2 views. One scene without that is refused (nothing to
     associate: most likely the wrong file); so is a list of frames none of which has it.
@@ -90,30 +94,36 @@ def _check_groups_possible(
         raise where.error(
             f"{len(seen)} view(s) with detections{which}; association needs at least 2"
         )
-    if hopeless.size == counts.shape[0]:
+    if hopeless.size == counts.shape[0] and not part:
         raise where.error(
             f"no frame has detections in 2 views (of {counts.shape[0]} frames); association needs at least 2"
         )
-    if hopeless.size:
-        shown = ", ".join(str(int(f)) for f in hopeless[:10]) + (
-            ", …" if hopeless.size > 10 else ""
-        )
-        notes.append(
-            f"frame{'s' if hopeless.size > 1 else ''} {shown} ({hopeless.size} of {counts.shape[0]}): fewer than 2 views "
-            "with detections; they get zero groups"
-        )
+    if hopeless.size and not part:  # a part's: said once for the whole recording
+        notes.append(few_views_note(hopeless, counts.shape[0]))
 
 
-def check_float_range(det: Detections, dtype: Any, source: str | None = None) -> None:
+def few_views_note(hopeless: np.ndarray, F: int) -> str:
+    """The note of the frames ``hopeless`` (of ``F``) without detections in 2 views."""
+    shown = ", ".join(str(int(f)) for f in hopeless[:10]) + (", …" if hopeless.size > 10 else "")
+    return (
+        f"frame{'s' if hopeless.size > 1 else ''} {shown} ({hopeless.size} of {F}): fewer than 2 views "
+        "with detections; they get zero groups"
+    )
+
+
+def check_float_range(
+    det: Detections, dtype: Any, source: str | None = None, first_frame: int = 0
+) -> None:
     """Refuse detections whose coordinates the float type ``dtype`` (e.g. float32) cannot
     hold: they would turn infinite when converted. ``source`` (the file) starts the message,
-    which names the frame, view and detection."""
+    which names the frame (``det``'s frame 0 is ``first_frame`` of the file), view and
+    detection."""
     largest = float(np.finfo(dtype).max)
     bad = det.mask & (np.abs(det.xy) > largest).any(axis=-1)
     if bad.any():
         f, m, i = (int(v) for v in np.argwhere(bad)[0])
         x, y = det.xy[f, m, i]
-        raise _Where(source, det.frames).error(
+        raise _Where(source, det.frames, first_frame).error(
             f"({x:g}, {y:g}) is out of {np.dtype(dtype).name} range (largest {largest:.4g}); these cannot be pixels",
             f,
             m,

@@ -21,11 +21,12 @@ class _Where(NamedTuple):
 
     source: str | None
     frames: bool
+    first_frame: int = 0  # a part of a recording: its frame 0 is this frame of the whole
 
     def loc(self, f: int | None = None, m: int | None = None, i: int | None = None) -> str:
         parts = []
         if self.frames and f is not None:
-            parts.append(f"frame {f}")
+            parts.append(f"frame {f + self.first_frame}")
         if m is not None:
             parts.append(f"view {m}")
         if i is not None:

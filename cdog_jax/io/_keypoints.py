@@ -38,12 +38,17 @@ import numpy as np
 
 from .._expect import PATH, expect_args
 from ._class_labels import check_names
-from ._detections_checks import _finish
+from ._detections_checks import _finish, few_views_note
 from ._detections_rows import _check_coordinates, _check_options
 from ._detections_type import Detections
 from ._errors import InputError, _Where, read_text
 from ._read_files import check_keys, open_npz, read_json
-from ._scores import normalise_keypoint_scores
+from ._scores import (
+    SCORE_TOLERANCE,
+    clipped_scores_note,
+    normalise_keypoint_scores,
+    scaled_scores_note,
+)
 
 PathLike = str | os.PathLike
 
@@ -165,55 +170,195 @@ def load_openpose(
         files of one camera with the same frame number, or a view count other than
         ``num_views``.
     """
-    cameras = _camera_folders(path)
     _check_options("auto", capacity, num_views, image_size)
-    source = os.fspath(path) if isinstance(path, (str, os.PathLike)) else os.fspath(cameras[0])
-    if num_views is not None and len(cameras) != num_views:
-        raise InputError(
-            f"{source}: {len(cameras)} camera folders; the rig has {num_views} views (num_views)"
-        )
-    files = [_frame_files(folder) for folder in cameras]  # per camera: {frame number: file}
-    frame_ids = np.array(sorted(set().union(*(f.keys() for f in files))), np.int64)
-    row_of = {int(n): k for k, n in enumerate(frame_ids)}
-    people: dict[tuple[int, int], list[np.ndarray]] = {}
-    J = None
-    first = None
-    for m, per_frame in enumerate(files):
-        for number, file in per_frame.items():
-            persons = _read_people(file)
-            for p, flat in enumerate(persons):
-                if flat.size == 0:
-                    continue
-                if flat.size % 3:
-                    raise InputError(
-                        f"{file}: person {p}: pose_keypoints_2d has {flat.size} numbers; expected [x, y, score] × J"
-                    )
-                if J is None:
-                    J, first = flat.size // 3, file
-                elif flat.size != 3 * J:
-                    raise InputError(
-                        f"{file}: person {p}: {flat.size // 3} keypoints; {first} has {J}"
-                    )
-            people[row_of[number], m] = persons
-    if J is None:
-        raise InputError(f"{source}: no person with keypoints in any file")
-    names = _keypoint_names(keypoints, J, source)
-    F, M = len(frame_ids), len(cameras)
-    most = max(1, max(sum(1 for a in persons if a.size) for persons in people.values()))
-    rows = np.zeros((F, M, most * J, 3))
-    for (f, m), persons in people.items():
-        kept = [a for a in persons if a.size]
-        if kept:
-            rows[f, m, : len(kept) * J] = np.concatenate(kept).reshape(-1, 3)
-    classes = np.broadcast_to(np.arange(most * J) % J, (F, M, most * J)).copy()
-    instances = np.broadcast_to(np.arange(most * J) // J, (F, M, most * J)).copy()
-    notes = [
-        f"{len(cameras)} cameras {', '.join(os.path.basename(os.path.normpath(c)) for c in cameras)}; {J} keypoint types"
-    ]
-    where = _Where(source, True)
+    files = _OpenPoseFiles(path, num_views)
+    rows, classes, instances, J = files.rows(slice(None))
+    names = _keypoint_names(keypoints, J, files.source)
+    where = _Where(files.source, True)
     return _keypoint_detections(
-        rows, classes, names, frame_ids, where, notes, capacity, image_size, instances
+        rows,
+        classes,
+        names,
+        files.frame_ids,
+        where,
+        [files.note(J)],
+        capacity,
+        image_size,
+        instances,
     )
+
+
+class _OpenPoseFiles:
+    """The camera folders of an OpenPose recording and each camera's file of every frame
+    (listed, not read): ``frame_ids`` the frame numbers in order."""
+
+    def __init__(self, path: Any, num_views: int | None):
+        self.cameras = _camera_folders(path)
+        self.source = (
+            os.fspath(path) if isinstance(path, (str, os.PathLike)) else os.fspath(self.cameras[0])
+        )
+        if num_views is not None and len(self.cameras) != num_views:
+            raise InputError(
+                f"{self.source}: {len(self.cameras)} camera folders; the rig has {num_views} views (num_views)"
+            )
+        self.files = [_frame_files(folder) for folder in self.cameras]  # {frame number: file}
+        self.frame_ids = np.array(sorted(set().union(*(f.keys() for f in self.files))), np.int64)
+        self._J: int | None = None
+        self._first: str | None = None
+
+    def note(self, J: int) -> str:
+        names = ", ".join(os.path.basename(os.path.normpath(c)) for c in self.cameras)
+        return f"{len(self.cameras)} cameras {names}; {J} keypoint types"
+
+    def rows(self, frames: slice, most: int | None = None, need_people: bool = True):
+        """The files of ``frames`` (a slice of ``frame_ids``) read: rows ``(F, M, most · J, 3)``
+        ``[x, y, score]`` (``most``: people per view, default the most in these files), each
+        slot's class and instance, and ``J`` (every file's keypoint count, checked against
+        the first file read with a person); ``J`` is None when no file read has a person and
+        not ``need_people``."""
+        ids = self.frame_ids[frames]
+        row_of = {int(n): k for k, n in enumerate(ids)}
+        people: dict[tuple[int, int], list[np.ndarray]] = {}
+        for m, per_frame in enumerate(self.files):
+            for number in ids.tolist():
+                file = per_frame.get(number)
+                if file is None:
+                    continue
+                persons = _read_people(file)
+                for p, flat in enumerate(persons):
+                    if flat.size == 0:
+                        continue
+                    if flat.size % 3:
+                        raise InputError(
+                            f"{file}: person {p}: pose_keypoints_2d has {flat.size} numbers; expected [x, y, score] × J"
+                        )
+                    if self._J is None:
+                        self._J, self._first = flat.size // 3, file
+                    elif flat.size != 3 * self._J:
+                        raise InputError(
+                            f"{file}: person {p}: {flat.size // 3} keypoints; {self._first} has {self._J}"
+                        )
+                people[row_of[number], m] = persons
+        J = self._J
+        if J is None:
+            if need_people:
+                raise InputError(f"{self.source}: no person with keypoints in any file")
+            return None, None, None, None
+        found = max((sum(1 for a in persons if a.size) for persons in people.values()), default=0)
+        most = max(1, found) if most is None else most
+        F, M = len(ids), len(self.cameras)
+        rows = np.zeros((F, M, most * J, 3))
+        for (f, m), persons in people.items():
+            kept = [a for a in persons if a.size]
+            if kept:
+                rows[f, m, : len(kept) * J] = np.concatenate(kept).reshape(-1, 3)
+        classes = np.broadcast_to(np.arange(most * J) % J, (F, M, most * J)).copy()
+        instances = np.broadcast_to(np.arange(most * J) // J, (F, M, most * J)).copy()
+        return rows, classes, instances, J
+
+
+class OpenPoseParts:
+    """An OpenPose recording read a part at a time (a long recording in the memory of one
+    part), each part what :func:`load_openpose` gives for those frames of the whole: the
+    same checks, messages and notes with frames counted over the whole recording, scores
+    scaled by the whole's largest, every part ``most people · J`` slots wide (or
+    ``capacity``).
+
+    Every file is read twice: all of them, part by part, when the object is made (so that
+    a bad file is refused before any work, and the recording's people and scores are
+    known), then each part again by :meth:`read`. ``inspect(frames, detections)``, when
+    given, is called on every part in the first reading (its scores as yet scaled by the
+    part's own largest). ``parts``: the parts' frame slices; ``notes``: the whole
+    recording's notes; ``frame_ids``: every frame's number; ``J``: the keypoint types."""
+
+    def __init__(
+        self,
+        path: Any,
+        *,
+        part_frames: int,
+        keypoints: Any = None,
+        num_views: int | None = None,
+        capacity: int | None = None,
+        image_size: tuple[int, int] | None = None,
+        inspect: Any = None,
+    ):
+        _check_options("auto", capacity, num_views, image_size)
+        self._files = files = _OpenPoseFiles(path, num_views)
+        self.frame_ids = files.frame_ids
+        F = len(files.frame_ids)
+        self.parts = [slice(s, min(F, s + part_frames)) for s in range(0, F, part_frames)]
+        self._image_size = image_size
+        most, largest, paired, notes = 1, 0.0, False, []
+        clipped, clipped_top = 0, 0.0  # scores in (1, SCORE_TOLERANCE]
+        hopeless = [np.zeros(0, np.int64)]  # frames without detections in 2 views
+        for part in self.parts:
+            rows, classes, instances, J = files.rows(part, need_people=False)
+            if rows is None:
+                continue
+            score = rows[..., 2]
+            mask = score != 0.0
+            most = max(most, -(-rows.shape[2] // J))
+            own = float(score[mask].max()) if mask.any() else 0.0
+            largest = max(largest, own)
+            above = mask & (score > 1.0) & (score <= SCORE_TOLERANCE)
+            clipped += int(above.sum())
+            clipped_top = max(clipped_top, float(score[above].max()) if above.any() else 0.0)
+            det = self._detections(part, rows, classes, instances, J, capacity, own, notes)
+            if inspect is not None:  # the caller's own checks and tallies of every part
+                inspect(part, det)
+            few = np.flatnonzero((det.counts > 0).sum(axis=1) < 2)
+            hopeless.append(few + part.start)
+            paired |= len(few) < len(det.counts)
+        if files._J is None:
+            raise InputError(f"{files.source}: no person with keypoints in any file")
+        if not paired:
+            raise InputError(
+                f"{files.source}: no frame has detections in 2 views (of {F} frames); association needs at least 2"
+            )
+        self.J = files._J
+        self.class_names = _keypoint_names(keypoints, self.J, files.source)
+        self.capacity = capacity
+        self._largest = largest if largest > SCORE_TOLERANCE else None
+        if self._largest is not None:
+            scaled = [scaled_scores_note(largest)]
+        else:
+            scaled = [clipped_scores_note(clipped, clipped_top)] if clipped else []
+        numbering = _numbering_note(files.frame_ids)
+        hopeless = np.concatenate(hopeless)
+        few = [few_views_note(hopeless, F)] if hopeless.size else []
+        self.notes = [
+            files.note(self.J),
+            *scaled,
+            *([numbering] if numbering else []),
+            *notes,
+            *few,
+        ]
+        self._most = most
+
+    def _detections(self, part, rows, classes, instances, J, capacity, largest, notes):
+        where = _Where(self._files.source, True, part.start)
+        return _keypoint_detections(
+            rows,
+            classes,
+            getattr(self, "class_names", None),
+            self.frame_ids[part],
+            where,
+            notes,
+            capacity,
+            self._image_size,
+            instances,
+            largest=largest,
+            part=True,
+        )
+
+    def read(self, k: int) -> Detections:
+        """Part ``k``: :class:`Detections` of its frames (``frame_ids`` their numbers)."""
+        part = self.parts[k]
+        rows, classes, instances, _ = self._files.rows(part, most=self._most)
+        det = self._detections(
+            part, rows, classes, instances, self.J, self.capacity, self._largest, []
+        )
+        return det._replace(notes=[])
 
 
 def load_keypoint_table(
@@ -342,18 +487,27 @@ def _keypoint_names(keypoints: Any, J: int, source: str) -> tuple[str, ...] | No
 
 
 def _keypoint_detections(
-    rows, classes, names, frame_ids, where, notes, capacity, image_size, instances=None
+    rows,
+    classes,
+    names,
+    frame_ids,
+    where,
+    notes,
+    capacity,
+    image_size,
+    instances=None,
+    largest: float | None = None,
+    part: bool = False,
 ) -> Detections:
-    """Rows ``(F, M, P, 3)`` ``[x, y, score]`` (score 0: none) as :class:`Detections`."""
+    """Rows ``(F, M, P, 3)`` ``[x, y, score]`` (score 0: none) as :class:`Detections`
+    (``largest``, ``part``: a part of a longer recording, as :class:`OpenPoseParts` reads it)."""
     score = rows[..., 2]
     mask = score != 0.0
-    conf, note = normalise_keypoint_scores(score, mask, where.error)
-    notes += [note] if note else []
+    conf, note = normalise_keypoint_scores(score, mask, where.error, largest)
+    notes += [note] if note and not part else []  # a part's: said once for the whole
     _check_coordinates(rows[..., :2], mask, where, "where the score is not 0")
-    if not np.array_equal(frame_ids, np.arange(len(frame_ids))):
-        notes.append(
-            f"frames numbered {_ranges(frame_ids)} in the files are frames 0…{len(frame_ids) - 1} here (frame_ids)"
-        )
+    numbering = None if part else _numbering_note(frame_ids)
+    notes += [numbering] if numbering else []
     return _finish(
         rows[..., :2],
         mask,
@@ -367,7 +521,15 @@ def _keypoint_detections(
         names,
         frame_ids,
         instances,
+        part,
     )
+
+
+def _numbering_note(frame_ids: np.ndarray) -> str | None:
+    """The note of frames numbered otherwise than 0, 1, … in the files."""
+    if np.array_equal(frame_ids, np.arange(len(frame_ids))):
+        return None
+    return f"frames numbered {_ranges(frame_ids)} in the files are frames 0…{len(frame_ids) - 1} here (frame_ids)"
 
 
 def _ranges(ids: np.ndarray) -> str:

@@ -42,17 +42,23 @@ def clip_scores(
             i,
         )
     above = mask & (conf > 1.0)
-    note = None
-    if above.any():
-        note = (
-            f"{int(above.sum())} confidences above 1 (at most {float(conf[above].max()):.4g}) clipped to 1 "
-            f"(scores up to {SCORE_TOLERANCE:g} are taken as 1)"
-        )
+    note = clipped_scores_note(int(above.sum()), float(conf[above].max())) if above.any() else None
     return np.where(mask, np.minimum(conf, 1.0), 0.0), note
 
 
+def clipped_scores_note(count: int, top: float) -> str:
+    """What :func:`clip_scores` says of ``count`` scores above 1, the largest ``top``."""
+    return (
+        f"{count} confidences above 1 (at most {top:.4g}) clipped to 1 "
+        f"(scores up to {SCORE_TOLERANCE:g} are taken as 1)"
+    )
+
+
 def normalise_keypoint_scores(
-    conf: np.ndarray, mask: np.ndarray, error: Callable[[str, int, int, int], Exception]
+    conf: np.ndarray,
+    mask: np.ndarray,
+    error: Callable[[str, int, int, int], Exception],
+    largest: float | None = None,
 ) -> tuple[np.ndarray, str | None]:
     """Keypoint detector scores ``conf (F, M, P)`` on ``mask (F, M, P)`` mapped to [0, 1].
 
@@ -62,6 +68,8 @@ def normalise_keypoint_scores(
     when it is larger, the scores are on another scale and every score is divided by the
     largest, which becomes 1 (ratios kept; a note says so). A negative, infinite or NaN
     score refuses the file (``error(text, f, m, i)`` as in :func:`clip_scores`).
+    ``largest``: the largest score of the whole recording when ``conf`` is a part of it (the
+    rule then follows the whole, and the note is the caller's: :func:`scaled_scores_note`).
     """
     bad = mask & ~((conf >= 0.0) & np.isfinite(conf))
     if bad.any():
@@ -72,8 +80,14 @@ def normalise_keypoint_scores(
             m,
             i,
         )
-    largest = float(conf[mask].max()) if mask.any() else 0.0
+    given = largest is not None
+    if not given:
+        largest = float(conf[mask].max()) if mask.any() else 0.0
     if largest <= SCORE_TOLERANCE:
         return clip_scores(conf, mask, error)
-    note = f"scores up to {largest:.4g} are not probabilities: all divided by the largest ({largest:.4g}), which becomes 1"
-    return np.where(mask, conf / largest, 0.0), note
+    return np.where(mask, conf / largest, 0.0), None if given else scaled_scores_note(largest)
+
+
+def scaled_scores_note(largest: float) -> str:
+    """What :func:`normalise_keypoint_scores` says when it divides every score by ``largest``."""
+    return f"scores up to {largest:.4g} are not probabilities: all divided by the largest ({largest:.4g}), which becomes 1"

@@ -60,6 +60,12 @@ def test_associate_writes_track_ids(tmp_path, capsys):
     assert main([*common, "--out", tmp_path / "a.npz"]) == 0
     with np.load(tmp_path / "a.npz") as z:
         assert sorted(np.unique(z["track_id"][z["valid"]])) == [0, 1]
+    # in parts of two frames (detections without classes, from one file): the same
+    assert main([*common, "--part-frames", "2", "--out", tmp_path / "b.npz"]) == 0
+    with np.load(tmp_path / "a.npz") as a, np.load(tmp_path / "b.npz") as b:
+        for name in ("labels", "groups", "valid", "track_id", "recovered", "xy", "mask"):
+            np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+        np.testing.assert_allclose(a["points3d"], b["points3d"], rtol=0, atol=1e-5)
     capsys.readouterr()
     with pytest.raises(SystemExit):
         main([*common, "--track-step-px", "0"])

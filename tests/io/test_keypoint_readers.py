@@ -247,3 +247,42 @@ def test_a_table_saved_with_a_byte_order_mark_reads(tmp_path):
     a, b = load_keypoint_table(plain), load_keypoint_table(marked)
     np.testing.assert_array_equal(a.xy, b.xy)
     assert a.class_names == b.class_names == ("nose",)
+
+
+@pytest.mark.parametrize("scale", [1.0, 50.0], ids=["probabilities", "another-scale"])
+def test_openpose_read_in_parts_as_the_whole(tmp_path, scale):
+    """A long recording read a part at a time: every part what the whole read gives for its
+    frames (slots as wide as the most people of any frame, scores by the whole's rule),
+    the whole's notes; a bad file in a later part is refused when the reader is made,
+    naming its frame as the whole does."""
+    from cdog_jax.io._keypoints import OpenPoseParts
+
+    rng = np.random.default_rng(0)
+    cameras = {"cam0": {}, "cam1": {}, "cam2": {}}
+    for f in range(7):
+        for m, cam in enumerate(cameras):
+            people = 1 + (f * 3 + m) % 3 if f != 4 else (1 if m == 0 else 0)  # frame 4: 1 view
+            cameras[cam][f"{10 + 2 * f:06d}_keypoints.json"] = [
+                [
+                    (float(x), float(y), float(s) * scale)
+                    for x, y, s in zip(*rng.uniform(0, 600, (2, 3)), rng.uniform(0.2, 1.05, 3))
+                ]
+                for _ in range(people)
+            ]
+    folder = _write_openpose(tmp_path / "pose", cameras)
+    whole = load_openpose(folder)
+    parts = OpenPoseParts(folder, part_frames=3)
+    assert [(p.start, p.stop) for p in parts.parts] == [(0, 3), (3, 6), (6, 7)]
+    read = [parts.read(k) for k in range(3)]
+    for name in ("xy", "mask", "confidence", "classes", "instances", "counts", "frame_ids"):
+        np.testing.assert_array_equal(
+            np.concatenate([getattr(d, name) for d in read]), getattr(whole, name), err_msg=name
+        )
+    assert sorted(parts.notes) == sorted(whole.notes) and len(whole.notes) >= 3
+    assert all(d.class_names == whole.class_names and d.frames for d in read)
+
+    with open(os.path.join(folder, "cam1", "000022_keypoints.json"), "w") as f:  # frame 6
+        json.dump({"people": [_person([(1.0, 2.0, -0.5)] * 3)]}, f)
+    for read_it in (lambda: load_openpose(folder), lambda: OpenPoseParts(folder, part_frames=3)):
+        with pytest.raises(InputError, match="frame 6, view 1, detection 0: score -0.5"):
+            read_it()
