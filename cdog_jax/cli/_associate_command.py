@@ -25,6 +25,7 @@ import argparse
 import contextlib
 import math
 import os
+import tempfile
 import time
 from typing import Any, NamedTuple
 
@@ -255,6 +256,9 @@ PART_FRAMES = 500
 """Frames of a recording associated at once by ``cdog-jax associate``: a longer one goes in
 parts (the tracks and people continue from part to part), so its memory stays that of one."""
 
+_DONE = object()
+"""What a streamed part's results are replaced with once written (they are not kept)."""
+
 _PROGRESS_STEPS = 20  # frames are associated in about this many calls, for the progress bar
 
 
@@ -426,6 +430,42 @@ class _Tally:
             self.shapes[key] = max(self.shapes[key], value)
 
 
+def _padded(det, F: int):
+    """``det`` with empty frames after its own, ``F`` in all."""
+    extra = F - det.mask.shape[0]
+
+    def pad(a, fill):
+        if a is None:
+            return None
+        return np.concatenate([a, np.full((extra, *a.shape[1:]), fill, a.dtype)])
+
+    return det._replace(
+        xy=pad(det.xy, 0),
+        mask=pad(det.mask, False),
+        confidence=pad(det.confidence, 0),
+        counts=pad(det.counts, 0),
+        classes=pad(det.classes, -1),
+        frame_ids=pad(det.frame_ids, -1),
+        instances=pad(det.instances, -1),
+    )
+
+
+def _first_frames(result, n: int):
+    """A result of frames (an association, a classed or tracked one, people) cut to its
+    first ``n`` frames."""
+    import jax
+
+    if result is None or not hasattr(result, "_fields"):  # an Association: every leaf
+        return None if result is None else jax.tree_util.tree_map(lambda a: a[:n], result)
+    fields = {}
+    for name, value in result._asdict().items():
+        if hasattr(value, "labels") and hasattr(value, "valid"):
+            fields[name] = _first_frames(value, n)
+        elif isinstance(value, (np.ndarray, jax.Array)) and value.ndim:
+            fields[name] = value[:n]
+    return result._replace(**fields)
+
+
 def _part_of(det, frames: slice):
     """The detections of ``frames`` of a whole recording's ``det``."""
     cut = lambda a: None if a is None else a[frames]  # noqa: E731
@@ -486,6 +526,7 @@ def run_associate(args: argparse.Namespace) -> int:
     from ..geometry._distortion import Fisheye
     from ..graph._sigma import FALLBACK_SIGMA_PX
     from ..io import save_association_csv, save_association_json, save_association_npz
+    from ..io._association_files import NpzParts, association_arrays
     from ..io._detections_checks import check_float_range
     from ..people._classes import associate_classes_at
     from ..people._persons import PersonLinker, concat_people, people_part
@@ -647,61 +688,90 @@ def run_associate(args: argparse.Namespace) -> int:
             if det.class_names is not None
             else (parts.reader.J if parts is not None else int(det.classes[det.mask].max()) + 1)
         )
-    kept, counts, most = [], [], []
+    ext = None if args.out is None else os.path.splitext(args.out)[1].lower()
+    # In parts, a .npz (or no file) keeps nothing of a part but its summary: the arrays wait
+    # on disk beside the output; the other formats gather the whole recording.
+    streamed = len(frames) > 1 and ext in (None, ".npz")
+    npz_parts = None
+    if streamed and ext == ".npz":  # removed when written, or when the process ends
+        waiting = tempfile.TemporaryDirectory(
+            prefix=".cdog-jax-parts-", dir=os.path.dirname(os.path.abspath(args.out))
+        )
+        npz_parts = NpzParts(waiting.name)
+    kept, counts, most, stats = [], [], [], []
     for k, part_frames in enumerate(frames):
         if len(frames) == 1:
             part = det
         else:
             part = _part_of(det, part_frames) if parts is None else parts.reader.read(k)
-        classed, tracked, people, result = associate_part(part)
+        n = part.mask.shape[0]
+        if len(frames) > 1 and n < args.part_frames:
+            # The last part, padded with empty frames to meet the other parts' programs
+            part = _padded(part, args.part_frames)
+            outputs = associate_part(part)
+            part = _part_of(part, slice(0, n))
+            classed, tracked, people, result = (_first_frames(x, n) for x in outputs)
+        else:
+            classed, tracked, people, result = associate_part(part)
         if classed is not None:
             counts.append(_class_counts(classed))
             most.append(_class_most(part, classed.num_classes))
+        stats.append(_stats(result if tracked is None else tracked.association, tracked, people))
+        if k == 0 and args.plot is not None:
+            first_result = jax.tree_util.tree_map(lambda a: a[:1], result)
         # Of a part, only what is written is kept (the next part's memory is the same).
-        if len(frames) > 1:
+        if npz_parts is not None:
+            arrays = association_arrays(
+                tracked,
+                xy=part.xy,
+                mask=part.mask,
+                confidence=part.confidence,
+                classes=part.classes,
+                people=people,
+            )
+            _write(args.out, "--out", lambda: npz_parts.add(arrays))
+        elif len(frames) > 1 and not streamed:
             kept.append((tracked, people, part.xy, part.mask, part.confidence, part.classes))
+        if streamed:  # nothing of this part stays alive while the next is associated
+            classed = tracked = result = people = part = arrays = _DONE
     class_counts = None if not counts else (np.concatenate(counts), np.concatenate(most))
-    if len(frames) > 1:
+    summary = _joined(stats)
+    if kept:
         tracked = concat_tracked([p[0] for p in kept])
         people = None if people is None else concat_people([p[1] for p in kept])
         cat = lambda i: None if kept[0][i] is None else np.concatenate([p[i] for p in kept])  # noqa: E731
         det = det._replace(xy=cat(2), mask=cat(3), confidence=cat(4), classes=cat(5))
-    if tracked is not None:
+    if tracked is not None and tracked is not _DONE:
         result = tracked.association
     elapsed = time.perf_counter() - t0
-    num_groups = np.asarray(result.num_groups)
-    n_views = np.asarray(result.n_views)[np.asarray(result.valid)]
-    err = np.asarray(result.err_px)[np.asarray(result.valid)]
-    assigned = int((np.asarray(result.labels) >= 0).sum())
+    num_groups = summary.num_groups
+    total = int(det.mask.sum()) if parts is None else parts.detections
     lines += [
         f"Associated with {args.method} (σ {'estimated' + (' (robust)' if estimator == 'robust' else '') if args.sigma == 'auto' else f'= {args.sigma:g} px'}, "
         f"min views {args.min_views}) in {elapsed:.2f} s including compilation",
         f"  3D points: {int(num_groups.sum())} ({num_groups.min()}–{num_groups.max()} per frame)"
         if F > 1
         else f"  3D points: {int(num_groups.sum())}",
-        f"  detections assigned: {assigned} of {int(det.mask.sum())}",
+        f"  detections assigned: {summary.assigned} of {total}",
     ]
-    if classed is not None:
+    if class_counts is not None:
         lines.append(_class_summary(*class_counts))
-    if people is not None:
-        lines.append(_people_summary(people))
-    if tracked is None and args.temporal_prior:  # asked for explicitly
+    if summary.people is not None:
+        lines.append(_people_summary(*summary.people))
+    if summary.tracks is None and args.temporal_prior:  # asked for explicitly
         lines.append(
             "  note: --temporal-prior needs a sequence of frames; one scene has nothing to carry over"
         )
-    if tracked is not None:
+    if summary.tracks is not None:
         lines.append(
-            f"  tracks: {tracked.num_tracks} over {F} frame(s)"
-            + (
-                f"; {int(np.asarray(tracked.recovered).sum())} point(s) recovered by the temporal prior"
-                if prior
-                else ""
-            )
+            f"  tracks: {summary.tracks} over {F} frame(s)"
+            + (f"; {summary.recovered} point(s) recovered by the temporal prior" if prior else "")
         )
-        if int(tracked.unplaced.sum()):
+        if summary.unplaced:
             lines.append(
-                f"  warning: the temporal prior found {int(tracked.unplaced.sum())} point(s) it had no room to store"
+                f"  warning: the temporal prior found {summary.unplaced} point(s) it had no room to store"
             )
+    n_views, err = summary.n_views, summary.err
     if n_views.size:
         counts = np.bincount(n_views, minlength=M + 1)
         lines.append(
@@ -712,10 +782,10 @@ def run_associate(args: argparse.Namespace) -> int:
             f"  reprojection error err_px (mean distance over a group's views): mean {err.mean():.2f} px, "
             f"median {np.median(err):.2f}, max {err.max():.2f}"
         )
-    fallback = np.flatnonzero(np.asarray(result.status) & int(Status.SIGMA_FALLBACK))
+    fallback = np.flatnonzero(summary.status & int(Status.SIGMA_FALLBACK))
     lines.append(
         "  σ used: "
-        + ", ".join(f"{s:.2f}" for s in np.asarray(result.sigma_px)[:8])
+        + ", ".join(f"{s:.2f}" for s in summary.sigma[:8])
         + (" …" if F > 8 else "")
         + " px"
         + (
@@ -727,7 +797,7 @@ def run_associate(args: argparse.Namespace) -> int:
     )
     from .._status import status_messages
 
-    status = np.asarray(result.status).reshape(-1)
+    status = summary.status
     for flag in Status:  # the σ fallback is said on the line above
         hit = (
             int(np.count_nonzero(status & int(flag)))
@@ -736,7 +806,11 @@ def run_associate(args: argparse.Namespace) -> int:
         )
         if hit:
             lines.append(f"  warning: {hit} of {F} frame(s): {status_messages(int(flag))[0]}")
-    if args.out is not None:
+    if npz_parts is not None:
+        _write(args.out, "--out", lambda: npz_parts.write(args.out))
+        waiting.cleanup()
+        lines.append(f"Wrote {args.out}")
+    elif args.out is not None:
         one = F == 1 and not det.frames
         frame = (lambda a: a[0]) if one else (lambda a: a)
         assoc = jax.tree_util.tree_map(frame, result)
@@ -747,7 +821,6 @@ def run_associate(args: argparse.Namespace) -> int:
             assoc = tracked
         elif classed is not None:
             assoc = classed._replace(association=assoc, group_class=frame(classed.group_class))
-        ext = os.path.splitext(args.out)[1].lower()
         if ext == ".json":
             _write(
                 args.out,
@@ -774,7 +847,7 @@ def run_associate(args: argparse.Namespace) -> int:
         from ..synthetic import intrinsics_image_size
         from ..viz import plot_association
 
-        first = jax.tree_util.tree_map(lambda a: a[0], result)
+        first = jax.tree_util.tree_map(lambda a: a[0], first_result)
         size = rig_file.image_size or intrinsics_image_size(rig.K)
         _write(
             args.plot,
@@ -794,22 +867,84 @@ def run_associate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _people_summary(people) -> str:
-    """People: ids, most per frame, and the frames where people merge or split."""
-    present = np.asarray(people.person_id) >= 0
+def _people_summary(num_people: int, present, merged, split, mixed: int) -> str:
+    """People: ids, most per frame (``present (F,)``), and the frames where people merge or
+    split (``merged``, ``split (F,)`` bool)."""
     F = present.shape[0]
-    text = f"  people: {people.num_people} id(s) over {F} frame(s), at most {int(present.sum(axis=1).max())} per frame"
-    flags = [
-        (np.asarray(people.merged).any(axis=1), "two people merged into one"),
-        (np.asarray(people.split).any(axis=1), "a person split in two"),
-    ]
+    text = f"  people: {num_people} id(s) over {F} frame(s), at most {int(present.max())} per frame"
+    flags = [(merged, "two people merged into one"), (split, "a person split in two")]
     for hit, what in flags:
         if hit.any():
             text += f"; warning: {what} in {int(hit.sum())} frame(s) (first: frame {int(np.argmax(hit))})"
-    mixed = int(np.asarray(people.mixed).sum())
     if mixed:
         text += f"; warning: {mixed} group(s) hold detections of two people"
     return text
+
+
+class _Stats(NamedTuple):
+    """What the summary says of a part's results (or of every part's, :func:`_joined`)."""
+
+    num_groups: np.ndarray  # (F,)
+    n_views: np.ndarray  # every valid group's
+    err: np.ndarray  # every valid group's err_px
+    assigned: int  # detections in a group
+    sigma: np.ndarray  # (F,) σ used
+    status: np.ndarray  # (F,)
+    tracks: int | None
+    recovered: int
+    unplaced: int
+    people: tuple | None  # (ids given, people per frame, merged, split (F,), mixed groups)
+
+
+def _stats(result, tracked, people) -> _Stats:
+    valid = np.asarray(result.valid)
+    people_stats = None
+    if people is not None:
+        people_stats = (
+            people.num_people,
+            (np.asarray(people.person_id) >= 0).sum(axis=1),
+            np.asarray(people.merged).any(axis=1),
+            np.asarray(people.split).any(axis=1),
+            int(np.asarray(people.mixed).sum()),
+        )
+    return _Stats(
+        num_groups=np.asarray(result.num_groups).reshape(-1),
+        n_views=np.asarray(result.n_views)[valid],
+        err=np.asarray(result.err_px)[valid],
+        assigned=int((np.asarray(result.labels) >= 0).sum()),
+        sigma=np.asarray(result.sigma_px).reshape(-1),
+        status=np.asarray(result.status).reshape(-1),
+        tracks=None if tracked is None else tracked.num_tracks,
+        recovered=0 if tracked is None else int(np.asarray(tracked.recovered).sum()),
+        unplaced=0 if tracked is None else int(np.asarray(tracked.unplaced).sum()),
+        people=people_stats,
+    )
+
+
+def _joined(stats: list[_Stats]) -> _Stats:
+    """The summary of parts of one recording, one after the other."""
+    if len(stats) == 1:
+        return stats[0]
+    cat = lambda values: np.concatenate(list(values))  # noqa: E731
+    people = None
+    if stats[0].people is not None:
+        people = (
+            stats[-1].people[0],
+            *(cat(s.people[k] for s in stats) for k in (1, 2, 3)),
+            sum(s.people[4] for s in stats),
+        )
+    return _Stats(
+        num_groups=cat(s.num_groups for s in stats),
+        n_views=cat(s.n_views for s in stats),
+        err=cat(s.err for s in stats),
+        assigned=sum(s.assigned for s in stats),
+        sigma=cat(s.sigma for s in stats),
+        status=cat(s.status for s in stats),
+        tracks=None if stats[0].tracks is None else max(s.tracks for s in stats),
+        recovered=sum(s.recovered for s in stats),
+        unplaced=sum(s.unplaced for s in stats),
+        people=people,
+    )
 
 
 def _write_trc(args, people, tracked) -> str:

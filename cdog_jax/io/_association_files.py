@@ -363,9 +363,21 @@ def save_association_npz(
     ``mixed (F, G)``, and the skeletons ``people_points (F, N, C, 3)`` (NaN: not seen),
     ``people_id (F, N)`` (-1: padding), ``people_merged``, ``people_split (F, N)``. Read it
     with ``np.load``."""
+    expect_args("save_association_npz", path=(path, PATH))
+    arrays = association_arrays(
+        assoc, xy=xy, mask=mask, confidence=confidence, classes=classes, people=people
+    )
+    with atomic_write(path, "wb") as f:  # a file object: np.savez would append ".npz" to a str path
+        np.savez(f, **arrays)
+
+
+def association_arrays(
+    assoc: Any, *, xy=None, mask=None, confidence=None, classes=None, people=None
+) -> dict[str, np.ndarray]:
+    """The arrays :func:`save_association_npz` writes, by name."""
     tracks, recovered = _tracks(assoc)
     assoc, group_class, names = _unpack(assoc)
-    expect_args("save_association_npz", path=(path, PATH), assoc=(assoc, _ASSOCIATION))
+    expect_args("save_association_npz", assoc=(assoc, _ASSOCIATION))
     arrays = _host(assoc)
     if group_class is not None:
         arrays["group_class"] = group_class
@@ -390,8 +402,81 @@ def save_association_npz(
     for name, v in (("xy", xy), ("mask", mask), ("confidence", confidence), ("classes", classes)):
         if v is not None:
             arrays[name] = np.asarray(v)
-    with atomic_write(path, "wb") as f:  # a file object: np.savez would append ".npz" to a str path
-        np.savez(f, **arrays)
+    return arrays
+
+
+# What pads the arrays of a part whose rows (groups, people) are fewer than another part's.
+_PADDING = {
+    "labels": -1,
+    "groups": -1,
+    "valid": False,
+    "points3d": 0,
+    "bpe": 0,
+    "err_px": 0,
+    "n_views": 0,
+    "group_class": -1,
+    "track_id": -1,
+    "recovered": False,
+    "person_id": -1,
+    "mixed": False,
+    "people_points": np.nan,
+    "people_id": -1,
+    "people_merged": False,
+    "people_split": False,
+    "xy": 0,
+    "mask": False,
+    "confidence": 0,
+    "classes": -1,
+}
+
+
+class NpzParts:
+    """The ``.npz`` of :func:`save_association_npz` for a recording given a part at a time
+    (:meth:`add`, the arrays of :func:`association_arrays` of each part, frames in order),
+    kept on disk in ``folder`` until :meth:`write` writes the file: every array the parts'
+    one after the other along frames, other axes padded to the widest part's (empty groups
+    and people); ``class_names`` the first part's. Memory: one part's arrays at a time."""
+
+    def __init__(self, folder: str):
+        self.folder = folder
+        self.parts: list[dict[str, tuple[str, tuple, np.dtype]]] = []
+
+    def add(self, arrays: dict[str, np.ndarray]) -> None:
+        stored = {}
+        for name, a in arrays.items():
+            file = os.path.join(self.folder, f"{len(self.parts)}_{name}.npy")
+            np.save(file, a)
+            stored[name] = (file, a.shape, a.dtype)
+        self.parts.append(stored)
+
+    def write(self, path: PathLike) -> None:
+        import zipfile
+
+        names = list(self.parts[0])
+        if any(list(p) != names for p in self.parts):
+            raise ValueError("NpzParts: every part must hold the same arrays")
+        with atomic_write(path, "wb") as f, zipfile.ZipFile(f, "w", zipfile.ZIP_STORED) as z:
+            for name in names:
+                if name == "class_names":
+                    with z.open(f"{name}.npy", "w", force_zip64=True) as out:
+                        np.lib.format.write_array(out, np.load(self.parts[0][name][0]))
+                    continue
+                shapes = [p[name][1] for p in self.parts]
+                dtype = self.parts[0][name][2]
+                shape = (
+                    sum(s[0] for s in shapes),
+                    *(max(s[k] for s in shapes) for k in range(1, len(shapes[0]))),
+                )
+                header = {"descr": np.lib.format.dtype_to_descr(dtype), "fortran_order": False}
+                with z.open(f"{name}.npy", "w", force_zip64=True) as out:
+                    np.lib.format.write_array_header_2_0(out, {**header, "shape": shape})
+                    for part in self.parts:
+                        a = np.load(part[name][0], mmap_mode="r")
+                        if a.shape[1:] != shape[1:]:
+                            wide = np.full((a.shape[0], *shape[1:]), _PADDING[name], dtype)
+                            wide[tuple(slice(0, n) for n in a.shape)] = a
+                            a = wide
+                        out.write(np.ascontiguousarray(a).tobytes())
 
 
 def save_association_csv(path: PathLike, assoc: Any, *, people: Any = None) -> None:
