@@ -430,23 +430,35 @@ class _Tally:
             self.shapes[key] = max(self.shapes[key], value)
 
 
+# The per-frame arrays of detections, and what pads them (an empty frame).
+_FRAME_ARRAYS = (
+    ("xy", 0),
+    ("mask", False),
+    ("confidence", 0),
+    ("counts", 0),
+    ("classes", -1),
+    ("frame_ids", -1),
+    ("instances", -1),
+)
+
+
+def _each_frame_array(det, change):
+    """``det`` with ``change(array, fill)`` of each of its per-frame arrays."""
+    arrays = {name: getattr(det, name) for name, _ in _FRAME_ARRAYS}
+    return det._replace(
+        **{
+            name: None if arrays[name] is None else change(arrays[name], fill)
+            for name, fill in _FRAME_ARRAYS
+        }
+    )
+
+
 def _padded(det, F: int):
     """``det`` with empty frames after its own, ``F`` in all."""
     extra = F - det.mask.shape[0]
-
-    def pad(a, fill):
-        if a is None:
-            return None
-        return np.concatenate([a, np.full((extra, *a.shape[1:]), fill, a.dtype)])
-
-    return det._replace(
-        xy=pad(det.xy, 0),
-        mask=pad(det.mask, False),
-        confidence=pad(det.confidence, 0),
-        counts=pad(det.counts, 0),
-        classes=pad(det.classes, -1),
-        frame_ids=pad(det.frame_ids, -1),
-        instances=pad(det.instances, -1),
+    return _each_frame_array(
+        det,
+        lambda a, fill: np.concatenate([a, np.full((extra, *a.shape[1:]), fill, a.dtype)]),
     )
 
 
@@ -468,16 +480,7 @@ def _first_frames(result, n: int):
 
 def _part_of(det, frames: slice):
     """The detections of ``frames`` of a whole recording's ``det``."""
-    cut = lambda a: None if a is None else a[frames]  # noqa: E731
-    return det._replace(
-        xy=det.xy[frames],
-        mask=det.mask[frames],
-        confidence=cut(det.confidence),
-        counts=det.counts[frames],
-        classes=cut(det.classes),
-        frame_ids=cut(det.frame_ids),
-        instances=cut(det.instances),
-    )
+    return _each_frame_array(det, lambda a, _: a[frames])
 
 
 def refuse_camera_to_world(rig_file, path: str, det=None) -> None:
