@@ -467,14 +467,16 @@ def _first_frames(result, n: int):
     first ``n`` frames."""
     import jax
 
+    # On the host: slicing a device array would be an eager operation, compiled per shape.
     if result is None or not hasattr(result, "_fields"):  # an Association: every leaf
-        return None if result is None else jax.tree_util.tree_map(lambda a: a[:n], result)
+        cut = lambda a: np.asarray(a)[:n]  # noqa: E731
+        return None if result is None else jax.tree_util.tree_map(cut, result)
     fields = {}
     for name, value in result._asdict().items():
         if hasattr(value, "labels") and hasattr(value, "valid"):
             fields[name] = _first_frames(value, n)
         elif isinstance(value, (np.ndarray, jax.Array)) and value.ndim:
-            fields[name] = value[:n]
+            fields[name] = np.asarray(value)[:n]
     return result._replace(**fields)
 
 
@@ -721,7 +723,7 @@ def run_associate(args: argparse.Namespace) -> int:
             most.append(_class_most(part, classed.num_classes))
         stats.append(_stats(result if tracked is None else tracked.association, tracked, people))
         if k == 0 and args.plot is not None:
-            first_result = jax.tree_util.tree_map(lambda a: a[:1], result)
+            first_result = jax.tree_util.tree_map(lambda a: np.asarray(a)[:1], result)
         # Of a part, only what is written is kept (the next part's memory is the same).
         if npz_parts is not None:
             arrays = association_arrays(
