@@ -708,7 +708,11 @@ def run_associate(args: argparse.Namespace) -> int:
         if len(frames) == 1:
             part = det
         else:
-            part = _part_of(det, part_frames) if parts is None else parts.reader.read(k)
+            part = (
+                _part_of(det, part_frames)
+                if parts is None
+                else (det if k == 0 else parts.reader.read(k))  # det: the first part, read
+            )
         n = part.mask.shape[0]
         if len(frames) > 1 and n < args.part_frames:
             # The last part, padded with empty frames to meet the other parts' programs

@@ -288,6 +288,7 @@ class OpenPoseParts:
         F = len(files.frame_ids)
         self.parts = [slice(s, min(F, s + part_frames)) for s in range(0, F, part_frames)]
         self._image_size = image_size
+        self.class_names = None  # known once every file is read (the keypoint count)
         most, largest, paired, notes = 1, 0.0, False, []
         clipped, clipped_top = 0, 0.0  # scores in (1, SCORE_TOLERANCE]
         hopeless = [np.zeros(0, np.int64)]  # frames without detections in 2 views
@@ -297,7 +298,7 @@ class OpenPoseParts:
                 continue
             score = rows[..., 2]
             mask = score != 0.0
-            most = max(most, -(-rows.shape[2] // J))
+            most = max(most, rows.shape[2] // J)  # the part's most people in one file
             own = float(score[mask].max()) if mask.any() else 0.0
             largest = max(largest, own)
             above = mask & (score > 1.0) & (score <= SCORE_TOLERANCE)
@@ -340,7 +341,7 @@ class OpenPoseParts:
         return _keypoint_detections(
             rows,
             classes,
-            getattr(self, "class_names", None),
+            self.class_names,
             self.frame_ids[part],
             where,
             notes,
