@@ -210,13 +210,16 @@ def focal_scale(K):
 
 
 def _log_q(a):
-    """``log Q(a) = log P(Z > a)`` for a ≥ 0, stable in the tail."""
+    """``log Q(a) = log P(Z > a)`` for a ≥ 0, stable in the tail: float64's ``erfc`` up to
+    37 (before it underflows), the asymptotic series beyond (its next term ≤ 1e-12)."""
     return np.array(
         [
             math.log(0.5 * math.erfc(v / math.sqrt(2.0)))
-            if v < 30
-            else -0.5 * v * v - math.log(v * math.sqrt(2.0 * math.pi)) + math.log1p(-1.0 / (v * v))
-            for v in np.atleast_1d(a)
+            if v < 37
+            else -0.5 * v * v
+            - math.log(v * math.sqrt(2.0 * math.pi))
+            + math.log1p(-1.0 / v**2 + 3.0 / v**4 - 15.0 / v**6)
+            for v in np.atleast_1d(np.asarray(a, np.float64))
         ]
     )
 

@@ -10,6 +10,7 @@ import pytest
 import cdog_jax
 from cdog_jax import LiveAssociator, associate_sequence
 from cdog_jax.io import detections_from_array
+from cdog_jax.people import _classes as people_classes
 from cdog_jax.synthetic import default_rig, generate_skeleton_scenes
 
 M, PEOPLE, FRAMES, J = 4, 2, 6, 17
@@ -78,6 +79,38 @@ def test_nothing_compiled_after_the_first_frame(walk):
     finally:
         jax.monitoring.unregister_event_duration_listener(listener)
     assert lowered == [] and live.compiles == 0
+
+
+def test_sigma_fits_of_other_widths_compile_nothing(walk, monkeypatch):
+    """Frames of few and many detections: each frame's σ fit runs on the narrowest table
+    that holds its samples (all warmed on the first frame), the same answers as offline."""
+    rig, xy, mask, _ = walk
+    keep = (
+        np.random.default_rng(0).random(mask.shape)
+        < np.array([1, 0.4, 0.9, 0.3, 1, 0.5])[:, None, None]
+    )
+    mask = mask & keep
+    offline = associate_sequence(rig, xy, mask)
+    live = LiveAssociator(rig, slots=32)
+    _assert_same_frame(live.update(xy[0], mask[0]), offline, 0, classed=False)
+    widths, fit = [], people_classes._chunked_fit
+    monkeypatch.setattr(
+        people_classes,
+        "_chunked_fit",
+        lambda f, t, *a: widths.append(t[0].shape[1]) or fit(f, t, *a),
+    )
+    lowered = []
+    listener = lambda name, secs, **kw: (
+        lowered.append(kw.get("fun_name")) if name == LOWERING else None
+    )  # noqa: E731
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        for f in range(1, FRAMES):
+            _assert_same_frame(live.update(xy[f], mask[f]), offline, f, classed=False)
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)
+    assert lowered == [] and live.compiles == 0
+    assert len(set(widths)) > 1 and max(widths) < live._fit_widths[-1]
 
 
 def test_a_frame_that_does_not_fit_raises_its_capacity_once(walk):

@@ -24,7 +24,7 @@ of the focal length; then ``σ = FALLBACK_SIGMA_PX``.
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax.scipy.special import erfinv, log_ndtr
+from jax.scipy.special import erfinv
 
 from .._types import Array, Bool, Float
 
@@ -53,12 +53,35 @@ def nearest_samples(
     return jnp.where(ok, x, 0.0), jnp.where(ok, 0.5, 0.0).astype(d.dtype), count
 
 
+SERIES_FROM = {4: 10.0, 8: 30.0}
+"""log_half_normal_tail's switch to the asymptotic series, by bytes per float: where ``erfc``
+nears the smallest numbers of float32 (as ``log_ndtr``'s switch) and of float64."""
+
+
+def log_half_normal_tail(a: Float[Array, " S"]) -> Float[Array, " S"]:
+    """``log Q(a) = log P(Z > a)`` of a standard normal for ``a ≥ 0``: ``log_ndtr(-a)``
+    within round-off at a third of its cost (the EM's largest): ``½ erfc(a / √2)`` up to
+    :data:`SERIES_FROM`, the first terms of the asymptotic series beyond; ``log_ndtr``
+    evaluates both ``erf`` and ``erfc`` and its series on every entry."""
+    switch = SERIES_FROM[jnp.dtype(a.dtype).itemsize]
+    near = jnp.log(0.5 * jax.lax.erfc(jnp.minimum(a, switch) * np.sqrt(0.5)))
+    far = jnp.maximum(a, switch)
+    inv2 = 1.0 / (far * far)
+    series = (
+        -0.5 * far * far
+        - jnp.log(far)
+        - 0.5 * np.log(2.0 * np.pi)
+        + jnp.log1p(inv2 * (-1.0 + inv2 * (3.0 - 15.0 * inv2)))
+    )
+    return jnp.where(a < switch, near, series)
+
+
 def half_normal_beyond_moment(x: Float[Array, " S"], c: Float[Array, ""]) -> Float[Array, " S"]:
     """``E[T² | T > x]`` (px²) of a half-normal ``T`` of scale ``c``, per sample:
     ``c² (1 + a φ(a) / Q(a))`` with ``a = x / c``."""
     a = x / c
     # a < φ(a) / Q(a) < a + 1/a bounds the round-off of the ratio far in the tail.
-    mills = jnp.exp(-0.5 * a * a - 0.5 * jnp.log(2.0 * jnp.pi) - log_ndtr(-a))
+    mills = jnp.exp(-0.5 * a * a - 0.5 * jnp.log(2.0 * jnp.pi) - log_half_normal_tail(a))
     mills = jnp.clip(mills, a, a + 1.0 / jnp.maximum(a, MIN_SCALE_PX))
     return c * c * (1.0 + a * mills)
 
@@ -90,7 +113,7 @@ def _log_parts(x, count, c, inv_kappa, pi, width):
     """Log joint density ``(4, S)`` of every sample, the true-pair distance half-normal."""
     a = x / c
     log_hn = 0.5 * jnp.log(2.0 / jnp.pi) - jnp.log(c) - 0.5 * a * a
-    log_t_beyond = jnp.log(2.0) + log_ndtr(-a)  # log P(T > x)
+    log_t_beyond = jnp.log(2.0) + log_half_normal_tail(a)  # log P(T > x)
     return mixture_log_parts(x, count, log_hn, log_t_beyond, inv_kappa, pi, width)
 
 

@@ -487,6 +487,30 @@ def _pooled_sigma(
     return sigma if pool == "frame" else np.full(F, sigma[0])
 
 
+def sigma_fit_widths(most: int) -> list[int]:
+    """The σ fit's table widths of one frame whose used samples number at most ``most``:
+    the ladder rungs from a quarter of ``most``'s rung up to it (five). A caller that must
+    never compile after warming up (a live loop) warms these (:func:`warm_sigma_fits`) and
+    gives the first as ``min_samples``: each frame's fit then runs on the table its samples
+    need, not on the fullest frame's (its cost is per entry; σ is bitwise the same)."""
+    widths = [ladder_rung(most, 16)]
+    while len(widths) < 5 and widths[-1] > 16:  # down the ladder: ×¾ from 2^k, ×⅔ from 1.5 · 2^k
+        top = widths[-1]
+        widths.append(top * 3 // 4 if top & (top - 1) == 0 else top * 2 // 3)
+    return widths[::-1]
+
+
+def warm_sigma_fits(rig, widths, dtype, sigma_mode: str = "auto") -> None:
+    """Compile (or load) the σ fit of one frame for each table width in ``widths``
+    (:func:`sigma_fit_widths`), as :func:`associate_classes` runs it for ``sigma_mode``
+    (``"robust"``: the robust estimator) on ``dtype`` detections."""
+    robust = sigma_mode == "robust"
+    focal = focal_scale(np.asarray(rig.K))
+    for width in widths:
+        tables = [np.zeros((1, width), dtype) for _ in range(4 if robust else 3)]
+        _chunked_fit(_pooled_robust_fit if robust else _pooled_fit, tables, focal)
+
+
 FIT_ELEMENTS = 1 << 18
 """Entries (rows × samples) of the σ fit's table in one call: a long recording's frames are
 fitted in chunks of rows (the last padded with empty rows), so that the EM's temporaries stay

@@ -26,7 +26,12 @@ from .._runtime.shapes import ladder_rung, slot_capacity
 from .._validate import as_array, check_observations, check_rig
 from ..geometry._camera import Rig
 from ..geometry._distortion import as_lens, undistorted_frames
-from ..people._classes import associate_classes_at, given_classes
+from ..people._classes import (
+    associate_classes_at,
+    given_classes,
+    sigma_fit_widths,
+    warm_sigma_fits,
+)
 from ..people._persons import PersonLinker, PersonVote, people_of_frame
 from ._tracks import (
     DEFAULT_MAX_STEP_PX,
@@ -180,6 +185,7 @@ class LiveAssociator:
         self.rows = ladder_rung(self.num_classes * self.slots // 2, 8)
         self.compiles = 0
         self._compiled = False
+        self._fit_widths = [0]  # set on the first frame
         self.reset()
 
     @property
@@ -219,11 +225,14 @@ class LiveAssociator:
         order = np.argsort(~mask, axis=1, kind="stable")
         count = int(mask.sum(axis=1).max())
         per_class = _most_per_class(mask, classes, self.num_classes)
-        if per_class > self.slots:
+        raised = per_class > self.slots
+        if raised:
             what = "of one class " if self.classed else ""
             self._raise(
                 "slots", slot_capacity(per_class), f"{per_class} detections {what}in one view"
             )
+        if raised or not self._compiled:
+            self._warm_sigma_fits(M)
 
         def pad(a, fill):
             packed = np.take_along_axis(
@@ -251,8 +260,7 @@ class LiveAssociator:
             min_scenes=self.num_classes,
             min_slots=self.slots,
             batch_size=self.num_classes,  # one program of exactly one scene per class
-            min_samples=self.num_classes * self.slots * M * (M - 1)
-            + 1,  # σ fit: a frame that fits, + 1
+            min_samples=self._fit_widths[0],
         )
         assoc = result.association
         found = int(np.asarray(assoc.num_groups)[0])
@@ -376,6 +384,15 @@ class LiveAssociator:
                     f"LiveAssociator.update: instances must be integer indices of shape {mask.shape}; got {instances.shape}"
                 )
         return xy.astype(self.dtype), mask.astype(bool), classes, instances
+
+    def _warm_sigma_fits(self, M: int) -> None:
+        """The σ fit's table widths for the current slots, each compiled now: a frame's fit
+        then runs on the narrowest that holds its samples (a few programs, at every rung of
+        the upper quarter of the fullest frame's table), not on the fullest frame's."""
+        most = self.num_classes * self.slots * M * (M - 1) + 1  # a frame that fits, + 1
+        self._fit_widths = sigma_fit_widths(most)
+        if self.sigma == "auto" or self.method.sigma_mode != "given":  # the fit runs
+            warm_sigma_fits(self.rig, self._fit_widths, self.dtype, self.method.sigma_mode)
 
     def _table_rows(self, rows: int) -> int:
         """Rows of the tracker's frame table: the groups', then as many free rows for

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from helpers import random_scene, ring_rig
 from oracle import (
+    _log_q as oracle_log_q,
     epipolar_distance_table,
     estimate_sigma as oracle_auto,
     estimate_sigma_robust as oracle_robust,
@@ -15,7 +16,13 @@ from oracle import (
 )
 
 from cdog_jax.geometry import epipolar_distances
-from cdog_jax.graph._sigma import FALLBACK_SIGMA_PX, estimate_sigma, focal_scale
+from cdog_jax.graph._sigma import (
+    FALLBACK_SIGMA_PX,
+    SERIES_FROM,
+    estimate_sigma,
+    focal_scale,
+    log_half_normal_tail,
+)
 from cdog_jax.graph._sigma_robust import GAUSS_COVERAGE, estimate_noise, estimate_sigma_robust
 
 ESTIMATORS = {
@@ -149,3 +156,24 @@ def test_matches_oracle(estimator):
                 want = oracle_auto(d, mask, focal)
             assert got[1] == want[1]
             assert got[0] == pytest.approx(want[0], rel=1e-6)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_log_half_normal_tail_matches_oracle(dtype):
+    """log Q(a) on both sides of the switch to the series, far into the tail and at the
+    edges (0, where float32's a² overflows, ∞), against the oracle's float64 erfc."""
+    a = np.concatenate(
+        [
+            np.linspace(0.0, 40.0, 4001),
+            *(s + np.array([-1e-3, 0.0, 1e-3]) for s in SERIES_FROM.values()),
+            [1e3, 1e6],
+        ]
+    )
+    with jax.enable_x64(dtype == np.float64):
+        got = np.asarray(jax.jit(log_half_normal_tail)(jnp.asarray(a, dtype)), np.float64)
+        edge = np.asarray(log_half_normal_tail(jnp.asarray([0.0, 1e20, np.inf], dtype)))
+    want = oracle_log_q(a.astype(dtype))
+    assert np.all(np.isfinite(got))
+    np.testing.assert_allclose(got, want, rtol=2e-6 if dtype == np.float32 else 1e-12)
+    assert edge[0] == pytest.approx(np.log(0.5)) and edge[2] == -np.inf
+    assert edge[1] < 0 and not np.isnan(edge[1])
