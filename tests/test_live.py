@@ -3,6 +3,8 @@ offline sequence functions on the same frames; nothing compiled after the first 
 frames that fit; a frame that does not fit raises a capacity once, said so; bad frames are
 refused before any work and leave the state as it was."""
 
+import contextlib
+
 import jax
 import numpy as np
 import pytest
@@ -63,21 +65,28 @@ def test_without_classes_same_answers_as_the_offline_sequence(walk):
         _assert_same_frame(live.update(xy[f], mask[f]), offline, f, classed=False)
 
 
+@contextlib.contextmanager
+def _lowered():
+    """The names of the programs JAX lowers inside the block (a list, filled as it runs)."""
+    lowered = []
+    listener = lambda name, secs, **kw: (  # noqa: E731
+        lowered.append(kw.get("fun_name")) if name == LOWERING else None
+    )
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        yield lowered
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)
+
+
 def test_nothing_compiled_after_the_first_frame(walk):
     rig, xy, mask, classes = walk
     live = LiveAssociator(rig, num_classes=J, temporal_prior=True)
     live.update(xy[0], mask[0], classes=classes[0])
-    lowered = []
-    listener = lambda name, secs, **kw: (
-        lowered.append(kw.get("fun_name")) if name == LOWERING else None
-    )  # noqa: E731
-    jax.monitoring.register_event_duration_secs_listener(listener)
-    try:
+    with _lowered() as lowered:
         for f in range(1, FRAMES):
             keep = np.random.default_rng(f).random(mask[f].shape) > 0.2  # frames of other counts
             live.update(xy[f], mask[f] & keep, classes=classes[f])
-    finally:
-        jax.monitoring.unregister_event_duration_listener(listener)
     assert lowered == [] and live.compiles == 0
 
 
@@ -99,16 +108,9 @@ def test_sigma_fits_of_other_widths_compile_nothing(walk, monkeypatch):
         "_chunked_fit",
         lambda f, t, *a: widths.append(t[0].shape[1]) or fit(f, t, *a),
     )
-    lowered = []
-    listener = lambda name, secs, **kw: (
-        lowered.append(kw.get("fun_name")) if name == LOWERING else None
-    )  # noqa: E731
-    jax.monitoring.register_event_duration_secs_listener(listener)
-    try:
+    with _lowered() as lowered:
         for f in range(1, FRAMES):
             _assert_same_frame(live.update(xy[f], mask[f]), offline, f, classed=False)
-    finally:
-        jax.monitoring.unregister_event_duration_listener(listener)
     assert lowered == [] and live.compiles == 0
     assert len(set(widths)) > 1 and max(widths) < live._fit_widths[-1]
 

@@ -531,7 +531,7 @@ def run_associate(args: argparse.Namespace) -> int:
     from ..geometry._distortion import Fisheye
     from ..graph._sigma import FALLBACK_SIGMA_PX
     from ..io import save_association_csv, save_association_json, save_association_npz
-    from ..io._association_files import NpzParts, association_arrays
+    from ..io._association_files import CsvParts, JsonParts, NpzParts, association_arrays
     from ..io._detections_checks import check_float_range
     from ..people._classes import associate_classes_at
     from ..people._persons import PersonLinker, concat_people, people_part
@@ -694,15 +694,16 @@ def run_associate(args: argparse.Namespace) -> int:
             else (parts.reader.J if parts is not None else int(det.classes[det.mask].max()) + 1)
         )
     ext = None if args.out is None else os.path.splitext(args.out)[1].lower()
-    # In parts, a .npz (or no file) keeps nothing of a part but its summary: the arrays wait
-    # on disk beside the output; the other formats gather the whole recording.
-    streamed = len(frames) > 1 and ext in (None, ".npz")
-    npz_parts = None
-    if streamed and ext == ".npz":  # removed when written, or when the process ends
+    # In parts, a .npz, .json, .csv (or no file) keeps nothing of a part but its summary:
+    # what is written of it waits on disk beside the output; a .trc gathers the recording.
+    parts_writer = {".npz": NpzParts, ".json": JsonParts, ".csv": CsvParts}.get(ext)
+    streamed = len(frames) > 1 and (ext is None or parts_writer is not None)
+    out_parts = None
+    if streamed and ext is not None:  # removed when written, or when the process ends
         waiting = tempfile.TemporaryDirectory(
             prefix=".cdog-jax-parts-", dir=os.path.dirname(os.path.abspath(args.out))
         )
-        npz_parts = NpzParts(waiting.name)
+        out_parts = parts_writer(waiting.name)
     kept, counts, most, stats = [], [], [], []
     for k, part_frames in enumerate(frames):
         if len(frames) == 1:
@@ -729,7 +730,7 @@ def run_associate(args: argparse.Namespace) -> int:
         if k == 0 and args.plot is not None:
             first_result = jax.tree_util.tree_map(lambda a: np.asarray(a)[:1], result)
         # Of a part, only what is written is kept (the next part's memory is the same).
-        if npz_parts is not None:
+        if ext == ".npz" and out_parts is not None:
             arrays = association_arrays(
                 tracked,
                 xy=part.xy,
@@ -738,7 +739,22 @@ def run_associate(args: argparse.Namespace) -> int:
                 classes=part.classes,
                 people=people,
             )
-            _write(args.out, "--out", lambda: npz_parts.add(arrays))
+            _write(args.out, "--out", lambda: out_parts.add(arrays))
+        elif ext == ".json" and out_parts is not None:
+            _write(
+                args.out,
+                "--out",
+                lambda: out_parts.add(
+                    tracked,
+                    part.xy,
+                    part.mask,
+                    confidence=part.confidence,
+                    classes=part.classes,
+                    people=people,
+                ),
+            )
+        elif ext == ".csv" and out_parts is not None:
+            _write(args.out, "--out", lambda: out_parts.add(tracked, people=people))
         elif len(frames) > 1 and not streamed:
             kept.append((tracked, people, part.xy, part.mask, part.confidence, part.classes))
         if streamed:  # nothing of this part stays alive while the next is associated
@@ -815,8 +831,8 @@ def run_associate(args: argparse.Namespace) -> int:
         )
         if hit:
             lines.append(f"  warning: {hit} of {F} frame(s): {status_messages(int(flag))[0]}")
-    if npz_parts is not None:
-        _write(args.out, "--out", lambda: npz_parts.write(args.out))
+    if out_parts is not None:
+        _write(args.out, "--out", lambda: out_parts.write(args.out))
         waiting.cleanup()
         lines.append(f"Wrote {args.out}")
     elif args.out is not None:

@@ -31,6 +31,7 @@ recovered) in the JSON, a last column ``track`` in the CSV, arrays ``track_id`` 
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import os
@@ -253,11 +254,27 @@ def save_association_json(
     see the module docstring. ``people``: the :class:`cdog_jax.People` of ``assoc``
     (:func:`cdog_jax.identify_people`): every group gets ``"person"`` and ``"mixed"``, every
     frame ``"people"``."""
+    expect_args("save_association_json", path=(path, PATH))
+    records, names = _json_records(
+        assoc, xy, mask, confidence=confidence, rig=rig, classes=classes, people=people
+    )
+    data = {"frames": records} if isinstance(records, list) else records
+    if names is not None:
+        data["class_names"] = list(names)
+    with atomic_write(path, "w") as f:
+        json.dump(data, f, allow_nan=False)
+        f.write("\n")
+
+
+def _json_records(
+    assoc: Any, xy: Any, mask: Any, *, confidence: Any, rig: Any, classes: Any, people: Any
+) -> tuple[list[dict] | dict, Any]:
+    """What :func:`save_association_json` writes: ``(records, class names or None)``, the
+    records one object per frame (a list) for a batch, one object for one scene."""
     tracks, recovered = _tracks(assoc)
     assoc, group_class, names = _unpack(assoc)
     expect_args(
         "save_association_json",
-        path=(path, PATH),
         assoc=(assoc, _ASSOCIATION),
         xy=(xy, ARRAY),
         mask=(mask, ARRAY),
@@ -277,45 +294,37 @@ def save_association_json(
         rec = [None] * B if recovered is None else recovered
         gp, mixed, plist = _people(people, B)
         gp, mixed, plist = ([None] * B,) * 3 if people is None else (gp, mixed, plist)
-        data: dict = {
-            "frames": [
-                association_records(
-                    _scene(assoc, b),
-                    xy[b],
-                    mask[b],
-                    confidence=conf[b],
-                    rig=rig,
-                    group_class=gc[b],
-                    class_names=names,
-                    classes=cls[b],
-                    track_id=tid[b],
-                    recovered=rec[b],
-                    person=gp[b],
-                    mixed=mixed[b],
-                    people=plist[b],
-                )
-                for b in range(B)
-            ]
-        }
-    else:
-        data = association_records(
-            assoc,
-            xy,
-            mask,
-            confidence=confidence,
-            rig=rig,
-            group_class=group_class,
-            class_names=names,
-            classes=classes,
-            track_id=tracks,
-            recovered=recovered,
-            **_one_scene_people(people),
-        )
-    if names is not None:
-        data["class_names"] = list(names)
-    with atomic_write(path, "w") as f:
-        json.dump(data, f, allow_nan=False)
-        f.write("\n")
+        return [
+            association_records(
+                _scene(assoc, b),
+                xy[b],
+                mask[b],
+                confidence=conf[b],
+                rig=rig,
+                group_class=gc[b],
+                class_names=names,
+                classes=cls[b],
+                track_id=tid[b],
+                recovered=rec[b],
+                person=gp[b],
+                mixed=mixed[b],
+                people=plist[b],
+            )
+            for b in range(B)
+        ], names
+    return association_records(
+        assoc,
+        xy,
+        mask,
+        confidence=confidence,
+        rig=rig,
+        group_class=group_class,
+        class_names=names,
+        classes=classes,
+        track_id=tracks,
+        recovered=recovered,
+        **_one_scene_people(people),
+    ), names
 
 
 def _one_scene_people(people: Any) -> dict:
@@ -490,41 +499,138 @@ def save_association_csv(path: PathLike, assoc: Any, *, people: Any = None) -> N
     names are not known); a ``TrackedAssociation`` a column ``track``; ``people``
     (:func:`cdog_jax.identify_people`) a last column ``person`` (empty: no person).
     """
-    tracks, _ = _tracks(assoc)
-    assoc, group_class, names = _unpack(assoc)
-    expect_args("save_association_csv", path=(path, PATH), assoc=(assoc, _ASSOCIATION))
-    a = _host(assoc)
-    batch = a["labels"].ndim == 3
-    person, _, _ = _people(people, a["labels"].shape[0] if batch else None)
-    if person is not None and not batch:
-        person = person[0]
+    expect_args("save_association_csv", path=(path, PATH))
+    header, rows, _ = _csv_table(assoc, people)
     with atomic_write(path, "w", newline="") as f:
         f.write(CSV_NOTE + "\n")
         writer = csv.writer(f)
-        writer.writerow(
-            CSV_COLUMNS
-            + (("class", "class_name") if group_class is not None else ())
-            + (("track",) if tracks is not None else ())
-            + (("person",) if person is not None else ())
-        )
-        for b in range(a["labels"].shape[0] if batch else 1):
+        writer.writerow(header)
+        writer.writerows(rows(0))
+
+
+def _csv_table(assoc: Any, people: Any) -> tuple[list[str], Any, int]:
+    """What :func:`save_association_csv` writes: ``(header, rows, frames)``; ``rows(first)``
+    yields the rows, frames numbered from ``first``."""
+    tracks, _ = _tracks(assoc)
+    assoc, group_class, names = _unpack(assoc)
+    expect_args("save_association_csv", assoc=(assoc, _ASSOCIATION))
+    a = _host(assoc)
+    batch = a["labels"].ndim == 3
+    frames = a["labels"].shape[0] if batch else 1
+    person, _, _ = _people(people, frames if batch else None)
+    if person is not None and not batch:
+        person = person[0]
+    header = (
+        list(CSV_COLUMNS)
+        + (["class", "class_name"] if group_class is not None else [])
+        + (["track"] if tracks is not None else [])
+        + (["person"] if person is not None else [])
+    )
+
+    def rows(first: int):
+        for b in range(frames):
             valid = a["valid"][b] if batch else a["valid"]
             for g in np.flatnonzero(valid):
                 at = (b, g) if batch else (g,)
                 X = a["points3d"][at]
-                writer.writerow(
-                    [
-                        b,
-                        int(g),
-                        *(repr(float(v)) for v in X),
-                        repr(float(a["err_px"][at])),
-                        repr(float(a["bpe"][at])),
-                        int(a["n_views"][at]),
-                        *_class_columns(group_class, at, names),
-                        *([] if tracks is None else [int(tracks[at])]),
-                        *([] if person is None else [int(person[at]) if person[at] >= 0 else ""]),
-                    ]
-                )
+                yield [
+                    first + b,
+                    int(g),
+                    *(repr(float(v)) for v in X),
+                    repr(float(a["err_px"][at])),
+                    repr(float(a["bpe"][at])),
+                    int(a["n_views"][at]),
+                    *_class_columns(group_class, at, names),
+                    *([] if tracks is None else [int(tracks[at])]),
+                    *([] if person is None else [int(person[at]) if person[at] >= 0 else ""]),
+                ]
+
+    return header, rows, frames
+
+
+class _TextParts:
+    """A text file of a recording given a part at a time: each part's text waits in
+    ``folder`` until :meth:`_join` writes the file, the parts' texts between ``head`` and
+    ``tail`` (``separator`` between two non-empty ones). Memory: one part at a time."""
+
+    def __init__(self, folder: str, suffix: str):
+        self.folder, self.suffix = folder, suffix
+        self.files: list[str] = []
+
+    def _keep(self, text_of_part) -> None:
+        file = os.path.join(self.folder, f"{len(self.files)}{self.suffix}")
+        with open(file, "w", encoding="utf-8", newline="") as f:
+            text_of_part(f)
+        self.files.append(file)
+
+    def _join(self, path: PathLike, head: str, tail: str, separator: str = "") -> None:
+        with atomic_write(path, "w", newline="") as out:
+            out.write(head)
+            written = False
+            for file in self.files:
+                with open(file, encoding="utf-8", newline="") as f:
+                    text = f.read()
+                if text:
+                    out.write(separator if written else "")
+                    out.write(text)
+                    written = True
+            out.write(tail)
+
+
+class JsonParts(_TextParts):
+    """The JSON of :func:`save_association_json` for a recording given a part at a time
+    (:meth:`add`: each part's batch result and detections, frames in order): the same bytes
+    as the whole written at once; ``class_names`` the first part's."""
+
+    def __init__(self, folder: str):
+        super().__init__(folder, ".json")
+        self.names = None
+
+    def add(self, assoc: Any, xy: Any, mask: Any, **details: Any) -> None:
+        """One part: ``assoc``, ``xy``, ``mask`` and the keywords of
+        :func:`save_association_json` (``confidence``, ``rig``, ``classes``, ``people``)."""
+        records, names = _json_records(
+            assoc,
+            xy,
+            mask,
+            **{"confidence": None, "rig": None, "classes": None, "people": None, **details},
+        )
+        if not isinstance(records, list):
+            raise ValueError("JsonParts.add: a part is a batch of frames (labels (F, M, P))")
+        if not self.files:
+            self.names = names
+        self._keep(lambda f: f.write(", ".join(json.dumps(r, allow_nan=False) for r in records)))
+
+    def write(self, path: PathLike) -> None:
+        names = "" if self.names is None else ', "class_names": ' + json.dumps(list(self.names))
+        self._join(path, '{"frames": [', "]" + names + "}\n", ", ")
+
+
+class CsvParts(_TextParts):
+    """The CSV of :func:`save_association_csv` for a recording given a part at a time
+    (:meth:`add`: each part's batch result, frames in order, numbered on from the part
+    before): the same bytes as the whole written at once."""
+
+    def __init__(self, folder: str):
+        super().__init__(folder, ".csv")
+        self.header: list[str] | None = None
+        self.frames = 0
+
+    def add(self, assoc: Any, *, people: Any = None) -> None:
+        header, rows, frames = _csv_table(assoc, people)
+        if self.header is not None and header != self.header:
+            raise ValueError(
+                f"CsvParts.add: every part must have the columns {self.header}; got {header}"
+            )
+        self.header = header
+        self._keep(lambda f: csv.writer(f).writerows(rows(self.frames)))
+        self.frames += frames
+
+    def write(self, path: PathLike) -> None:
+        head = io.StringIO()
+        head.write(CSV_NOTE + "\n")
+        csv.writer(head).writerow(self.header or list(CSV_COLUMNS))
+        self._join(path, head.getvalue(), "")
 
 
 # Helpers -----------------------------------------------------------------------------------

@@ -140,10 +140,14 @@ def test_a_recording_in_parts_gives_the_whole_recordings_output(tmp_path, capsys
         assert [s for s in whole_text.splitlines() if line in s] == [
             s for s in parts_text.splitlines() if line in s
         ]
-    # .npz waits on disk part by part; a .csv gathers the parts: the same rows either way
-    for name, extra in (("whole.csv", []), ("parts.csv", ["--part-frames", "3"])):
-        assert main([*common, *extra, "--out", tmp_path / name]) == 0
+    # .npz, .csv and .json wait on disk part by part: the same rows as the whole at once
+    for name in ("csv", "json"):
+        assert main([*common, "--out", tmp_path / f"whole.{name}"]) == 0
+        assert main([*common, "--part-frames", "3", "--out", tmp_path / f"parts.{name}"]) == 0
     capsys.readouterr()
+    whole, parts = (json.loads((tmp_path / f"{n}.json").read_text()) for n in ("whole", "parts"))
+    assert len(parts["frames"]) == 7 and sum(len(f["groups"]) for f in parts["frames"]) > 100
+    _assert_near(whole, parts, "")
     tables = []
     for name in ("whole.csv", "parts.csv"):
         with open(tmp_path / name) as f:
@@ -176,3 +180,19 @@ def test_a_recording_in_parts_gives_the_whole_recordings_output(tmp_path, capsys
                 np.testing.assert_allclose(x, y, rtol=1e-5, err_msg=name)
             else:
                 np.testing.assert_array_equal(x, y, err_msg=name)
+
+
+def _assert_near(a, b, where: str) -> None:
+    """Two JSON values equal but for floats, within 1e-5 (points; σ within its round-off)."""
+    if isinstance(a, dict):
+        assert isinstance(b, dict) and list(a) == list(b), where
+        for key in a:
+            _assert_near(a[key], b[key], f"{where}.{key}")
+    elif isinstance(a, list):
+        assert isinstance(b, list) and len(a) == len(b), where
+        for k, (x, y) in enumerate(zip(a, b)):
+            _assert_near(x, y, f"{where}[{k}]")
+    elif isinstance(a, float):
+        assert isinstance(b, float) and abs(a - b) <= 1e-5 * max(1.0, abs(a)), where
+    else:
+        assert a == b, where

@@ -14,6 +14,8 @@ import cdog_jax
 import cdog_jax.synthetic
 from cdog_jax.io._association_files import (
     CSV_COLUMNS,
+    CsvParts,
+    JsonParts,
     association_records,
     load_association_json,
     save_association_csv,
@@ -170,3 +172,43 @@ def test_mismatched_inputs_raise(result, tmp_path):
         match=re.escape(f"{path}, group 0, member 0: expected [view, slot, x, y(, confidence)]"),
     ):
         load_association_json(path)
+
+
+def _frames_of(result, frames: slice):
+    """A tracked result of frames cut to ``frames`` (as the command's parts are)."""
+    fields = {}
+    for name, value in result._asdict().items():
+        if hasattr(value, "labels") and hasattr(value, "valid"):
+            fields[name] = jax.tree_util.tree_map(lambda a: np.asarray(a)[frames], value)
+        elif isinstance(value, (np.ndarray, jax.Array)) and value.ndim:
+            fields[name] = np.asarray(value)[frames]
+    return result._replace(**fields)
+
+
+def test_json_and_csv_written_in_parts_are_the_whole_files(tmp_path):
+    """A recording given to JsonParts / CsvParts a part at a time (one part empty) writes
+    the bytes that save_association_json / save_association_csv write of the whole."""
+    rig = cdog_jax.synthetic.default_rig(num_views=4)
+    walk = cdog_jax.synthetic.generate_skeleton_scenes(
+        jax.random.PRNGKey(1), rig, 2, 1.0, num_frames=5
+    )
+    xy, mask = np.asarray(walk.frames.xy, np.float32), np.asarray(walk.frames.mask)
+    classes = np.where(mask, np.asarray(walk.frames.class_id), 0)
+    tracked = cdog_jax.associate_sequence(rig, xy, mask, classes=classes)
+    assert int(np.asarray(tracked.association.valid).sum()) > 20
+    save_association_json(tmp_path / "whole.json", tracked, xy, mask, classes=classes)
+    save_association_csv(tmp_path / "whole.csv", tracked)
+    (tmp_path / "json").mkdir(), (tmp_path / "csv").mkdir()
+    json_parts, csv_parts = JsonParts(str(tmp_path / "json")), CsvParts(str(tmp_path / "csv"))
+    for frames in (slice(0, 2), slice(2, 2), slice(2, 3), slice(3, 5)):
+        part = _frames_of(tracked, frames)
+        json_parts.add(part, xy[frames], mask[frames], classes=classes[frames])
+        csv_parts.add(part)
+    json_parts.write(tmp_path / "parts.json")
+    csv_parts.write(tmp_path / "parts.csv")
+    for name in ("json", "csv"):
+        whole = (tmp_path / f"whole.{name}").read_bytes()
+        assert (tmp_path / f"parts.{name}").read_bytes() == whole, name
+    assert len(load_association_json(tmp_path / "parts.json")["frames"]) == 5
+    with pytest.raises(ValueError, match="a batch of frames"):
+        json_parts.add(_frames_of(tracked, 0), xy[0], mask[0])
