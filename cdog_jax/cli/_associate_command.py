@@ -363,7 +363,9 @@ def _load(args):
     from ..io import load_detections, load_keypoint_table, load_openpose, load_rig
     from ..io._keypoints import OpenPoseParts, _OpenPoseFiles
 
-    rig_file = load_rig(args.rig, format=args.rig_format)
+    # Far from its world's origin (UTM-like coordinates) the rig is centred on its cameras,
+    # so that float32 holds it; the outputs' points are put back in the file's world.
+    rig_file = load_rig(args.rig, format=args.rig_format, origin="auto")
     detections = None
     if getattr(args, "points", None):
         checks = dict(
@@ -480,6 +482,25 @@ def _first_frames(result, n: int):
     return result._replace(**fields)
 
 
+def _in_world(result, origin: np.ndarray):
+    """A result (an association, a classed or tracked one, people) with its 3D points moved
+    from the centred rig's frame back to the rig file's world: float64 points, ``origin``
+    added to every valid group's point (padding rows keep 0) and to every person's."""
+    import equinox as eqx  # as every import of JAX here: when the command runs
+
+    from .._result import Association
+
+    if result is None:
+        return result
+    if isinstance(result, Association):
+        points = np.asarray(result.points3d, np.float64)
+        valid = np.asarray(result.valid)[..., None]
+        return eqx.tree_at(lambda a: a.points3d, result, np.where(valid, points + origin, points))
+    if hasattr(result, "association"):  # classed or tracked
+        return result._replace(association=_in_world(result.association, origin))
+    return result._replace(points=np.asarray(result.points, np.float64) + origin)  # People
+
+
 def _part_of(det, frames: slice):
     """The detections of ``frames`` of a whole recording's ``det``."""
     return _each_frame_array(det, lambda a, _: a[frames])
@@ -594,6 +615,12 @@ def run_associate(args: argparse.Namespace) -> int:
         f"Detections: {args.points}: {F} frame(s), "
         f"{int(det.mask.sum()) if parts is None else parts.detections} detections, at most {P} per view",
     ]
+    if rig_file.origin is not None:
+        x, y, z = rig_file.origin
+        lines.append(
+            f"  note: the cameras lie far from the rig's world origin; associated about their mean "
+            f"centre ({x:.3f}, {y:.3f}, {z:.3f}), the output's points in the rig's world"
+        )
     lines += [f"  note: {n}" for n in det.notes[:_NOTES_SHOWN]]
     if len(det.notes) > _NOTES_SHOWN:
         lines.append(f"  … and {len(det.notes) - _NOTES_SHOWN} more notes")
@@ -729,6 +756,10 @@ def run_associate(args: argparse.Namespace) -> int:
         stats.append(_stats(result if tracked is None else tracked.association, tracked, people))
         if k == 0 and args.plot is not None:
             first_result = jax.tree_util.tree_map(lambda a: np.asarray(a)[:1], result)
+        if rig_file.origin is not None:  # what is written: points in the rig file's world
+            classed, tracked, people, result = (
+                _in_world(x, rig_file.origin) for x in (classed, tracked, people, result)
+            )
         # Of a part, only what is written is kept (the next part's memory is the same).
         if ext == ".npz" and out_parts is not None:
             arrays = association_arrays(

@@ -101,8 +101,11 @@ def run_track(args: argparse.Namespace) -> int:
         raise InputError(f"--sigma: expected a finite number > 0 (px); got {args.sigma}")
     if args.max_gap < 0:
         raise InputError(f"--max-gap: expected an integer >= 0; got {args.max_gap}")
-    rig_file = load_rig(args.rig, format=args.rig_format)
+    # Far from its world's origin (UTM-like coordinates) the rig is centred on its cameras,
+    # so that float32 holds it; each line's points are put back in the file's world.
+    rig_file = load_rig(args.rig, format=args.rig_format, origin="auto")
     refuse_camera_to_world(rig_file, args.rig)
+    origin = (0.0, 0.0, 0.0) if rig_file.origin is None else rig_file.origin
     live = LiveAssociator(
         rig_file.rig,
         num_classes=args.classes,
@@ -121,7 +124,7 @@ def run_track(args: argparse.Namespace) -> int:
         try:
             frame_id, xy, mask, classes = _parse(line, n, live, ids)
             out = live.update(xy, mask, classes=classes)
-            record = _record(out, frame_id, names)
+            record = _record(out, frame_id, names, origin)
         except (ValueError, TypeError) as error:  # a bad frame: say so and go on
             message = " ".join(str(error).split())
             record = {
@@ -186,14 +189,15 @@ def _class_id(label, ids, count: int, where: str) -> int:
     return label
 
 
-def _record(out, frame_id, names) -> dict:
-    """One frame's answer as a JSON-ready object."""
+def _record(out, frame_id, names, origin) -> dict:
+    """One frame's answer as a JSON-ready object; ``origin (3,)``: the rig file's world
+    point that the rig's origin is (the points are given in the file's world)."""
     groups = []
     for g in range(len(out.groups)):
         members = [[m, int(s)] for m, s in enumerate(out.groups[g]) if s >= 0]
         group = {
             "track": int(out.track_id[g]),
-            "point": [round(float(v), 6) for v in out.points3d[g]],
+            "point": [round(float(v) + float(o), 6) for v, o in zip(out.points3d[g], origin)],
             "members": members,
             "err_px": round(float(out.err_px[g]), 4),
         }

@@ -87,15 +87,41 @@ def _check_camera_dtype(dtype, name: str) -> None:
         )
 
 
-def rig_from_arrays(K, R, t, *, dtype=None) -> Rig:
+ROUNDING_PX_LIMIT = 0.05
+"""The most a rig's rounding to its float type may move an epipolar line (pixels, an upper
+estimate): beyond it :func:`rig_from_arrays` asks for an ``origin`` near the cameras."""
+
+
+def rounding_px(K: np.ndarray, R: np.ndarray, t: np.ndarray, dtype) -> float:
+    """How far (pixels, an upper estimate) rounding the cameras' positions to ``dtype`` moves
+    an epipolar line: a camera centre ``C`` is held to ``|C| · ε/2`` (ε: the type's
+    precision), which at a depth of the cameras' spread moves a point by the focal length
+    times their ratio. Scale-free: a rig in millimetres rounds as one in metres; a rig far
+    from its world origin (UTM-like coordinates) rounds by pixels in float32."""
+    C = -np.einsum("mji,mj->mi", R, t)
+    spread = float(np.sqrt(((C - C.mean(axis=0)) ** 2).sum(axis=1).mean()))
+    if not spread > 0:  # one camera, or all in one place: nothing to compare with
+        return 0.0
+    focal = float(np.median(np.abs(K[:, [0, 1], [0, 1]] / K[:, 2:3, 2]).max(axis=1)))
+    return focal * float(np.abs(C).max()) * float(np.finfo(dtype).eps) / 2 / spread
+
+
+def rig_from_arrays(K, R, t, *, dtype=None, origin=None) -> Rig:
     """Build a :class:`Rig` from array-likes, with eager shape and value checks.
 
-    ``K (M, 3, 3)``, ``R (M, 3, 3)``, ``t (M, 3)``. Raises ``ValueError`` naming the
-    offending view for wrong shapes, non-finite values, a singular ``K``, a ``K`` that is not
-    upper-triangular or whose focal lengths are not positive (relative to ``K[2, 2]``: a
-    transposed or mirrored ``K``), a rotation that is not orthonormal (tolerance 1e-3), or a
-    ``dtype`` other than float32 and float64, or inputs of float16, bfloat16, bool or
-    complex (integer arrays are converted).
+    ``K (M, 3, 3)``, ``R (M, 3, 3)``, ``t (M, 3)``. ``origin``: ``(3,)`` a world point
+    (scene units) that becomes the rig's origin, subtracted in float64 before the rig is
+    rounded to ``dtype``: the rig, and every 3D point of its associations, are then in
+    world coordinates less ``origin`` (add it back to them).
+
+    Raises ``ValueError`` naming the offending view for wrong shapes, non-finite values, a
+    singular ``K``, a ``K`` that is not upper-triangular or whose focal lengths are not
+    positive (relative to ``K[2, 2]``: a transposed or mirrored ``K``), a rotation that is
+    not orthonormal (tolerance 1e-3), or a ``dtype`` other than float32 and float64, or
+    inputs of float16, bfloat16, bool or complex (integer arrays are converted); and for
+    cameras so far from the origin that ``dtype`` cannot hold their positions (rounding
+    would move epipolar lines by more than :data:`ROUNDING_PX_LIMIT` pixels: UTM-like
+    coordinates in float32), naming the ``origin`` to give.
     """
     expect_args("rig_from_arrays", K=(K, ARRAY), R=(R, ARRAY), t=(t, ARRAY))
     dtype = np.dtype(dtype or jnp.asarray(0.0).dtype)
@@ -116,6 +142,23 @@ def rig_from_arrays(K, R, t, *, dtype=None) -> Rig:
     if t.shape != (M, 3):
         raise ValueError(f"t must have shape (M, 3) with M={M} from K; got {t.shape}")
     check_rig_values(K, R, t)
+    if origin is not None:
+        origin = np.asarray(origin, dtype=np.float64)
+        if origin.shape != (3,) or not np.isfinite(origin).all():
+            raise ValueError(f"origin must be 3 finite numbers (x, y, z); got {origin.tolist()}")
+        t = t + np.einsum("mij,j->mi", R, origin)  # X_cam = R (X - origin) + t'
+    px = rounding_px(K, R, t, dtype)
+    if px > ROUNDING_PX_LIMIT:
+        centre = -np.einsum("mji,mj->mi", R, t).mean(axis=0)
+        if origin is not None:
+            centre = centre + origin
+        raise ValueError(
+            f"the cameras lie {np.abs(-np.einsum('mji,mj->mi', R, t)).max():.3g} units from the "
+            f"world origin, where {dtype.name} rounds their positions by up to "
+            f"{px:.2g} px of epipolar distance: give a world point near them as origin= (their mean "
+            f"centre: origin=({centre[0]:.6f}, {centre[1]:.6f}, {centre[2]:.6f})) and add it to "
+            "the 3D points"
+        )
     return Rig(jnp.asarray(K, dtype), jnp.asarray(R, dtype), jnp.asarray(t, dtype))
 
 

@@ -24,12 +24,14 @@ from ._rig_files import RigFile, _Views, check_rig_dtype, rig_file_from_views
 from ._rig_values import stack_dists
 
 
-def rig_from_pycolmap(reconstruction: Any, *, dtype: Any = None) -> RigFile:
+def rig_from_pycolmap(reconstruction: Any, *, dtype: Any = None, origin: Any = None) -> RigFile:
     """A :class:`RigFile` from a pycolmap ``Reconstruction`` (anything with ``images`` and
     ``cameras`` mappings whose items have pycolmap's attributes: ``image.camera_id``,
     ``image.name``, ``image.cam_from_world`` (a ``Rigid3d`` or a method returning one, with
     ``matrix()``), ``camera.model`` (or ``model_name``), ``camera.params``, ``camera.width``,
-    ``camera.height``). Images without a pose (``has_pose`` False) are skipped.
+    ``camera.height``). Images without a pose (``has_pose`` False) are skipped. ``origin``:
+    a world point, or ``"cameras"``, that becomes the rig's origin (see
+    :func:`cdog_jax.io.load_rig`).
     """
     check_rig_dtype(dtype, "rig_from_pycolmap")
     K, R, t, sizes, dists, names = [], [], [], [], [], []
@@ -64,7 +66,7 @@ def rig_from_pycolmap(reconstruction: Any, *, dtype: Any = None) -> RigFile:
         stack_dists(dists, "reconstruction"),
         tuple(names),
     )
-    return rig_file_from_views(views, dtype, "reconstruction")
+    return rig_file_from_views(views, dtype, "reconstruction", origin)
 
 
 def pycolmap_from_rig(rig: Rig, *, image_size: Any, dist: Any = None, names: Any = None) -> Any:

@@ -22,7 +22,9 @@ from ._rig_json import read_json_rig
 from ._rig_npz import read_npz
 
 
-def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigFile:
+def load_rig(
+    path: PathLike, *, format: str = "auto", dtype: Any = None, origin: Any = None
+) -> RigFile:
     """Read a rig file: ``K, R (M, 3, 3)``, ``t (M, 3)`` and optional sizes, distortion, names.
 
     Formats (all read into world→camera ``X_cam = R X + t``, ``K`` general, OpenCV pixels):
@@ -53,13 +55,19 @@ def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigF
         format: ``"auto"`` or one of :data:`FORMATS`.
         dtype: float dtype of the rig (default: JAX's default float). ``float64`` needs
             64-bit JAX (``jax.config.update("jax_enable_x64", True)``), else it raises.
+        origin: a world point ``(x, y, z)``, or ``"cameras"`` for the cameras' mean centre,
+            that becomes the rig's origin (:attr:`RigFile.origin`): subtracted in float64
+            before the rig is rounded to ``dtype``, for a rig far from its world origin
+            (UTM-like coordinates), which float32 cannot hold; add it to 3D points.
+            ``"auto"``: the cameras' mean centre only where ``dtype`` cannot hold the rig.
 
     Returns:
         A :class:`RigFile`; ``image_size`` is the common size when all views agree, else
         ``None`` (``view_sizes`` has every view's); ``dist`` is zeros when the file gives
         none. Raises ``ValueError`` naming the file
         (and view, camera, line or key) for an unreadable file, a missing view or key, a
-        wrong shape, a non-finite number, a singular ``K`` or a ``R`` that is not a rotation.
+        wrong shape, a non-finite number, a singular ``K``, a ``R`` that is not a rotation,
+        or cameras too far from the origin for ``dtype`` (it names the ``origin`` to give).
     """
     expect_args("load_rig", path=(path, PATH))
     check_rig_dtype(dtype, "load_rig")
@@ -76,7 +84,7 @@ def load_rig(path: PathLike, *, format: str = "auto", dtype: Any = None) -> RigF
         "qualisys": read_qualisys,
     }
     views = readers[fmt](path)
-    return rig_file_from_views(views, dtype, path)
+    return rig_file_from_views(views, dtype, path, origin)
 
 
 def _resolve_format(path: str, format: str) -> str:

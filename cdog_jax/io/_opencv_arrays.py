@@ -52,6 +52,7 @@ def rig_from_opencv(
     fisheye: bool = False,
     names: Any = None,
     dtype: Any = None,
+    origin: Any = None,
 ) -> RigFile:
     """A :class:`RigFile` from OpenCV arrays, one entry per camera (sequences or stacked).
 
@@ -64,6 +65,8 @@ def rig_from_opencv(
         fisheye: ``dist`` is ``cv2.fisheye``'s ``(k1, k2, k3, k4)``.
         names: ``M`` camera names, or ``None``.
         dtype: float dtype of the rig (default: JAX's default float).
+        origin: a world point, or ``"cameras"``, that becomes the rig's origin (see
+            :func:`cdog_jax.io.load_rig`).
 
     Returns:
         The rig ``X_cam = Rodrigues(rvec) X + tvec`` with ``dist (M, 5)`` or a
@@ -98,7 +101,9 @@ def rig_from_opencv(
             )
     sizes = _check_view_sizes(image_size, M)
     names = None if names is None else _check_names(names, M, "")
-    return rig_file_from_views(_Views(K, R, tvec, sizes, lens, names), dtype, "rig_from_opencv")
+    return rig_file_from_views(
+        _Views(K, R, tvec, sizes, lens, names), dtype, "rig_from_opencv", origin
+    )
 
 
 def opencv_from_rig(rig: Rig, *, dist: Any = None, image_size: Any = None) -> OpenCVCameras:

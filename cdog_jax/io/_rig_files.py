@@ -30,7 +30,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..geometry._camera import Rig, rig_from_arrays
+from ..geometry._camera import ROUNDING_PX_LIMIT, Rig, rig_from_arrays, rounding_px
 from ..geometry._distortion import Fisheye
 from ._errors import InputError
 
@@ -52,6 +52,9 @@ class RigFile(NamedTuple):
         view_sizes: ``(M, 2)`` int64 ``(width, height)`` of every view, or ``None`` when
             the file gives no sizes.
         names: the camera names in view order, or ``None`` when the file has none.
+        origin: ``(3,)`` float64, the world point that is the rig's origin (``origin=``
+            of the reader): the rig and its associations' 3D points are in world
+            coordinates less it; ``None``: the file's own world.
     """
 
     rig: Rig
@@ -59,6 +62,7 @@ class RigFile(NamedTuple):
     dist: np.ndarray | Fisheye
     view_sizes: np.ndarray | None = None
     names: tuple[str, ...] | None = None
+    origin: np.ndarray | None = None
 
     def select(self, names: Any) -> RigFile:
         """The views named ``names`` (a sequence of camera names), in that order.
@@ -89,7 +93,12 @@ class RigFile(NamedTuple):
         if sizes is not None and len(sizes) and (sizes == sizes[0]).all():
             image_size = (int(sizes[0, 0]), int(sizes[0, 1]))
         return RigFile(
-            self.rig.select(views), image_size, dist, sizes, tuple(self.names[m] for m in views)
+            self.rig.select(views),
+            image_size,
+            dist,
+            sizes,
+            tuple(self.names[m] for m in views),
+            self.origin,
         )
 
 
@@ -117,9 +126,29 @@ def check_rig_dtype(dtype: Any, function: str) -> None:
         )
 
 
-def rig_file_from_views(views: _Views, dtype: Any, path: str) -> RigFile:
+def rig_file_from_views(views: _Views, dtype: Any, path: str, origin: Any = None) -> RigFile:
     """The :class:`RigFile` of a reader's views: the rig checked and in ``dtype``, zeros for
-    a missing ``dist``, the common image size. ``path`` names the source in errors."""
+    a missing ``dist``, the common image size. ``path`` names the source in errors.
+    ``origin``: ``None``, ``(3,)`` a world point, ``"cameras"`` (the cameras' mean centre),
+    or ``"auto"`` (the cameras' mean centre where ``dtype`` cannot hold the rig in its own
+    world, else ``None``), subtracted from the world in float64 (see
+    :func:`cdog_jax.rig_from_arrays`)."""
+    if isinstance(origin, str):
+        if origin not in ("cameras", "auto"):
+            raise ValueError(
+                f"origin must be 'cameras', 'auto' or 3 numbers (x, y, z); got {origin!r}"
+            )
+        import jax.numpy as jnp
+
+        far = (
+            rounding_px(views.K, views.R, views.t, np.dtype(dtype or jnp.asarray(0.0).dtype))
+            > ROUNDING_PX_LIMIT
+        )
+        origin = (
+            -np.einsum("mji,mj->mi", views.R, views.t).mean(axis=0)
+            if origin == "cameras" or far
+            else None
+        )
     _check_float_range(views, dtype, path)
     if views.names is not None:
         names = list(views.names)
@@ -131,14 +160,17 @@ def rig_file_from_views(views: _Views, dtype: Any, path: str) -> RigFile:
                 f"{views_of[1]}); selecting cameras by name could not tell them apart"
             )
     try:
-        rig = rig_from_arrays(views.K, views.R, views.t, dtype=dtype)
+        rig = rig_from_arrays(views.K, views.R, views.t, dtype=dtype, origin=origin)
     except ValueError as e:
-        raise ValueError(f"{path}: {_name_views(str(e), views.names)}") from e
+        message = str(e).replace("as origin=", "as origin= (or origin='cameras')")
+        raise ValueError(f"{path}: {_name_views(message, views.names)}") from e
     image_size = None
     if views.view_sizes is not None and (views.view_sizes == views.view_sizes[0]).all():
         image_size = (int(views.view_sizes[0, 0]), int(views.view_sizes[0, 1]))
     dist = np.zeros((views.K.shape[0], 5)) if views.dist is None else views.dist
-    return RigFile(rig, image_size, dist, views.view_sizes, views.names)
+    if origin is not None:
+        origin = np.asarray(origin, np.float64)
+    return RigFile(rig, image_size, dist, views.view_sizes, views.names, origin)
 
 
 def _check_float_range(views: _Views, dtype: Any, path: str) -> None:

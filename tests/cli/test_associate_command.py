@@ -113,6 +113,45 @@ def test_associate_from_every_rig_format(data, fmt, capsys):
     assert sorted(listed) == sorted((m, i) for m, v in enumerate(views) for i in range(len(v)))
 
 
+@pytest.mark.parametrize("shift", [1e6, 1e5])
+def test_a_rig_far_from_its_world_origin_is_centred(data, shift, capsys):
+    """A rig file in UTM-like coordinates (the world moved by 1e5–1e6 units): float32
+    cannot hold it in its own world, so the command associates about the cameras' centre
+    and writes the points in the file's world: the groups of the rig near its origin, every
+    point the same one moved (npz: float64)."""
+    folder, rig, points, views, expected = data
+    offset = np.array([shift, 0.5 * shift, 10.0])
+    K, R, t = (np.asarray(a, np.float64) for a in (rig.K, rig.R, rig.t))
+    far = t - np.einsum("mij,j->mi", R, offset)  # X_cam = R (X_far - offset) + t
+    rig_path = folder / f"far_rig_{shift:g}.json"
+    rig_path.write_text(
+        json.dumps(
+            {
+                "views": [
+                    {"K": K[m].tolist(), "R": R[m].tolist(), "t": far[m].tolist()}
+                    for m in range(len(K))
+                ]
+            }
+        )
+    )
+    out = folder / f"far_{shift:g}.json"
+    common = ["associate", "--rig", rig_path, "--points", points, "--sigma", str(SIGMA)]
+    assert main([*common, "--out", out]) == 0
+    text = capsys.readouterr().out
+    assert "the cameras lie far from the rig's world origin" in text
+    assert f"3D points: {int(expected.num_groups)}" in text
+    records = load_association_json(out)
+    got = np.array([g["point3d"] for g in records["groups"]], np.float64)
+    np.testing.assert_allclose(got - offset, _points(expected), atol=1e-3)
+    listed = [(r[0], r[1]) for g in records["groups"] for r in g["members"]]
+    want = np.asarray(expected.groups)[: int(expected.num_groups)]
+    assert sorted(listed) == sorted((m, int(i)) for g in want for m, i in enumerate(g) if i >= 0)
+    assert main([*common, "--out", folder / "far.npz"]) == 0
+    with np.load(folder / "far.npz") as z:
+        assert z["points3d"].dtype == np.float64
+        np.testing.assert_allclose(z["points3d"][z["valid"]] - offset, _points(expected), atol=1e-3)
+
+
 def test_associate_frames_csv_npz_weights_min_views_plot(data, capsys):
     folder, rig, points, views, expected = data
     rig_path = folder / "rig_frames.json"

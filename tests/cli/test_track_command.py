@@ -89,6 +89,37 @@ def test_frames_stream_through_a_pipe(stream):
             np.testing.assert_allclose(group["point"], out.points3d[g], atol=1e-5)
 
 
+def test_a_rig_far_from_its_world_origin_streams_world_points(
+    stream, tmp_path, monkeypatch, capsys
+):
+    """A rig file in UTM-like coordinates: the command associates about the cameras'
+    centre and each line's points are in the file's world (the near rig's, moved)."""
+    import io
+
+    from cdog_jax.cli import main
+
+    rig_path, lines, rig, _ = stream
+    offset = np.array([4e5, 6e6, 30.0])
+    K, R, t = (np.asarray(a, np.float64) for a in (rig.K, rig.R, rig.t))
+    U, _, Vt = np.linalg.svd(R)
+    R = U @ Vt  # orthonormal in float64: float32's 1e-7 would move a centre 6e6 out by 0.6
+    far = t - np.einsum("mij,j->mi", R, offset)
+    views = [{"K": K[m].tolist(), "R": R[m].tolist(), "t": far[m].tolist()} for m in range(M)]
+    (tmp_path / "far.json").write_text(json.dumps({"views": views}))
+    answers = []
+    for path in (rig_path, tmp_path / "far.json"):
+        monkeypatch.setattr("sys.stdin", io.StringIO(lines[0] + "\n"))
+        assert main(["track", "--rig", str(path), "--keypoints", "COCO_17"]) == 0
+        answers.append(json.loads(capsys.readouterr().out))
+    near, moved = answers
+    assert [g["members"] for g in moved["groups"]] == [g["members"] for g in near["groups"]]
+    np.testing.assert_allclose(
+        [np.asarray(g["point"]) - offset for g in moved["groups"]],
+        [g["point"] for g in near["groups"]],
+        atol=1e-3,
+    )
+
+
 def test_track_command_errors_are_one_line(tmp_path, capsys):
     from cdog_jax.cli import main
 

@@ -79,3 +79,81 @@ def test_project_refuses_points_that_are_not_3d():
         project(RIG, jnp.zeros((5, 2)))
     with pytest.raises(ValueError, match=r"\(\.\.\., 3\)"):
         project(RIG, jnp.zeros(()))
+
+
+def _far(offset):
+    """The rig's world moved by ``offset``: ``t`` of X_cam = R (X - offset) + t, float64
+    (R made orthonormal in float64 first: float32's 1e-7 would move a centre 1e6 out by 0.1)."""
+    return t - np.einsum("mij,j->mi", _orthonormal(R), offset)
+
+
+def _orthonormal(R):
+    U, _, Vt = np.linalg.svd(R)
+    return U @ Vt
+
+
+def test_a_rig_far_from_its_world_origin_is_refused_or_centred():
+    """UTM-like coordinates: float32 rounds a camera 1e6 units out by 0.06 units, pixels of
+    epipolar distance. rig_from_arrays refuses, naming the origin to give; given it, the rig
+    is the one near its origin and so is every association, its points less the origin."""
+    import jax
+
+    offset = np.array([1e6, 5e5, 10.0])
+    with pytest.raises(
+        ValueError,
+        match=r"1e\+06 units from the world origin.*centre: origin=\(99999\d\.\d{6}, 49999\d\.\d{6}, 12\.\d{6}\)",
+    ):
+        rig_from_arrays(K, _orthonormal(R), _far(offset))
+    with pytest.raises(ValueError, match="origin must be 3 finite numbers"):
+        rig_from_arrays(K, R, t, origin=[1.0, np.nan, 0.0])
+    near = rig_from_arrays(K, _orthonormal(R), _far(offset), origin=offset)
+    np.testing.assert_allclose(np.asarray(near.t), np.asarray(RIG.t), atol=1e-6)
+    # a rig in millimetres rounds as one in metres; 100 units out is still held
+    rig_from_arrays(K, R, 1000.0 * t)
+    rig_from_arrays(K, R, _far(np.array([100.0, 0.0, 0.0])))
+    scene = cdog_jax.synthetic.generate_scene(jax.random.PRNGKey(3), RIG, 20, 0.5, capacity=20)
+    want = cdog_jax.associate(RIG, scene.xy, scene.mask, sigma=0.5)
+    got = cdog_jax.associate(near, scene.xy, scene.mask, sigma=0.5)
+    np.testing.assert_array_equal(np.asarray(got.labels), np.asarray(want.labels))
+    n = int(want.num_groups)
+    assert n > 10
+    np.testing.assert_allclose(
+        np.asarray(got.points3d)[:n], np.asarray(want.points3d)[:n], atol=1e-5
+    )
+
+
+def test_rig_files_take_an_origin():
+    """load_rig's origin: refused without one (naming origin='cameras'), centred with
+    'cameras' or 'auto', and 'auto' leaves a rig near its origin as it is."""
+    import json
+    import tempfile
+
+    from cdog_jax.io import load_rig
+
+    offset = np.array([3e5, -2e6, 50.0])
+    with tempfile.TemporaryDirectory() as folder:
+        path = f"{folder}/far.json"
+        views = [
+            {"K": K[m].tolist(), "R": _orthonormal(R)[m].tolist(), "t": _far(offset)[m].tolist()}
+            for m in range(3)
+        ]
+        with open(path, "w") as f:
+            json.dump({"views": views}, f)
+        with pytest.raises(ValueError, match=r"far\.json: the cameras lie .* origin='cameras'"):
+            load_rig(path)
+        centres = -np.einsum("mji,mj->mi", _orthonormal(R), t)
+        for origin in ("cameras", "auto"):
+            rig_file = load_rig(path, origin=origin)
+            np.testing.assert_allclose(rig_file.origin, offset + centres.mean(axis=0), atol=1e-6)
+            np.testing.assert_allclose(
+                rig_file.rig.centers_and_dirs_on_host()[0],
+                centres - centres.mean(axis=0),
+                atol=1e-5,
+            )
+        near = f"{folder}/near.json"
+        views = [{"K": K[m].tolist(), "R": R[m].tolist(), "t": t[m].tolist()} for m in range(3)]
+        with open(near, "w") as f:
+            json.dump({"views": views}, f)
+        assert load_rig(near, origin="auto").origin is None
+        with pytest.raises(ValueError, match="origin must be 'cameras', 'auto' or 3 numbers"):
+            load_rig(near, origin="centre")

@@ -116,3 +116,39 @@ def test_valid_groups_pass_the_gate_and_masked_slots_change_nothing(
         np.testing.assert_array_equal(
             np.asarray(getattr(res2, field)), np.asarray(getattr(res, field)), err_msg=field
         )
+
+
+@settings(
+    max_examples=12, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow]
+)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    n_active=st.integers(2, M),
+    exponent=st.integers(2, 7),
+    direction=st.sampled_from([(1.0, 0.0, 0.0), (0.6, -0.8, 0.0), (0.3, 0.4, -0.866)]),
+)
+def test_a_world_moved_far_away_is_refused_or_centred(seed, n_active, exponent, direction):
+    """The same random rigs with their world moved 10²–10⁷ units away (UTM-like): refused
+    without an origin exactly where float32 would round the cameras by more than the limit
+    (always from 10⁵ here), and given the origin, the groups of the rig near its origin,
+    every valid one passing the gate."""
+    from cdog_jax.geometry._camera import ROUNDING_PX_LIMIT, rounding_px
+
+    cfg = CONFIGS["paper"]
+    (K, R, t), xy, mask = _scene(seed, n_active, False, False, 0.5)
+    U, _, Vt = np.linalg.svd(R)
+    R = U @ Vt
+    offset = 10.0**exponent * np.asarray(direction)
+    far = t - np.einsum("mij,j->mi", R, offset)
+    too_far = rounding_px(K, R, far, np.float32) > ROUNDING_PX_LIMIT
+    assert too_far or exponent < 5
+    if too_far:
+        with pytest.raises(ValueError, match="units from the world origin"):
+            cdog_jax.rig_from_arrays(K, R, far)
+    centred = cdog_jax.rig_from_arrays(K, R, far, origin=offset)
+    near = cdog_jax.rig_from_arrays(K, R, t)
+    xy32, mask = jnp.asarray(xy, jnp.float32), jnp.asarray(mask)
+    res = cdog_jax.associate(centred, xy32, mask, method=cfg, sigma=0.5)
+    want = cdog_jax.associate(near, xy32, mask, method=cfg, sigma=0.5)
+    np.testing.assert_array_equal(np.asarray(res.labels), np.asarray(want.labels))
+    _check_valid_groups(centred, np.asarray(xy32, np.float64), res, cfg)
