@@ -353,3 +353,32 @@ def test_the_table_of_settings(standin, tmp_path):
     )
     with pytest.raises(SystemExit):
         table["main"]([folder, "--settings", "no such"])
+
+
+def test_the_stage_ablation(standin, tmp_path):
+    """experiments/real/shelf_ablation.py: best() and best() without a stage, each through
+    the command on the stand-in (scored) and on a small synthetic grid, in one table."""
+    folder, *_ = standin
+    ablation = runpy.run_path(os.path.join(REAL, "shelf_ablation.py"), run_name="shelf_ablation")
+    rows = ablation["main"](
+        [
+            folder,
+            "--work",
+            str(tmp_path / "w"),
+            "--variants",
+            "best(),− IQR",
+            "--sigmas",
+            "1",
+            "--counts",
+            "5",
+            "--out",
+            str(tmp_path / "rows.json"),
+        ]
+    )
+    assert [r["variant"] for r in rows["real"]] == ["best()", "− IQR"]
+    assert all(r["pcp_mean"] == 100.0 and r["recall_10cm"] == 1.0 for r in rows["real"])
+    assert [r["variant"] for r in rows["synthetic"]] == ["best()", "− IQR"]
+    assert 0.5 < rows["synthetic"][0]["synthetic"]["1"]["pg_f1"] <= 1.0
+    assert json.loads((tmp_path / "rows.json").read_text()) == rows
+    with pytest.raises(SystemExit):
+        ablation["main"]([folder, "--variants", "no such"])
