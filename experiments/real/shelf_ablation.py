@@ -45,6 +45,8 @@ LEFT_OUT: dict[str, dict] = {
     "− IQR": {"iqr": False},
     "− BPE filter": {"bpe_filter": False},
     "− δ-pruning": {"prune_scope": "none"},
+    # the three that change neither yardstick above, left out together
+    "− IQR − BPE filter − regroup": {"iqr": False, "bpe_filter": False, "regroup": False},
 }
 
 
