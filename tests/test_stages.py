@@ -51,12 +51,9 @@ def test_each_preset_runs_its_stages_in_order():
     ]
     assert _names(Config.best()) == [
         "graph",
-        "iqr",
         "fit",
-        "bpe_filter",
         "support",
         "recover",
-        "regroup",
         "seed",
         "reassign",
         "seed_again",

@@ -417,20 +417,25 @@ class ConfigMethods(Method):
 
     @classmethod
     def best(cls, **overrides) -> Config:
-        """Our most accurate C-DOG, the default: :meth:`extended`, then groups seeded from
-        two-view hypotheses on what is still left (``seed``; a pair whose point another
-        view sees with no detection near is refused), rounds of nearest-point
-        re-assignment with merging of split groups (``reassign``), and seeding once more on
-        what those rounds detached. Leaves few detections unassigned at large σ, where
-        pruning and the IQR leave most of a dense scene over (docs/ALGORITHM.md §8f–8g).
-        For precision, groups that views seeing their point do not detect are dropped
-        (``support_filter`` at 1.5 τ, ``support_alpha`` 0.07) and each group of ≥ 3 detaches
-        a member that another detection fits as well (``detach_ambiguous``; §8d, §8h)."""
+        """Our most accurate C-DOG, the default: the union graph with δ-pruning, recovery by
+        reprojection (``recover``), then groups seeded from two-view hypotheses on what is
+        still left (``seed``; a pair whose point another view sees with no detection near
+        is refused), rounds of nearest-point re-assignment with merging of split groups
+        (``reassign``), and seeding once more on what those rounds detached. Leaves few
+        detections unassigned at large σ, where pruning leaves most of a dense scene over
+        (docs/ALGORITHM.md §8f–8g). For precision, groups that views seeing their point do
+        not detect are dropped (``support_filter`` at 1.5 τ, ``support_alpha`` 0.07) and
+        each group of ≥ 3 detaches a member that another detection fits as well
+        (``detach_ambiguous``; §8d, §8h). The IQR, the BPE filter and regrouping of
+        :meth:`extended` are left out: after seeding and re-assignment they changed
+        neither real detections (Shelf) nor the synthetic grid, except for the worse
+        (experiments/RESULTS.md, "Every stage of best()")."""
         base = dict(
             adjacency="union",
+            iqr=False,
+            bpe_filter=False,
             recover=True,
             recover_frac=2.0,
-            regroup=True,
             seed=True,
             reassign=True,
             support_filter=True,
