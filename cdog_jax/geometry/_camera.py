@@ -95,15 +95,26 @@ estimate): beyond it :func:`rig_from_arrays` asks for an ``origin`` near the cam
 def rounding_px(K: np.ndarray, R: np.ndarray, t: np.ndarray, dtype) -> float:
     """How far (pixels, an upper estimate) rounding the cameras' positions to ``dtype`` moves
     an epipolar line: a camera centre ``C`` is held to ``|C| · ε/2`` (ε: the type's
-    precision), which at a depth of the cameras' spread moves a point by the focal length
-    times their ratio. Scale-free: a rig in millimetres rounds as one in metres; a rig far
-    from its world origin (UTM-like coordinates) rounds by pixels in float32."""
+    precision), which moves a point at depth ``Z`` by the focal length times ``|C| ε/2 / Z``.
+    ``Z``: where the optical axes meet (the scene of a rig around it), at least the cameras'
+    spread (their RMS distance to their mean centre; also where the axes do not meet, as
+    for parallel stereo). Scale-free: a rig in millimetres rounds as one in metres; a rig
+    far from its world origin (UTM-like coordinates) rounds by pixels in float32."""
     C = -np.einsum("mji,mj->mi", R, t)
     spread = float(np.sqrt(((C - C.mean(axis=0)) ** 2).sum(axis=1).mean()))
     if not spread > 0:  # one camera, or all in one place: nothing to compare with
         return 0.0
+    depth = spread
+    axes = R[:, 2, :] * np.sign(K[:, 2, 2])[:, None]  # optical axes, toward what is seen
+    across = np.eye(3) - np.einsum("mi,mj->mij", axes, axes)  # projections off each axis
+    A, b = across.sum(axis=0), np.einsum("mij,mj->i", across, C)
+    if np.linalg.cond(A) < 1e6:
+        meet = np.linalg.solve(A, b)  # the point nearest every optical axis
+        ahead = np.einsum("mi,mi->m", meet - C, axes)
+        if (ahead > 0).all():
+            depth = max(spread, float(np.median(ahead)))
     focal = float(np.median(np.abs(K[:, [0, 1], [0, 1]] / K[:, 2:3, 2]).max(axis=1)))
-    return focal * float(np.abs(C).max()) * float(np.finfo(dtype).eps) / 2 / spread
+    return focal * float(np.abs(C).max()) * float(np.finfo(dtype).eps) / 2 / depth
 
 
 def rig_from_arrays(K, R, t, *, dtype=None, origin=None) -> Rig:

@@ -157,3 +157,30 @@ def test_rig_files_take_an_origin():
         assert load_rig(near, origin="auto").origin is None
         with pytest.raises(ValueError, match="origin must be 'cameras', 'auto' or 3 numbers"):
             load_rig(near, origin="centre")
+
+
+def test_a_stereo_pair_is_judged_at_the_depth_its_axes_meet():
+    """A stereo pair of 10 cm converging 20 m ahead, 1 km from its world's origin: float32
+    moves its epipolar lines there by about 1000 px · 6e-5 m / 20 m (held); 1e5 km out, by
+    pixels (refused). Judged at the cameras' spread instead (5 cm), the first would be
+    refused too."""
+    from cdog_jax.geometry._camera import ROUNDING_PX_LIMIT, rounding_px
+
+    def pair(offset):
+        o = np.array([offset, 0.0, 0.0])
+        Rs, ts = [], []
+        for y in (-0.05, 0.05):
+            c, target = o + [0.0, y, 1.5], o + [20.0, 0.0, 1.5]
+            z = (target - c) / np.linalg.norm(target - c)
+            x = np.cross([0.0, 0.0, 1.0], z)
+            x /= np.linalg.norm(x)
+            Rm = np.stack([x, np.cross(z, x), z])
+            Rs.append(Rm)
+            ts.append(-Rm @ c)
+        return np.stack([np.diag([1000.0, 1000.0, 1.0])] * 2), np.stack(Rs), np.stack(ts)
+
+    held = rounding_px(*pair(1e3), np.float32)
+    assert 1e-3 < held < ROUNDING_PX_LIMIT
+    rig_from_arrays(*pair(1e3))
+    with pytest.raises(ValueError, match="units from the world origin"):
+        rig_from_arrays(*pair(1e8))
