@@ -552,7 +552,7 @@ def run_associate(args: argparse.Namespace) -> int:
     from ..geometry._distortion import Fisheye
     from ..graph._sigma import FALLBACK_SIGMA_PX
     from ..io import save_association_csv, save_association_json, save_association_npz
-    from ..io._association_files import CsvParts, JsonParts, NpzParts, association_arrays
+    from ..io._association_files import CsvParts, JsonParts, NpzParts
     from ..io._detections_checks import check_float_range
     from ..people._classes import associate_classes_at
     from ..people._persons import PersonLinker, concat_people, people_part
@@ -761,17 +761,7 @@ def run_associate(args: argparse.Namespace) -> int:
                 _in_world(x, rig_file.origin) for x in (classed, tracked, people, result)
             )
         # Of a part, only what is written is kept (the next part's memory is the same).
-        if ext == ".npz" and out_parts is not None:
-            arrays = association_arrays(
-                tracked,
-                xy=part.xy,
-                mask=part.mask,
-                confidence=part.confidence,
-                classes=part.classes,
-                people=people,
-            )
-            _write(args.out, "--out", lambda: out_parts.add(arrays))
-        elif ext == ".json" and out_parts is not None:
+        if out_parts is not None:
             _write(
                 args.out,
                 "--out",
@@ -784,12 +774,10 @@ def run_associate(args: argparse.Namespace) -> int:
                     people=people,
                 ),
             )
-        elif ext == ".csv" and out_parts is not None:
-            _write(args.out, "--out", lambda: out_parts.add(tracked, people=people))
         elif len(frames) > 1 and not streamed:
             kept.append((tracked, people, part.xy, part.mask, part.confidence, part.classes))
         if streamed:  # nothing of this part stays alive while the next is associated
-            classed = tracked = result = people = part = arrays = _DONE
+            classed = tracked = result = people = part = _DONE
     class_counts = None if not counts else (np.concatenate(counts), np.concatenate(most))
     summary = _joined(stats)
     if kept:

@@ -53,7 +53,7 @@ class Rig(eqx.Module):
         outside ``jit`` (figures, reports), where the properties would each compile a small
         program."""
         R, t = np.asarray(self.R, dtype=np.float64), np.asarray(self.t, dtype=np.float64)
-        return -np.einsum("...ji,...j->...i", R, t), R[..., 2, :]
+        return centres_on_host(R, t), R[..., 2, :]
 
     def select(self, views) -> Rig:
         """The sub-rig of the given view indices (a sequence or an int array; negative
@@ -69,6 +69,12 @@ class Rig(eqx.Module):
                 f"Rig.select: view index {int(views[out].flat[0])} is out of range for a rig of {M} views"
             )
         return Rig(self.K[..., views, :, :], self.R[..., views, :, :], self.t[..., views, :])
+
+
+def centres_on_host(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Camera centres ``C = -Rᵀ t`` in NumPy, ``(..., M, 3)`` from ``R (..., M, 3, 3)`` and
+    ``t (..., M, 3)`` (in their dtype: float64 where a rig is built or read)."""
+    return -np.einsum("...ji,...j->...i", R, t)
 
 
 def _check_camera_dtype(dtype, name: str) -> None:
@@ -100,7 +106,7 @@ def rounding_px(K: np.ndarray, R: np.ndarray, t: np.ndarray, dtype) -> float:
     spread (their RMS distance to their mean centre; also where the axes do not meet, as
     for parallel stereo). Scale-free: a rig in millimetres rounds as one in metres; a rig
     far from its world origin (UTM-like coordinates) rounds by pixels in float32."""
-    C = -np.einsum("mji,mj->mi", R, t)
+    C = centres_on_host(R, t)
     spread = float(np.sqrt(((C - C.mean(axis=0)) ** 2).sum(axis=1).mean()))
     if not spread > 0:  # one camera, or all in one place: nothing to compare with
         return 0.0
@@ -160,11 +166,10 @@ def rig_from_arrays(K, R, t, *, dtype=None, origin=None) -> Rig:
         t = t + np.einsum("mij,j->mi", R, origin)  # X_cam = R (X - origin) + t'
     px = rounding_px(K, R, t, dtype)
     if px > ROUNDING_PX_LIMIT:
-        centre = -np.einsum("mji,mj->mi", R, t).mean(axis=0)
-        if origin is not None:
-            centre = centre + origin
+        C = centres_on_host(R, t)
+        centre = C.mean(axis=0) + (0.0 if origin is None else origin)
         raise ValueError(
-            f"the cameras lie {np.abs(-np.einsum('mji,mj->mi', R, t)).max():.3g} units from the "
+            f"the cameras lie {np.abs(C).max():.3g} units from the "
             f"world origin, where {dtype.name} rounds their positions by up to "
             f"{px:.2g} px of epipolar distance: give a world point near them as origin= (their mean "
             f"centre: origin=({centre[0]:.6f}, {centre[1]:.6f}, {centre[2]:.6f})) and add it to "

@@ -441,16 +441,19 @@ _PADDING = {
 
 class NpzParts:
     """The ``.npz`` of :func:`save_association_npz` for a recording given a part at a time
-    (:meth:`add`, the arrays of :func:`association_arrays` of each part, frames in order),
-    kept on disk in ``folder`` until :meth:`write` writes the file: every array the parts'
-    one after the other along frames, other axes padded to the widest part's (empty groups
-    and people); ``class_names`` the first part's. Memory: one part's arrays at a time."""
+    (:meth:`add`: each part's batch result and detections, frames in order), kept on disk in
+    ``folder`` until :meth:`write` writes the file: every array the parts' one after the
+    other along frames, other axes padded to the widest part's (empty groups and people);
+    ``class_names`` the first part's. Memory: one part's arrays at a time."""
 
     def __init__(self, folder: str):
         self.folder = folder
         self.parts: list[dict[str, tuple[str, tuple, np.dtype]]] = []
 
-    def add(self, arrays: dict[str, np.ndarray]) -> None:
+    def add(self, assoc: Any, xy: Any, mask: Any, **details: Any) -> None:
+        """One part: ``assoc``, ``xy``, ``mask`` and the keywords of
+        :func:`save_association_npz` (``confidence``, ``classes``, ``people``)."""
+        arrays = association_arrays(assoc, xy=xy, mask=mask, **details)
         stored = {}
         for name, a in arrays.items():
             file = os.path.join(self.folder, f"{len(self.parts)}_{name}.npy")
@@ -616,7 +619,9 @@ class CsvParts(_TextParts):
         self.header: list[str] | None = None
         self.frames = 0
 
-    def add(self, assoc: Any, *, people: Any = None) -> None:
+    def add(self, assoc: Any, xy: Any = None, mask: Any = None, *, people: Any = None, **_) -> None:
+        """One part: ``assoc`` and its ``people`` (the CSV holds no detections: ``xy``,
+        ``mask`` and the other keywords of :meth:`JsonParts.add` are taken and not used)."""
         header, rows, frames = _csv_table(assoc, people)
         if self.header is not None and header != self.header:
             raise ValueError(

@@ -30,7 +30,13 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..geometry._camera import ROUNDING_PX_LIMIT, Rig, rig_from_arrays, rounding_px
+from ..geometry._camera import (
+    ROUNDING_PX_LIMIT,
+    Rig,
+    centres_on_host,
+    rig_from_arrays,
+    rounding_px,
+)
 from ..geometry._distortion import Fisheye
 from ._errors import InputError
 
@@ -145,9 +151,7 @@ def rig_file_from_views(views: _Views, dtype: Any, path: str, origin: Any = None
             > ROUNDING_PX_LIMIT
         )
         origin = (
-            -np.einsum("mji,mj->mi", views.R, views.t).mean(axis=0)
-            if origin == "cameras" or far
-            else None
+            centres_on_host(views.R, views.t).mean(axis=0) if origin == "cameras" or far else None
         )
     _check_float_range(views, dtype, path)
     if views.names is not None:
