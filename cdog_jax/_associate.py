@@ -419,10 +419,12 @@ def associate_batch_at(
     min_views=2,
     memory_budget_gb=None,
     min_slots=0,
+    on_host=False,
 ):
     """:func:`associate_batch` at a slot capacity of at least ``min_slots`` per view (the
     rung that holds it): a caller that must meet one compiled program on every call (a live
-    loop) gives its capacity here; results are those of :func:`associate_batch`."""
+    loop) gives its capacity here; results are those of :func:`associate_batch`, as NumPy
+    arrays with ``on_host`` (a caller that reads them on the host: no transfer back)."""
     expect_args("associate_batch", rig=(rig, Rig))
     expect(batch_size, INT, "batch_size", "associate_batch")
     method = method_argument(method, "associate_batch")
@@ -507,4 +509,4 @@ def associate_batch_at(
         results = [
             jax.tree.map(lambda *parts: np.concatenate([np.asarray(p) for p in parts]), *results)
         ]
-    return trim(results[0], P, num_scenes=B)
+    return trim(results[0], P, num_scenes=B, on_host=on_host)

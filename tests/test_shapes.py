@@ -8,7 +8,13 @@ import pytest
 from helpers import random_scene, ring_rig, run_with_xla_defaults
 
 from cdog_jax import Config, associate, associate_batch
-from cdog_jax._associate import _associate_extras_jit, _associate_jit, _check_extras, _prepare
+from cdog_jax._associate import (
+    _associate_extras_jit,
+    _associate_jit,
+    _check_extras,
+    _prepare,
+    associate_batch_at,
+)
 from cdog_jax._runtime.shapes import chunk_size, ladder_rung, slot_capacity
 
 RIG = ring_rig(5)
@@ -107,6 +113,18 @@ def padded_batch_is_bitwise_one_scene_at_a_time():
     for b in range(5):
         one = _unpadded(xy[b], mask[b], Config.extended(), float(sigma[b]))
         _assert_same(jax.tree.map(lambda a: a[b], batch), one)
+
+
+def test_a_batch_read_on_the_host_is_the_batch():
+    """``on_host`` (a caller that reads the results there) skips the transfer back, nothing
+    else: the same values, as NumPy arrays."""
+    xy, mask = _scene(5)
+    xy, mask = np.stack([xy, xy[:, ::-1]]), np.stack([mask, mask[:, ::-1]])
+    device = associate_batch_at(RIG, xy, mask, method=Config.extended(), sigma=1.0)
+    host = associate_batch_at(RIG, xy, mask, method=Config.extended(), sigma=1.0, on_host=True)
+    for d, h in zip(jax.tree.leaves(device), jax.tree.leaves(host)):
+        assert isinstance(d, jax.Array) and type(h) is np.ndarray
+        np.testing.assert_array_equal(np.asarray(d), h)
 
 
 def test_padded_batch_is_bitwise_one_scene_at_a_time():

@@ -82,13 +82,16 @@ _EMPTY_ROW = {"groups": -1, "valid": False, "points3d": 0, "bpe": 0, "err_px": 0
 """What every field of an :class:`Association` holds in a group row past the last group."""
 
 
-def trim(result: Association, num_slots: int, num_scenes: int | None = None) -> Association:
+def trim(
+    result: Association, num_slots: int, num_scenes: int | None = None, on_host: bool = False
+) -> Association:
     """``result`` of a padded call brought back to ``num_slots`` slots per view, hence
     ``G = M · num_slots // 2`` group rows (valid groups come first), and, for a batch, to
     ``num_scenes`` scenes. A call at fewer slots (trailing empty slots left out) is filled
     out: labels with -1, group rows with :data:`_EMPTY_ROW`, as the program at
     ``num_slots`` returns them (a group needs two detections, so the program at fewer
-    slots already holds every row a group can use). Fields become device arrays again."""
+    slots already holds every row a group can use). Fields become device arrays again (in
+    one transfer), or stay NumPy arrays with ``on_host`` (a caller that reads them there)."""
     host = jax.tree.map(np.asarray, jax.device_get(result))
     lead = () if num_scenes is None else (slice(0, num_scenes),)
     num_groups_max = host.labels.shape[-2] * num_slots // 2
@@ -102,5 +105,7 @@ def trim(result: Association, num_slots: int, num_scenes: int | None = None) -> 
         return value[lead]
 
     names = [field.name for field in dataclasses.fields(Association)]  # the pytree's leaf order
-    leaves = [jax.device_put(np.asarray(cut(name, getattr(host, name)))) for name in names]
+    leaves = [np.asarray(cut(name, getattr(host, name))) for name in names]
+    if not on_host:
+        leaves = jax.device_put(leaves)
     return jax.tree.unflatten(jax.tree.structure(result), leaves)  # batched too (no __init__ check)

@@ -241,8 +241,8 @@ def associate_classes_at(
         batch_size=batch_size,
         memory_budget_gb=memory_budget_gb,
         min_slots=min_slots,
+        on_host=True,
     )
-    result = jax.tree_util.tree_map(np.asarray, result)
     out = _map_back(result, scenes, F, M, P, C, class_names)
     if vote is not None:
         fixed = person_consistent(
