@@ -14,7 +14,9 @@ from cdog_jax._runtime.memory import (
     ENV_BUDGET,
     check_memory,
     estimate_peak_bytes,
+    limit_heap_arenas,
     memory_budget_bytes,
+    release_freed_memory,
 )
 from cdog_jax._runtime.stored_programs import loaded_programs
 
@@ -96,3 +98,28 @@ def test_estimate_is_within_a_factor_of_xla(name, M, P):
 
 def test_the_public_namespace_names_the_estimate():
     assert cdog_jax.estimate_peak_bytes is estimate_peak_bytes
+
+
+def test_the_c_heap_is_capped_and_trimmed_under_glibc_and_left_alone_elsewhere(monkeypatch):
+    """A command's process caps glibc's arenas and hands free pages back between parts; in
+    another C library (no ``malloc_trim``) both do nothing and say so."""
+    import ctypes
+    import platform
+    import subprocess
+    import sys
+
+    code = (
+        "from cdog_jax._runtime.memory import limit_heap_arenas, release_freed_memory;"
+        "import numpy as np; a = [np.ones(1 << 16) for _ in range(200)]; del a;"
+        "print(limit_heap_arenas(), release_freed_memory())"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    capped, trimmed = done.stdout.split()
+    assert capped == str(platform.libc_ver()[0] == "glibc") and trimmed in ("True", "False")
+
+    def no_libc(*args, **kwargs):
+        raise OSError("libc.so.6: cannot open shared object file")
+
+    monkeypatch.setattr(ctypes, "CDLL", no_libc)
+    assert limit_heap_arenas() is False and release_freed_memory() is False

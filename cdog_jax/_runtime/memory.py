@@ -154,3 +154,39 @@ def check_memory(
         + ", ".join(changes)
         + f", or raise the budget (memory_budget_gb=, or the {ENV_BUDGET} environment variable, in GB)."
     )
+
+
+# The C heap of a long run. glibc gives each thread that allocates its own heap ("arena",
+# up to eight per core), and memory freed in one stays mapped until that arena's top is
+# free: a recording associated part by part, each part's arrays freed, still grew by a
+# quarter of a GiB between its first part and its second (XLA's threads allocate in many
+# arenas). A command's own process therefore caps the arenas at the start and hands the
+# free pages back between parts. Nothing here runs for a library call (the process is the
+# user's), and elsewhere than glibc (macOS, musl) both are no-ops.
+HEAP_ARENAS = 2
+_M_ARENA_MAX = -8  # glibc's mallopt parameter number
+
+
+def _glibc():
+    """glibc's C library (``ctypes``), or None under another C library."""
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+    except OSError:
+        return None
+    return libc if hasattr(libc, "malloc_trim") and hasattr(libc, "mallopt") else None
+
+
+def limit_heap_arenas(count: int = HEAP_ARENAS) -> bool:
+    """Let the C heap (glibc) make at most ``count`` arenas from now on; called before any
+    thread starts allocating (before JAX starts its backend). True where it took effect."""
+    libc = _glibc()
+    return bool(libc is not None and libc.mallopt(_M_ARENA_MAX, int(count)))
+
+
+def release_freed_memory() -> bool:
+    """Hand the C heap's free pages back to the system (glibc's ``malloc_trim``), e.g.
+    between the parts of a long recording. True where memory was released."""
+    libc = _glibc()
+    return bool(libc is not None and libc.malloc_trim(0))

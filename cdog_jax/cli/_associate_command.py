@@ -549,6 +549,7 @@ def run_associate(args: argparse.Namespace) -> int:
         associate_batch,
         method_from,
     )
+    from .._runtime.memory import release_freed_memory
     from ..geometry._distortion import Fisheye
     from ..graph._sigma import FALLBACK_SIGMA_PX
     from ..io import save_association_csv, save_association_json, save_association_npz
@@ -778,6 +779,7 @@ def run_associate(args: argparse.Namespace) -> int:
             kept.append((tracked, people, part.xy, part.mask, part.confidence, part.classes))
         if streamed:  # nothing of this part stays alive while the next is associated
             classed = tracked = result = people = part = _DONE
+            release_freed_memory()  # and the heap it used goes back to the system
     class_counts = None if not counts else (np.concatenate(counts), np.concatenate(most))
     summary = _joined(stats)
     if kept:

@@ -101,7 +101,7 @@ def test_the_prior_on_one_scene_says_it_does_nothing(tmp_path, capsys):
     assert "--temporal-prior needs a sequence of frames" in text and "tracks:" not in text
 
 
-def test_a_recording_in_parts_gives_the_whole_recordings_output(tmp_path, capsys):
+def test_a_recording_in_parts_gives_the_whole_recordings_output(tmp_path, capsys, monkeypatch):
     """``--part-frames``: a recording associated, tracked and identified in parts, one after
     the other, writes what the whole at once writes: every group, label, track id and person
     (points within 1e-5, σ within its round-off; rows past the valid ones are padding)."""
@@ -134,7 +134,13 @@ def test_a_recording_in_parts_gives_the_whole_recordings_output(tmp_path, capsys
     common = ["associate", "--rig", tmp_path / "rig.json", "--points", tmp_path / "pose"]
     assert main([*common, "--out", tmp_path / "whole.npz"]) == 0
     whole_text = capsys.readouterr().out
+    import cdog_jax._runtime.memory as memory
+
+    released = []  # between parts, the freed heap goes back to the system
+    release = memory.release_freed_memory
+    monkeypatch.setattr(memory, "release_freed_memory", lambda: released.append(release()))
     assert main([*common, "--part-frames", "3", "--out", tmp_path / "parts.npz"]) == 0
+    assert len(released) == 3  # 7 frames: parts of 3, 3 and 1
     parts_text = capsys.readouterr().out
     for line in ("3D points:", "tracks:", "people:", "classes:"):
         assert [s for s in whole_text.splitlines() if line in s] == [
