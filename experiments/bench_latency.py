@@ -81,7 +81,7 @@ def _write_frame(folder: Path, num_points: int, seed: int = 0) -> tuple[Path, Pa
     import jax
     import numpy as np
 
-    from cdog_jax.io import save_rig_json
+    from cdog_jax.io import save_rig
     from cdog_jax.synthetic import default_rig, generate_scene
 
     rig = default_rig()
@@ -91,7 +91,7 @@ def _write_frame(folder: Path, num_points: int, seed: int = 0) -> tuple[Path, Pa
         [[float(x), float(y)] for (x, y), m in zip(xy[v], mask[v]) if m] for v in range(xy.shape[0])
     ]
     rig_path, det_path = folder / "rig.json", folder / f"frame_{num_points}.json"
-    save_rig_json(rig_path, rig, image_size=(640, 480))
+    save_rig(rig_path, rig, format="json", image_size=(640, 480))
     det_path.write_text(json.dumps({"views": views}))
     return rig_path, det_path
 

@@ -192,8 +192,6 @@ def plot_frame(rig_file, det, out, frame: int, path: str, title: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from cdog_jax.io import atomic_savefig
-
     a = out.association
     labels = np.asarray(a.labels[frame])
     groups = np.asarray(a.groups[frame])
@@ -246,7 +244,7 @@ def plot_frame(rig_file, det, out, frame: int, path: str, title: str) -> None:
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
     try:
-        atomic_savefig(fig, path, dpi=70)
+        fig.savefig(path, dpi=70)
     finally:
         plt.close(fig)
 

@@ -15,12 +15,7 @@ import pytest
 import cdog_jax
 from cdog_jax import associate_classes
 from cdog_jax.cli import main
-from cdog_jax.io import (
-    save_association_csv,
-    save_association_json,
-    save_association_npz,
-    save_rig_json,
-)
+from cdog_jax.io import save_association_csv, save_association_json, save_association_npz, save_rig
 from cdog_jax.synthetic import DEFAULT_BOX, default_rig
 
 F, C, K, M = 2, 3, 2, 4  # frames, classes, instances per class, views
@@ -169,7 +164,7 @@ def test_results_carry_the_class(scene, tmp_path):
 
 def test_cli_associates_openpose_folder_by_keypoint(scene, tmp_path, capsys):
     rig, xy, mask, classes, truth = scene
-    save_rig_json(tmp_path / "rig.json", rig)
+    save_rig(tmp_path / "rig.json", rig, format="json")
     # One OpenPose person per instance k; keypoint j = class; the person order differs per view.
     for m in range(M):
         os.makedirs(tmp_path / "pose" / f"cam{m + 1}")
@@ -207,7 +202,7 @@ def test_cli_associates_openpose_folder_by_keypoint(scene, tmp_path, capsys):
 
 def test_cli_keypoint_options_checked_before_work(scene, tmp_path, capsys):
     rig, *_ = scene
-    save_rig_json(tmp_path / "rig.json", rig)
+    save_rig(tmp_path / "rig.json", rig, format="json")
     points = tmp_path / "points.json"
     points.write_text(json.dumps({"views": [[[1, 2]], [[3, 4]], [[5, 6]], [[7, 8]]]}))
     code = main(

@@ -87,10 +87,10 @@ def test_no_cache_flag_turns_it_off(tmp_path):
     import jax
 
     from cdog_jax.cli import main
-    from cdog_jax.io import save_rig_json
+    from cdog_jax.io import save_rig
     from cdog_jax.synthetic import default_rig
 
-    save_rig_json(tmp_path / "rig.json", default_rig())
+    save_rig(tmp_path / "rig.json", default_rig(), format="json")
     before = jax.config.jax_compilation_cache_dir
     try:
         assert main(["--no-cache", "rig", str(tmp_path / "rig.json")]) == 0

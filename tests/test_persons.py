@@ -274,10 +274,10 @@ def test_person_vote_numbers_checked():
 
 def test_cli_person_vote_reads_the_instance_column(swapped, tmp_path, capsys):
     from cdog_jax.cli import main
-    from cdog_jax.io import save_rig_json
+    from cdog_jax.io import save_rig
 
     rig, xy, mask, classes, instances, person = swapped
-    save_rig_json(tmp_path / "rig.json", rig)
+    save_rig(tmp_path / "rig.json", rig, format="json")
     table = tmp_path / "points.csv"
     rows = [
         f"0,{m},{classes[0, m, s]},{float(xy[0, m, s, 0])!r},{float(xy[0, m, s, 1])!r},1,{instances[0, m, s]}"

@@ -94,14 +94,14 @@ def _save_scene(folder: str, rig, scene, sigma: float, seed: int) -> None:
 
     import numpy as np
 
-    from ..io import save_detections_json, save_rig_json
+    from ..io import save_detections_json, save_rig
     from ..io._atomic import atomic_write
     from ..synthetic import IMAGE_SIZE
 
     os.makedirs(folder, exist_ok=True)
     mask = np.asarray(scene.mask)
     instance = np.asarray(scene.instance)
-    save_rig_json(os.path.join(folder, "rig.json"), rig, image_size=IMAGE_SIZE)
+    save_rig(os.path.join(folder, "rig.json"), rig, format="json", image_size=IMAGE_SIZE)
     save_detections_json(os.path.join(folder, "detections.json"), scene.xy, mask)
     truth = {
         "about": "synthetic scene of 'cdog-jax demo': views[m][k] is the true point of detection k of view m "

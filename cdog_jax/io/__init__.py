@@ -2,7 +2,7 @@
 
 Rigs: EasyVis/OpenMVG folders, JSON, NPZ, anipose ``calibration.toml``, COLMAP text models,
 EasyMocap ``intri.yml``/``extri.yml`` and nerfstudio ``transforms.json`` (``load_rig`` and
-the ``save_rig_*`` writers); Qualisys ``.qca.txt`` (read only); in memory, an aniposelib ``CameraGroup``, a pycolmap
+``save_rig``); Qualisys ``.qca.txt`` (read only); in memory, an aniposelib ``CameraGroup``, a pycolmap
 ``Reconstruction`` and OpenCV arrays (``rig_from_*`` / ``*_from_rig``; the libraries are
 optional); exact Rodrigues and quaternion conversions.
 Detections: JSON and NPZ, one scene or many frames, and converters from the encodings of
@@ -16,15 +16,12 @@ Every writer replaces its file atomically (``_atomic.py``); a problem with a fil
 content raises :class:`InputError` (a ``ValueError``) naming the file.
 """
 
-from ._anipose import save_rig_anipose as save_rig_anipose
 from ._association_files import (
     load_association_json as load_association_json,
     save_association_csv as save_association_csv,
     save_association_json as save_association_json,
     save_association_npz as save_association_npz,
 )
-from ._atomic import atomic_savefig as atomic_savefig
-from ._colmap import save_rig_colmap as save_rig_colmap
 from ._detections import (
     Detections as Detections,
     detections_from_array as detections_from_array,
@@ -32,7 +29,6 @@ from ._detections import (
     load_detections as load_detections,
 )
 from ._detections_out import save_detections_json as save_detections_json
-from ._easymocap import save_rig_easymocap as save_rig_easymocap
 from ._errors import InputError as InputError
 from ._interop_aniposelib import (
     aniposelib_from_rig as aniposelib_from_rig,
@@ -48,22 +44,19 @@ from ._keypoints import (
     load_openpose as load_openpose,
 )
 from ._load_rig import load_rig as load_rig
-from ._nerfstudio import save_rig_nerfstudio as save_rig_nerfstudio
 from ._opencv_arrays import (
     OpenCVCameras as OpenCVCameras,
     opencv_from_rig as opencv_from_rig,
     rig_from_opencv as rig_from_opencv,
 )
-from ._rig_easyvis import save_rig_easyvis as save_rig_easyvis
 from ._rig_files import RigFile as RigFile
-from ._rig_json import save_rig_json as save_rig_json
-from ._rig_npz import save_rig_npz as save_rig_npz
 from ._rotations import (
     quaternion_from_rotation as quaternion_from_rotation,
     rodrigues_from_rotation as rodrigues_from_rotation,
     rotation_from_quaternion as rotation_from_quaternion,
     rotation_from_rodrigues as rotation_from_rodrigues,
 )
+from ._save_rig import save_rig as save_rig
 from ._trc import (
     Trc as Trc,
     load_trc as load_trc,

@@ -175,7 +175,7 @@ def save_rig_anipose(
     K = _K_over_K22(K)
     if image_size is None:
         raise ValueError(
-            "save_rig_anipose: image_size is required: aniposelib cannot load a calibration.toml camera "
+            "save_rig: an anipose rig needs image_size: aniposelib cannot load a calibration.toml camera "
             "without size = [width, height]; pass image_size=(w, h) or one per view (M, 2)"
         )
     sizes = _check_view_sizes(image_size, M)

@@ -294,7 +294,7 @@ def save_rig_easymocap(
     dist = _check_dist(dist, M)
     if isinstance(dist, Fisheye):
         raise ValueError(
-            "save_rig_easymocap: EasyMocap has no fisheye lens model; write another format or undistort first"
+            "save_rig: EasyMocap has no fisheye lens model; write another format or undistort first"
         )
     dist = np.zeros((M, 5)) if dist is None else dist
     sizes = _check_view_sizes(image_size, M)

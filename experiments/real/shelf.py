@@ -257,9 +257,9 @@ def write_openpose(views: list[list[Frame]], folder: str) -> None:
 
 def write_rig(path: str, K, R, t, image_size) -> None:
     from cdog_jax import rig_from_arrays
-    from cdog_jax.io import save_rig_json
+    from cdog_jax.io import save_rig
 
-    save_rig_json(path, rig_from_arrays(K, R, t), image_size=image_size)
+    save_rig(path, rig_from_arrays(K, R, t), format="json", image_size=image_size)
 
 
 def prepare(data: str, work: str, frames: int | None = None) -> dict:

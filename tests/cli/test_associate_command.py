@@ -13,15 +13,7 @@ import pytest
 import cdog_jax
 from cdog_jax.cli import main
 from cdog_jax.geometry import distort_pixels
-from cdog_jax.io import (
-    load_association_json,
-    save_rig_anipose,
-    save_rig_colmap,
-    save_rig_easymocap,
-    save_rig_easyvis,
-    save_rig_json,
-    save_rig_npz,
-)
+from cdog_jax.io import load_association_json, save_rig
 from cdog_jax.synthetic import IMAGE_SIZE, default_rig, generate_scene
 
 SIGMA = 0.5
@@ -62,12 +54,12 @@ def _points(expected):
 
 
 WRITERS = {
-    "easyvis": lambda p, rig: save_rig_easyvis(p, rig),
-    "json": lambda p, rig: save_rig_json(p, rig, image_size=IMAGE_SIZE),
-    "npz": lambda p, rig: save_rig_npz(p, rig, image_size=IMAGE_SIZE),
-    "anipose": lambda p, rig: save_rig_anipose(p, rig, image_size=IMAGE_SIZE),
-    "colmap": lambda p, rig: save_rig_colmap(p, rig, image_size=IMAGE_SIZE),
-    "easymocap": lambda p, rig: save_rig_easymocap(p, rig),
+    "easyvis": lambda p, rig: save_rig(p, rig, format="easyvis"),
+    "json": lambda p, rig: save_rig(p, rig, format="json", image_size=IMAGE_SIZE),
+    "npz": lambda p, rig: save_rig(p, rig, format="npz", image_size=IMAGE_SIZE),
+    "anipose": lambda p, rig: save_rig(p, rig, format="anipose", image_size=IMAGE_SIZE),
+    "colmap": lambda p, rig: save_rig(p, rig, format="colmap", image_size=IMAGE_SIZE),
+    "easymocap": lambda p, rig: save_rig(p, rig, format="easymocap"),
 }
 NAMES = {
     "easyvis": "rig_ev",
@@ -155,7 +147,7 @@ def test_a_rig_far_from_its_world_origin_is_centred(data, shift, capsys):
 def test_associate_frames_csv_npz_weights_min_views_plot(data, capsys):
     folder, rig, points, views, expected = data
     rig_path = folder / "rig_frames.json"
-    save_rig_json(rig_path, rig, image_size=IMAGE_SIZE)
+    save_rig(rig_path, rig, format="json", image_size=IMAGE_SIZE)
     frames = folder / "frames.json"
     frames.write_text(json.dumps({"frames": [{"views": views}, {"views": views[::-1][::-1]}]}))
     out_csv, out_npz, fig = folder / "points.csv", folder / "groups.npz", folder / "frame0.png"
@@ -179,7 +171,7 @@ def test_associate_frames_csv_npz_weights_min_views_plot(data, capsys):
 def test_associate_summary_says_when_sigma_fell_back(data, capsys):
     folder, rig, points, views, expected = data
     rig_path = folder / "rig_fallback.json"
-    save_rig_json(rig_path, rig, image_size=IMAGE_SIZE)
+    save_rig(rig_path, rig, format="json", image_size=IMAGE_SIZE)
     # Frame 1: one detection in each of two views (of different points): nothing to estimate σ from.
     thin = [[[300.0, 200.0]], [[350.0, 260.0]]] + [[] for _ in views[2:]]
     frames = folder / "frames_fallback.json"
@@ -198,7 +190,7 @@ def test_associate_undistorts_with_the_rig_distortion(data, capsys):
     folder, rig, points, views, expected = data
     dist = np.tile(DIST, (rig.num_views, 1))
     rig_path = folder / "lens.toml"
-    save_rig_anipose(rig_path, rig, image_size=IMAGE_SIZE, dist=dist)
+    save_rig(rig_path, rig, format="anipose", image_size=IMAGE_SIZE, dist=dist)
     lens_views = []
     for m, v in enumerate(views):
         if not v:
@@ -234,7 +226,7 @@ def test_associate_undistorts_with_the_rig_distortion(data, capsys):
 def test_rig_command_describes_and_plots(data, capsys):
     folder, rig, points, views, expected = data
     rig_path = folder / "described.json"
-    save_rig_json(rig_path, rig, image_size=IMAGE_SIZE)
+    save_rig(rig_path, rig, format="json", image_size=IMAGE_SIZE)
     fig = folder / "rig.png"
     assert main(["rig", rig_path, "--points", points, "--plot", fig]) == 0
     text = capsys.readouterr().out
@@ -243,7 +235,7 @@ def test_rig_command_describes_and_plots(data, capsys):
     # A rig given camera→world (R transposed, t = centre) is flagged.
     wrong = cdog_jax.Rig(rig.K, jnp.swapaxes(rig.R, -1, -2), rig.centers)
     wrong_path = folder / "wrong.json"
-    save_rig_json(wrong_path, wrong, image_size=IMAGE_SIZE)
+    save_rig(wrong_path, wrong, format="json", image_size=IMAGE_SIZE)
     assert main(["rig", wrong_path, "--points", points]) == 0
     assert "camera→world" in capsys.readouterr().out
 
@@ -251,7 +243,7 @@ def test_rig_command_describes_and_plots(data, capsys):
 def test_associate_refuses_bad_input_before_any_work(data, tmp_path, capsys):
     folder, rig, points, views, expected = data
     rig_path = tmp_path / "three.json"
-    save_rig_json(rig_path, rig.select([0, 1, 2]))
+    save_rig(rig_path, rig.select([0, 1, 2]), format="json")
     assert main(["associate", "--rig", rig_path, "--points", points]) == 2
     assert re.search(
         r"^cdog-jax: error: .*detections\.json.*10 views; the rig has 3", capsys.readouterr().err
@@ -263,7 +255,7 @@ def test_associate_refuses_bad_input_before_any_work(data, tmp_path, capsys):
     with pytest.raises(ValueError, match=r"detections\.json.*10 views; the rig has 3"):
         main(["associate", "--debug", "--rig", rig_path, "--points", points])
     ten = tmp_path / "ten.json"
-    save_rig_json(ten, rig)
+    save_rig(ten, rig, format="json")
     assert main(["associate", "--rig", ten, "--points", points, "--min-views", "11"]) == 2
     assert capsys.readouterr().err == (
         "cdog-jax: error: min_views must be at most the number of views, 10 "
@@ -276,7 +268,7 @@ def test_associate_with_the_robust_sigma_estimator(data, capsys):
     σ and groups are those of ``associate`` with ``sigma_mode="robust"``."""
     folder, rig, points, views, expected = data
     rig_path = folder / "rig_robust.json"
-    save_rig_json(rig_path, rig, image_size=IMAGE_SIZE)
+    save_rig(rig_path, rig, format="json", image_size=IMAGE_SIZE)
     out = folder / "robust.json"
     assert (
         main(

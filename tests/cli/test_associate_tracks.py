@@ -9,7 +9,7 @@ import pytest
 from helpers import project_np, ring_rig
 
 from cdog_jax.cli import main
-from cdog_jax.io import save_rig_json
+from cdog_jax.io import save_rig
 
 
 def test_associate_writes_track_ids(tmp_path, capsys):
@@ -22,7 +22,7 @@ def test_associate_writes_track_ids(tmp_path, capsys):
         frames.append({"views": [[[float(v) for v in xy[m, i]] for i in order] for m in range(3)]})
     points, rig_path = tmp_path / "frames.json", tmp_path / "rig.json"
     points.write_text(json.dumps({"frames": frames}))
-    save_rig_json(rig_path, rig, image_size=(640, 480))
+    save_rig(rig_path, rig, format="json", image_size=(640, 480))
     common = [
         "associate",
         "--rig",
@@ -79,7 +79,7 @@ def test_the_prior_on_one_scene_says_it_does_nothing(tmp_path, capsys):
     points.write_text(
         json.dumps({"views": [[[float(v) for v in p] for p in xy[m]] for m in range(3)]})
     )
-    save_rig_json(rig_path, rig, image_size=(640, 480))
+    save_rig(rig_path, rig, format="json", image_size=(640, 480))
     assert (
         main(
             [
@@ -130,7 +130,7 @@ def test_a_recording_in_parts_gives_the_whole_recordings_output(tmp_path, capsys
                     }
                 )
             )
-    save_rig_json(tmp_path / "rig.json", rig)
+    save_rig(tmp_path / "rig.json", rig, format="json")
     common = ["associate", "--rig", tmp_path / "rig.json", "--points", tmp_path / "pose"]
     assert main([*common, "--out", tmp_path / "whole.npz"]) == 0
     whole_text = capsys.readouterr().out

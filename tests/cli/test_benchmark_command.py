@@ -37,11 +37,11 @@ def test_unknown_method_is_refused(capsys):
 
 
 def test_benchmark_on_a_rig_file(tmp_path, capsys):
-    from cdog_jax.io import save_rig_easyvis
+    from cdog_jax.io import save_rig
     from cdog_jax.synthetic import default_rig, visible_box
 
     rig = default_rig().select([0, 1, 2, 3])
-    save_rig_easyvis(tmp_path / "rig", rig)
+    save_rig(tmp_path / "rig", rig, format="easyvis")
     out = tmp_path / "bench"
     argv = [
         "benchmark",
@@ -68,10 +68,15 @@ def test_benchmark_on_a_rig_file(tmp_path, capsys):
 
 
 def test_benchmark_rig_file_with_explicit_box(tmp_path, capsys):
-    from cdog_jax.io import save_rig_json
+    from cdog_jax.io import save_rig
     from cdog_jax.synthetic import default_rig
 
-    save_rig_json(tmp_path / "rig.json", default_rig().select([0, 1, 2, 3]), image_size=(640, 480))
+    save_rig(
+        tmp_path / "rig.json",
+        default_rig().select([0, 1, 2, 3]),
+        format="json",
+        image_size=(640, 480),
+    )
     out = tmp_path / "bench"
     argv = [
         "benchmark",

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from cdog_jax.cli import main
-from cdog_jax.io import load_detections, save_rig_json
+from cdog_jax.io import load_detections, save_rig
 from cdog_jax.synthetic import IMAGE_SIZE, default_rig
 
 RIG = default_rig().select([0, 1, 2])
@@ -33,9 +33,9 @@ VIEWS = [[[float(x), float(y)] for x, y in view] for view in _project(POINTS3D)]
 def files(tmp_path):
     """A JSON rig with image size, one without, a detections file and a results file."""
     rig = tmp_path / "rig.json"
-    save_rig_json(rig, RIG, image_size=IMAGE_SIZE)
+    save_rig(rig, RIG, format="json", image_size=IMAGE_SIZE)
     bare = tmp_path / "bare.json"
-    save_rig_json(bare, RIG)
+    save_rig(bare, RIG, format="json")
     points = tmp_path / "points.json"
     points.write_text(json.dumps({"views": VIEWS}))
     return tmp_path, rig, bare, points
@@ -216,7 +216,9 @@ def test_a_rig_written_camera_to_world_is_refused_by_every_command(tmp_path, cap
     R_inv = np.swapaxes(np.asarray(RIG.R), 1, 2)
     t_inv = -np.einsum("mij,mj->mi", R_inv, np.asarray(RIG.t))
     rig = tmp_path / "c2w.json"
-    save_rig_json(rig, rig_from_arrays(np.asarray(RIG.K), R_inv, t_inv), image_size=IMAGE_SIZE)
+    save_rig(
+        rig, rig_from_arrays(np.asarray(RIG.K), R_inv, t_inv), format="json", image_size=IMAGE_SIZE
+    )
     refused(_associate(rig, points), capsys, "c2w.json", "camera→world")
     refused(["track", "--rig", rig], capsys, "c2w.json", "camera→world")
 

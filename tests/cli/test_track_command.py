@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from cdog_jax import LiveAssociator
-from cdog_jax.io import save_rig_json
+from cdog_jax.io import save_rig
 from cdog_jax.synthetic import SKELETON_JOINTS, default_rig, generate_skeleton_scenes
 
 M, J = 3, 17
@@ -25,7 +25,7 @@ def stream(tmp_path_factory):
 
     folder = tmp_path_factory.mktemp("track")
     rig = default_rig(num_views=M)
-    save_rig_json(str(folder / "rig.json"), rig, image_size=(640, 480))
+    save_rig(str(folder / "rig.json"), rig, format="json", image_size=(640, 480))
     sk = generate_skeleton_scenes(jax.random.PRNGKey(2), rig, 2, 1.0, num_frames=3).frames
     xy, mask, cls = (np.asarray(a) for a in (sk.xy, sk.mask, sk.class_id))
     lines = []

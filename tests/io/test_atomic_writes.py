@@ -11,17 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from cdog_jax.io import (
-    save_association_csv,
-    save_association_json,
-    save_association_npz,
-    save_rig_anipose,
-    save_rig_colmap,
-    save_rig_easymocap,
-    save_rig_easyvis,
-    save_rig_json,
-    save_rig_npz,
-)
+from cdog_jax.io import save_association_csv, save_association_json, save_association_npz, save_rig
 from cdog_jax.io._atomic import atomic_write
 from cdog_jax.synthetic import IMAGE_SIZE, default_rig
 
@@ -87,15 +77,15 @@ WRITERS = {
     "association.json": lambda p: save_association_json(p, _assoc(), XY, MASK),
     "association.npz": lambda p: save_association_npz(p, _assoc(), xy=XY, mask=MASK),
     "association.csv": lambda p: save_association_csv(p, _assoc()),
-    "rig.json": lambda p: save_rig_json(p, RIG, image_size=IMAGE_SIZE),
-    "rig.npz": lambda p: save_rig_npz(p, RIG, image_size=IMAGE_SIZE),
-    "calibration.toml": lambda p: save_rig_anipose(p, RIG, image_size=IMAGE_SIZE),
+    "rig.json": lambda p: save_rig(p, RIG, format="json", image_size=IMAGE_SIZE),
+    "rig.npz": lambda p: save_rig(p, RIG, format="npz", image_size=IMAGE_SIZE),
+    "calibration.toml": lambda p: save_rig(p, RIG, format="anipose", image_size=IMAGE_SIZE),
     "figure.png": _figure,
 }
 FOLDER_WRITERS = {
-    "easyvis": (lambda p: save_rig_easyvis(p, RIG), "K0.txt"),
-    "colmap": (lambda p: save_rig_colmap(p, RIG, image_size=IMAGE_SIZE), "cameras.txt"),
-    "easymocap": (lambda p: save_rig_easymocap(p, RIG), "intri.yml"),
+    "easyvis": (lambda p: save_rig(p, RIG, format="easyvis"), "K0.txt"),
+    "colmap": (lambda p: save_rig(p, RIG, format="colmap", image_size=IMAGE_SIZE), "cameras.txt"),
+    "easymocap": (lambda p: save_rig(p, RIG, format="easymocap"), "intri.yml"),
 }
 
 

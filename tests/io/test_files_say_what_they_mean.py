@@ -8,14 +8,14 @@ import json
 import numpy as np
 import pytest
 
-from cdog_jax.io import load_detections, load_keypoint_table, load_rig, save_rig_json
+from cdog_jax.io import load_detections, load_keypoint_table, load_rig, save_rig
 from cdog_jax.synthetic import default_rig
 
 
 @pytest.fixture
 def rig_json(tmp_path):
     path = tmp_path / "rig.json"
-    save_rig_json(path, default_rig(num_views=3), image_size=(640, 480))
+    save_rig(path, default_rig(num_views=3), format="json", image_size=(640, 480))
     return path
 
 
@@ -77,9 +77,9 @@ def test_table_columns(tmp_path):
 
 
 def test_two_cameras_with_one_name_are_refused(tmp_path):
-    from cdog_jax.io import save_rig_colmap
+    from cdog_jax.io import save_rig
 
-    save_rig_colmap(tmp_path, default_rig(num_views=3), image_size=(640, 480))
+    save_rig(tmp_path, default_rig(num_views=3), format="colmap", image_size=(640, 480))
     images = tmp_path / "images.txt"
     images.write_text(images.read_text().replace(" view_1\n", " view_0\n"))
     _refused(load_rig, images, "two cameras are named 'view_0'", "views 0 and 1")

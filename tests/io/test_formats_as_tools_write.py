@@ -20,15 +20,7 @@ from test_rig_formats import (
 
 import cdog_jax
 from cdog_jax.geometry import Fisheye
-from cdog_jax.io import (
-    load_rig,
-    save_rig_anipose,
-    save_rig_colmap,
-    save_rig_easymocap,
-    save_rig_json,
-    save_rig_nerfstudio,
-    save_rig_npz,
-)
+from cdog_jax.io import load_rig, save_rig
 from cdog_jax.io._rotations import rotation_from_rodrigues
 from cdog_jax.synthetic import default_rig
 
@@ -48,7 +40,7 @@ def test_colmap_full_opencv_written_for_k3_and_read_back(tmp_path):
         dist = np.zeros((3, 5))
         dist[1] = [0.1, -0.05, 0.001, 0.002, 0.01]  # k3 ≠ 0: FULL_OPENCV
         dist[2, :4] = [0.1, 0.0, 0.0, 0.0]  # OPENCV
-        save_rig_colmap(tmp_path, rig, image_size=(640, 480), dist=dist)
+        save_rig(tmp_path, rig, format="colmap", image_size=(640, 480), dist=dist)
         models = [
             line.split()[1]
             for line in (tmp_path / "cameras.txt").read_text().splitlines()
@@ -67,7 +59,7 @@ def test_colmap_full_opencv_written_for_k3_and_read_back(tmp_path):
 def test_colmap_fisheye_round_trip_and_rational_refused(tmp_path):
     with x64():
         rig = default_rig(num_views=3, dtype=jnp.float64)
-        save_rig_colmap(tmp_path, rig, image_size=(640, 480), dist=Fisheye(FISHEYE))
+        save_rig(tmp_path, rig, format="colmap", image_size=(640, 480), dist=Fisheye(FISHEYE))
         assert "OPENCV_FISHEYE" in (tmp_path / "cameras.txt").read_text()
         loaded = load_rig(tmp_path, dtype=jnp.float64)
     assert isinstance(loaded.dist, Fisheye)
@@ -114,21 +106,21 @@ def test_easymocap_prefers_R_and_reads_the_image_size(tmp_path):
 
 def test_easymocap_writes_the_image_size_and_refuses_fisheye(tmp_path):
     rig = default_rig(num_views=2)
-    save_rig_easymocap(tmp_path / "a", rig, image_size=[[640, 480], [800, 600]])
+    save_rig(tmp_path / "a", rig, format="easymocap", image_size=[[640, 480], [800, 600]])
     assert "H_01: 600\nW_01: 800\n" in (tmp_path / "a" / "intri.yml").read_text()
     np.testing.assert_array_equal(load_rig(tmp_path / "a").view_sizes, [[640, 480], [800, 600]])
     with pytest.raises(ValueError, match="EasyMocap has no fisheye lens model"):
-        save_rig_easymocap(tmp_path / "b", rig, dist=Fisheye(FISHEYE[:2]))
+        save_rig(tmp_path / "b", rig, format="easymocap", dist=Fisheye(FISHEYE[:2]))
 
 
 def test_anipose_size_is_required_and_sections_sort_as_strings_too(tmp_path):
     rig = default_rig(num_views=12)
     with pytest.raises(
         ValueError,
-        match=r"image_size is required: aniposelib cannot load a calibration.toml camera without size",
+        match=r"an anipose rig needs image_size: aniposelib cannot load a calibration.toml camera without",
     ):
-        save_rig_anipose(tmp_path / "c.toml", rig)
-    save_rig_anipose(tmp_path / "c.toml", rig, image_size=(640, 480))
+        save_rig(tmp_path / "c.toml", rig, format="anipose")
+    save_rig(tmp_path / "c.toml", rig, format="anipose", image_size=(640, 480))
     sections = re.findall(r"^\[(cam_\d+)\]$", (tmp_path / "c.toml").read_text(), flags=re.M)
     assert (
         sections == sorted(sections)
@@ -157,16 +149,26 @@ def test_fisheye_round_trips(tmp_path, fmt):
     with x64():
         rig = default_rig(num_views=3, dtype=jnp.float64)
         writers = {
-            "anipose": lambda: save_rig_anipose(
-                tmp_path / "c.toml", rig, image_size=(640, 480), dist=Fisheye(FISHEYE)
+            "anipose": lambda: save_rig(
+                tmp_path / "c.toml",
+                rig,
+                format="anipose",
+                image_size=(640, 480),
+                dist=Fisheye(FISHEYE),
             ),
-            "json": lambda: save_rig_json(tmp_path / "r.json", rig, dist=Fisheye(FISHEYE)),
-            "npz": lambda: save_rig_npz(tmp_path / "r.npz", rig, dist=Fisheye(FISHEYE)),
-            "colmap": lambda: save_rig_colmap(
-                tmp_path, rig, image_size=(640, 480), dist=Fisheye(FISHEYE)
+            "json": lambda: save_rig(
+                tmp_path / "r.json", rig, format="json", dist=Fisheye(FISHEYE)
             ),
-            "nerfstudio": lambda: save_rig_nerfstudio(
-                tmp_path / "transforms.json", rig, image_size=(640, 480), dist=Fisheye(FISHEYE)
+            "npz": lambda: save_rig(tmp_path / "r.npz", rig, format="npz", dist=Fisheye(FISHEYE)),
+            "colmap": lambda: save_rig(
+                tmp_path, rig, format="colmap", image_size=(640, 480), dist=Fisheye(FISHEYE)
+            ),
+            "nerfstudio": lambda: save_rig(
+                tmp_path / "transforms.json",
+                rig,
+                format="nerfstudio",
+                image_size=(640, 480),
+                dist=Fisheye(FISHEYE),
             ),
         }
         writers[fmt]()
@@ -242,9 +244,10 @@ def test_nerfstudio_projects_as_by_hand_and_round_trips(tmp_path):
         assert loaded.names == ("images/a.png", "images/b.png")
         np.testing.assert_array_equal(loaded.view_sizes, [[640, 480], [1280, 720]])
         (tmp_path / "out").mkdir()
-        save_rig_nerfstudio(
+        save_rig(
             tmp_path / "out" / "transforms.json",
             loaded.rig,
+            format="nerfstudio",
             image_size=loaded.view_sizes,
             dist=loaded.dist,
             names=loaded.names,

@@ -16,7 +16,7 @@ from cdog_jax.io import (
     pycolmap_from_rig,
     rig_from_aniposelib,
     rig_from_pycolmap,
-    save_rig_anipose,
+    save_rig,
 )
 from cdog_jax.synthetic import default_rig
 
@@ -49,7 +49,9 @@ def test_aniposelib_in_memory_and_through_its_files(tmp_path):
         back = rig_from_aniposelib(group, dtype=jnp.float64)
         assert np.abs(_ours(back.rig, back.dist) - _ours(rig, DIST)).max() < PX
         # aniposelib loads our file (it needs "size"), in our order despite 12 cameras.
-        save_rig_anipose(tmp_path / "calibration.toml", rig, image_size=(640, 480), dist=DIST)
+        save_rig(
+            tmp_path / "calibration.toml", rig, format="anipose", image_size=(640, 480), dist=DIST
+        )
         loaded = aniposelib.CameraGroup.load(str(tmp_path / "calibration.toml"))
         assert loaded.get_names() == [f"cam_{m}" for m in range(12)]
         assert np.abs(loaded.project(X) - _ours(rig, DIST)).max() < PX

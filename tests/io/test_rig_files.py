@@ -11,7 +11,7 @@ from helpers import x64
 
 import cdog_jax
 from cdog_jax.geometry import rig_from_arrays
-from cdog_jax.io import RigFile, load_rig, save_rig_easyvis, save_rig_json, save_rig_npz
+from cdog_jax.io import RigFile, load_rig, save_rig
 from cdog_jax.synthetic import default_rig
 from cdog_jax.synthetic._rig import negate_intrinsics
 
@@ -135,10 +135,10 @@ RIGS = {
 def _save(fmt, tmp_path, rig, **extra):
     if fmt == "easyvis":
         path = tmp_path / "easyvis"
-        save_rig_easyvis(path, rig)
+        save_rig(path, rig, format="easyvis")
     else:
         path = tmp_path / f"rig.{fmt}"
-        {"json": save_rig_json, "npz": save_rig_npz}[fmt](path, rig, **extra)
+        save_rig(path, rig, format=fmt, **extra)
     return path
 
 
@@ -191,10 +191,10 @@ def test_writer_rejects_bad_dist_and_stale_easyvis_files(tmp_path):
     with pytest.raises(
         ValueError, match=re.escape("dist must have shape (M, 5) = (2, 5); got (2, 4)")
     ):
-        save_rig_json(tmp_path / "rig.json", rig, dist=np.zeros((2, 4)))
-    save_rig_easyvis(tmp_path / "ev", default_rig(num_views=3))
+        save_rig(tmp_path / "rig.json", rig, format="json", dist=np.zeros((2, 4)))
+    save_rig(tmp_path / "ev", default_rig(num_views=3), format="easyvis")
     with pytest.raises(ValueError, match="K2.txt, beyond the 2 views"):
-        save_rig_easyvis(tmp_path / "ev", rig)
+        save_rig(tmp_path / "ev", rig, format="easyvis")
 
 
 # Errors name the file, the view and the key ---------------------------------------------
@@ -363,3 +363,31 @@ def test_unknown_format(tmp_path):
         load_rig(path, format="xml")
     with _raises(path, "not a folder"):
         load_rig(path, format="easyvis")
+
+
+def test_save_rig_tells_the_format_from_the_path_and_refuses_what_it_cannot_hold(tmp_path):
+    """``save_rig`` writes by suffix (``transforms.json`` is nerfstudio), needs the format of a
+    folder, and refuses an option the format cannot hold or a needed one missing: nothing
+    given is silently left out."""
+    rig = default_rig()
+    save_rig(tmp_path / "rig.json", rig, image_size=(640, 480))
+    save_rig(tmp_path / "rig.npz", rig)
+    save_rig(tmp_path / "calibration.toml", rig, image_size=(640, 480), names=list("abcdefghij"))
+    save_rig(tmp_path / "transforms.json", rig, image_size=(640, 480))
+    assert load_rig(tmp_path / "rig.json").image_size == (640, 480)
+    assert load_rig(tmp_path / "rig.npz").image_size is None
+    assert load_rig(tmp_path / "calibration.toml").names == tuple("abcdefghij")
+    assert load_rig(tmp_path / "transforms.json", format="nerfstudio").image_size == (640, 480)
+    with pytest.raises(ValueError, match="cannot tell the rig format from the path"):
+        save_rig(tmp_path / "folder", rig)
+    with pytest.raises(ValueError, match="cannot write the rig format 'qualisys'"):
+        save_rig(tmp_path / "rig.qca.txt", rig, format="qualisys")
+    with pytest.raises(ValueError, match="the json format holds no names; leave it out"):
+        save_rig(tmp_path / "named.json", rig, names=list("abcdefghij"))
+    with pytest.raises(ValueError, match="the easyvis format holds no image_size or dist"):
+        save_rig(
+            tmp_path / "ev", rig, format="easyvis", image_size=(640, 480), dist=np.zeros((10, 5))
+        )
+    with pytest.raises(ValueError, match="the colmap format needs image_size="):
+        save_rig(tmp_path / "colmap", rig, format="colmap")
+    assert not (tmp_path / "named.json").exists() and not (tmp_path / "colmap").exists()

@@ -10,13 +10,7 @@ import pytest
 from helpers import x64
 
 import cdog_jax
-from cdog_jax.io import (
-    load_rig,
-    save_rig_anipose,
-    save_rig_colmap,
-    save_rig_easymocap,
-    save_rig_json,
-)
+from cdog_jax.io import load_rig, save_rig
 from cdog_jax.io._rig_files import FORMATS
 from cdog_jax.io._rotations import (
     quaternion_from_rotation,
@@ -138,7 +132,9 @@ def test_anipose_round_trip(tmp_path):
         dist = np.random.default_rng(0).normal(size=(10, 5)) * 0.1
         names = [f'cam "{m}"\t✓' for m in range(10)]  # quotes, a tab, non-ASCII
         sizes = np.array([[640 + m, 480] for m in range(10)])
-        save_rig_anipose(tmp_path / "calib.toml", rig, image_size=sizes, dist=dist, names=names)
+        save_rig(
+            tmp_path / "calib.toml", rig, format="anipose", image_size=sizes, dist=dist, names=names
+        )
         loaded = load_rig(tmp_path / "calib.toml")
         K = np.asarray(rig.K)
         np.testing.assert_allclose(np.asarray(loaded.rig.K), K / K[:, 2:3, 2:3], rtol=1e-15)
@@ -293,7 +289,7 @@ def test_colmap_round_trip_with_negated_K(tmp_path):
             np.random.default_rng(1).normal(size=(5, 4)) * 0.05
         )  # OPENCV; odd views PINHOLE
         sizes = np.array([[640, 480]] * (M - 1) + [[1920, 1080]])
-        save_rig_colmap(tmp_path / "model", rig, image_size=sizes, dist=dist)
+        save_rig(tmp_path / "model", rig, format="colmap", image_size=sizes, dist=dist)
         loaded = load_rig(tmp_path / "model")
         K = np.asarray(rig.K)
         np.testing.assert_allclose(
@@ -316,11 +312,11 @@ def test_colmap_writer_refuses_what_colmap_cannot_hold(tmp_path):
     rig = default_rig(num_views=2)
     skewed = cdog_jax.Rig(rig.K.at[0, 0, 1].set(1.5), rig.R, rig.t)
     with _raises("view 0", "skew K[0,1] = 1.5"):
-        save_rig_colmap(tmp_path / "b", skewed, image_size=(640, 480))
+        save_rig(tmp_path / "b", skewed, format="colmap", image_size=(640, 480))
     with _raises("names[1] = 'b c'", "whitespace"):
-        save_rig_colmap(tmp_path / "c", rig, image_size=(640, 480), names=["a", "b c"])
+        save_rig(tmp_path / "c", rig, format="colmap", image_size=(640, 480), names=["a", "b c"])
     with _raises("image_size must be (width, height) or have shape (M, 2) = (2, 2)"):
-        save_rig_colmap(tmp_path / "d", rig, image_size=[[640, 480]] * 3)
+        save_rig(tmp_path / "d", rig, format="colmap", image_size=[[640, 480]] * 3)
 
 
 def test_colmap_unknown_model(tmp_path):
@@ -504,7 +500,7 @@ def test_easymocap_round_trip(tmp_path):
         rig = negate_intrinsics(default_rig(), [2])
         dist = np.random.default_rng(2).normal(size=(10, 5)) * 0.1
         names = [f"cam-{m}_x" for m in range(10)]
-        save_rig_easymocap(tmp_path / "out", rig, dist=dist, names=names)
+        save_rig(tmp_path / "out", rig, format="easymocap", dist=dist, names=names)
         loaded = load_rig(tmp_path / "out")
         K = np.asarray(rig.K)
         np.testing.assert_allclose(np.asarray(loaded.rig.K), K / K[:, 2:3, 2:3], rtol=1e-15)
@@ -520,7 +516,7 @@ def test_easymocap_round_trip(tmp_path):
         and "Rot_cam-9_x: !!opencv-matrix" in text
     )
     with _raises("names[0] = 'a.b'", "letters, digits"):
-        save_rig_easymocap(tmp_path / "bad", default_rig(num_views=1), names=["a.b"])
+        save_rig(tmp_path / "bad", default_rig(num_views=1), format="easymocap", names=["a.b"])
 
 
 def test_easymocap_missing_names(tmp_path):
@@ -596,9 +592,9 @@ def test_easymocap_malformed_matrix_and_names(tmp_path):
 def test_format_detection(tmp_path):
     assert {"anipose", "colmap", "easymocap"} <= set(FORMATS)
     rig = default_rig(num_views=2)
-    save_rig_anipose(tmp_path / "calib.toml", rig, image_size=(640, 480))
-    save_rig_colmap(tmp_path / "colmap", rig, image_size=(640, 480))
-    save_rig_easymocap(tmp_path / "emc", rig)
+    save_rig(tmp_path / "calib.toml", rig, format="anipose", image_size=(640, 480))
+    save_rig(tmp_path / "colmap", rig, format="colmap", image_size=(640, 480))
+    save_rig(tmp_path / "emc", rig, format="easymocap")
     assert load_rig(tmp_path / "calib.toml").names == ("cam_0", "cam_1")
     assert load_rig(tmp_path / "colmap").image_size == (640, 480)
     assert load_rig(tmp_path / "emc" / "intri.yml").names == ("00", "01")
@@ -609,7 +605,7 @@ def test_format_detection(tmp_path):
     with _raises(tmp_path / "emc", "missing", "extri.yml"):
         load_rig(tmp_path / "emc", format="easymocap")
     # The older formats fill the new fields: one size for all views, no names.
-    save_rig_json(tmp_path / "rig.json", rig, image_size=(800, 600))
+    save_rig(tmp_path / "rig.json", rig, format="json", image_size=(800, 600))
     loaded = load_rig(tmp_path / "rig.json")
     np.testing.assert_array_equal(loaded.view_sizes, [[800, 600], [800, 600]])
     assert loaded.image_size == (800, 600) and loaded.names is None

@@ -15,7 +15,7 @@ from helpers import random_scene, ring_rig
 from cdog_jax import Config, associate, method_from, method_names
 from cdog_jax.benchmark import Grid, sweep
 from cdog_jax.cli import main
-from cdog_jax.io import save_detections_json, save_rig_json
+from cdog_jax.io import save_detections_json, save_rig
 
 RIG = ring_rig(4)
 
@@ -55,7 +55,7 @@ def test_sweep_runs_it_beside_cdog():
 
 def test_commands_take_it_by_name(tmp_path, capsys):
     xy, mask, _, _ = random_scene(RIG, 4, 8, seed=103)
-    save_rig_json(tmp_path / "rig.json", RIG, image_size=(640, 480))
+    save_rig(tmp_path / "rig.json", RIG, format="json", image_size=(640, 480))
     save_detections_json(tmp_path / "points.json", xy, mask)
     out = tmp_path / "groups.json"
     argv = [
