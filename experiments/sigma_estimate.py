@@ -40,8 +40,15 @@ import numpy as np
 
 from cdog_jax import Config, associate_batch
 from cdog_jax.geometry import epipolar_distances
-from cdog_jax.graph import estimate_sigma, focal_scale
+from cdog_jax.graph import estimate_sigma
 from cdog_jax.synthetic import default_rig, generate_scenes
+
+
+def focal_length(K):
+    """The rig's focal length (px) as the σ fit reads it: the median over views of
+    ``(|f_x| + |f_y|) / 2``."""
+    return jnp.median(0.5 * (jnp.abs(K[:, 0, 0]) + jnp.abs(K[:, 1, 1])))
+
 
 GRID_SIGMAS = (0.25, 1.0, 3.0, 5.0)
 GRID_COUNTS = (5, 10, 20, 40, 70, 100, 130)
@@ -89,7 +96,7 @@ def old_estimate_sigma(d, mask):
 def _estimates(rig, xy, mask):
     def one(args):
         d = epipolar_distances(rig, *args)
-        new, fallback = estimate_sigma(d, args[1], focal_scale(rig.K))
+        new, fallback = estimate_sigma(d, args[1], focal_length(rig.K))
         return old_estimate_sigma(d, args[1]), new, fallback
 
     return jax.lax.map(one, (xy, mask), batch_size=8)
@@ -269,7 +276,7 @@ def run(*, scenes=4, seed=0, quick=False, log=print):
     # The same with every distance exactly 0 (one point in three views, exact arithmetic).
     d = jnp.where(jnp.eye(3, dtype=bool)[:, None, :, None], jnp.inf, jnp.zeros((3, 1, 3, 1)))
     both = jax.jit(
-        lambda d, mask: (old_estimate_sigma(d, mask), *estimate_sigma(d, mask, focal_scale(rig.K)))
+        lambda d, mask: (old_estimate_sigma(d, mask), *estimate_sigma(d, mask, focal_length(rig.K)))
     )
     old, new, fb = (np.asarray(a) for a in both(d, jnp.ones((3, 1), bool)))
     noise_free["exact_zero"] = {"old": float(old), "new": float(new), "fallback": bool(fb)}

@@ -28,6 +28,7 @@ import time
 from functools import partial
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -35,7 +36,14 @@ import robustness_realistic as rr  # noqa: E402
 
 from cdog_jax import class_sigmas  # noqa: E402
 from cdog_jax.geometry import epipolar_distances  # noqa: E402
-from cdog_jax.graph import estimate_sigma, estimate_sigma_robust, focal_scale  # noqa: E402
+from cdog_jax.graph import estimate_sigma, estimate_sigma_robust  # noqa: E402
+
+
+def focal_length(K):
+    """The rig's focal length (px) as the σ fit reads it: the median over views of
+    ``(|f_x| + |f_y|) / 2``."""
+    return jnp.median(0.5 * (jnp.abs(K[:, 0, 0]) + jnp.abs(K[:, 1, 1])))
+
 
 ESTIMATORS = {"auto": estimate_sigma, "robust": estimate_sigma_robust}
 
@@ -44,7 +52,7 @@ ESTIMATORS = {"auto": estimate_sigma, "robust": estimate_sigma_robust}
 def _box_sigmas(rig, xy, mask, estimator):
     fit = ESTIMATORS[estimator]
     return jax.lax.map(
-        lambda a: fit(epipolar_distances(rig, *a), a[1], focal_scale(rig.K))[0],
+        lambda a: fit(epipolar_distances(rig, *a), a[1], focal_length(rig.K))[0],
         (xy, mask),
         batch_size=8,
     )

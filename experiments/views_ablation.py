@@ -40,6 +40,7 @@ Markdown table.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import time
@@ -47,12 +48,14 @@ import time
 import numpy as np
 
 from cdog_jax import method_from, method_names
-from cdog_jax.benchmark import Grid, metric_fields, sweep, sweep_host
+from cdog_jax.benchmark import Grid, sweep, sweep_host
+from cdog_jax.metrics import Metrics
 from cdog_jax.synthetic import default_rig
 from cdog_jax.viz import PAPER_VIEWS_PG_F1, views_ablation
 
 SIGMA = 3.0
 FIELDS = ("pg_f1", "mp_f1", "g_f1")
+METRIC_FIELDS = tuple(f.name for f in dataclasses.fields(Metrics))
 PAPER_TABLE_I = dict(zip(range(2, 2 + len(PAPER_VIEWS_PG_F1)), PAPER_VIEWS_PG_F1))
 
 
@@ -170,7 +173,7 @@ def run(
                 row[name] = {f: float("nan") for f in ("pg_f1", "pg_p", "pg_r", "mp_f1", "g_f1")}
                 row["num_scenes"][name] = 0
                 continue
-            fields = {f: np.concatenate([m[f] for m in pooled[k][name]]) for f in metric_fields()}
+            fields = {f: np.concatenate([m[f] for m in pooled[k][name]]) for f in METRIC_FIELDS}
             # mean_metrics' rule for scores (a plain mean over all scenes, zeros included);
             # Metrics itself is not built here, its runtime type check wants jax arrays.
             row[name] = {

@@ -18,7 +18,6 @@ _LATER = {
     "summary_table": "._io",
     "SweepProgress": "._sweep",
     "SweepResult": "._sweep",
-    "metric_fields": "._sweep",
     "print_progress": "._sweep",
     "sweep": "._sweep",
     "use_cpu_cores": "._cpu_cores",

@@ -9,5 +9,5 @@ from ._adjacency import (
 )
 from ._components import connected_components as connected_components
 from ._groups import groups_from_labels as groups_from_labels
-from ._sigma import estimate_sigma as estimate_sigma, focal_scale as focal_scale
+from ._sigma import estimate_sigma as estimate_sigma
 from ._sigma_robust import estimate_sigma_robust as estimate_sigma_robust

@@ -11,7 +11,6 @@ from ._scene import (
     generate_scenes as generate_scenes,
 )
 from ._skeleton import (
-    SKELETON_BONES as SKELETON_BONES,
     SKELETON_JOINTS as SKELETON_JOINTS,
     SkeletonScenes as SkeletonScenes,
     generate_skeleton_scenes as generate_skeleton_scenes,

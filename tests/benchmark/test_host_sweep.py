@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from cdog_jax.benchmark import Grid, metric_fields, sweep, sweep_host
+from cdog_jax.benchmark import Grid, sweep, sweep_host
+from cdog_jax.benchmark._sweep import metric_fields
 from cdog_jax.synthetic import default_rig
 
 GRID = Grid(sigmas=(0.0, 2.0), counts=(3, 9), scenes=2, seed=4)

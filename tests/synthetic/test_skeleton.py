@@ -9,14 +9,18 @@ import pytest
 
 from cdog_jax import project
 from cdog_jax.synthetic import (
-    SKELETON_BONES,
     SKELETON_JOINTS,
     Realism,
     generate_skeleton_scenes,
     ring_rig,
 )
 from cdog_jax.synthetic._render import CLUTTER, DOUBLE, REAL
-from cdog_jax.synthetic._skeleton import HEIGHT_SCALE, SKELETON_TEMPLATE, skeleton_motion
+from cdog_jax.synthetic._skeleton import (
+    HEIGHT_SCALE,
+    SKELETON_BONES,
+    SKELETON_TEMPLATE,
+    skeleton_motion,
+)
 
 RIG = ring_rig()
 F, K, J = 12, 5, len(SKELETON_JOINTS)
