@@ -33,8 +33,9 @@ _MESSAGES = {
     Status.IQR_CAPPED: "the IQR outlier loop stopped at its iteration bound (Config.max_iqr_iters); "
     "some groups may still hold outliers",
     Status.COMPONENTS_CAPPED: "connected components stopped at their round bound; labels may be incomplete",
-    Status.SIGMA_FALLBACK: 'sigma="auto" found too few likely-true matches to estimate the noise (or an '
-    "implausibly large one) and used its fallback value, 1 px; pass sigma= explicitly if you know it",
+    Status.SIGMA_FALLBACK: 'sigma="auto" found too few likely-true matches to estimate the noise and '
+    "used its fallback value, 1 px (or an implausibly large one, and used 1 % of the focal length); "
+    "pass sigma= explicitly if you know it",
     Status.REFINE_CAPPED: "point refinement stopped at its step bound (Config.refine_max_steps)",
     Status.NONFINITE_DETECTION: "a detection in a valid slot was not finite (NaN or inf) and was "
     "left out of the association (inside a compiled program it cannot be refused)",

@@ -309,7 +309,8 @@ def _softmax0(parts):
 def estimate_sigma(d, mask, focal_px, iters=40):
     """§0.1: EM on the censored mixture (a true match nearest / a true match behind a nearer
     unrelated point / no true match / uniform) of the nearest distances, each with weight ½,
-    from three starts; σ = c / √2, or the 1 px fallback. Returns ``(sigma, fallback)``.
+    from three starts; σ = c / √2, or the 1 px fallback, or capped at 1 % of the focal length.
+    Returns ``(sigma, fallback)``.
     The recipe of ALGORITHM.md §0.1."""
     x, count, _ = sigma_samples(d, mask)
     w = np.full(x.size, 0.5)
@@ -354,9 +355,16 @@ def estimate_sigma(d, mask, focal_px, iters=40):
         k for k, f in enumerate(fits) if f[0] >= top - 1e-5 * (1.0 + abs(top))
     )  # near-ties: the first
     _, c, n_match = fits[best]
-    sigma = c / math.sqrt(2.0)
-    fallback = not (n_match >= 2.5 and sigma <= 0.01 * focal)
-    return (1.0 if fallback else sigma), fallback
+    return _trusted_sigma(c / math.sqrt(2.0), n_match, focal)
+
+
+def _trusted_sigma(sigma, n_match, focal):
+    """``(σ, fallback)``: 1 px with fewer than 2.5 expected true pairs (or σ̂ not finite),
+    σ̂ capped at 1 % of the focal length, fallback for either."""
+    thin = not (n_match >= 2.5 and math.isfinite(sigma))
+    if thin:
+        return 1.0, True
+    return min(sigma, 0.01 * focal), sigma > 0.01 * focal
 
 
 def estimate_sigma_robust(
@@ -421,16 +429,13 @@ def estimate_sigma_robust(
     _, nu, r, c = fits[best]
     n_match = float(np.sum(r[0] + r[1]))
     median = true_distance_quantile(0.5, x, x2, r[0], r[1], c, nu, width)
-    sigma = median / (math.sqrt(2.0) * NormalDist().inv_cdf(0.75))
-    fallback = not (n_match >= 2.5 and sigma <= 0.01 * focal)
+    sigma, fallback = _trusted_sigma(
+        median / (math.sqrt(2.0) * NormalDist().inv_cdf(0.75)), n_match, focal
+    )
     gate = (
         math.nan if fallback else true_distance_quantile(coverage, x, x2, r[0], r[1], c, nu, width)
     )
-    return (
-        ((1.0 if fallback else sigma), fallback)
-        if not with_gate
-        else ((1.0 if fallback else sigma), gate, fallback)
-    )
+    return (sigma, fallback) if not with_gate else (sigma, gate, fallback)
 
 
 def true_distance_quantile(q, x, x2, match, hidden, c, nu, width):

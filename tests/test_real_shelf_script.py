@@ -382,3 +382,27 @@ def test_the_stage_ablation(standin, tmp_path):
     assert json.loads((tmp_path / "rows.json").read_text()) == rows
     with pytest.raises(SystemExit):
         ablation["main"]([folder, "--variants", "no such"])
+
+
+def test_the_per_joint_rows(standin, tmp_path):
+    """experiments/real/shelf_per_joint.py: every (frame, joint type) a scene of its own,
+    with one rule changed per row, scored by recall on the dev frames."""
+    folder, *_ = standin
+    per_joint = runpy.run_path(os.path.join(REAL, "shelf_per_joint.py"), run_name="per_joint")
+    names = ["best()", "best() σ = 4 px", "best() σ pooled per frame"]
+    rows = per_joint["main"](
+        [
+            folder,
+            "--work",
+            str(tmp_path / "w"),
+            "--rows",
+            ",".join(names),
+            "--out",
+            str(tmp_path / "r.json"),
+        ]
+    )
+    assert [r["row"] for r in rows] == names
+    assert all(r["recall_10cm"] == 1.0 for r in rows), rows
+    assert json.loads((tmp_path / "r.json").read_text()) == rows
+    with pytest.raises(SystemExit):
+        per_joint["main"]([folder, "--rows", "no such"])

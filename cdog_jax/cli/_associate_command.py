@@ -835,8 +835,9 @@ def run_associate(args: argparse.Namespace) -> int:
         + (" …" if F > 8 else "")
         + " px"
         + (
-            f" (the fallback {FALLBACK_SIGMA_PX:g} px in {len(fallback)} of {F} frame(s), e.g. frame {fallback[0]}: "
-            "too little evidence to estimate σ; pass --sigma)"
+            f" (not estimated in {len(fallback)} of {F} frame(s), e.g. frame {fallback[0]}: "
+            f"too little evidence to estimate σ, the fallback {FALLBACK_SIGMA_PX:g} px, or an "
+            "implausibly large estimate, 1 % of the focal length; pass --sigma)"
             if fallback.size
             else ""
         )

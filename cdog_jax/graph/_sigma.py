@@ -17,8 +17,10 @@ steps (the censored half-normal and exponential moments) runs a fixed number of 
 from several low-quantile starts; the most likely fit wins.
 
 The estimate is not trusted (``fallback``) when the expected number of pairs with a true
-match is below :data:`MIN_MATCHES`, or when ``σ̂`` exceeds :data:`MAX_SIGMA_PER_FOCAL`
-of the focal length; then ``σ = FALLBACK_SIGMA_PX``.
+match is below :data:`MIN_MATCHES` (then ``σ = FALLBACK_SIGMA_PX``), or when ``σ̂`` exceeds
+:data:`MAX_SIGMA_PER_FOCAL` of the focal length (then ``σ`` is that bound: a scene of few
+points with large noise, such as one joint type of real pose detections, must not get the
+small fallback).
 """
 
 import jax
@@ -174,9 +176,9 @@ def estimate_sigma(
     """Noise estimate ``σ`` (pixels) from the epipolar distance table ``d (M, P, M, P)``,
     ``mask (M, P)`` and the rig's focal length ``focal_px`` (sets the plausible range).
 
-    Returns ``(sigma, fallback)``: ``fallback`` is True when the fit is not trusted (fewer
-    than ``MIN_MATCHES`` expected true pairs, or ``σ̂ > MAX_SIGMA_PER_FOCAL · focal_px``), and
-    then ``sigma = FALLBACK_SIGMA_PX``. Always finite.
+    Returns ``(sigma, fallback)``: ``fallback`` is True when the fit is not trusted: fewer
+    than ``MIN_MATCHES`` expected true pairs (then ``sigma = FALLBACK_SIGMA_PX``), or
+    ``σ̂ > MAX_SIGMA_PER_FOCAL · focal_px`` (then ``sigma`` is that bound). Always finite.
     """
     return sigma_from_samples(*nearest_samples(d, mask), focal_px)
 
@@ -229,13 +231,22 @@ def sigma_from_samples(
     top = jnp.max(log_lik)
     # Starts that reach one optimum differ only by round-off: near-ties go to the first.
     best = jnp.argmax(log_lik >= top - TIE_RELATIVE * (1.0 + jnp.abs(top)))
-    sigma = c[best] / jnp.sqrt(2.0)
-    fallback = ~(
-        (n_match[best] >= MIN_MATCHES)
-        & (sigma <= MAX_SIGMA_PER_FOCAL * focal_px)
-        & jnp.isfinite(sigma)
-    )
-    return jnp.where(fallback, FALLBACK_SIGMA_PX, sigma).astype(dtype), fallback
+    sigma, fallback = trusted_sigma(c[best] / jnp.sqrt(2.0), n_match[best], focal_px)
+    return sigma.astype(dtype), fallback
+
+
+def trusted_sigma(
+    sigma: Float[Array, ""], n_match: Float[Array, ""], focal_px: Float[Array, ""]
+) -> tuple[Float[Array, ""], Bool[Array, ""]]:
+    """``(σ, fallback)`` from a fit's ``σ̂`` (pixels) and its expected number of true pairs:
+    ``σ̂`` itself where the fit has evidence; :data:`FALLBACK_SIGMA_PX` where it has fewer
+    than :data:`MIN_MATCHES` pairs or ``σ̂`` is not finite; the largest plausible σ,
+    :data:`MAX_SIGMA_PER_FOCAL` of the focal length ``focal_px``, where ``σ̂`` is above it
+    (the data say the noise is large: the fallback, the small σ of a clean rig, would be the
+    worst guess there). ``fallback``: either of the last two."""
+    most = MAX_SIGMA_PER_FOCAL * focal_px
+    thin = ~((n_match >= MIN_MATCHES) & jnp.isfinite(sigma))
+    return jnp.where(thin, FALLBACK_SIGMA_PX, jnp.minimum(sigma, most)), thin | (sigma > most)
 
 
 def focal_scale(

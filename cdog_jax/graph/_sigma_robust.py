@@ -13,8 +13,9 @@ winning fit calls true pairs (median absolute deviation): the noise of the bulk,
 inflated by the tail. The fit also gives any quantile of the true-pair distance (the
 ``tau_mode="fitted"`` gate).
 
-Fallback as for ``"auto"``: fewer than :data:`MIN_MATCHES` expected true pairs, or ``σ̂``
-above :data:`MAX_SIGMA_PER_FOCAL` of the focal length, gives ``σ = FALLBACK_SIGMA_PX``.
+Fallback as for ``"auto"`` (``trusted_sigma``): fewer than :data:`MIN_MATCHES` expected true
+pairs give ``σ = FALLBACK_SIGMA_PX``, a ``σ̂`` above :data:`MAX_SIGMA_PER_FOCAL` of the focal
+length gives that bound; either way the fitted gate is not used.
 """
 
 import math
@@ -25,9 +26,6 @@ from jax.scipy.special import log_ndtr
 
 from .._types import Array, Bool, Float
 from ._sigma import (
-    FALLBACK_SIGMA_PX,
-    MAX_SIGMA_PER_FOCAL,
-    MIN_MATCHES,
     MIN_SCALE_PX,
     START_QUANTILES,
     TIE_RELATIVE,
@@ -36,6 +34,7 @@ from ._sigma import (
     mixture_log_parts,
     nearest_samples,
     run_em,
+    trusted_sigma,
 )
 
 # Degrees of freedom of the match distance's fits (inf: half-normal); the most likely wins.
@@ -266,9 +265,6 @@ def fit_noise(
         best // len(START_QUANTILES), branches, c[best], inv_kappa[best], pi[best]
     )
     # The Gaussian σ of the same median: a true pair's distance is |N(0, 2σ²)|.
-    sigma = median / (jnp.sqrt(2.0) * MEDIAN_Z)
-    fallback = ~(
-        (n_match >= MIN_MATCHES) & (sigma <= MAX_SIGMA_PER_FOCAL * focal_px) & jnp.isfinite(sigma)
-    )
+    sigma, fallback = trusted_sigma(median / (jnp.sqrt(2.0) * MEDIAN_Z), n_match, focal_px)
     gate = jnp.where(fallback, jnp.nan, gate)
-    return jnp.where(fallback, FALLBACK_SIGMA_PX, sigma).astype(dtype), gate.astype(dtype), fallback
+    return sigma.astype(dtype), gate.astype(dtype), fallback

@@ -181,8 +181,8 @@ def test_associate_summary_says_when_sigma_fell_back(data, capsys):
     assert main(["associate", "--rig", rig_path, "--points", frames]) == 0
     text = capsys.readouterr().out
     assert (
-        "(the fallback 1 px in 1 of 2 frame(s), e.g. frame 1: too little evidence to estimate σ"
-        in text
+        "(not estimated in 1 of 2 frame(s), e.g. frame 1: too little evidence to estimate σ, "
+        "the fallback 1 px" in text
     )
 
 

@@ -80,11 +80,14 @@ def test_nothing_to_fit_falls_back(estimator):
 
 
 @pytest.mark.parametrize("estimator, low, high", [("auto", 15.0, 25.0), ("robust", 28.0, 35.0)])
-def test_implausibly_large_sigma_falls_back(estimator, low, high):
+def test_implausibly_large_sigma_is_capped(estimator, low, high):
     # Many consistent pairs, every distance 30 px: σ̂ ≈ 21 px (auto: the half-normal's RMS
-    # scale / √2) or 31 px (robust: the median / (√2 · 0.674)), above 1 % of a 1000 px focal length.
+    # scale / √2) or 31 px (robust: the median / (√2 · 0.674)), above 1 % of a 1000 px focal
+    # length: capped there and flagged, not replaced by the 1 px fallback (the data say the
+    # noise is large: one joint type of real pose detections lost 8 points of recall to it).
     d, mask = _table(30.0, 4, 3)
-    assert _estimate(d, mask, estimator=estimator) == (FALLBACK_SIGMA_PX, True)
+    sigma, fallback = _estimate(d, mask, estimator=estimator)
+    assert fallback and sigma == pytest.approx(10.0, rel=1e-6)
     sigma, fallback = _estimate(d, mask, focal=1e4, estimator=estimator)
     assert not fallback and low < sigma < high
 
