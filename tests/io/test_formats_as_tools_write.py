@@ -148,37 +148,16 @@ def test_anipose_cameras_matched_by_name(tmp_path):
 def test_fisheye_round_trips(tmp_path, fmt):
     with x64():
         rig = default_rig(num_views=3, dtype=jnp.float64)
-        writers = {
-            "anipose": lambda: save_rig(
-                tmp_path / "c.toml",
-                rig,
-                format="anipose",
-                image_size=(640, 480),
-                dist=Fisheye(FISHEYE),
-            ),
-            "json": lambda: save_rig(
-                tmp_path / "r.json", rig, format="json", dist=Fisheye(FISHEYE)
-            ),
-            "npz": lambda: save_rig(tmp_path / "r.npz", rig, format="npz", dist=Fisheye(FISHEYE)),
-            "colmap": lambda: save_rig(
-                tmp_path, rig, format="colmap", image_size=(640, 480), dist=Fisheye(FISHEYE)
-            ),
-            "nerfstudio": lambda: save_rig(
-                tmp_path / "transforms.json",
-                rig,
-                format="nerfstudio",
-                image_size=(640, 480),
-                dist=Fisheye(FISHEYE),
-            ),
-        }
-        writers[fmt]()
-        path = {
-            "anipose": "c.toml",
-            "json": "r.json",
-            "npz": "r.npz",
-            "colmap": ".",
-            "nerfstudio": "transforms.json",
+        # each format's file (a folder for colmap) and whether it needs the image size
+        path, sized = {
+            "anipose": ("c.toml", True),
+            "json": ("r.json", False),
+            "npz": ("r.npz", False),
+            "colmap": (".", True),
+            "nerfstudio": ("transforms.json", True),
         }[fmt]
+        size = {"image_size": (640, 480)} if sized else {}
+        save_rig(tmp_path / path, rig, format=fmt, dist=Fisheye(FISHEYE), **size)
         loaded = load_rig(tmp_path / path, dtype=jnp.float64)
         assert isinstance(loaded.dist, Fisheye)
         np.testing.assert_array_equal(loaded.dist.coeffs, FISHEYE)
