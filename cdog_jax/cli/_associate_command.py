@@ -1080,7 +1080,14 @@ def run_rig(args: argparse.Namespace) -> int:
         names=rig_file.names,
         dist=rig_file.dist,
     ).format()
-    lines = [f"Rig: {args.rig}", text]
+    lines = [f"Rig: {args.rig}"]
+    if rig_file.origin is not None:
+        x, y, z = rig_file.origin
+        lines.append(
+            f"  note: the cameras lie far from the rig's world origin; described about their mean "
+            f"centre ({x:.3f}, {y:.3f}, {z:.3f}): add it to the centres below"
+        )
+    lines.append(text)
     if args.plot is not None:
         import matplotlib
 

@@ -149,6 +149,8 @@ def _buckets_for(counts, requested, quick: bool) -> tuple[int, ...]:
 def _scene_setup(args, grid):
     """``(rig, box, image_size, description)`` for the sweep: the built-in rig and box, or
     the rig file of ``--rig`` with the box the (selected) views see, unless ``--box``."""
+    import numpy as np
+
     from ..synthetic import DEFAULT_BOX, IMAGE_SIZE, default_rig, intrinsics_image_size, visible_box
 
     def check_views(rig, name):
@@ -165,8 +167,11 @@ def _scene_setup(args, grid):
         return rig, box, image_size, "the built-in 10-view rig"
     from ..io import load_rig
 
-    loaded = load_rig(args.rig, format=args.rig_format)
+    # Far from its world's origin (UTM-like coordinates) the rig is centred on its cameras,
+    # which float32 can hold; a --box given in the file's world moves with it.
+    loaded = load_rig(args.rig, format=args.rig_format, origin="auto")
     rig = loaded.rig
+    origin = np.zeros(3) if loaded.origin is None else loaded.origin
     check_views(rig, args.rig)
     if args.image_size:
         image_size, source = tuple(args.image_size), "--image-size"
@@ -175,15 +180,26 @@ def _scene_setup(args, grid):
     else:
         image_size, source = intrinsics_image_size(rig.K), "guessed from K's principal points"
     if args.box:
-        box, box_source = (tuple(args.box[:3]), tuple(args.box[3:])), "--box"
+        box = tuple(
+            tuple(np.asarray(corner, np.float64) - origin)
+            for corner in (args.box[:3], args.box[3:])
+        )
+        box_source = "--box"
     else:
         used = rig if grid.views is None else rig.select(grid.views)
         box, box_source = visible_box(used, image_size), "the region ≥ 2 of the views see"
-    lo, hi = (", ".join(f"{v:.3g}" for v in corner) for corner in box)
+    lo, hi = (", ".join(f"{v:.3g}" for v in np.asarray(corner) + origin) for corner in box)
     text = (
         f"{args.rig} ({rig.num_views} views); image {image_size[0]}×{image_size[1]} px ({source}); "
         f"box ({lo}) – ({hi}) ({box_source})"
     )
+    if loaded.origin is not None:
+        x, y, z = loaded.origin
+        text += (
+            f"\n  note: the cameras lie far from the rig's world origin; the scenes are made and "
+            f"associated about their mean centre ({x:.3f}, {y:.3f}, {z:.3f}), and the rig and "
+            "box written with the results are about it"
+        )
     return rig, box, image_size, text
 
 

@@ -138,6 +138,8 @@ def test_a_rig_far_from_its_world_origin_is_centred(data, shift, capsys):
     listed = [(r[0], r[1]) for g in records["groups"] for r in g["members"]]
     want = np.asarray(expected.groups)[: int(expected.num_groups)]
     assert sorted(listed) == sorted((m, int(i)) for g in want for m, i in enumerate(g) if i >= 0)
+    assert main(["rig", rig_path]) == 0  # described about the cameras' centre, and said
+    assert "described about their mean centre" in capsys.readouterr().out
     assert main([*common, "--out", folder / "far.npz"]) == 0
     with np.load(folder / "far.npz") as z:
         assert z["points3d"].dtype == np.float64
