@@ -22,7 +22,6 @@ import argparse
 import json
 import os
 import runpy
-import sys
 import time
 
 import numpy as np
@@ -31,43 +30,28 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 shelf = runpy.run_path(os.path.join(HERE, "shelf.py"), run_name="shelf")
 shelf_score = runpy.run_path(os.path.join(HERE, "shelf_score.py"), run_name="shelf_score")
 
-#: name → (method, keywords of associate_classes)
-ROWS: dict[str, tuple[str, dict]] = {
-    "best()": ("best", {}),
-    "extended()": ("extended", {}),
-    "paper()": ("paper", {}),
-    "reference()": ("reference", {}),
-    "best() without the parallax bound": ("best:min_parallax_deg=0", {}),
-    "best() without the error bound": ("best:max_err_frac=1000", {}),
-    "best() σ = 2 px": ("best", {"sigma": 2.0}),
-    "best() σ = 4 px": ("best", {"sigma": 4.0}),
-    "best() σ = 8 px": ("best", {"sigma": 8.0}),
-    "best() robust σ": ("best:sigma_mode=robust", {}),
-    "best() σ pooled per frame": ("best", {"sigma_pool": "frame"}),
-    "best() with IQR BPE filter regroup": ("best:iqr=True,bpe_filter=True,regroup=True", {}),
+#: name → (preset, fields of the preset replaced, keywords of associate_classes)
+ROWS: dict[str, tuple[str, dict, dict]] = {
+    "best()": ("best", {}, {}),
+    "extended()": ("extended", {}, {}),
+    "paper()": ("paper", {}, {}),
+    "reference()": ("reference", {}, {}),
+    "best() without the parallax bound": ("best", {"min_parallax_deg": 0.0}, {}),
+    "best() without the error bound": ("best", {"max_err_frac": 1000.0}, {}),
+    "best() σ = 2 px": ("best", {}, {"sigma": 2.0}),
+    "best() σ = 4 px": ("best", {}, {"sigma": 4.0}),
+    "best() σ = 8 px": ("best", {}, {"sigma": 8.0}),
+    "best() robust σ": ("best", {"sigma_mode": "robust"}, {}),
+    "best() σ pooled per frame": ("best", {}, {"sigma_pool": "frame"}),
+    "best() with IQR BPE filter regroup": (
+        "best",
+        {"iqr": True, "bpe_filter": True, "regroup": True},
+        {},
+    ),
 }
 
 
-def method(spec: str):
-    """``"best"`` or ``"best:field=value,…"``: a preset, with fields replaced."""
-    import cdog_jax
-
-    name, _, fields = spec.partition(":")
-    preset = getattr(cdog_jax.Config, name)()
-    changes = {}
-    for item in filter(None, fields.split(",")):
-        key, value = item.split("=")
-        if value in ("True", "False"):
-            changes[key] = value == "True"
-        else:
-            try:
-                changes[key] = float(value)
-            except ValueError:
-                changes[key] = value
-    return preset.replace(**changes) if changes else preset
-
-
-def run(rig, det, frames: np.ndarray, spec: str, options: dict) -> tuple[dict, float]:
+def run(rig, det, frames: np.ndarray, method, options: dict) -> tuple[dict, float]:
     """One row: the 3D points per dev frame and joint type, and the wall time (s)."""
     import cdog_jax
 
@@ -79,7 +63,7 @@ def run(rig, det, frames: np.ndarray, spec: str, options: dict) -> tuple[dict, f
         det.mask[frames],
         det.classes[frames],
         num_classes=len(det.class_names),
-        method=method(spec),
+        method=method,
         **options,
     )
     a = out.association
@@ -107,6 +91,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
     if unknown:
         parser.error(f"unknown rows {unknown}; choose from {list(ROWS)}")
 
+    import cdog_jax
     from cdog_jax.io import load_openpose, load_rig
 
     prepared = shelf["prepare"](args.data, args.work)
@@ -115,8 +100,9 @@ def main(argv: list[str] | None = None) -> list[dict]:
     dev = shelf["split_frames"](prepared["frames"], "dev")
     rows = []
     for name in names:
-        spec, options = ROWS[name]
-        result, seconds = run(rig, det, dev, spec, options)
+        preset, fields, options = ROWS[name]
+        method = getattr(cdog_jax.Config, preset)(**fields)
+        result, seconds = run(rig, det, dev, method, options)
         points = shelf_score["points_by_joint"](result)
         recall = shelf_score["joint_recall"](
             points, [prepared["gt"][f] for f in dev], range(len(dev))
@@ -130,4 +116,4 @@ def main(argv: list[str] | None = None) -> list[dict]:
 
 
 if __name__ == "__main__":
-    sys.exit(main() and 0)
+    main()
