@@ -80,16 +80,18 @@ def association_from_groups(
     )
 
 
-def batched_association(**fields) -> Association:
+def batched_association(*, on_host: bool = False, **fields) -> Association:
     """An :class:`Association` with a leading axis (frames or scenes) from its fields (host
-    or device arrays). Built from the pytree's leaves, so that nothing runs eagerly: a
-    ``vmap`` of the constructor traced new operations for every new group count."""
+    or device arrays), on the device in one transfer, or as NumPy arrays with ``on_host`` (a
+    caller that reads them on the host: no transfer there and back). Built from the pytree's
+    leaves, so that nothing runs eagerly: a ``vmap`` of the constructor traced new operations
+    for every new group count."""
     names = tuple(
         field.name for field in dataclasses.fields(Association)
     )  # the pytree's leaf order
+    leaves = [np.asarray(fields[name]) for name in names]
     return jax.tree.unflatten(
-        dataclass_tree(Association, names),
-        jax.device_put([np.asarray(fields[name]) for name in names]),  # one transfer
+        dataclass_tree(Association, names), leaves if on_host else jax.device_put(leaves)
     )
 
 

@@ -125,6 +125,23 @@ def test_long_recordings_fit_sigma_in_chunks_bitwise_as_in_one(scene, monkeypatc
     np.testing.assert_array_equal(np.asarray(chunked.labels), np.asarray(one.labels))
 
 
+@pytest.mark.parametrize("vote", [False, True], ids=["plain", "person-vote"])
+def test_results_read_on_the_host_are_the_results(scene, vote):
+    """``on_host`` (a caller that reads the association there, as the live loop does)
+    changes where the arrays are and nothing else: NumPy arrays of the same values, also
+    after the person vote and for frames with no detection at all."""
+    from cdog_jax.people._classes import associate_classes_at
+
+    rig, xy, mask, classes, truth = scene
+    options = {"instances": truth % K} if vote else {}
+    for m in (mask, np.zeros_like(mask)):
+        device = associate_classes_at(rig, xy, m, classes, **options).association
+        host = associate_classes_at(rig, xy, m, classes, on_host=True, **options).association
+        for d, h in zip(jax.tree.leaves(device), jax.tree.leaves(host)):
+            assert isinstance(d, jax.Array) and type(h) is np.ndarray
+            np.testing.assert_array_equal(np.asarray(d), h)
+
+
 def test_bad_classes_refused(scene):
     rig, xy, mask, classes, _ = scene
     bad = classes.copy()

@@ -166,12 +166,15 @@ def associate_classes_at(
     min_scenes=0,
     min_slots=0,
     min_samples=0,
+    on_host=False,
 ):
     """:func:`associate_classes` with at least ``min_scenes`` scenes (empty ones added) of at
     least ``min_slots`` slots per view, the σ fit's table at least ``min_samples`` wide: a
     caller that must meet the same compiled programs on every call (a live loop) gives its
     shapes here; results are those of
-    :func:`associate_classes`, up to the last bits of σ with ``sigma="auto"``."""
+    :func:`associate_classes`, up to the last bits of σ with ``sigma="auto"``; the
+    association's fields NumPy arrays with ``on_host`` (for a caller that reads them on the
+    host)."""
     expect_args("associate_classes", rig=(rig, Rig))
     expect(batch_size, INT, "batch_size", "associate_classes")
     method = method_argument(method, "associate_classes")
@@ -207,7 +210,7 @@ def associate_classes_at(
     if B and (min_scenes or min_slots):
         scenes = _at_least(scenes, min_scenes, min_slots)
     if B == 0:
-        return _empty(rig, F, M, P, xy.dtype, C, class_names)
+        return _empty(rig, F, M, P, xy.dtype, C, class_names, on_host)
     dtype = jax.dtypes.canonicalize_dtype(
         xy.dtype if np.issubdtype(xy.dtype, np.floating) else np.float64
     )
@@ -243,7 +246,7 @@ def associate_classes_at(
         min_slots=min_slots,
         on_host=True,
     )
-    out = _map_back(result, scenes, F, M, P, C, class_names)
+    out = _map_back(result, scenes, F, M, P, C, class_names, on_host)
     if vote is not None:
         fixed = person_consistent(
             rig,
@@ -260,6 +263,7 @@ def associate_classes_at(
         )
         a = out.association
         assoc = batched_association(
+            on_host=on_host,
             **{k: v for k, v in fixed._asdict().items() if k != "group_class"},
             sigma_px=a.sigma_px,
             tau_px=a.tau_px,
@@ -511,10 +515,13 @@ def warm_sigma_fits(rig, widths, dtype, sigma_mode: str = "auto") -> None:
         _chunked_fit(_pooled_robust_fit if robust else _pooled_fit, tables, focal)
 
 
-FIT_ELEMENTS = 1 << 18
+FIT_ELEMENTS = 1 << 16
 """Entries (rows × samples) of the σ fit's table in one call: a long recording's frames are
 fitted in chunks of rows (the last padded with empty rows), so that the EM's temporaries stay
-the same size whatever its length. Each row's fit is its own (bitwise the same in any chunk)."""
+the same size whatever its length. Each row's fit is its own (bitwise the same in any chunk).
+At 2¹⁸ entries a chunk's temporaries (three starts of the EM over the table) held about 130
+MiB on two devices, the peak of a long recording's command; at 2¹⁶ about 15 MiB, and the fit
+of 500 Shelf frames runs faster (1.3 s against 1.8 s: the temporaries stay in cache)."""
 
 
 def _chunked_fit(fit, tables: list[np.ndarray], focal) -> np.ndarray:
@@ -592,7 +599,7 @@ def _pooled_robust_fit(x, w, count, second, focal):
     )
 
 
-def _map_back(r, scenes: _Scenes, F, M, P, C, names) -> ClassAssociation:
+def _map_back(r, scenes: _Scenes, F, M, P, C, names, on_host: bool = False) -> ClassAssociation:
     """Scene results ``(B, …)`` as one table of groups per frame, in the input's slots."""
     b, g = np.nonzero(r.valid)
     f, c = scenes.frame[b], scenes.cls[b]
@@ -624,6 +631,7 @@ def _map_back(r, scenes: _Scenes, F, M, P, C, names) -> ClassAssociation:
     sigma = _per_frame(r.sigma_px, scenes.frame, F)
     tau = _per_frame(r.tau_px, scenes.frame, F)
     assoc = batched_association(
+        on_host=on_host,
         labels=labels,
         groups=groups,
         valid=valid,
@@ -648,10 +656,11 @@ def _per_frame(values: np.ndarray, frame: np.ndarray, F: int) -> np.ndarray:
     return out
 
 
-def _empty(rig, F, M, P, dtype, C, names) -> ClassAssociation:
+def _empty(rig, F, M, P, dtype, C, names, on_host: bool = False) -> ClassAssociation:
     dtype = dtype if np.issubdtype(dtype, np.floating) else np.float64
     z = lambda *shape, dt=dtype: np.zeros(shape, dt)  # noqa: E731
     assoc = batched_association(
+        on_host=on_host,
         labels=np.full((F, M, P), -1, np.int32),
         groups=np.full((F, 1, M), -1, np.int32),
         valid=np.zeros((F, 1), bool),

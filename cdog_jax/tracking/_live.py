@@ -261,6 +261,7 @@ class LiveAssociator:
             min_slots=self.slots,
             batch_size=self.num_classes,  # one program of exactly one scene per class
             min_samples=self._fit_widths[0],
+            on_host=True,  # read here, field by field: no transfer to the device and back
         )
         assoc = result.association
         found = int(np.asarray(assoc.num_groups)[0])
@@ -317,7 +318,8 @@ class LiveAssociator:
         )
         self._carry = carry
         self._compiled = True
-        answer = _answer(self.frame, out, order, P, self.classed, assoc)
+        # The frame's answer in one transfer to the host, not one per field read.
+        answer = _answer(self.frame, jax.device_get(out), order, P, self.classed, assoc)
         if instances is not None and self.classed:
             G = len(answer.groups)
             one = people_of_frame(
