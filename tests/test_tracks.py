@@ -373,6 +373,37 @@ def test_matching_in_rounds_equals_cheapest_first(seed):
         np.testing.assert_array_equal(np.asarray(match(cost)), _cheapest_first_oracle(cost))
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_the_prior_finds_the_same_detections_among_the_free_ones_packed(seed):
+    """The prior's search on each view's free detections packed to the front gives the
+    slots of the search on every slot, ties (repeated pixels, equal distances) included,
+    and the slots of the plain NumPy cheapest-first matching."""
+    from cdog_jax.tracking._temporal_prior import _nearest_free, _nearest_free_packed
+
+    rng = np.random.default_rng(seed)
+    T, M, P = 14, 3, 24
+    xy = rng.integers(0, 12, (M, P, 2)).astype(np.float32)  # few pixels: many ties
+    xy[:, 7] = xy[:, 2]
+    pick = rng.integers(0, P, (T, M))
+    pred = (xy[np.arange(M)[None, :], pick] + rng.integers(-1, 2, (T, M, 2))).astype(np.float32)
+    free = rng.random((M, P)) < 0.5
+    track_ok = rng.random((T, M)) < 0.8
+    prev_class = rng.integers(0, 2, T)
+    det_class = rng.integers(0, 2, (M, P))
+    gate = np.full(T, 3.0, np.float32)
+    args = (pred, track_ok, prev_class, gate, xy, free, det_class)
+    full = np.asarray(jax.jit(_nearest_free)(*args))
+    assert (full >= 0).sum() > 5
+    for size in (int(free.sum(axis=1).max()), P):
+        packed = jax.jit(_nearest_free_packed, static_argnums=7)(*args, size)
+        np.testing.assert_array_equal(np.asarray(packed), full)
+    for m in range(M):  # the oracle, view by view
+        d = np.linalg.norm(pred[:, m, None, :] - xy[None, m], axis=-1)
+        ok = track_ok[:, m, None] & free[m][None] & (det_class[m][None] == prev_class[:, None])
+        want = _cheapest_first_oracle(np.where(ok & (d <= 3.0), d, np.inf))
+        np.testing.assert_array_equal(full[:, m], want)
+
+
 @pytest.mark.parametrize("max_gap", [0, 1])
 def test_a_recording_tracked_in_parts_equals_the_whole(max_gap):
     """Parts tracked one after the other, each continuing from where the one before stopped

@@ -26,6 +26,54 @@ from ..geometry._projection import project_views_last, reprojection_errors_views
 from ..geometry._triangulate import triangulate_views_last
 from ._matching import greedy_match
 
+FREE_SLOTS = 32
+"""Unassigned detections per view that the candidate search holds at once: a frame's free
+detections (missed by the association, strays) are few beside its slots (a live frame of
+25 classes has 256 slots per view), so the search runs on them alone, packed to the front
+in slot order; a frame with more in some view runs it on every slot. Either way the same
+matches (the packing keeps every view's slot order, which breaks the matching's ties)."""
+
+
+def _nearest_free(
+    pred: Float[Array, "T M 2"],
+    allowed_track: Bool[Array, "T M"],
+    prev_class: Int[Array, " T"],
+    gate_px: Float[Array, " T"],
+    xy: Float[Array, "M P 2"],
+    free: Bool[Array, "M P"],
+    det_class: Int[Array, "M P"],
+) -> Int[Array, "T M"]:
+    """The slot ``(T, M)`` (``-1``: none) of every track's detection in every view: one to
+    one per view, cheapest first, among the ``free`` detections of its class within
+    ``gate_px`` of its predicted pixel ``pred``, where ``allowed_track``."""
+    d = jnp.linalg.norm(pred[:, :, None, :] - xy[None], axis=-1)  # (T, M, P)
+    allowed = (
+        allowed_track[:, :, None]
+        & free[None]
+        & (det_class[None] == prev_class[:, None, None])
+        & (d <= gate_px[:, None, None])
+    )
+    return jax.vmap(greedy_match, in_axes=1, out_axes=1)(jnp.where(allowed, d, jnp.inf))
+
+
+def _nearest_free_packed(pred, allowed_track, prev_class, gate_px, xy, free, det_class, size):
+    """:func:`_nearest_free` on each view's first ``size`` free detections, packed to the
+    front in slot order (a view must hold at most ``size``): the same slots."""
+    M, P = free.shape
+    slot = jax.vmap(lambda f: jnp.nonzero(f, size=size, fill_value=P - 1)[0])(free)  # (M, K)
+    held = jnp.arange(size)[None, :] < jnp.sum(free, axis=1, keepdims=True)
+    views = jnp.arange(M)[:, None]
+    packed = _nearest_free(
+        pred,
+        allowed_track,
+        prev_class,
+        gate_px,
+        xy[views, slot],
+        held,
+        det_class[views, slot],
+    )
+    return jnp.where(packed >= 0, slot[jnp.arange(M)[None, :], jnp.maximum(packed, 0)], -1)
+
 
 def recover_tracks(
     rig: Rig,
@@ -53,15 +101,16 @@ def recover_tracks(
     views = jnp.arange(M)
     pred, in_front = project_views_last(rig, prev_X)  # (T, M, 2), (T, M)
     free = mask & (out.labels < 0)
-    d = jnp.linalg.norm(pred[:, :, None, :] - xy[None], axis=-1)  # (T, M, P)
-    allowed = (
-        lost[:, None, None]
-        & in_front[:, :, None]
-        & free[None]
-        & (det_class[None] == prev_class[:, None, None])
-    )
-    allowed = allowed & (d <= gate_px[:, None, None])
-    slot = jax.vmap(greedy_match, in_axes=1, out_axes=1)(jnp.where(allowed, d, jnp.inf))  # (T, M)
+    search = (pred, lost[:, None] & in_front, prev_class, gate_px, xy, free, det_class)
+    if P <= FREE_SLOTS:
+        slot = _nearest_free(*search)  # (T, M)
+    else:
+        slot = lax.cond(
+            jnp.all(jnp.sum(free, axis=1) <= FREE_SLOTS),
+            lambda a: _nearest_free_packed(*a, FREE_SLOTS),
+            lambda a: _nearest_free(*a),
+            search,
+        )
     member = slot >= 0
     pts = xy[views[None, :], jnp.maximum(slot, 0)]  # (T, M, 2)
 
