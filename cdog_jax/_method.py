@@ -222,22 +222,22 @@ def method_argument(method, where: str, default: str | None = "best") -> Method:
 SIGMA_MODES = ("given", "auto", "robust")
 """Where a group-table method's σ comes from: the caller, or C-DOG's two estimators."""
 
-_NUMBER_TYPES: dict[type, type] = {}
+_THRESHOLD_TYPES: dict[type, type] = {}
 
 
 def _numeric_fields(cls: type) -> tuple[str, ...]:
     return tuple(f.name for f in dataclasses.fields(cls) if f.type in ("float", float))
 
 
-def numbers_type(cls: type) -> type:
+def thresholds_type(cls: type) -> type:
     """The ``NamedTuple`` of ``cls``'s numbers: ``sigma_px`` then its ``float`` fields (one
     type per class, made once)."""
-    if cls not in _NUMBER_TYPES:
+    if cls not in _THRESHOLD_TYPES:
         fields = [("sigma_px", Float[Array, ""])] + [
             (name, Float[Array, ""]) for name in _numeric_fields(cls)
         ]
-        _NUMBER_TYPES[cls] = NamedTuple(f"{cls.__name__}Thresholds", fields)
-    return _NUMBER_TYPES[cls]
+        _THRESHOLD_TYPES[cls] = NamedTuple(f"{cls.__name__}Thresholds", fields)
+    return _THRESHOLD_TYPES[cls]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -319,7 +319,7 @@ class GroupTableMethod(Method):
         values = {
             name: np.asarray(getattr(self, name), dtype) for name in _numeric_fields(type(self))
         }
-        return numbers_type(type(self))(sigma_px=sigma, **values)
+        return thresholds_type(type(self))(sigma_px=sigma, **values)
 
     def associate_scene(
         self, rig: Rig, observations: Observations, thresholds: tuple

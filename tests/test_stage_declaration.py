@@ -12,7 +12,7 @@ import pytest
 from helpers import random_scene, ring_rig
 
 from cdog_jax import STAGES, Config, associate
-from cdog_jax.cdog._config import Number, Range, Switch
+from cdog_jax.cdog._config import Range, Switch, Threshold
 from cdog_jax.cdog._pipeline import config_field_problems, make_config
 from cdog_jax.cdog._stage import Stage
 
@@ -41,8 +41,8 @@ ERROR_GATE = Stage(
     error_gate_stage,
     ErrorGateOptions,
     Switch("error_gate", False, "drop groups with a large error"),
-    numbers=(
-        Number("error_gate_px", 5.0, Range(0.0, 100.0), "the largest mean error kept (pixels)"),
+    thresholds=(
+        Threshold("error_gate_px", 5.0, Range(0.0, 100.0), "the largest mean error kept (pixels)"),
     ),
 )
 GATED_STAGES = (*STAGES[:-1], ERROR_GATE, STAGES[-1])  # after the fit, before the validity gate
@@ -99,7 +99,11 @@ def test_the_new_options_are_checked():
     with pytest.raises(TypeError, match="Config.error_gate must be True or False; got 1"):
         Gated(error_gate=1)
     twice = Stage(
-        "twice", error_gate_stage, None, Switch("twice", False), numbers=(Number("delta", 0.5),)
+        "twice",
+        error_gate_stage,
+        None,
+        Switch("twice", False),
+        thresholds=(Threshold("delta", 0.5),),
     )
     with pytest.raises(
         TypeError, match="option 'delta' is declared twice: by stage 'graph' and by stage 'twice'"

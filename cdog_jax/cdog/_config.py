@@ -3,7 +3,7 @@ stage"), and the epipolar gate τ.
 
 A stage's options are declared once, in the file of its rule: its structural options are the
 fields (with defaults) of its options ``NamedTuple`` (static: part of the jit key), its
-numbers are :class:`Number` entries (traced: a sweep over them compiles once), and the
+numbers are :class:`Threshold` entries (traced: a sweep over them compiles once), and the
 switch that turns it on is a :class:`Switch`. ``cdog_jax/cdog/_pipeline.py`` writes each
 declared option as a field of :class:`cdog_jax.Config` (hashable, a static argument of
 ``jax.jit``; checked against the declarations on import) and derives from them the traced
@@ -56,7 +56,7 @@ class Range(NamedTuple):
         return f"finite and in {lo}{self.low:g}, {self.high:g}{hi}"
 
 
-class Number(NamedTuple):
+class Threshold(NamedTuple):
     """A traced option of a stage: its name (a field of ``Config`` and of ``Thresholds``),
     default, allowed range, a one-line description (with its unit) and, for a length,
     ``unit`` ``"px"`` (``"px2"``: squared): scaled with the focal length when
@@ -90,14 +90,14 @@ class AtLeast(NamedTuple):
 class OptionGroup(NamedTuple):
     """Options read before any stage runs (by ``associate_traced`` itself), declared like a
     stage's: ``options`` a ``NamedTuple`` of structural fields with defaults, ``numbers`` a
-    tuple of :class:`Number`."""
+    tuple of :class:`Threshold`."""
 
     name: str
     options: type | None
-    numbers: tuple[Number, ...] = ()
+    thresholds: tuple[Threshold, ...] = ()
 
 
-class Numbers(tuple):
+class ThresholdsBase(tuple):
     """The base of :class:`cdog_jax.Thresholds`: a ``NamedTuple`` of traced scalars that a
     stage reads by name (``th.delta``). The stages name this base, not the concrete type,
     which ``_pipeline.py`` derives from their declarations."""
@@ -137,7 +137,7 @@ REFERENCE_FOCAL_PX = 1000.0
 
 
 def thresholds_in_pixels(th, focal_px: Float[Array, ""], units: dict[str, str]):
-    """``th`` (a :class:`Numbers`) with its lengths given in pixels of a
+    """``th`` (a :class:`ThresholdsBase`) with its lengths given in pixels of a
     ``REFERENCE_FOCAL_PX`` camera turned into pixels of this rig (``focal_px``: its focal
     length, pixels); ``units`` maps a field to ``"px"``, ``"px2"`` or anything else (kept)."""
     scale = focal_px / REFERENCE_FOCAL_PX

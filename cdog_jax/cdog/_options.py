@@ -20,7 +20,7 @@ import jax
 import numpy as np
 
 from .._types import Array, Float
-from ._config import AtLeast, Number, Numbers, Range, Switch, check_number
+from ._config import AtLeast, Range, Switch, Threshold, ThresholdsBase, check_number
 
 STRUCTURAL, NUMERIC = "structural", "numeric"
 
@@ -83,13 +83,13 @@ def _structural(name: str, owner: str, hint, default) -> OptionSpec:
         check, described, hint = _check_positive_int(name, low), f"int >= {low}", int
     else:
         raise TypeError(
-            f"stage {owner!r}: option {name} has type {hint!r}; use a Literal, bool or int (or a Number)"
+            f"stage {owner!r}: option {name} has type {hint!r}; use a Literal, bool or int (or a Threshold)"
         )
     check(default, f"stage {owner!r} default")
     return OptionSpec(name, owner, default, STRUCTURAL, hint, check, described)
 
 
-def _numeric(number: Number, owner: str) -> OptionSpec:
+def _numeric(number: Threshold, owner: str) -> OptionSpec:
     check = _check_range(number.name, number.range)
     check(number.default, f"stage {owner!r} default")
     return OptionSpec(
@@ -130,7 +130,7 @@ def _declared(group) -> list[OptionSpec]:
             specs.append(
                 _structural(name, group.name, hints[name], group.options._field_defaults[name])
             )
-    specs.extend(_numeric(number, group.name) for number in group.numbers)
+    specs.extend(_numeric(number, group.name) for number in group.thresholds)
     return specs
 
 
@@ -141,7 +141,7 @@ def declared_options(groups) -> dict[str, OptionSpec]:
     found: dict[str, OptionSpec] = {}
     declarer: dict[str, tuple] = {}
     for group in groups:
-        declaration = (getattr(group, "run", None), group.options, group.numbers)
+        declaration = (getattr(group, "run", None), group.options, group.thresholds)
         for spec in _declared(group):
             if spec.name not in found:
                 found[spec.name], declarer[spec.name] = spec, declaration
@@ -168,9 +168,11 @@ SIGMA = OptionSpec(
 )
 
 
-def thresholds_type(specs: dict[str, OptionSpec], module: str, name: str = "Thresholds") -> type:
+def make_thresholds_type(
+    specs: dict[str, OptionSpec], module: str, name: str = "Thresholds"
+) -> type:
     """The traced ``NamedTuple`` of the numbers of ``specs``, ``sigma_px`` first, a subclass
-    of :class:`~cdog_jax.cdog._config.Numbers`, documented field by field; ``module`` is where it
+    of :class:`~cdog_jax.cdog._config.ThresholdsBase`, documented field by field; ``module`` is where it
     is published (for pickling)."""
     numbers = [SIGMA] + [s for s in specs.values() if s.kind == NUMERIC]
     fields = typing.NamedTuple(f"_{name}Fields", [(s.name, Float[Array, ""]) for s in numbers])
@@ -180,7 +182,9 @@ def thresholds_type(specs: dict[str, OptionSpec], module: str, name: str = "Thre
         "``tau_px = max(alpha_tau * sqrt(2) * sigma_px, tau_min_px)`` (docs/ALGORITHM.md §1–2).\n"
         "Each field, with the stage that reads it:\n\n" + "\n".join(lines)
     )
-    return type(name, (fields, Numbers), {"__slots__": (), "__doc__": doc, "__module__": module})
+    return type(
+        name, (fields, ThresholdsBase), {"__slots__": (), "__doc__": doc, "__module__": module}
+    )
 
 
 def units(specs: dict[str, OptionSpec]) -> dict[str, str]:

@@ -49,13 +49,13 @@ from ._config import (
     Adjacency,
     IqrQuartiles,
     IqrScore,
-    Number,
-    Numbers,
     OptionGroup,
     PruneScope,
     SigmaMode,
     Switch,
     TauMode,
+    Threshold,
+    ThresholdsBase,
     ThresholdUnit,
     gauss_coverage,
     tau_px,
@@ -66,8 +66,8 @@ from ._options import (
     check_thresholds,
     declared_options,
     describe,
+    make_thresholds_type,
     ranges,
-    thresholds_type,
     units,
 )
 from ._stage import GroupTable, Scene, Stage, State, raise_flag
@@ -154,9 +154,9 @@ class SceneOptions(NamedTuple):
 SCENE = OptionGroup(
     "scene",
     SceneOptions,
-    numbers=(
-        Number("alpha_tau", 2.0, doc="gate τ = max(alpha_tau · √2 · σ, tau_min_px)"),
-        Number("tau_min_px", 1.0, doc="the gate's lower bound (pixels)", unit="px"),
+    thresholds=(
+        Threshold("alpha_tau", 2.0, doc="gate τ = max(alpha_tau · √2 · σ, tau_min_px)"),
+        Threshold("tau_min_px", 1.0, doc="the gate's lower bound (pixels)", unit="px"),
     ),
 )
 """The options :func:`associate_traced` reads itself, before the stages."""
@@ -299,7 +299,7 @@ def associate_traced(
     rig: Rig,
     xy: Float[Array, "M P 2"],
     mask: Bool[Array, "M P"],
-    thresholds: Numbers,
+    thresholds: ThresholdsBase,
     config: Config,
     *,
     classes: Int[Array, "M P"] | None = None,
@@ -319,7 +319,7 @@ def associate_traced(
             the split, regrouping, the second association). Recovery and the support filter
             do not read them. ``None``: one class.
     """
-    kind = type(config).numbers_type if isinstance(config, Config) else Thresholds
+    kind = type(config).thresholds_type if isinstance(config, Config) else Thresholds
     expect_args(
         "associate_traced", rig=(rig, Rig), thresholds=(thresholds, kind), config=(config, Config)
     )
@@ -351,7 +351,7 @@ def scene_tables(
     rig: Rig,
     xy: Float[Array, "M P 2"],
     mask: Bool[Array, "M P"],
-    thresholds: Numbers,
+    thresholds: ThresholdsBase,
     config: Config,
     *,
     classes: Int[Array, "M P"] | None = None,
@@ -359,7 +359,7 @@ def scene_tables(
     """The tables every stage reads (:class:`Scene`: padding zeroed, epipolar distances,
     DLT blocks, σ and τ), and whether σ estimation fell back; arguments as
     :func:`associate_traced`."""
-    kind = type(config).numbers_type
+    kind = type(config).thresholds_type
     th = kind(*(jnp.asarray(v) for v in thresholds))  # NumPy scalars when called eagerly
     if config.threshold_unit == "focal":
         th = thresholds_in_pixels(th, focal_scale(rig.K), type(config).units)
@@ -389,7 +389,7 @@ class ConfigMethods(Method):
 
     stages: ClassVar[tuple[Stage, ...]]
     options: ClassVar[dict]  # name -> OptionSpec, in field order
-    numbers_type: ClassVar[type]
+    thresholds_type: ClassVar[type]
     ranges: ClassVar[dict]
     units: ClassVar[dict]  # number -> "px", "px2" or "" (threshold_unit="focal" scales the lengths)
 
@@ -484,7 +484,7 @@ class ConfigMethods(Method):
             if isinstance(sigma_px, jax.Array)
             else np.asarray(sigma_px, dtype)
         )
-        return type(self).numbers_type(sigma_px=sigma, **values)
+        return type(self).thresholds_type(sigma_px=sigma, **values)
 
     def structure(self) -> Config:
         """This config with its numeric fields reset to the defaults: the part a jit key needs."""
@@ -494,7 +494,7 @@ class ConfigMethods(Method):
 
     def check_thresholds(self, thresholds: Thresholds) -> None:
         """Raise for a concrete threshold outside its range (:data:`RANGES`)."""
-        check_thresholds(thresholds, type(self).numbers_type, type(self).ranges)
+        check_thresholds(thresholds, type(self).thresholds_type, type(self).ranges)
 
     def associate_scene(self, rig, observations: Observations, thresholds: Thresholds):
         """C-DOG on one scene (:func:`cdog_jax.associate_traced`); ``observations.weights``
@@ -537,7 +537,7 @@ def _declarations(stages: tuple[Stage, ...]) -> dict:
     return {
         "stages": stages,
         "options": options,
-        "numbers_type": thresholds_type(options, __name__),
+        "thresholds_type": make_thresholds_type(options, __name__),
         "ranges": ranges(options),
         "units": units(options),
     }
@@ -751,7 +751,7 @@ def make_config(stages: tuple[Stage, ...], *, name: str = "Config", base: type =
     return dataclasses.make_dataclass(name, fields, bases=(base,), namespace=namespace, frozen=True)
 
 
-Thresholds = Config.numbers_type
+Thresholds = Config.thresholds_type
 RANGES = Config.ranges
 """Every number's allowed range (``sigma_px`` included), from the stages' declarations."""
 

@@ -7,7 +7,7 @@ traced thresholds), ``state`` the group table and the latest fit, ``options`` th
 static options (a small ``NamedTuple``). A stage reads its numbers from ``scene.th`` (traced).
 
 A stage declares its options once, in its :class:`Stage` entry: the fields (with defaults)
-of its options ``NamedTuple``, its :class:`~cdog_jax.cdog._config.Number` entries and its
+of its options ``NamedTuple``, its :class:`~cdog_jax.cdog._config.Threshold` entries and its
 :class:`~cdog_jax.cdog._config.Switch`; :class:`cdog_jax.Config` and :class:`cdog_jax.Thresholds`
 are derived from them (``cdog_jax/cdog/_options.py``).
 """
@@ -22,7 +22,7 @@ import jax.numpy as jnp
 from .._status import Status
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
-from ._config import Number, Numbers
+from ._config import Threshold, ThresholdsBase
 
 
 class Scene(NamedTuple):
@@ -42,7 +42,7 @@ class Scene(NamedTuple):
     blocks: tuple
     sigma: Float[Array, ""]
     tau: Float[Array, ""]
-    th: Numbers
+    th: ThresholdsBase
 
 
 class GroupTable(NamedTuple):
@@ -102,7 +102,7 @@ class Stage(NamedTuple):
     run: Callable
     options: type | None
     when: Callable[[object], bool]
-    numbers: tuple[Number, ...] = ()
+    thresholds: tuple[Threshold, ...] = ()
     options_from: Callable[[object], object] | None = None
 
 

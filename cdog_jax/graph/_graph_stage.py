@@ -11,7 +11,7 @@ import jax.numpy as jnp
 
 from .._status import Status
 from .._types import Array, Bool, Float, Int
-from ..cdog._config import Adjacency, Number, Numbers, PruneScope, Range
+from ..cdog._config import Adjacency, PruneScope, Range, Threshold, ThresholdsBase
 from ..cdog._stage import GroupTable, Scene, Stage, State, always, raise_flag
 from ._adjacency import adjacency_from_edges, alive_edges, nearest_neighbour_edges
 from ._components import component_view_counts, connected_components_capped
@@ -36,7 +36,7 @@ def graph_groups(
     d: Float[Array, "M P M P"],
     valid: Bool[Array, " N"],
     tau: Float[Array, ""],
-    th: Numbers,
+    th: ThresholdsBase,
     options: GraphOptions,
 ) -> tuple[Int[Array, "G M"], Bool[Array, " G"], Int[Array, ""]]:
     """Alg. 1–2 on the valid nodes: epipolar graph, δ-pruning, view-unique components;
@@ -79,5 +79,7 @@ GRAPH = Stage(
     GraphOptions,
     always,
     # θ ≥ δ keeps an edge; δ = 0 would keep all.
-    numbers=(Number("delta", 0.5, Range(0.0, 1.0, low_open=True), "δ-overlap threshold (Alg. 2)"),),
+    thresholds=(
+        Threshold("delta", 0.5, Range(0.0, 1.0, low_open=True), "δ-overlap threshold (Alg. 2)"),
+    ),
 )

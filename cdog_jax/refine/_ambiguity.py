@@ -14,7 +14,7 @@ a second round would mostly cost correct members.
 import jax.numpy as jnp
 
 from .._types import Array, Bool, Float, Int
-from ..cdog._config import Number, Range, Switch
+from ..cdog._config import Range, Switch, Threshold
 from ..cdog._stage import GroupTable, Scene, Stage, State
 from ._fit import fit_groups
 from ._reassign import _node_errors, _usable
@@ -82,8 +82,8 @@ AMBIGUITY = Stage(
         False,
         "detach from each group of ≥ 3 its worst member that another detection fits as well (beyond the paper)",
     ),
-    numbers=(
-        Number(
+    thresholds=(
+        Threshold(
             "ambiguous_frac",
             0.1,
             Range(0.0),

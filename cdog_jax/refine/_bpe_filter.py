@@ -13,7 +13,7 @@ import jax.numpy as jnp
 
 from .._expect import ARRAY, INT, expect_args
 from .._types import Array, Bool, Float, Int
-from ..cdog._config import Number, Numbers, Switch
+from ..cdog._config import Switch, Threshold, ThresholdsBase
 from ..cdog._stage import Scene, Stage, State
 
 PREFIX_CHUNK = 64
@@ -56,7 +56,7 @@ def bpe_jump_keep(
     bpe: Float[Array, " G"],
     valid: Bool[Array, " G"],
     sigma_px: Float[Array, ""],
-    th: Numbers,
+    th: ThresholdsBase,
     min_gaps: int,
 ) -> Bool[Array, " G"]:
     """``(G,)``: which valid groups survive the jump rule, from ``bpe (G,)`` (px²) and
@@ -66,7 +66,7 @@ def bpe_jump_keep(
         bpe=(bpe, ARRAY),
         valid=(valid, ARRAY),
         sigma_px=(sigma_px, ARRAY),
-        th=(th, Numbers),
+        th=(th, ThresholdsBase),
         min_gaps=(min_gaps, INT),
     )
     G = bpe.shape[0]
@@ -109,14 +109,14 @@ BPE_FILTER = Stage(
     bpe_filter_stage,
     BpeFilterOptions,
     Switch("bpe_filter", True, "drop the groups after the first BPE jump"),
-    numbers=(
-        Number("jump_kappa", 10.0, doc="BPE jump: gap > jump_kappa · median(previous gaps)"),
-        Number(
+    thresholds=(
+        Threshold("jump_kappa", 10.0, doc="BPE jump: gap > jump_kappa · median(previous gaps)"),
+        Threshold(
             "jump_floor_px2",
             4.0,
             doc="BPE jump: gap > jump_floor_px2 + (jump_floor_sigma · σ)² (px²)",
             unit="px2",
         ),
-        Number("jump_floor_sigma", 3.0, doc="BPE jump: see jump_floor_px2"),
+        Threshold("jump_floor_sigma", 3.0, doc="BPE jump: see jump_floor_px2"),
     ),
 )

@@ -19,7 +19,7 @@ import numpy as np
 from .._expect import ARRAY, expect_args
 from .._status import Status
 from .._types import Array, Bool, Float
-from ..cdog._config import IqrQuartiles, IqrScore, Number, Numbers, Switch
+from ..cdog._config import IqrQuartiles, IqrScore, Switch, Threshold, ThresholdsBase
 from ..cdog._stage import GroupTable, Scene, Stage, State
 from ..geometry._camera import Rig
 from ..geometry._projection import reprojection_errors_views_last
@@ -83,14 +83,14 @@ def node_scores(
 
 
 def iqr_outliers(
-    score: Float[Array, " M"], member: Bool[Array, " M"], th: Numbers, options: IqrOptions
+    score: Float[Array, " M"], member: Bool[Array, " M"], th: ThresholdsBase, options: IqrOptions
 ) -> Bool[Array, " M"]:
     """Members whose score lies outside ``[max(0, Q1 − α IQR), Q3 + α IQR]``."""
     expect_args(
         "iqr_outliers",
         score=(score, ARRAY),
         member=(member, ARRAY),
-        th=(th, Numbers),
+        th=(th, ThresholdsBase),
         options=(options, IqrOptions),
     )
     if options.iqr_quartiles == "zero_pad":
@@ -129,7 +129,7 @@ def remove_outliers(
     origin: Float[Array, 3],
     xy_g: Float[Array, "G M 2"],
     member: Bool[Array, "G M"],
-    th: Numbers,
+    th: ThresholdsBase,
     options: IqrOptions,
 ) -> tuple[Bool[Array, "G M"], Bool[Array, ""]]:
     """Iterated IQR removal over all groups; returns the members ``(G, M)`` and ``()`` True
@@ -144,7 +144,9 @@ def remove_outliers(
     groups changes (at most ``options.max_iqr_iters`` rounds). The static capacity ``G`` is
     far larger than the number of real groups, so this costs what the real groups cost.
     """
-    expect_args("remove_outliers", rig=(rig, Rig), th=(th, Numbers), options=(options, IqrOptions))
+    expect_args(
+        "remove_outliers", rig=(rig, Rig), th=(th, ThresholdsBase), options=(options, IqrOptions)
+    )
     own = options.iqr_score == "include_own"
     G, M = member.shape
     C = min(IQR_CHUNK, G)
@@ -210,7 +212,7 @@ def iqr_table(
     xy: Float[Array, "M P 2"],
     table: GroupTable,
     blocks: tuple,
-    th: Numbers,
+    th: ThresholdsBase,
     options: IqrOptions,
 ) -> tuple[GroupTable, Bool[Array, ""]]:
     """Alg. 3 on the group table (per-node DLT ``blocks`` as in :func:`dlt_blocks`); returns
@@ -244,18 +246,18 @@ IQR = Stage(
     iqr_stage,
     IqrOptions,
     Switch("iqr", True, "remove IQR outliers from groups (Alg. 3)"),
-    numbers=(
-        Number("iqr_alpha", 2.0, doc="IQR fence multiplier (Alg. 3)"),
-        Number(
+    thresholds=(
+        Threshold("iqr_alpha", 2.0, doc="IQR fence multiplier (Alg. 3)"),
+        Threshold(
             "iqr_floor_px", 1.0, doc="an outlier's score must also exceed this (pixels)", unit="px"
         ),
-        Number(
+        Threshold(
             "iqr_min_px",
             10.0,
             doc="reference guard: no outlier if the max score is below this (pixels)",
             unit="px",
         ),
-        Number(
+        Threshold(
             "iqr_force_px",
             50.0,
             doc="reference guard: drop the max if above this (pixels)",

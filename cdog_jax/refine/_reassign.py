@@ -29,7 +29,7 @@ import jax
 import jax.numpy as jnp
 
 from .._types import Array, Bool, Float
-from ..cdog._config import Number, Range, Switch
+from ..cdog._config import Range, Switch, Threshold
 from ..cdog._stage import GroupTable, Scene, Stage, State
 from ..geometry._projection import distances_to_detections, project_views_last
 from ..graph._adjacency import min_and_first_index
@@ -170,8 +170,8 @@ REASSIGN = Stage(
     Switch(
         "reassign", False, "each detection to its nearest group point, refitting (beyond the paper)"
     ),
-    numbers=(
-        Number(
+    thresholds=(
+        Threshold(
             "reassign_frac",
             2.0,
             Range(0.0, low_open=True),

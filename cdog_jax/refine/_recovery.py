@@ -10,7 +10,7 @@ one view compete for a group, the closest wins (ties: smallest node index).
 import jax.numpy as jnp
 
 from .._types import Array, Bool, Float, Int
-from ..cdog._config import Number, Numbers, Switch
+from ..cdog._config import Switch, Threshold, ThresholdsBase
 from ..cdog._stage import Scene, Stage, State
 from ..geometry._camera import Rig
 from ..geometry._projection import distances_to_detections
@@ -25,7 +25,7 @@ def recover_leftovers(
     valid: Bool[Array, " G"],
     X: Float[Array, "G 3"],
     tau_px: Float[Array, ""],
-    th: Numbers,
+    th: ThresholdsBase,
 ) -> Int[Array, "G M"]:
     """The group table ``(G, M)`` with leftover detections attached (``xy (M, P, 2)`` pixels,
     ``X (G, 3)`` the groups' points)."""
@@ -60,8 +60,8 @@ RECOVER = Stage(
     recover_stage,
     None,
     Switch("recover", False, "attach leftovers to groups by reprojection (beyond the paper)"),
-    numbers=(
-        Number(
+    thresholds=(
+        Threshold(
             "recover_frac", 1.0, doc="recovery: attach if the reprojection error < recover_frac · τ"
         ),
     ),

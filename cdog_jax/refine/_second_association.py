@@ -9,7 +9,7 @@ import jax.numpy as jnp
 
 from .._expect import ARRAY, expect_args
 from .._types import Array, Bool, Float, Int
-from ..cdog._config import Number, Numbers, Switch
+from ..cdog._config import Switch, Threshold, ThresholdsBase
 from ..cdog._stage import Scene, Stage, State
 from ._attach import attach_cheapest, leftover_nodes
 
@@ -20,7 +20,7 @@ def second_association(
     valid: Bool[Array, " G"],
     node_valid: Bool[Array, " N"],
     tau_px: Float[Array, ""],
-    th: Numbers,
+    th: ThresholdsBase,
 ) -> Int[Array, "G M"]:
     """The group table ``(G, M)`` with leftover nodes attached. ``d (N, N)``: ``d[v, u]`` is
     the distance in u's image from u to the epipolar line of v (pixels)."""
@@ -30,7 +30,7 @@ def second_association(
         groups=(groups, ARRAY),
         valid=(valid, ARRAY),
         node_valid=(node_valid, ARRAY),
-        th=(th, Numbers),
+        th=(th, ThresholdsBase),
     )
     G, M = groups.shape
     N = d.shape[0]
@@ -72,8 +72,8 @@ SECOND_ASSOCIATION = Stage(
         False,
         "attach leftover nodes by their epipolar cost (the reference's)",
     ),
-    numbers=(
-        Number(
+    thresholds=(
+        Threshold(
             "second_frac", 0.5, doc="second association: attach if the mean cost < second_frac · τ"
         ),
     ),

@@ -23,7 +23,7 @@ import jax
 import jax.numpy as jnp
 
 from .._types import Array, Bool, Float, Int
-from ..cdog._config import AtLeast, Number, Range, Switch
+from ..cdog._config import AtLeast, Range, Switch, Threshold
 from ..cdog._stage import GroupTable, Scene, Stage, State
 from ..geometry._camera import Rig
 from ..graph._adjacency import min_and_first_index
@@ -248,14 +248,14 @@ SEED = Stage(
     Switch(
         "seed", False, "groups from two-view hypotheses on what is still left (beyond the paper)"
     ),
-    numbers=(
-        Number(
+    thresholds=(
+        Threshold(
             "seed_frac",
             1.5,
             Range(0.0, low_open=True),
             doc="seeding: a detection within seed_frac · τ votes for a two-view point",
         ),
-        Number(
+        Threshold(
             "seed_support_frac",
             1.5,
             Range(0.0, low_open=True),

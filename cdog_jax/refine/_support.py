@@ -23,7 +23,7 @@ import jax
 import jax.numpy as jnp
 
 from .._types import Array, Bool, Float
-from ..cdog._config import Number, Numbers, Range, Switch
+from ..cdog._config import Range, Switch, Threshold, ThresholdsBase
 from ..cdog._stage import Scene, Stage, State
 from ..geometry._camera import Rig
 from ..geometry._projection import project_views_last
@@ -59,7 +59,7 @@ def support_keep(
     member: Bool[Array, "G M"],
     valid: Bool[Array, " G"],
     tau_px: Float[Array, ""],
-    th: Numbers,
+    th: ThresholdsBase,
 ) -> Bool[Array, " G"]:
     """``(G,)``: the valid groups that pass the visibility-support test (module docstring).
 
@@ -114,15 +114,17 @@ SUPPORT = Stage(
     support_stage,
     None,
     Switch("support_filter", False, "drop groups that views seeing their point do not detect"),
-    numbers=(
-        Number("support_frac", 3.0, doc="a detection within support_frac · τ explains a view"),
-        Number(
+    thresholds=(
+        Threshold("support_frac", 3.0, doc="a detection within support_frac · τ explains a view"),
+        Threshold(
             "support_alpha",
             0.01,
             Range(0.0, 1.0),
             "drop if P(that many misses) < support_alpha (a probability)",
         ),
-        Number("support_min_rate", 0.02, Range(0.0, 1.0), "floor of the estimated miss rate"),
-        Number("support_ref_views", 4.0, doc="members of the groups that estimate the miss rate"),
+        Threshold("support_min_rate", 0.02, Range(0.0, 1.0), "floor of the estimated miss rate"),
+        Threshold(
+            "support_ref_views", 4.0, doc="members of the groups that estimate the miss rate"
+        ),
     ),
 )

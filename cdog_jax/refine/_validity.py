@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 
 from .._types import Array, Bool, Float
-from ..cdog._config import DEFAULT_MIN_PARALLAX_DEG, Number, Range
+from ..cdog._config import DEFAULT_MIN_PARALLAX_DEG, Range, Threshold
 from ..cdog._stage import GroupTable, Scene, Stage, State, always
 from ..geometry._camera import Rig, affine_per_view
 from ..geometry._projection import group_errors, reprojection_errors_views_last
@@ -182,14 +182,14 @@ VALIDITY = Stage(
     validity_stage,
     None,
     always,
-    numbers=(
-        Number(
+    thresholds=(
+        Threshold(
             "min_parallax_deg",
             DEFAULT_MIN_PARALLAX_DEG,
             Range(0.0, 90.0, high_open=True),
             "validity gate: the largest angle between members' lines of sight (degrees)",
         ),
-        Number(
+        Threshold(
             "max_err_frac",
             3.0,
             Range(0.0, low_open=True),
