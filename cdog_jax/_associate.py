@@ -51,9 +51,9 @@ def check_thresholds_type(thresholds, method: Method, where: str) -> None:
         )
 
 
-def _run_scene(rig, xy, mask, th, method):
+def _run_scene(rig, xy, mask, thresholds, method):
     """The method's per-scene function on plain observations (no weights)."""
-    return method.associate_scene(rig, Observations(xy, mask), th)
+    return method.associate_scene(rig, Observations(xy, mask), thresholds)
 
 
 _associate_jit = jax.jit(_run_scene, static_argnames=("method",))
@@ -161,7 +161,7 @@ def associate(
     capacity = _capacity(
         "associate", M, occupied_slots(mask), method, dtype, 1, memory_budget_gb, vmapped=None
     )
-    static, th = _prepare(method, sigma, thresholds, dtype)
+    static, thresholds = _prepare(method, sigma, thresholds, dtype)
     np_dtype = np.dtype(dtype)
     xy = pad_slots(np.asarray(xy, np_dtype), capacity, axis=1)
     mask = pad_slots(np.asarray(mask, bool), capacity, axis=1, fill=False)
@@ -170,22 +170,22 @@ def associate(
         static.check_scene(mask, "associate")
         if extras is not None and extras[1] is not None:
             extras = (extras[0], pad_slots(extras[1], capacity, axis=1), extras[2])
-        return trim(_associate_host(rig, xy, mask, th, extras, static), P)
+        return trim(_associate_host(rig, xy, mask, thresholds, extras, static), P)
     if extras is not None:
         extras = (
             extras[0],
             None if extras[1] is None else pad_slots(extras[1], capacity, axis=1),
             extras[2],
         )
-    return trim(_single_scene(rig, xy, mask, th, extras, static), P)
+    return trim(_single_scene(rig, xy, mask, thresholds, extras, static), P)
 
 
-def _single_scene(rig, xy, mask, th, extras, method):
+def _single_scene(rig, xy, mask, thresholds, extras, method):
     """One padded scene through the method's compiled program; its lowered program is
     stored on disk for later processes (``_runtime/stored_programs.py``)."""
     if extras is None:
-        return call_stored(_associate_jit, (rig, xy, mask, th), method)
-    return call_stored(_associate_extras_jit, (rig, xy, mask, th, *extras), method)
+        return call_stored(_associate_jit, (rig, xy, mask, thresholds), method)
+    return call_stored(_associate_extras_jit, (rig, xy, mask, thresholds, *extras), method)
 
 
 def _capacity(where, M, P, method, dtype, batch_size, budget_gb, vmapped) -> int:
@@ -264,7 +264,7 @@ def finish_groups(
     result: Association,
     weights: Float[Array, "M P"] | None,
     min_views: Int[Array, ""],
-    th: tuple,
+    thresholds: tuple,
 ) -> Association:
     """``result`` with groups of fewer than ``min_views`` views dropped (their detections
     become unassigned) and, when ``weights (M, P)`` is given (e.g. detector confidence, ≥ 0),
@@ -272,8 +272,8 @@ def finish_groups(
 
     BPE and the mean error stay the plain (unweighted) means over members;
     ``xy`` are the pixels the association used (undistorted). The groups then pass the
-    validity gate again (`refine/_validity.py`, with ``th.max_err_frac``,
-    ``th.min_parallax_deg`` and the result's τ): a member of weight 0 does not count as a
+    validity gate again (`refine/_validity.py`, with ``thresholds.max_err_frac``,
+    ``thresholds.min_parallax_deg`` and the result's τ): a member of weight 0 does not count as a
     view, and a re-weighted point must still lie in front of its cameras with parallax and
     bounded errors. Groups are compacted to the front again and the labels rebuilt, as
     :func:`cdog_jax.associate` returns them.
@@ -290,7 +290,14 @@ def finish_groups(
         X_w, ok = triangulate_views_last(rig, xy_g, member, weights=w_g)
         X = jnp.where(ok[:, None], X_w, X)  # fewer than 2 weighted views: the gate dissolves it
     member, keep, X = validity_gate(
-        rig, xy_g, member, X, result.tau_px, th.max_err_frac, th.min_parallax_deg, weights=w_g
+        rig,
+        xy_g,
+        member,
+        X,
+        result.tau_px,
+        thresholds.max_err_frac,
+        thresholds.min_parallax_deg,
+        weights=w_g,
     )
     keep = keep & (
         jnp.sum(member, axis=1, dtype=jnp.int32) >= min_views
@@ -303,15 +310,17 @@ def finish_groups(
     )
 
 
-def _associate_one(rig, xy, mask, th, dist, weights, min_views, method):
+def _associate_one(rig, xy, mask, thresholds, dist, weights, min_views, method):
     """One scene with undistortion before and :func:`finish_groups` after the method;
     ``dist``/``weights`` may be None (static absence)."""
     if dist is not None:
         xy, lens_failed = undistorted_checked(rig, xy, mask, dist)
-    result = method.associate_scene(rig, Observations(xy, mask, weights), th)
+    result = method.associate_scene(rig, Observations(xy, mask, weights), thresholds)
     if dist is not None:
         result = _flag_lens(result, lens_failed)
-    return finish_groups(rig, jnp.where(mask[..., None], xy, 0.0), result, weights, min_views, th)
+    return finish_groups(
+        rig, jnp.where(mask[..., None], xy, 0.0), result, weights, min_views, thresholds
+    )
 
 
 def _flag_lens(result: Association, failed) -> Association:
@@ -324,28 +333,30 @@ _undistorted_jit = jax.jit(undistorted_checked)
 _finish_jit = jax.jit(finish_groups)
 
 
-def _associate_host(rig, xy, mask, th, extras, method):
+def _associate_host(rig, xy, mask, thresholds, extras, method):
     """One scene of a host method (``method.jittable`` False): undistortion and
     :func:`finish_groups` compiled as usual, the method itself called eagerly on host arrays."""
     if extras is None:
-        return method.associate_scene(rig, Observations(xy, mask), th)
+        return method.associate_scene(rig, Observations(xy, mask), thresholds)
     dist, weights, min_views = extras
     if dist is not None:
         xy, lens_failed = _undistorted_jit(rig, xy, mask, dist)
         xy = np.asarray(xy)
-    result = method.associate_scene(rig, Observations(xy, mask, weights), th)
+    result = method.associate_scene(rig, Observations(xy, mask, weights), thresholds)
     if dist is not None:
         result = _flag_lens(result, lens_failed)
-    return _finish_jit(rig, np.where(mask[..., None], xy, 0.0), result, weights, min_views, th)
+    return _finish_jit(
+        rig, np.where(mask[..., None], xy, 0.0), result, weights, min_views, thresholds
+    )
 
 
 @partial(jax.jit, static_argnames=("method",))
-def _associate_extras_jit(rig, xy, mask, th, dist, weights, min_views, *, method):
-    return _associate_one(rig, xy, mask, th, dist, weights, min_views, method)
+def _associate_extras_jit(rig, xy, mask, thresholds, dist, weights, min_views, *, method):
+    return _associate_one(rig, xy, mask, thresholds, dist, weights, min_views, method)
 
 
 @partial(jax.jit, static_argnames=("method", "shared_rig"))
-def _associate_batch_jit(rig, xy, mask, th, extras, *, method, shared_rig):
+def _associate_batch_jit(rig, xy, mask, thresholds, extras, *, method, shared_rig):
     """One chunk of scenes, vmapped (the caller loops over chunks, so memory stays bounded)."""
     if extras is None:
         run = lambda r, x, m, t, e: _run_scene(r, x, m, t, method)  # noqa: E731
@@ -356,9 +367,9 @@ def _associate_batch_jit(rig, xy, mask, th, extras, *, method, shared_rig):
     per_scene = None if extras is None else extras[1]
     if shared_rig:
         one = lambda a: run(rig, a[0], a[1], a[2], _join(shared, a[3]))  # noqa: E731
-        return jax.vmap(one)((xy, mask, th, per_scene))
+        return jax.vmap(one)((xy, mask, thresholds, per_scene))
     one = lambda a: run(a[0], a[1], a[2], a[3], _join(shared, a[4]))  # noqa: E731
-    return jax.vmap(one)((rig, xy, mask, th, per_scene))
+    return jax.vmap(one)((rig, xy, mask, thresholds, per_scene))
 
 
 def _join(shared, weights):
@@ -447,7 +458,7 @@ def associate_batch_at(
     capacity = _capacity(
         "associate_batch", M, in_use, method, dtype, chunk, memory_budget_gb, vmapped=True
     )
-    static, th = _prepare(method, sigma, thresholds, dtype)
+    static, thresholds = _prepare(method, sigma, thresholds, dtype)
     if dist is not None and not shared:
         raise ValueError(
             "dist needs a shared rig (K of shape (M, 3, 3)); undistort per-scene rigs yourself"
@@ -457,7 +468,9 @@ def associate_batch_at(
     padded = -(-B // chunk) * chunk  # whole chunks; padded scenes repeat the last one
     xy = pad_scenes(pad_slots(np.asarray(xy, np_dtype), capacity, axis=2), padded)
     mask = pad_scenes(pad_slots(np.asarray(mask, bool), capacity, axis=2, fill=False), padded)
-    th = type(th)(*(pad_scenes(np.broadcast_to(np.asarray(v, np_dtype), (B,)), padded) for v in th))
+    thresholds = type(thresholds)(
+        *(pad_scenes(np.broadcast_to(np.asarray(v, np_dtype), (B,)), padded) for v in thresholds)
+    )
     if not shared:
         rig_arrays = [pad_scenes(np.asarray(a), padded) for a in (rig.K, rig.R, rig.t)]
     if extras is not None and extras[1] is not None:
@@ -474,20 +487,25 @@ def associate_batch_at(
                 else (extras[0], None if extras[1] is None else extras[1][b], extras[2])
             )
             one = _associate_host(
-                rig_b, xy[b], mask[b], type(th)(*(v[b] for v in th)), extras_b, static
+                rig_b,
+                xy[b],
+                mask[b],
+                type(thresholds)(*(v[b] for v in thresholds)),
+                extras_b,
+                static,
             )
             results.append(jax.tree.map(lambda a: np.asarray(a)[None], one))
         padded = 0
     elif chunk == 1:  # one scene at a time: the single-scene program (no vmap to trace)
         for b in range(B):
             rig_b = rig if shared else Rig(*(jnp.asarray(a[b]) for a in rig_arrays))
-            th_b = type(th)(*(v[b] for v in th))
+            thresholds_b = type(thresholds)(*(v[b] for v in thresholds))
             extras_b = (
                 None
                 if extras is None
                 else (extras[0], None if extras[1] is None else extras[1][b], extras[2])
             )
-            one = _single_scene(rig_b, xy[b], mask[b], th_b, extras_b, static)
+            one = _single_scene(rig_b, xy[b], mask[b], thresholds_b, extras_b, static)
             results.append(jax.tree.map(lambda a: np.asarray(a)[None], one))
         padded = 0
     # Chunks go round-robin over the devices (several run at once where there are several);
@@ -501,7 +519,13 @@ def associate_batch_at(
             if extras is None
             else (extras[0], None if extras[1] is None else extras[1][part], extras[2])
         )
-        args = (rig_part, xy[part], mask[part], type(th)(*(v[part] for v in th)), extras_part)
+        args = (
+            rig_part,
+            xy[part],
+            mask[part],
+            type(thresholds)(*(v[part] for v in thresholds)),
+            extras_part,
+        )
         if device is not None:
             args = jax.device_put(args, device)
         results.append(call_stored(_associate_batch_jit, args, static, shared_rig=shared))

@@ -324,11 +324,13 @@ class GroupTableMethod(Method):
     def associate_scene(
         self, rig: Rig, observations: Observations, thresholds: tuple
     ) -> Association:
-        th = type(thresholds)(*(jnp.asarray(v) for v in thresholds))
+        thresholds = type(thresholds)(*(jnp.asarray(v) for v in thresholds))
         xy, mask, dropped = finite_observations(observations.xy, observations.mask)
         observations = observations._replace(xy=xy, mask=mask)
-        xy, d, sigma, tau, fallback = scene_gate(rig, observations, th, self.sigma_mode)
-        groups, valid, status = self.group_table(rig, xy, observations.mask, d, sigma, tau, th)
+        xy, d, sigma, tau, fallback = scene_gate(rig, observations, thresholds, self.sigma_mode)
+        groups, valid, status = self.group_table(
+            rig, xy, observations.mask, d, sigma, tau, thresholds
+        )
         return finish_table(
             rig,
             xy,
@@ -339,12 +341,12 @@ class GroupTableMethod(Method):
             | raise_flag(dropped, Status.NONFINITE_DETECTION),
             sigma,
             tau,
-            th,
+            thresholds,
         )
 
 
 def scene_gate(
-    rig: Rig, observations: Observations, th: tuple, sigma_mode: str
+    rig: Rig, observations: Observations, thresholds: tuple, sigma_mode: str
 ) -> tuple[
     Float[Array, "M P 2"],
     Float[Array, "M P M P"],
@@ -363,8 +365,8 @@ def scene_gate(
     elif sigma_mode == "robust":
         sigma, fallback = estimate_sigma_robust(d, mask, focal_scale(rig.K))
     else:
-        sigma, fallback = th.sigma_px, jnp.asarray(False)
-    tau = jnp.maximum(th.alpha_tau * jnp.sqrt(2.0) * sigma, th.tau_min_px)
+        sigma, fallback = thresholds.sigma_px, jnp.asarray(False)
+    tau = jnp.maximum(thresholds.alpha_tau * jnp.sqrt(2.0) * sigma, thresholds.tau_min_px)
     return xy, d, sigma, tau, fallback
 
 
@@ -376,17 +378,17 @@ def finish_table(
     status: Int[Array, ""],
     sigma: Float[Array, ""],
     tau: Float[Array, ""],
-    th: tuple,
+    thresholds: tuple,
 ) -> Association:
     """The :class:`~cdog_jax.Association` of a group table ``(G, M)``: every valid group's
-    multi-view DLT point, the validity gate (with ``th.max_err_frac`` and
-    ``th.min_parallax_deg``), its errors; ``xy (M, P, 2)`` pixels (padding zeroed)."""
+    multi-view DLT point, the validity gate (with ``thresholds.max_err_frac`` and
+    ``thresholds.min_parallax_deg``), its errors; ``xy (M, P, 2)`` pixels (padding zeroed)."""
     P = xy.shape[1]
     member = valid[:, None] & (groups >= 0)
     xy_g = gather_groups(groups, xy)
     X, _ = triangulate_views_last(rig, xy_g, member)
     member, valid, X = validity_gate(
-        rig, xy_g, member, X, tau, th.max_err_frac, th.min_parallax_deg
+        rig, xy_g, member, X, tau, thresholds.max_err_frac, thresholds.min_parallax_deg
     )
     bpe, err_px = group_errors(rig, X, xy_g, member)
     return association_from_groups(
@@ -407,8 +409,8 @@ def finish_table(
 
 
 @partial(jax.jit, static_argnames=("sigma_mode",))
-def _gate(rig, observations, th, sigma_mode):
-    return scene_gate(rig, observations, th, sigma_mode)
+def _gate(rig, observations, thresholds, sigma_mode):
+    return scene_gate(rig, observations, thresholds, sigma_mode)
 
 
 _finish = jax.jit(finish_table)

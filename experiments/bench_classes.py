@@ -57,23 +57,23 @@ def option_a(rig, xy, mask, classes, sigma, batch_size):
 
 
 @partial(jax.jit, static_argnames=("config", "batch_size"))
-def _option_b_jit(rig, xy, mask, classes, th, *, config, batch_size):
+def _option_b_jit(rig, xy, mask, classes, thresholds, *, config, batch_size):
     def one(scene):
         x, m, c = scene
-        return associate_traced(rig, x, m, th, config, classes=c)
+        return associate_traced(rig, x, m, thresholds, config, classes=c)
 
     return jax.lax.map(one, (xy, mask, classes), batch_size=batch_size)
 
 
 def option_b(rig, xy, mask, classes, sigma, batch_size):
     config = Config.paper()
-    th = config.thresholds(sigma)
+    thresholds = config.thresholds(sigma)
     r = _option_b_jit(
         rig,
         jnp.asarray(xy),
         jnp.asarray(mask),
         jnp.asarray(classes, jnp.int32),
-        th,
+        thresholds,
         config=config.structure(),
         batch_size=min(batch_size, xy.shape[0]),
     )

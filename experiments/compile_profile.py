@@ -102,26 +102,26 @@ def _scene_inputs(num_points: int = 30, capacity: int = 32, sigma: float = 1.0):
 
 
 def whole_program(config, rig, xy, mask, sigma: float = 1.0) -> dict:
-    th = config.thresholds(sigma)
+    thresholds = config.thresholds(sigma)
     tr, lo, co, compiled, sizes = _compile(
-        lambda r, x, m, t: associate_traced(r, x, m, t, config), rig, xy, mask, th
+        lambda r, x, m, t: associate_traced(r, x, m, t, config), rig, xy, mask, thresholds
     )
-    jax.block_until_ready(compiled(rig, xy, mask, th))
+    jax.block_until_ready(compiled(rig, xy, mask, thresholds))
     warm = []
     for _ in range(10):
         t0 = time.perf_counter()
-        jax.block_until_ready(compiled(rig, xy, mask, th))
+        jax.block_until_ready(compiled(rig, xy, mask, thresholds))
         warm.append(time.perf_counter() - t0)
     return dict(trace=tr, lower=lo, compile=co, warm_ms=1e3 * float(np.median(warm)), **sizes)
 
 
 def per_stage(config, rig, xy, mask, sigma: float = 1.0) -> list[tuple[str, dict]]:
-    th = config.thresholds(sigma)
+    thresholds = config.thresholds(sigma)
     rows = []
     tr, lo, co, compiled, sizes = _compile(
-        lambda r, x, m, t: scene_tables(r, x, m, t, config), rig, xy, mask, th
+        lambda r, x, m, t: scene_tables(r, x, m, t, config), rig, xy, mask, thresholds
     )
-    scene, fallback = compiled(rig, xy, mask, th)
+    scene, fallback = compiled(rig, xy, mask, thresholds)
     rows.append(("scene tables", dict(lower=tr + lo, compile=co, **sizes)))
     M, P = mask.shape
     G = max(M * P // 2, 1)

@@ -252,16 +252,16 @@ def test_associate_traced_with_classes_never_joins_two_classes():
     rig = ring_rig(3)
     xy, mask, instance, _ = random_scene(rig, 4, 6, sigma=0.2, seed=1)
     config = cdog_jax.Config.paper()
-    th = config.thresholds(0.2)
+    thresholds = config.thresholds(0.2)
     run = jax.jit(cdog_jax.associate_traced, static_argnums=4)
     plain = cdog_jax.associate(
-        rig, xy.astype(np.float32), mask, method=config, thresholds=th
+        rig, xy.astype(np.float32), mask, method=config, thresholds=thresholds
     )  # a program other tests compile
     agreeing = run(
         rig,
         jnp.asarray(xy, jnp.float32),
         jnp.asarray(mask),
-        th,
+        thresholds,
         config,
         classes=jnp.asarray(instance % 2, jnp.int32),
     )
@@ -271,7 +271,7 @@ def test_associate_traced_with_classes_never_joins_two_classes():
         rig,
         jnp.asarray(xy, jnp.float32),
         jnp.asarray(mask),
-        th,
+        thresholds,
         config,
         classes=jnp.asarray(random_classes),
     )

@@ -160,29 +160,34 @@ def test_every_numeric_field_has_a_range():
 
 def test_thresholds_out_of_range_are_refused(scene, batch):
     rig, xy, mask = scene
-    th = Config().thresholds(1.0)
+    thresholds = Config().thresholds(1.0)
     with pytest.raises(
         ValueError, match=r"thresholds.delta must be finite and in \(0, 1\]; got nan"
     ):
-        associate(rig, xy, mask, thresholds=th._replace(delta=np.float32(np.nan)))
+        associate(rig, xy, mask, thresholds=thresholds._replace(delta=np.float32(np.nan)))
     with pytest.raises(ValueError, match=r"thresholds.iqr_alpha must be .*got -1.0"):
-        associate(rig, xy, mask, thresholds=th._replace(iqr_alpha=np.float32(-1.0)))
+        associate(rig, xy, mask, thresholds=thresholds._replace(iqr_alpha=np.float32(-1.0)))
     with pytest.raises(ValueError, match=r"thresholds.delta must be a scalar; got shape \(2,\)"):
-        associate(rig, xy, mask, thresholds=th._replace(delta=np.array([0.5, 0.6], np.float32)))
+        associate(
+            rig, xy, mask, thresholds=thresholds._replace(delta=np.array([0.5, 0.6], np.float32))
+        )
     rig, xy_b, mask_b = batch
     with pytest.raises(
         ValueError,
         match=r"thresholds.delta must be finite and in \(0, 1\]; got 2.0 at index \(1,\)",
     ):
         associate_batch(
-            rig, xy_b, mask_b, thresholds=th._replace(delta=np.array([0.5, 2.0], np.float32))
+            rig,
+            xy_b,
+            mask_b,
+            thresholds=thresholds._replace(delta=np.array([0.5, 2.0], np.float32)),
         )
     with pytest.raises(
         ValueError,
         match=r"thresholds.delta must be a scalar or shape \(B,\) = \(2,\); got shape \(3,\)",
     ):
         associate_batch(
-            rig, xy_b, mask_b, thresholds=th._replace(delta=np.full(3, 0.5, np.float32))
+            rig, xy_b, mask_b, thresholds=thresholds._replace(delta=np.full(3, 0.5, np.float32))
         )
 
 

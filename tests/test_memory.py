@@ -82,9 +82,9 @@ def test_estimate_is_monotone():
 @pytest.mark.parametrize("name, M, P", [("paper", 4, 64), ("reference", 8, 32)])
 def test_estimate_is_within_a_factor_of_xla(name, M, P):
     config = getattr(Config, name)()
-    static, th = _prepare(config, 1.0, None, jnp.float32)
+    static, thresholds = _prepare(config, 1.0, None, jnp.float32)
     compiled = _associate_jit.lower(
-        ring_rig(M), jnp.zeros((M, P, 2)), jnp.ones((M, P), bool), th, method=static
+        ring_rig(M), jnp.zeros((M, P, 2)), jnp.ones((M, P), bool), thresholds, method=static
     ).compile()
     analysis = compiled.memory_analysis()
     xla = (

@@ -144,13 +144,13 @@ def test_overlap_theta_by_hand():
     A = np.zeros((4, 4), bool)
     for u, v in [(0, 1), (1, 2), (0, 2), (2, 3)]:
         A[u, v] = A[v, u] = True
-    th = overlap_theta(A)
+    thresholds = overlap_theta(A)
     # closed neighbourhoods: N0 = {0,1,2}, N1 = {0,1,2}, N2 = {0,1,2,3}, N3 = {2,3}
-    np.testing.assert_allclose(th[0, 1], 3 / 3)
-    np.testing.assert_allclose(th[0, 2], 3 / 4)
-    np.testing.assert_allclose(th[2, 3], 2 / 4)
-    assert th[0, 3] == 0 and th[1, 3] == 0
-    np.testing.assert_allclose(th, th.T)
+    np.testing.assert_allclose(thresholds[0, 1], 3 / 3)
+    np.testing.assert_allclose(thresholds[0, 2], 3 / 4)
+    np.testing.assert_allclose(thresholds[2, 3], 2 / 4)
+    assert thresholds[0, 3] == 0 and thresholds[1, 3] == 0
+    np.testing.assert_allclose(thresholds, thresholds.T)
 
 
 def test_components_smallest_index():

@@ -75,10 +75,12 @@ def test_batch_equals_loop_shared_and_per_scene_rig():
 def test_jit_equals_eager():
     xy, mask, _, _ = random_scene(RIG, 4, 5, sigma=1.0, seed=5)
     cfg = Config.paper()
-    th = cfg.thresholds(1.0)
+    thresholds = cfg.thresholds(1.0)
     jitted = associate(RIG, xy, mask, method=cfg, sigma=1.0)
     with jax.disable_jit():
-        eager = associate_traced(RIG, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), th, cfg)
+        eager = associate_traced(
+            RIG, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), thresholds, cfg
+        )
     for fa, fb in zip(jax.tree.leaves(jitted), jax.tree.leaves(eager)):
         assert np.allclose(np.asarray(fa), np.asarray(fb), atol=1e-4)
 

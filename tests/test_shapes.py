@@ -23,11 +23,11 @@ P = 13  # not on the ladder: associate runs at 16
 
 def _unpadded(xy, mask, config, sigma=1.0, dist=None, weights=None, min_views=2):
     """The jitted pipeline at the caller's own shapes (what associate ran before padding)."""
-    static, th = _prepare(config, sigma, None, np.float32)
+    static, thresholds = _prepare(config, sigma, None, np.float32)
     extras = _check_extras(dist, weights, min_views, mask.shape, np.float32)
     if extras is None:
-        return _associate_jit(RIG, xy, mask, th, method=static)
-    return _associate_extras_jit(RIG, xy, mask, th, *extras, method=static)
+        return _associate_jit(RIG, xy, mask, thresholds, method=static)
+    return _associate_extras_jit(RIG, xy, mask, thresholds, *extras, method=static)
 
 
 DISCRETE = ("labels", "groups", "valid", "n_views", "num_groups", "status")

@@ -26,10 +26,10 @@ class ErrorGateOptions(NamedTuple):
 
 
 def error_gate_stage(scene, state, options):
-    """Drop the fitted groups whose mean reprojection error exceeds ``th.error_gate_px``."""
+    """Drop the fitted groups whose mean reprojection error exceeds ``thresholds.error_gate_px``."""
     TRACES.append(options)  # once per trace: a number that changes must not add one
     error = state.fit.err_px * (2.0 if options.error_kind == "twice_mean" else 1.0)
-    keep = state.table.valid & (error <= scene.th.error_gate_px)
+    keep = state.table.valid & (error <= scene.thresholds.error_gate_px)
     return state._replace(
         table=state.table.keep(keep),
         fit=state.fit._replace(member=state.fit.member & keep[:, None]),
@@ -56,8 +56,8 @@ def test_the_new_options_are_config_fields_with_their_defaults():
     assert not hasattr(Config(), "error_gate_px")  # C-DOG itself is untouched
     assert Gated(error_gate_px=1.0).structure() == Gated()  # a number is not part of the jit key
     assert Gated(error_kind="twice_mean").structure() != Gated()
-    th = Gated(error_gate_px=7.0).thresholds(1.0)
-    assert th.error_gate_px == np.float32(7.0) and th.delta == np.float32(0.5)
+    thresholds = Gated(error_gate_px=7.0).thresholds(1.0)
+    assert thresholds.error_gate_px == np.float32(7.0) and thresholds.delta == np.float32(0.5)
     assert "error_gate_px = 5.0 (traced)" in Gated.__doc__
 
 
@@ -115,15 +115,15 @@ def test_the_new_number_is_traced_and_its_thresholds_range_checked():
     rig = ring_rig(3)
     xy, mask, _, _ = random_scene(rig, 4, 6, sigma=0.5)
     method = Gated(error_gate=True)
-    th = method.thresholds(0.5)
+    thresholds = method.thresholds(0.5)
     TRACES.clear()
-    kept = associate(rig, xy.astype(np.float32), mask, method=method, thresholds=th)
+    kept = associate(rig, xy.astype(np.float32), mask, method=method, thresholds=thresholds)
     dropped = associate(
         rig,
         xy.astype(np.float32),
         mask,
         method=method,
-        thresholds=th._replace(error_gate_px=np.float32(0.0)),
+        thresholds=thresholds._replace(error_gate_px=np.float32(0.0)),
     )
     assert len(TRACES) == 1, "changing a number recompiled"
     assert int(np.sum(kept.valid)) > 0 and int(np.sum(dropped.valid)) == 0
@@ -131,5 +131,9 @@ def test_the_new_number_is_traced_and_its_thresholds_range_checked():
         ValueError, match=r"thresholds.error_gate_px must be finite and in \[0, 100\]; got -1.0"
     ):
         associate(
-            rig, xy, mask, method=method, thresholds=th._replace(error_gate_px=np.float32(-1.0))
+            rig,
+            xy,
+            mask,
+            method=method,
+            thresholds=thresholds._replace(error_gate_px=np.float32(-1.0)),
         )

@@ -69,9 +69,9 @@ def test_a_non_finite_detection_under_jit_is_left_out_and_said(method):
     from cdog_jax import method_from
 
     m = method_from(method, "test")
-    th = m.thresholds(0.5)
+    thresholds = m.thresholds(0.5)
     xy, mask, _, _ = random_scene(RIG, 8, 10, sigma=0.5, seed=3)
-    run = jax.jit(lambda xy, mask: m.associate_scene(RIG, Observations(xy, mask), th))
+    run = jax.jit(lambda xy, mask: m.associate_scene(RIG, Observations(xy, mask), thresholds))
     before = run(xy, mask)
     groups = np.asarray(before.groups)[np.asarray(before.valid)]
     view, slot = 1, int(groups[groups[:, 1] >= 0][0, 1])

@@ -43,11 +43,11 @@ def _assert_bitwise(a, b):
 
 
 def _direct(xy, mask, sigma, method):
-    static, th = _prepare(method, sigma, None, np.float32)
+    static, thresholds = _prepare(method, sigma, None, np.float32)
     padded_xy = np.pad(xy, ((0, 0), (0, 32 - P), (0, 0)))
     padded_mask = np.pad(mask, ((0, 0), (0, 32 - P)))
     return cdog_jax._runtime.shapes.trim(
-        _associate_jit(RIG, padded_xy, padded_mask, th, method=static), P
+        _associate_jit(RIG, padded_xy, padded_mask, thresholds, method=static), P
     )
 
 

@@ -36,13 +36,13 @@ def _run(rig, xy, mask, config, sigma):
 
 def test_focal_units_scale_every_length_threshold():
     # Given σ = 0.5 means 0.5 px of a 1000 px camera: 0.5 · f / 1000 px here; px² squared.
-    th = Config.paper(delta=0.6).thresholds(0.5)
+    thresholds = Config.paper(delta=0.6).thresholds(0.5)
     f = 830.0
-    scaled = thresholds_in_pixels(th, jnp.float32(f), Config.units)
-    for name in th._fields:
+    scaled = thresholds_in_pixels(thresholds, jnp.float32(f), Config.units)
+    for name in thresholds._fields:
         power = {"px": 1, "px2": 2}.get(Config.units[name], 0)
         assert float(getattr(scaled, name)) == pytest.approx(
-            float(getattr(th, name)) * (f / 1000.0) ** power, rel=1e-6
+            float(getattr(thresholds, name)) * (f / 1000.0) ** power, rel=1e-6
         ), name
     assert float(scaled.delta) == pytest.approx(0.6) and float(scaled.sigma_px) == pytest.approx(
         0.415
@@ -123,13 +123,13 @@ def test_fitted_gate_is_a_high_quantile_of_the_true_pairs():
 
 
 def test_gate_formula_without_a_fit():
-    th = Config.paper().thresholds(1.0)
-    assert float(tau_px(th, jnp.float32(1.0))) == pytest.approx(2.0 * np.sqrt(2.0))
-    assert float(tau_px(th, jnp.float32(1.0), jnp.float32(np.nan))) == pytest.approx(
+    thresholds = Config.paper().thresholds(1.0)
+    assert float(tau_px(thresholds, jnp.float32(1.0))) == pytest.approx(2.0 * np.sqrt(2.0))
+    assert float(tau_px(thresholds, jnp.float32(1.0), jnp.float32(np.nan))) == pytest.approx(
         2.0 * np.sqrt(2.0)
     )
-    assert float(tau_px(th, jnp.float32(1.0), jnp.float32(5.0))) == pytest.approx(5.0)
-    assert float(tau_px(th, jnp.float32(1.0), jnp.float32(0.5))) == pytest.approx(
+    assert float(tau_px(thresholds, jnp.float32(1.0), jnp.float32(5.0))) == pytest.approx(5.0)
+    assert float(tau_px(thresholds, jnp.float32(1.0), jnp.float32(0.5))) == pytest.approx(
         1.0
     )  # the floor tau_min_px
 

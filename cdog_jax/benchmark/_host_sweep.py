@@ -45,8 +45,8 @@ def _scene(rig, box, key, count, sigma, *, capacity, draw_capacity, image_size):
 
 
 @functools.partial(jax.jit, static_argnames=("method",))
-def _associate_jit(rig, xy, mask, th, *, method):
-    return method.associate_scene(rig, Observations(xy, mask), th)
+def _associate_jit(rig, xy, mask, thresholds, *, method):
+    return method.associate_scene(rig, Observations(xy, mask), thresholds)
 
 
 @jax.jit
@@ -54,11 +54,11 @@ def _score(rig, result, scene):
     return scene_metrics(rig, result, scene), (result.sigma_px, result.tau_px, result.num_groups)
 
 
-def _associate(rig, scene, th, method: Method):
+def _associate(rig, scene, thresholds, method: Method):
     if method.jittable:
-        return _associate_jit(rig, scene.xy, scene.mask, th, method=method)
+        return _associate_jit(rig, scene.xy, scene.mask, thresholds, method=method)
     return method.associate_scene(
-        rig, Observations(np.asarray(scene.xy), np.asarray(scene.mask)), th
+        rig, Observations(np.asarray(scene.xy), np.asarray(scene.mask)), thresholds
     )
 
 
@@ -136,12 +136,12 @@ def sweep_host(
             )
         rows, times, warm = [], np.zeros(grid.num_scenes), set()
         for s, scene in enumerate(scenes):
-            th = base._replace(sigma_px=np.asarray(idx.sigma[s], dtype))
+            thresholds = base._replace(sigma_px=np.asarray(idx.sigma[s], dtype))
             if int(capacity[s]) not in warm:  # compile apart
-                jax.block_until_ready(_associate(rig, scene, th, structure))
+                jax.block_until_ready(_associate(rig, scene, thresholds, structure))
                 warm.add(int(capacity[s]))
             t0 = time.perf_counter()
-            result = jax.block_until_ready(_associate(rig, scene, th, structure))
+            result = jax.block_until_ready(_associate(rig, scene, thresholds, structure))
             times[s] = time.perf_counter() - t0
             rows.append(jax.device_get(_score(rig, result, scene)))
         fields = {

@@ -188,20 +188,20 @@ def _scene_outputs(rig, box, thresholds, plan, capacity, batch, args):
     )
     scene = compact_scene(scene, capacity=capacity)
     per_group = []
-    for th, (structure, members) in zip(thresholds, plan.groups):
+    for stacked, (structure, members) in zip(thresholds, plan.groups):
 
-        def run(th, structure=structure):
+        def run(one, structure=structure):
             res = structure.associate_scene(
-                rig, Observations(scene.xy, scene.mask), th._replace(sigma_px=sigma)
+                rig, Observations(scene.xy, scene.mask), one._replace(sigma_px=sigma)
             )
             return scene_metrics(rig, res, scene), (res.sigma_px, res.tau_px, res.num_groups)
 
         if len(members) == 1:
-            out = jax.tree.map(lambda a: a[None], run(jax.tree.map(lambda a: a[0], th)))
+            out = jax.tree.map(lambda a: a[None], run(jax.tree.map(lambda a: a[0], stacked)))
         elif batch == 1:
-            out = jax.lax.map(run, th)
+            out = jax.lax.map(run, stacked)
         else:
-            out = jax.vmap(run)(th)
+            out = jax.vmap(run)(stacked)
         per_group.append(out)
     return scene.num_points, tuple(per_group)
 
@@ -655,12 +655,14 @@ def _time_buckets(rig, box, configs, grid, layout, image_size, runs):
             image_size=image_size,
         )
         for name, config in configs.items():
-            th = jax.tree.map(
+            thresholds = jax.tree.map(
                 lambda a: np.broadcast_to(a, pick.shape).copy(), _host_thresholds(config, dtype)
             )
-            th = th._replace(sigma_px=sigma)
+            thresholds = thresholds._replace(sigma_px=sigma)
             static = dict(config=config.structure(), batch=min(batch, pick.size))
-            run = functools.partial(_associate_chunk, rig, scenes.xy, scenes.mask, th, **static)
+            run = functools.partial(
+                _associate_chunk, rig, scenes.xy, scenes.mask, thresholds, **static
+            )
             jax.block_until_ready(run())  # compile and warm up
             times = []
             for _ in range(runs):

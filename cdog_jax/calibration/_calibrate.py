@@ -95,7 +95,7 @@ def calibrate(
         raise TypeError(
             f"calibrate got unknown options {unknown}; refine_rig takes {_STATIC + ('scale_px',)}"
         )
-    th = []
+    per_round = []
     for name, v in zip(kind._fields, thresholds):
         v = jnp.asarray(v, xy.dtype)
         if v.shape not in ((), (rounds,)):
@@ -103,15 +103,17 @@ def calibrate(
                 f"thresholds.{name} must have shape () or (rounds,) = ({rounds},); got {v.shape}"
             )
         v = jnp.broadcast_to(v, (rounds,))
-        th.append(jnp.concatenate([v, v[-1:]]))  # the final association reuses the last
+        per_round.append(jnp.concatenate([v, v[-1:]]))  # the final association reuses the last
     traced = {k: jnp.asarray(v, xy.dtype) for k, v in refine_options.items() if k == "scale_px"}
     static = tuple(sorted((k, v) for k, v in refine_options.items() if k != "scale_px"))
-    return _calibrate(rig, xy, mask, kind(*th), traced, config=method.structure(), options=static)
+    return _calibrate(
+        rig, xy, mask, kind(*per_round), traced, config=method.structure(), options=static
+    )
 
 
 @functools.partial(jax.jit, static_argnames=("config", "options"))
-def _calibrate(rig, xy, mask, th, traced, *, config, options):
-    rounds = th.sigma_px.shape[0] - 1
+def _calibrate(rig, xy, mask, thresholds, traced, *, config, options):
+    rounds = thresholds.sigma_px.shape[0] - 1
 
     def one_round(rig, step):
         i, th_i = step
@@ -126,7 +128,7 @@ def _calibrate(rig, xy, mask, th, traced, *, config, options):
         )
         return new_rig, (info, new_rig, assoc)
 
-    rig, (info, rigs, assoc) = jax.lax.scan(one_round, rig, (jnp.arange(rounds + 1), th))
+    rig, (info, rigs, assoc) = jax.lax.scan(one_round, rig, (jnp.arange(rounds + 1), thresholds))
     history = CalibrationHistory(
         bpe_before=info.bpe_before[:rounds],
         bpe_after=info.bpe_after[:rounds],

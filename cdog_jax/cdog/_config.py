@@ -99,7 +99,7 @@ class OptionGroup(NamedTuple):
 
 class ThresholdsBase(tuple):
     """The base of :class:`cdog_jax.Thresholds`: a ``NamedTuple`` of traced scalars that a
-    stage reads by name (``th.delta``). The stages name this base, not the concrete type,
+    stage reads by name (``thresholds.delta``). The stages name this base, not the concrete type,
     which ``_pipeline.py`` derives from their declarations."""
 
     __slots__ = ()
@@ -118,16 +118,16 @@ def check_number(value, name: str, where: str, allowed: Range) -> None:
 
 
 def tau_px(
-    th, sigma_px: Float[Array, ""], fitted_px: Float[Array, ""] | None = None
+    thresholds, sigma_px: Float[Array, ""], fitted_px: Float[Array, ""] | None = None
 ) -> Float[Array, ""]:
     """Epipolar gate ``τ = max(alpha_tau · √2 · σ, tau_min)`` in pixels (docs/ALGORITHM.md §1–2);
-    ``th`` holds ``alpha_tau`` and ``tau_min_px``. With ``fitted_px`` (the fitted quantile of
+    ``thresholds`` holds ``alpha_tau`` and ``tau_min_px``. With ``fitted_px`` (the fitted quantile of
     the true-pair distance, NaN when there is none) ``τ = max(fitted_px, tau_min)`` where it
     is finite."""
-    gaussian = th.alpha_tau * jnp.sqrt(2.0) * sigma_px
+    gaussian = thresholds.alpha_tau * jnp.sqrt(2.0) * sigma_px
     if fitted_px is not None:
         gaussian = jnp.where(jnp.isfinite(fitted_px), fitted_px, gaussian)
-    return jnp.maximum(gaussian, th.tau_min_px)
+    return jnp.maximum(gaussian, thresholds.tau_min_px)
 
 
 # With threshold_unit="focal" the numbers of unit "px" ("px2") are pixels of a camera of focal
@@ -136,15 +136,15 @@ def tau_px(
 REFERENCE_FOCAL_PX = 1000.0
 
 
-def thresholds_in_pixels(th, focal_px: Float[Array, ""], units: dict[str, str]):
-    """``th`` (a :class:`ThresholdsBase`) with its lengths given in pixels of a
+def thresholds_in_pixels(thresholds, focal_px: Float[Array, ""], units: dict[str, str]):
+    """``thresholds`` (a :class:`ThresholdsBase`) with its lengths given in pixels of a
     ``REFERENCE_FOCAL_PX`` camera turned into pixels of this rig (``focal_px``: its focal
     length, pixels); ``units`` maps a field to ``"px"``, ``"px2"`` or anything else (kept)."""
     scale = focal_px / REFERENCE_FOCAL_PX
     power = {"px": 1, "px2": 2}
-    return th._replace(
+    return thresholds._replace(
         **{
-            name: getattr(th, name) * scale ** power[unit]
+            name: getattr(thresholds, name) * scale ** power[unit]
             for name, unit in units.items()
             if unit in power
         }

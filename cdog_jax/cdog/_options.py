@@ -201,15 +201,15 @@ def ranges(specs: dict[str, OptionSpec]) -> dict[str, Range]:
 
 
 def check_thresholds(
-    th, kind: type, allowed: dict[str, Range], *, skip: tuple[str, ...] = ("sigma_px",)
+    thresholds, kind: type, allowed: dict[str, Range], *, skip: tuple[str, ...] = ("sigma_px",)
 ) -> None:
-    """Raise if a concrete value of ``th`` (scalars or arrays) is outside its range; names
+    """Raise if a concrete value of ``thresholds`` (scalars or arrays) is outside its range; names
     the field, the value and, for arrays, the index. Traced values are not checked."""
-    if not isinstance(th, kind):
+    if not isinstance(thresholds, kind):
         raise TypeError(
-            f"thresholds must be a {kind.__name__} (from Config.thresholds()); got {type(th).__name__}"
+            f"thresholds must be a {kind.__name__} (from Config.thresholds()); got {type(thresholds).__name__}"
         )
-    for name, value in zip(th._fields, th):
+    for name, value in zip(thresholds._fields, thresholds):
         if name in skip or isinstance(value, jax.core.Tracer):
             continue
         host = np.asarray(value)

@@ -360,9 +360,9 @@ def scene_tables(
     DLT blocks, σ and τ), and whether σ estimation fell back; arguments as
     :func:`associate_traced`."""
     kind = type(config).thresholds_type
-    th = kind(*(jnp.asarray(v) for v in thresholds))  # NumPy scalars when called eagerly
+    thresholds = kind(*(jnp.asarray(v) for v in thresholds))  # NumPy scalars when called eagerly
     if config.threshold_unit == "focal":
-        th = thresholds_in_pixels(th, focal_scale(rig.K), type(config).units)
+        thresholds = thresholds_in_pixels(thresholds, focal_scale(rig.K), type(config).units)
     xy = jnp.where(mask[..., None], xy, 0.0)  # padding is neutral from here on
     d = epipolar_distances(rig, xy, mask)  # (M, P, M, P)
     if classes is not None:
@@ -372,12 +372,14 @@ def scene_tables(
         sigma, fallback = estimate_sigma(d, mask, focal_scale(rig.K))
     elif config.sigma_mode == "robust":
         sigma, fitted, fallback = estimate_noise(
-            d, mask, focal_scale(rig.K), gauss_coverage(th.alpha_tau)
+            d, mask, focal_scale(rig.K), gauss_coverage(thresholds.alpha_tau)
         )
     else:
-        sigma, fallback = th.sigma_px, jnp.asarray(False)
-    tau = tau_px(th, sigma, fitted if config.tau_mode == "fitted" else None)
-    return Scene(rig, xy, mask, mask.reshape(-1), d, dlt_blocks(rig, xy), sigma, tau, th), fallback
+        sigma, fallback = thresholds.sigma_px, jnp.asarray(False)
+    tau = tau_px(thresholds, sigma, fitted if config.tau_mode == "fitted" else None)
+    return Scene(
+        rig, xy, mask, mask.reshape(-1), d, dlt_blocks(rig, xy), sigma, tau, thresholds
+    ), fallback
 
 
 # --------------------------------------------------------------------------- the method

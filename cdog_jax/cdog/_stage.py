@@ -4,7 +4,7 @@
 Every stage has one signature, ``stage(scene, state, options) -> state``: ``scene`` holds the
 per-scene tables computed once (detections, epipolar distances, DLT blocks, σ, τ and the
 traced thresholds), ``state`` the group table and the latest fit, ``options`` the stage's own
-static options (a small ``NamedTuple``). A stage reads its numbers from ``scene.th`` (traced).
+static options (a small ``NamedTuple``). A stage reads its numbers from ``scene.thresholds`` (traced).
 
 A stage declares its options once, in its :class:`Stage` entry: the fields (with defaults)
 of its options ``NamedTuple``, its :class:`~cdog_jax.cdog._config.Threshold` entries and its
@@ -31,7 +31,7 @@ class Scene(NamedTuple):
     ``xy (M, P, 2)`` pixels (padding zeroed), ``mask (M, P)``, ``node_valid (N,)`` the nodes a
     graph stage may use (``mask`` flattened; fewer when regrouping leftovers), ``d (M, P, M, P)``
     epipolar distances (px), ``blocks`` the per-node DLT normal blocks ``(M, P, 3, 3)``,
-    ``(M, P, 3)`` and their origin ``(3,)``, ``sigma`` and ``tau`` (px), ``th`` the thresholds.
+    ``(M, P, 3)`` and their origin ``(3,)``, ``sigma`` and ``tau`` (px), ``thresholds`` the thresholds.
     """
 
     rig: Rig
@@ -42,7 +42,7 @@ class Scene(NamedTuple):
     blocks: tuple
     sigma: Float[Array, ""]
     tau: Float[Array, ""]
-    th: ThresholdsBase
+    thresholds: ThresholdsBase
 
 
 class GroupTable(NamedTuple):

@@ -22,7 +22,7 @@ from ._split import split_conflicts
 
 class GraphOptions(NamedTuple):
     """Mutual or union adjacency, which components δ-pruning may touch, and the bound of the
-    splitting loop. Its number: ``th.delta`` (and the gate τ of the scene)."""
+    splitting loop. Its number: ``thresholds.delta`` (and the gate τ of the scene)."""
 
     adjacency: Adjacency = "mutual"
     prune_scope: PruneScope = "all"
@@ -36,7 +36,7 @@ def graph_groups(
     d: Float[Array, "M P M P"],
     valid: Bool[Array, " N"],
     tau: Float[Array, ""],
-    th: ThresholdsBase,
+    thresholds: ThresholdsBase,
     options: GraphOptions,
 ) -> tuple[Int[Array, "G M"], Bool[Array, " G"], Int[Array, ""]]:
     """Alg. 1–2 on the valid nodes: epipolar graph, δ-pruning, view-unique components;
@@ -50,7 +50,7 @@ def graph_groups(
     theta = edge_overlap(edges, A, dtype=d.dtype)
     d_nodes = d.reshape(N, N)
     edge_dist = 0.5 * (d_nodes[edges.src, edges.dst] + d_nodes[edges.dst, edges.src])
-    weak = alive_edges(edges, A) & (theta < th.delta)
+    weak = alive_edges(edges, A) & (theta < thresholds.delta)
     status = jnp.int32(0)
     if options.prune_scope == "conflicts":
         labels0, capped = connected_components_capped(edges, alive_edges(edges, A), N)
@@ -69,7 +69,9 @@ def graph_groups(
 def graph_stage(scene: Scene, state: State, options: GraphOptions) -> State:
     """The group table of the scene's valid nodes (``scene.node_valid``); the incoming
     table is replaced."""
-    groups, valid, status = graph_groups(scene.d, scene.node_valid, scene.tau, scene.th, options)
+    groups, valid, status = graph_groups(
+        scene.d, scene.node_valid, scene.tau, scene.thresholds, options
+    )
     return State(GroupTable(groups, valid), None, state.status | status)
 
 

@@ -68,7 +68,7 @@ def ambiguity_stage(scene: Scene, state: State, options: None) -> State:
     table = state.table
     err = _node_errors(scene, fit.X, _usable(table, fit.X))
     table = detach_ambiguous(
-        table, fit.member & table.valid[:, None], err, scene.th.ambiguous_frac * scene.tau
+        table, fit.member & table.valid[:, None], err, scene.thresholds.ambiguous_frac * scene.tau
     )
     return state._replace(table=table, fit=fit_groups(scene, table))
 

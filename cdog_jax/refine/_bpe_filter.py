@@ -56,7 +56,7 @@ def bpe_jump_keep(
     bpe: Float[Array, " G"],
     valid: Bool[Array, " G"],
     sigma_px: Float[Array, ""],
-    th: ThresholdsBase,
+    thresholds: ThresholdsBase,
     min_gaps: int,
 ) -> Bool[Array, " G"]:
     """``(G,)``: which valid groups survive the jump rule, from ``bpe (G,)`` (px²) and
@@ -66,7 +66,7 @@ def bpe_jump_keep(
         bpe=(bpe, ARRAY),
         valid=(valid, ARRAY),
         sigma_px=(sigma_px, ARRAY),
-        th=(th, ThresholdsBase),
+        thresholds=(thresholds, ThresholdsBase),
         min_gaps=(min_gaps, INT),
     )
     G = bpe.shape[0]
@@ -78,8 +78,8 @@ def bpe_jump_keep(
     gaps = b[1:] - b[:-1]  # (G-1,), meaningful for i < count - 1
     i = jnp.arange(G - 1, dtype=jnp.int32)
     med = _prefix_medians(gaps, count - 1)
-    floor = th.jump_floor_px2 + (th.jump_floor_sigma * sigma_px) ** 2
-    jump = (i >= min_gaps) & (i < count - 1) & (gaps > th.jump_kappa * med) & (gaps > floor)
+    floor = thresholds.jump_floor_px2 + (thresholds.jump_floor_sigma * sigma_px) ** 2
+    jump = (i >= min_gaps) & (i < count - 1) & (gaps > thresholds.jump_kappa * med) & (gaps > floor)
     first = jnp.where(jnp.any(jump), jnp.argmax(jump).astype(jnp.int32), G)
     rank_keep = jnp.arange(G, dtype=jnp.int32) <= first
     keep = jnp.zeros((G,), bool).at[order].set(rank_keep)
@@ -87,7 +87,7 @@ def bpe_jump_keep(
 
 
 class BpeFilterOptions(NamedTuple):
-    """Gaps needed before a jump can be declared. Its numbers: ``th.jump_kappa``,
+    """Gaps needed before a jump can be declared. Its numbers: ``thresholds.jump_kappa``,
     ``jump_floor_px2``, ``jump_floor_sigma``."""
 
     jump_min_gaps: int = 3
@@ -96,7 +96,7 @@ class BpeFilterOptions(NamedTuple):
 def bpe_filter_stage(scene: Scene, state: State, options: BpeFilterOptions) -> State:
     """Drop the groups after the first jump of the sorted BPEs (needs a fit)."""
     keep = bpe_jump_keep(
-        state.fit.bpe, state.table.valid, scene.sigma, scene.th, options.jump_min_gaps
+        state.fit.bpe, state.table.valid, scene.sigma, scene.thresholds, options.jump_min_gaps
     )
     return state._replace(
         table=state.table.keep(keep),

@@ -29,7 +29,7 @@ from ..graph._groups import gather_groups
 
 class IqrOptions(NamedTuple):
     """Which score and quartiles, the reference's 10 px / 50 px guards, and the bound of the
-    removal loop. Its numbers: ``th.iqr_alpha``, ``iqr_floor_px``, ``iqr_min_px``,
+    removal loop. Its numbers: ``thresholds.iqr_alpha``, ``iqr_floor_px``, ``iqr_min_px``,
     ``iqr_force_px``."""
 
     iqr_score: IqrScore = "exclude_own"
@@ -83,14 +83,17 @@ def node_scores(
 
 
 def iqr_outliers(
-    score: Float[Array, " M"], member: Bool[Array, " M"], th: ThresholdsBase, options: IqrOptions
+    score: Float[Array, " M"],
+    member: Bool[Array, " M"],
+    thresholds: ThresholdsBase,
+    options: IqrOptions,
 ) -> Bool[Array, " M"]:
     """Members whose score lies outside ``[max(0, Q1 − α IQR), Q3 + α IQR]``."""
     expect_args(
         "iqr_outliers",
         score=(score, ARRAY),
         member=(member, ARRAY),
-        th=(th, ThresholdsBase),
+        thresholds=(thresholds, ThresholdsBase),
         options=(options, IqrOptions),
     )
     if options.iqr_quartiles == "zero_pad":
@@ -105,15 +108,15 @@ def iqr_outliers(
     q1 = percentile_linear(vals, count, 25.0)
     q3 = percentile_linear(vals, count, 75.0)
     iqr = q3 - q1
-    lb = jnp.maximum(0.0, q1 - th.iqr_alpha * iqr)
-    ub = q3 + th.iqr_alpha * iqr
+    lb = jnp.maximum(0.0, q1 - thresholds.iqr_alpha * iqr)
+    ub = q3 + thresholds.iqr_alpha * iqr
     # The floor keeps float round-off (σ = 0: every score ~1e-4 px) from making outliers.
-    out = member & ((score < lb) | (score > ub)) & (score > th.iqr_floor_px) & (count > 0)
+    out = member & ((score < lb) | (score > ub)) & (score > thresholds.iqr_floor_px) & (count > 0)
     if options.iqr_guards:
         top = jnp.max(jnp.where(member, score, -jnp.inf))
-        out = out & (top >= th.iqr_min_px)
+        out = out & (top >= thresholds.iqr_min_px)
         worst = jnp.argmax(jnp.where(member, score, -jnp.inf)).astype(jnp.int32)
-        force = ~jnp.any(out) & (top > th.iqr_force_px) & (top >= th.iqr_min_px)
+        force = ~jnp.any(out) & (top > thresholds.iqr_force_px) & (top >= thresholds.iqr_min_px)
         out = out | (force & (jnp.arange(score.shape[0], dtype=jnp.int32) == worst))
     return out
 
@@ -129,7 +132,7 @@ def remove_outliers(
     origin: Float[Array, 3],
     xy_g: Float[Array, "G M 2"],
     member: Bool[Array, "G M"],
-    th: ThresholdsBase,
+    thresholds: ThresholdsBase,
     options: IqrOptions,
 ) -> tuple[Bool[Array, "G M"], Bool[Array, ""]]:
     """Iterated IQR removal over all groups; returns the members ``(G, M)`` and ``()`` True
@@ -145,7 +148,10 @@ def remove_outliers(
     far larger than the number of real groups, so this costs what the real groups cost.
     """
     expect_args(
-        "remove_outliers", rig=(rig, Rig), th=(th, ThresholdsBase), options=(options, IqrOptions)
+        "remove_outliers",
+        rig=(rig, Rig),
+        thresholds=(thresholds, ThresholdsBase),
+        options=(options, IqrOptions),
     )
     own = options.iqr_score == "include_own"
     G, M = member.shape
@@ -156,7 +162,7 @@ def remove_outliers(
         big = jnp.sum(mem, dtype=jnp.int32) >= 3
         w = mem.astype(N.dtype)
         score, _ = node_scores(rig, N * w[:, None, None], r * w[:, None], origin, xy, mem, own)
-        out = iqr_outliers(score, mem, th, options) & big
+        out = iqr_outliers(score, mem, thresholds, options) & big
         return mem & ~out
 
     def clean_chunk(N, r, xy, mem):
@@ -212,7 +218,7 @@ def iqr_table(
     xy: Float[Array, "M P 2"],
     table: GroupTable,
     blocks: tuple,
-    th: ThresholdsBase,
+    thresholds: ThresholdsBase,
     options: IqrOptions,
 ) -> tuple[GroupTable, Bool[Array, ""]]:
     """Alg. 3 on the group table (per-node DLT ``blocks`` as in :func:`dlt_blocks`); returns
@@ -227,7 +233,7 @@ def iqr_table(
         origin,
         gather_groups(groups, xy),
         valid[:, None] & (groups >= 0),
-        th,
+        thresholds,
         options,
     )
     return GroupTable(
@@ -237,7 +243,9 @@ def iqr_table(
 
 def iqr_stage(scene: Scene, state: State, options: IqrOptions) -> State:
     """The group table with IQR outliers removed (``Status.IQR_CAPPED`` at the bound)."""
-    table, capped = iqr_table(scene.rig, scene.xy, state.table, scene.blocks, scene.th, options)
+    table, capped = iqr_table(
+        scene.rig, scene.xy, state.table, scene.blocks, scene.thresholds, options
+    )
     return state._replace(table=table, fit=None).flag(capped, Status.IQR_CAPPED)
 
 

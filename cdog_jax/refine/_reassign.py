@@ -151,7 +151,7 @@ def merge_split_groups(
 def reassign_stage(scene: Scene, state: State, options: ReassignOptions) -> State:
     """Rounds of nearest-point re-assignment and merging of split groups, refitting between."""
     P = scene.mask.shape[1]
-    gate = scene.th.reassign_frac * scene.tau
+    gate = scene.thresholds.reassign_frac * scene.tau
 
     def one_round(_, table):
         fit = fit_groups(scene, table)

@@ -25,7 +25,7 @@ def recover_leftovers(
     valid: Bool[Array, " G"],
     X: Float[Array, "G 3"],
     tau_px: Float[Array, ""],
-    th: ThresholdsBase,
+    thresholds: ThresholdsBase,
 ) -> Int[Array, "G M"]:
     """The group table ``(G, M)`` with leftover detections attached (``xy (M, P, 2)`` pixels,
     ``X (G, 3)`` the groups' points)."""
@@ -44,13 +44,13 @@ def recover_leftovers(
     )
     err = jnp.where(allowed, err, jnp.inf).reshape(G, N)
 
-    return attach_cheapest(groups, err, th.recover_frac * tau_px)
+    return attach_cheapest(groups, err, thresholds.recover_frac * tau_px)
 
 
 def recover_stage(scene: Scene, state: State, options: None) -> State:
     """Attach leftover detections to the groups whose fitted point reprojects near them."""
     groups = recover_leftovers(
-        scene.rig, scene.xy, scene.mask, *state.table, state.fit.X, scene.tau, scene.th
+        scene.rig, scene.xy, scene.mask, *state.table, state.fit.X, scene.tau, scene.thresholds
     )
     return state._replace(table=state.table._replace(groups=groups), fit=None)
 

@@ -20,7 +20,7 @@ def second_association(
     valid: Bool[Array, " G"],
     node_valid: Bool[Array, " N"],
     tau_px: Float[Array, ""],
-    th: ThresholdsBase,
+    thresholds: ThresholdsBase,
 ) -> Int[Array, "G M"]:
     """The group table ``(G, M)`` with leftover nodes attached. ``d (N, N)``: ``d[v, u]`` is
     the distance in u's image from u to the epipolar line of v (pixels)."""
@@ -30,7 +30,7 @@ def second_association(
         groups=(groups, ARRAY),
         valid=(valid, ARRAY),
         node_valid=(node_valid, ARRAY),
-        th=(th, ThresholdsBase),
+        thresholds=(thresholds, ThresholdsBase),
     )
     G, M = groups.shape
     N = d.shape[0]
@@ -51,14 +51,14 @@ def second_association(
     allowed = valid[:, None] & lacks_view & leftover[None, :]
     cost = jnp.where(allowed, cost, jnp.inf)
 
-    return attach_cheapest(groups, cost, th.second_frac * tau_px)
+    return attach_cheapest(groups, cost, thresholds.second_frac * tau_px)
 
 
 def second_association_stage(scene: Scene, state: State, options: None) -> State:
     """The group table with leftover nodes attached by their epipolar cost."""
     M, P = scene.mask.shape
     groups = second_association(
-        scene.d.reshape(M * P, M * P), *state.table, scene.node_valid, scene.tau, scene.th
+        scene.d.reshape(M * P, M * P), *state.table, scene.node_valid, scene.tau, scene.thresholds
     )
     return state._replace(table=state.table._replace(groups=groups), fit=None)
 

@@ -230,8 +230,8 @@ def seed_stage(scene: Scene, state: State, options: SeedOptions) -> State:
         scene.d,
         scene.blocks,
         scene.tau,
-        scene.th.seed_frac * scene.tau,
-        scene.th.seed_support_frac * scene.tau,
+        scene.thresholds.seed_frac * scene.tau,
+        scene.thresholds.seed_support_frac * scene.tau,
         options.seed_min_views,
     )
     G = table.groups.shape[0]

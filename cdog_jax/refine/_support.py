@@ -59,7 +59,7 @@ def support_keep(
     member: Bool[Array, "G M"],
     valid: Bool[Array, " G"],
     tau_px: Float[Array, ""],
-    th: ThresholdsBase,
+    thresholds: ThresholdsBase,
 ) -> Bool[Array, " G"]:
     """``(G,)``: the valid groups that pass the visibility-support test (module docstring).
 
@@ -71,16 +71,16 @@ def support_keep(
     M = mask.shape[0]
     dtype = xy.dtype
     member = member & valid[:, None]
-    missing, in_front = missing_views(rig, xy, mask, X, member, th.support_frac * tau_px)
+    missing, in_front = missing_views(rig, xy, mask, X, member, thresholds.support_frac * tau_px)
     k = jnp.sum(missing, axis=1, dtype=jnp.int32).astype(dtype)  # (G,) missing views
     T = k + jnp.sum(member, axis=1, dtype=jnp.int32).astype(dtype)  # (G,) views that should detect
     behind = jnp.any(member & ~in_front, axis=1)
 
     # Miss rate of the scene, from the groups large enough to be trusted.
-    ref = valid & ~behind & (T - k >= th.support_ref_views)
+    ref = valid & ~behind & (T - k >= thresholds.support_ref_views)
     k_ref, T_ref = jnp.sum(jnp.where(ref, k, 0.0)), jnp.sum(jnp.where(ref, T, 0.0))
     q = jnp.where(T_ref > 0, k_ref / jnp.where(T_ref > 0, T_ref, 1.0), 0.0)
-    q = jnp.clip(jnp.maximum(q, th.support_min_rate), 1e-6, 1.0 - 1e-6)
+    q = jnp.clip(jnp.maximum(q, thresholds.support_min_rate), 1e-6, 1.0 - 1e-6)
 
     # P(Bin(T, q) >= k): a sum of the binomial pmf over j = k … T ≤ M.
     j = jnp.arange(M + 1, dtype=dtype)[None, :]  # (1, M + 1)
@@ -95,14 +95,21 @@ def support_keep(
         + (Tc - jT) * jnp.log1p(-q)
     )
     tail = jnp.sum(jnp.where(j_ok & (j >= kc), jnp.exp(log_pmf), 0.0), axis=1)  # (G,)
-    return valid & ~behind & ((k == 0) | (tail >= th.support_alpha))
+    return valid & ~behind & ((k == 0) | (tail >= thresholds.support_alpha))
 
 
 def support_stage(scene: Scene, state: State, options: None) -> State:
     """Drop the groups that views seeing their point do not detect (needs a fit)."""
     fit = state.fit
     keep = support_keep(
-        scene.rig, scene.xy, scene.mask, fit.X, fit.member, state.table.valid, scene.tau, scene.th
+        scene.rig,
+        scene.xy,
+        scene.mask,
+        fit.X,
+        fit.member,
+        state.table.valid,
+        scene.tau,
+        scene.thresholds,
     )
     return state._replace(
         table=state.table.keep(keep), fit=fit._replace(member=fit.member & keep[:, None])

@@ -164,8 +164,8 @@ def validity_stage(scene: Scene, state: State, options: None) -> State:
         fit.member & state.table.valid[:, None],
         fit.X,
         scene.tau,
-        scene.th.max_err_frac,
-        scene.th.min_parallax_deg,
+        scene.thresholds.max_err_frac,
+        scene.thresholds.min_parallax_deg,
     )
     bpe, err_px = group_errors(scene.rig, X, fit.xy_g, member)
     return state._replace(

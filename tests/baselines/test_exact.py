@@ -131,11 +131,11 @@ def test_exact_refuses_large_scenes_and_tracing():
     with pytest.raises(ValueError, match="scene 1"):  # before scene 0 is associated
         associate_batch(rig, np.stack([xy, xy]), np.stack([small, mask]), method="exact", sigma=0.0)
     method = Exact()
-    th = method.thresholds(1.0)
+    thresholds = method.thresholds(1.0)
     from cdog_jax import Observations
 
     with pytest.raises(TypeError, match="host method"):
-        jax.jit(lambda x, m: method.associate_scene(rig, Observations(x, m), th))(
+        jax.jit(lambda x, m: method.associate_scene(rig, Observations(x, m), thresholds))(
             jnp.asarray(xy), jnp.asarray(mask)
         )
 

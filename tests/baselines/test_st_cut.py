@@ -179,9 +179,9 @@ def test_options_checked_and_host_only():
         StCut(candidates_per_view=0)
     rig, xy, mask, _ = _coplanar_scene()
     method = StCut()
-    th = method.thresholds(1.0)
+    thresholds = method.thresholds(1.0)
     with pytest.raises(TypeError, match="host method"):
-        jax.jit(lambda x, m: method.associate_scene(rig, Observations(x, m), th))(
+        jax.jit(lambda x, m: method.associate_scene(rig, Observations(x, m), thresholds))(
             jnp.asarray(xy), jnp.asarray(mask)
         )
     with pytest.raises(ValueError, match="runs on the host.*sweep_host"):

@@ -7,25 +7,25 @@ from cdog_jax.refine._bpe_filter import bpe_jump_keep
 
 
 def test_jump_cuts_after_sudden_increase():
-    th = Config.paper().thresholds(1.0)
+    thresholds = Config.paper().thresholds(1.0)
     bpe = jnp.asarray([0.5, 0.6, 400.0, 0.7, 0.55, 0.65, 0.8, 500.0, 0.0], jnp.float32)
     valid = jnp.asarray([True] * 8 + [False])
-    keep = np.asarray(bpe_jump_keep(bpe, valid, jnp.float32(1.0), th, 3))
+    keep = np.asarray(bpe_jump_keep(bpe, valid, jnp.float32(1.0), thresholds, 3))
     assert keep.tolist() == [True, True, False, True, True, True, True, False, False]
 
 
 def test_no_jump_keeps_everything():
-    th = Config.paper().thresholds(1.0)
+    thresholds = Config.paper().thresholds(1.0)
     bpe = jnp.asarray([0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5], jnp.float32)
-    keep = np.asarray(bpe_jump_keep(bpe, jnp.ones(7, bool), jnp.float32(1.0), th, 3))
+    keep = np.asarray(bpe_jump_keep(bpe, jnp.ones(7, bool), jnp.float32(1.0), thresholds, 3))
     assert keep.all()
 
 
 def test_floor_protects_small_gaps():
     # A relative jump (0.01 → 2) below the absolute floor 4 + (3σ)² is not a cut.
-    th = Config.paper().thresholds(1.0)
+    thresholds = Config.paper().thresholds(1.0)
     bpe = jnp.asarray([0.01, 0.011, 0.012, 0.013, 0.014, 2.0], jnp.float32)
-    keep = np.asarray(bpe_jump_keep(bpe, jnp.ones(6, bool), jnp.float32(1.0), th, 3))
+    keep = np.asarray(bpe_jump_keep(bpe, jnp.ones(6, bool), jnp.float32(1.0), thresholds, 3))
     assert keep.all()
 
 

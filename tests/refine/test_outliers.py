@@ -26,10 +26,10 @@ def _iqr(config):
 
 
 def test_iqr_fences_by_hand():
-    th = Config.paper().thresholds(1.0)
+    thresholds = Config.paper().thresholds(1.0)
     score = jnp.asarray([1.0, 1.2, 0.9, 1.1, 30.0, 0.0], jnp.float32)
     member = jnp.asarray([True, True, True, True, True, False])
-    out = np.asarray(iqr_outliers(score, member, th, _iqr(Config.paper())))
+    out = np.asarray(iqr_outliers(score, member, thresholds, _iqr(Config.paper())))
     vals = np.array([1.0, 1.2, 0.9, 1.1, 30.0, 0.0])  # the five scores and the zero pad
     q1, q3 = np.percentile(vals, [25, 75])
     ub = q3 + 2.0 * (q3 - q1)
@@ -39,11 +39,11 @@ def test_iqr_fences_by_hand():
 
 def test_reference_guards():
     cfg = Config.reference()
-    th = cfg.thresholds(1.0)
+    thresholds = cfg.thresholds(1.0)
     small = jnp.asarray([1.0, 1.0, 9.0], jnp.float32)  # an outlier by IQR, but all below 10 px
-    assert not np.any(np.asarray(iqr_outliers(small, jnp.ones(3, bool), th, _iqr(cfg))))
+    assert not np.any(np.asarray(iqr_outliers(small, jnp.ones(3, bool), thresholds, _iqr(cfg))))
     flat = jnp.asarray([60.0, 61.0, 62.0, 60.5], jnp.float32)  # no IQR outlier, max > 50 px
-    assert np.asarray(iqr_outliers(flat, jnp.ones(4, bool), th, _iqr(cfg))).tolist() == [
+    assert np.asarray(iqr_outliers(flat, jnp.ones(4, bool), thresholds, _iqr(cfg))).tolist() == [
         False,
         False,
         True,

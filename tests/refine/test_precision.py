@@ -25,8 +25,8 @@ CORNERS = np.array(
 
 def _scene(xy, mask):
     xy, mask = jnp.asarray(xy, jnp.float32), jnp.asarray(mask)
-    th = Config.best().thresholds(SIGMA)
-    th = th._replace(**{k: jnp.asarray(v) for k, v in th._asdict().items()})
+    thresholds = Config.best().thresholds(SIGMA)
+    thresholds = thresholds._replace(**{k: jnp.asarray(v) for k, v in thresholds._asdict().items()})
     return Scene(
         RIG,
         xy,
@@ -36,7 +36,7 @@ def _scene(xy, mask):
         dlt_blocks(RIG, xy),
         jnp.asarray(SIGMA, jnp.float32),
         jnp.asarray(TAU, jnp.float32),
-        th,
+        thresholds,
     )
 
 
@@ -119,6 +119,8 @@ def test_a_member_another_detection_fits_as_well_is_detached():
     out = ambiguity_stage(scene, state, None)
     np.testing.assert_array_equal(np.asarray(out.table.groups)[2], [2, 2, 2, 2])
     # A wider margin (0.8 τ ≈ 2.3 px) calls it ambiguous again.
-    wide = scene._replace(th=scene.th._replace(ambiguous_frac=jnp.asarray(0.8, jnp.float32)))
+    wide = scene._replace(
+        thresholds=scene.thresholds._replace(ambiguous_frac=jnp.asarray(0.8, jnp.float32))
+    )
     out = ambiguity_stage(wide, state, None)
     np.testing.assert_array_equal(np.asarray(out.table.groups)[2], [2, 2, 2, -1])

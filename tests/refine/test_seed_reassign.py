@@ -24,8 +24,8 @@ def _scene(sigma=0.0, seed=3, two_view=(), **numbers):
     mask[2:] &= ~np.isin(inst[2:], two_view)
     inst = np.where(mask, inst, -1)
     xy, mask = jnp.asarray(xy, jnp.float32), jnp.asarray(mask)
-    th = Config.best(**numbers).thresholds(1.0)
-    th = th._replace(**{k: jnp.asarray(v) for k, v in th._asdict().items()})
+    thresholds = Config.best(**numbers).thresholds(1.0)
+    thresholds = thresholds._replace(**{k: jnp.asarray(v) for k, v in thresholds._asdict().items()})
     tau = jnp.asarray(2.0 * np.sqrt(2.0), jnp.float32)  # τ at σ = 1 px
     scene = Scene(
         RIG,
@@ -36,7 +36,7 @@ def _scene(sigma=0.0, seed=3, two_view=(), **numbers):
         dlt_blocks(RIG, xy),
         jnp.asarray(1.0, jnp.float32),
         tau,
-        th,
+        thresholds,
     )
     return scene, inst
 

@@ -25,7 +25,7 @@ def test_support_keep_hand_built():
     # Two detections at opposite image corners per view make the detection area the image.
     corners = np.broadcast_to(np.array([[5.0, 5.0], [635.0, 475.0]]), (M, 2, 2))
     xy, mask = np.concatenate([pix, corners], axis=1).astype(np.float32), np.ones((M, P + 2), bool)
-    th = Config.paper().thresholds(1.0)
+    thresholds = Config.paper().thresholds(1.0)
     tau = jnp.asarray(2.0 * np.sqrt(2.0), jnp.float32)
     # group 0: point 0 in all views (nothing missing; the only group with >= 4 members, so
     # the estimated miss rate is 0, floored at support_min_rate = 0.02); group 1: point 1
@@ -46,7 +46,7 @@ def test_support_keep_hand_built():
         jnp.asarray(valid),
         tau,
     )
-    keep = jax.jit(support_keep)(*args, th)
+    keep = jax.jit(support_keep)(*args, thresholds)
     np.testing.assert_array_equal(np.asarray(keep), [True, True, False, False])
     # At a miss rate of 0.1, 2 misses of 5 are plausible (0.081), 3 are not (0.0086); at 0.3
     # both are (0.47, 0.16); with alpha = 1e-5 both pass too.
@@ -55,13 +55,13 @@ def test_support_keep_hand_built():
         (dict(support_min_rate=0.3), [True, True, True, True]),
         (dict(support_alpha=1e-5), [True, True, True, True]),
     ):
-        th2 = th._replace(**{k: np.float32(v) for k, v in changes.items()})
+        th2 = thresholds._replace(**{k: np.float32(v) for k, v in changes.items()})
         np.testing.assert_array_equal(
             np.asarray(support_keep(*args, th2)), expected, err_msg=str(changes)
         )
     # The miss rate is estimated from the groups with >= support_ref_views members: with
     # every group as a reference (ref views 2), q = 5 / 17 and nothing is dropped.
-    th3 = th._replace(support_ref_views=np.float32(2.0))
+    th3 = thresholds._replace(support_ref_views=np.float32(2.0))
     np.testing.assert_array_equal(np.asarray(support_keep(*args, th3)), [True, True, True, True])
     # A point behind a member camera is dropped whatever alpha; an invalid group stays invalid.
     behind = X.copy()
@@ -75,7 +75,7 @@ def test_support_keep_hand_built():
         jnp.asarray(member),
         jnp.asarray([True, False, True, True]),
         tau,
-        th._replace(support_alpha=np.float32(1e-5)),
+        thresholds._replace(support_alpha=np.float32(1e-5)),
     )
     np.testing.assert_array_equal(np.asarray(keep), [False, False, True, True])
 
