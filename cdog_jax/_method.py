@@ -276,8 +276,8 @@ class GroupTableMethod(Method):
         if later is not None:
             later()
 
-    #: A baseline written as a plain function ``f(rig, xy, mask, d, tau, sigma, numbers, options)``
-    #: (``numbers``: ``{name: traced value}`` for the names in its ``NUMBERS``; ``options``: this
+    #: A baseline written as a plain function ``f(rig, xy, mask, d, tau, sigma, thresholds, options)``
+    #: (``thresholds``: ``{name: traced value}`` for the names in its ``THRESHOLDS``; ``options``: this
     #: method) sets it instead of overriding :meth:`group_table`.
     GROUPS: ClassVar[Callable | None] = None
 
@@ -300,8 +300,8 @@ class GroupTableMethod(Method):
             raise NotImplementedError(
                 f"{type(self).__name__} must override group_table or set GROUPS"
             )
-        numbers = {name: getattr(thresholds, name) for name in getattr(self, "NUMBERS", ())}
-        return type(self).GROUPS(rig, xy, mask, d, tau, sigma, numbers, self)
+        by_name = {name: getattr(thresholds, name) for name in getattr(self, "THRESHOLDS", ())}
+        return type(self).GROUPS(rig, xy, mask, d, tau, sigma, by_name, self)
 
     def structure(self) -> GroupTableMethod:
         defaults = type(self)()

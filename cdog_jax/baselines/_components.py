@@ -44,7 +44,7 @@ class ComponentsOptions:
     No parameters beyond the shared gate.
     """
 
-    NUMBERS: ClassVar[tuple[str, ...]] = ()
+    THRESHOLDS: ClassVar[tuple[str, ...]] = ()
 
 
 def components_groups(
@@ -54,12 +54,12 @@ def components_groups(
     d: Float[Array, "M P M P"],
     tau: Float[Array, ""],
     sigma: Float[Array, ""],
-    numbers: dict[str, Float[Array, ""]],
+    thresholds: dict[str, Float[Array, ""]],
     options: ComponentsOptions,
 ) -> tuple[Int[Array, "G M"], Bool[Array, " G"], Int[Array, ""]]:
     """Groups ``(G, M)`` (slot per view or -1), ``valid (G,)`` and status ``()`` (always 0)
     of CCA; ``d (M, P, M, P)`` epipolar distances (px), ``tau`` the gate (px)."""
-    del rig, xy, sigma, numbers, options
+    del rig, xy, sigma, thresholds, options
     M, P = mask.shape
     N = M * P
     c = symmetric_cost(d, mask)

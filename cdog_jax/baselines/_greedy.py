@@ -38,7 +38,7 @@ class GreedyOptions:
     """
 
     candidates_per_view: int = 2
-    NUMBERS: ClassVar[tuple[str, ...]] = ()
+    THRESHOLDS: ClassVar[tuple[str, ...]] = ()
 
     def __post_init__(self):
         k = self.candidates_per_view
@@ -53,13 +53,13 @@ def greedy_groups(
     d: Float[Array, "M P M P"],
     tau: Float[Array, ""],
     sigma: Float[Array, ""],
-    numbers: dict[str, Float[Array, ""]],
+    thresholds: dict[str, Float[Array, ""]],
     options: GreedyOptions,
 ) -> tuple[Int[Array, "G M"], Bool[Array, " G"], Int[Array, ""]]:
     """Groups ``(G, M)`` (slot per view or -1), ``valid (G,)`` and status ``()`` (always 0)
     of greedy epipolar matching; ``d (M, P, M, P)`` epipolar distances (px), ``tau`` the gate
     (px). ``rig``, ``xy`` and ``sigma`` are not used beyond the gate (it is given)."""
-    del rig, xy, sigma, numbers
+    del rig, xy, sigma, thresholds
     M, P = mask.shape
     N = M * P
     if M < 2:

@@ -62,7 +62,7 @@ class SoftBAOptions:
     initial_temperature: float = 1.0
     final_temperature: float = 0.35
     slack_gate: float = 2.0
-    NUMBERS: ClassVar[tuple[str, ...]] = (
+    THRESHOLDS: ClassVar[tuple[str, ...]] = (
         "reprojection_gate",
         "initial_temperature",
         "final_temperature",
@@ -74,7 +74,7 @@ class SoftBAOptions:
             k = getattr(self, name)
             if not isinstance(k, int) or isinstance(k, bool) or k < 1:
                 raise ValueError(f"SoftBAOptions.{name} must be an int >= 1; got {k!r}")
-        for name in self.NUMBERS:
+        for name in self.THRESHOLDS:
             v = getattr(self, name)
             if (
                 isinstance(v, bool)
@@ -113,12 +113,12 @@ def soft_ba_groups(
     d: Float[Array, "M P M P"],
     tau: Float[Array, ""],
     sigma: Float[Array, ""],
-    numbers: dict[str, Float[Array, ""]],
+    thresholds: dict[str, Float[Array, ""]],
     options: SoftBAOptions,
 ) -> tuple[Int[Array, "G M"], Bool[Array, " G"], Int[Array, ""]]:
     """Groups ``(G, M)`` (slot per view or -1), ``valid (G,)`` and status ``()`` (always 0)
     of bundle adjustment with soft matching; ``xy (M, P, 2)`` pixels, ``d`` the epipolar
-    distances (px), ``tau`` the gate (px), ``numbers`` the traced numbers of
+    distances (px), ``tau`` the gate (px), ``thresholds`` the traced numbers of
     :class:`SoftBAOptions`. Valid groups come first, ordered by their smallest node."""
     M, P = mask.shape
     N = M * P
@@ -128,7 +128,7 @@ def soft_ba_groups(
         )
     xy = jnp.where(mask[..., None], xy, 0.0)
     dtype = xy.dtype
-    gate = numbers["reprojection_gate"] * tau
+    gate = thresholds["reprojection_gate"] * tau
     seeds, alive, _ = voting_groups(
         rig,
         xy,
@@ -136,7 +136,7 @@ def soft_ba_groups(
         d,
         tau,
         sigma,
-        {"reprojection_gate": numbers["reprojection_gate"]},
+        {"reprojection_gate": thresholds["reprojection_gate"]},
         VotingOptions(),
     )
     member = alive[:, None] & (seeds >= 0)
@@ -153,8 +153,8 @@ def soft_ba_groups(
             usable, jnp.sqrt(jnp.where(usable, dx * dx + dy * dy, 0.0)), jnp.inf
         )  # (G, M, P)
 
-    t0 = numbers["initial_temperature"] * tau
-    t_end = numbers["final_temperature"] * tau
+    t0 = thresholds["initial_temperature"] * tau
+    t_end = thresholds["final_temperature"] * tau
     last = max(options.rounds - 1, 1)
 
     def anneal(k, X):
@@ -163,7 +163,7 @@ def soft_ba_groups(
         log_aff = jnp.where(
             jnp.isfinite(e), -0.5 * (jnp.where(jnp.isfinite(e), e, 0.0) / T) ** 2, -jnp.inf
         )
-        log_slack = -0.5 * (numbers["slack_gate"] * tau / T) ** 2
+        log_slack = -0.5 * (thresholds["slack_gate"] * tau / T) ** 2
         w = jnp.exp(_soft_assignment(log_aff, log_slack, options.sinkhorn_iterations))  # (G, M, P)
         X_new, solved = solve_normal_3x3(
             jnp.einsum("gmp,mpij->gij", w, N_blocks), jnp.einsum("gmp,mpi->gi", w, r_blocks)
@@ -177,7 +177,7 @@ def soft_ba_groups(
         jnp.isfinite(e), -0.5 * (jnp.where(jnp.isfinite(e), e, 0.0) / T) ** 2, -jnp.inf
     )
     log_w = _soft_assignment(
-        log_aff, -0.5 * (numbers["slack_gate"] * tau / T) ** 2, options.sinkhorn_iterations
+        log_aff, -0.5 * (thresholds["slack_gate"] * tau / T) ** 2, options.sinkhorn_iterations
     )
     choice = jnp.argmax(log_w, axis=0).astype(jnp.int32)  # (M, P): first of equals
     chosen_e = jnp.take_along_axis(e, choice[None], axis=0)[0]  # (M, P)
@@ -211,8 +211,8 @@ class SoftBA(GroupTableMethod, SoftBAOptions):
         SoftBAOptions.__post_init__(self)
 
     def group_table(self, rig, xy, mask, d, sigma, tau, thresholds):
-        numbers = {name: getattr(thresholds, name) for name in self.NUMBERS}
-        return soft_ba_groups(rig, xy, mask, d, tau, sigma, numbers, self)
+        by_name = {name: getattr(thresholds, name) for name in self.THRESHOLDS}
+        return soft_ba_groups(rig, xy, mask, d, tau, sigma, by_name, self)
 
 
 register_method("soft_ba", SoftBA)

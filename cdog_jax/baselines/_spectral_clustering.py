@@ -58,7 +58,7 @@ class SpectralClusteringOptions:
     max_clusters: int | None = None
     kmeans_iterations: int = 20
     affinity_width: float = 1.0
-    NUMBERS: ClassVar[tuple[str, ...]] = ("affinity_width",)
+    THRESHOLDS: ClassVar[tuple[str, ...]] = ("affinity_width",)
 
     def __post_init__(self):
         if self.max_clusters is not None and (
@@ -127,7 +127,7 @@ def spectral_clustering_groups(
     d: Float[Array, "M P M P"],
     tau: Float[Array, ""],
     sigma: Float[Array, ""],
-    numbers: dict[str, Float[Array, ""]],
+    thresholds: dict[str, Float[Array, ""]],
     options: SpectralClusteringOptions,
 ) -> tuple[Int[Array, "G M"], Bool[Array, " G"], Int[Array, ""]]:
     """Spectral-clustering groups of one scene (module docstring): ``groups (G, M)`` (slot
@@ -135,7 +135,7 @@ def spectral_clustering_groups(
     M, P = mask.shape
     N = M * P
     dtype = d.dtype
-    width = jnp.asarray(numbers["affinity_width"], dtype)
+    width = jnp.asarray(thresholds["affinity_width"], dtype)
     W = epipolar_affinity(d, mask, jnp.asarray(tau, dtype), width)
     degree = jnp.sum(W, axis=1)
     active = mask.reshape(N) & (degree > 0)

@@ -65,7 +65,7 @@ class SpectralSyncOptions:
     affinity_width: float = 1.0
     eigen_threshold: float = 1.5
     similarity_threshold: float = 0.5
-    NUMBERS: ClassVar[tuple[str, ...]] = (
+    THRESHOLDS: ClassVar[tuple[str, ...]] = (
         "affinity_width",
         "eigen_threshold",
         "similarity_threshold",
@@ -87,7 +87,7 @@ def spectral_sync_groups(
     d: Float[Array, "M P M P"],
     tau: Float[Array, ""],
     sigma: Float[Array, ""],
-    numbers: dict[str, Float[Array, ""]],
+    thresholds: dict[str, Float[Array, ""]],
     options: SpectralSyncOptions,
 ) -> tuple[Int[Array, "G M"], Bool[Array, " G"], Int[Array, ""]]:
     """MatchEIG groups of one scene (module docstring): ``groups (G, M)`` (slot or -1),
@@ -96,7 +96,7 @@ def spectral_sync_groups(
     N = M * P
     dtype = d.dtype
     width, eigen_threshold, similarity_threshold = (
-        jnp.asarray(numbers[name], dtype) for name in SpectralSyncOptions.NUMBERS
+        jnp.asarray(thresholds[name], dtype) for name in SpectralSyncOptions.THRESHOLDS
     )
     valid = mask.reshape(N)
     W = epipolar_affinity(d, mask, jnp.asarray(tau, dtype), width)

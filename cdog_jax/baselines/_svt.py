@@ -71,7 +71,7 @@ class MatchSVTOptions:
     rank_weight: float = 10.0
     penalty: float = 4.0
     similarity_threshold: float = 0.5
-    NUMBERS: ClassVar[tuple[str, ...]] = (
+    THRESHOLDS: ClassVar[tuple[str, ...]] = (
         "affinity_width",
         "rank_weight",
         "penalty",
@@ -105,7 +105,7 @@ def match_svt_groups(
     d: Float[Array, "M P M P"],
     tau: Float[Array, ""],
     sigma: Float[Array, ""],
-    numbers: dict[str, Float[Array, ""]],
+    thresholds: dict[str, Float[Array, ""]],
     options: MatchSVTOptions,
 ) -> tuple[Int[Array, "G M"], Bool[Array, " G"], Int[Array, ""]]:
     """matchSVT groups of one scene (module docstring): ``groups (G, M)`` (slot or -1),
@@ -114,7 +114,7 @@ def match_svt_groups(
     N = M * P
     dtype = d.dtype
     width, rank_weight, penalty, similarity_threshold = (
-        jnp.asarray(numbers[name], dtype) for name in MatchSVTOptions.NUMBERS
+        jnp.asarray(thresholds[name], dtype) for name in MatchSVTOptions.THRESHOLDS
     )
     valid = mask.reshape(N)
     view = jnp.arange(N, dtype=jnp.int32) // P

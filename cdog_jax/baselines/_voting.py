@@ -47,7 +47,7 @@ class VotingOptions:
     """
 
     reprojection_gate: float = 2.0
-    NUMBERS: ClassVar[tuple[str, ...]] = ("reprojection_gate",)
+    THRESHOLDS: ClassVar[tuple[str, ...]] = ("reprojection_gate",)
 
     def __post_init__(self):
         g = self.reprojection_gate
@@ -64,12 +64,12 @@ def voting_groups(
     d: Float[Array, "M P M P"],
     tau: Float[Array, ""],
     sigma: Float[Array, ""],
-    numbers: dict[str, Float[Array, ""]],
+    thresholds: dict[str, Float[Array, ""]],
     options: VotingOptions,
 ) -> tuple[Int[Array, "G M"], Bool[Array, " G"], Int[Array, ""]]:
     """Groups ``(G, M)`` (slot per view or -1), ``valid (G,)`` and status ``()`` (always 0)
     of triangulation voting; ``xy (M, P, 2)`` pixels, ``d`` the epipolar distances (px),
-    ``tau`` the gate (px), ``numbers["reprojection_gate"]``. Valid groups come first,
+    ``tau`` the gate (px), ``thresholds["reprojection_gate"]``. Valid groups come first,
     ordered by their smallest node ``m · P + i``, as in every method."""
     del sigma, options
     M, P = mask.shape
@@ -81,7 +81,7 @@ def voting_groups(
     views = jnp.arange(M, dtype=jnp.int32)
     slots = jnp.arange(P, dtype=jnp.int32)
     xy = jnp.where(mask[..., None], xy, 0.0)  # padding is neutral before any arithmetic
-    gate = numbers["reprojection_gate"] * tau
+    gate = thresholds["reprojection_gate"] * tau
 
     src, dst, cost, ok = nearest_candidates(symmetric_cost(d, mask), tau, 1)  # (H,)
     scored = score_hypotheses(rig, xy, mask, dlt_blocks(rig, xy), src, dst, ok, gate)

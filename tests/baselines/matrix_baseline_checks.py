@@ -1,5 +1,5 @@
 """Checks shared by the tests of the matrix baselines (MatchEIG, matchSVT, spectral
-clustering): every method has the signature ``fn(rig, xy, mask, d, tau, sigma, numbers,
+clustering): every method has the signature ``fn(rig, xy, mask, d, tau, sigma, thresholds,
 options) -> (groups, valid, status)``.
 
 Shapes are fixed (hand-made scene: 3 views × 5 slots; random scenes: 4 views × 12 slots)
@@ -23,8 +23,8 @@ def tau_of(sigma):
     return jnp.maximum(2.0 * jnp.sqrt(jnp.float32(2.0)) * sigma, 1.0)
 
 
-def numbers_of(options):
-    return {name: jnp.asarray(getattr(options, name), jnp.float32) for name in options.NUMBERS}
+def thresholds_of(options):
+    return {name: jnp.asarray(getattr(options, name), jnp.float32) for name in options.THRESHOLDS}
 
 
 @functools.cache
@@ -33,12 +33,12 @@ def jitted(fn, options):
     (one program per shape), ``d`` computed when not given."""
 
     @jax.jit
-    def run(rig, xy, mask, d, sigma, numbers):
-        return fn(rig, xy, mask, d, tau_of(sigma), sigma, numbers, options)
+    def run(rig, xy, mask, d, sigma, thresholds):
+        return fn(rig, xy, mask, d, tau_of(sigma), sigma, thresholds, options)
 
     def call(rig, xy, mask, sigma, d=None):
         d = _distances(rig, xy, mask) if d is None else d
-        return *run(rig, xy, mask, d, jnp.float32(sigma), numbers_of(options)), d
+        return *run(rig, xy, mask, d, jnp.float32(sigma), thresholds_of(options)), d
 
     return call
 
@@ -157,10 +157,10 @@ def check_jit_vmap_padding_permutation(fn, options, sigma=1.0, seeds=(1, 2)):
     """jit equals eager; vmap over 2 scenes equals a loop; garbage in padded slots (pixels and
     distances) changes nothing; permuting the slots of every view permutes the groups."""
     rig, scene = random_scene(seeds[0], sigma)
-    numbers = numbers_of(options)
+    thresholds = thresholds_of(options)
     sig = jnp.float32(sigma)
     d = epipolar_distances(rig, scene.xy, scene.mask)
-    eager = fn(rig, scene.xy, scene.mask, d, tau_of(sig), sig, numbers, options)
+    eager = fn(rig, scene.xy, scene.mask, d, tau_of(sig), sig, thresholds, options)
     jit_out = jitted(fn, options)(rig, scene.xy, scene.mask, sigma)[:3]
     for a, b in zip(eager, jit_out):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
@@ -168,7 +168,7 @@ def check_jit_vmap_padding_permutation(fn, options, sigma=1.0, seeds=(1, 2)):
     scenes = [random_scene(s, sigma)[1] for s in seeds]
     xy = jnp.stack([s.xy for s in scenes])
     mask = jnp.stack([s.mask for s in scenes])
-    batched = _vmapped(fn, options)(rig, xy, mask, sig, numbers)
+    batched = _vmapped(fn, options)(rig, xy, mask, sig, thresholds)
     for b, s in enumerate(scenes):
         single = jitted(fn, options)(rig, s.xy, s.mask, sigma)[:3]
         for a, c in zip(single, batched):
@@ -206,8 +206,8 @@ def check_jit_vmap_padding_permutation(fn, options, sigma=1.0, seeds=(1, 2)):
 
 @functools.cache
 def _vmapped(fn, options):
-    def one(rig, xy, mask, sigma, numbers):
+    def one(rig, xy, mask, sigma, thresholds):
         d = epipolar_distances(rig, xy, mask)
-        return fn(rig, xy, mask, d, tau_of(sigma), sigma, numbers, options)
+        return fn(rig, xy, mask, d, tau_of(sigma), sigma, thresholds, options)
 
     return jax.jit(jax.vmap(one, in_axes=(None, 0, 0, None, None)))

@@ -29,8 +29,8 @@ def run(fn, options, rig, xy, mask, sigma, d=None):
     tau = jnp.maximum(2.0 * jnp.sqrt(jnp.asarray(2.0, dtype)) * sigma, jnp.asarray(1.0, dtype))
     if d is None:
         d = epipolar_distances(rig, xy, mask)
-    numbers = {name: jnp.asarray(getattr(options, name), dtype) for name in options.NUMBERS}
-    return fn(rig, xy, mask, d, tau, sigma, numbers, options)
+    thresholds = {name: jnp.asarray(getattr(options, name), dtype) for name in options.THRESHOLDS}
+    return fn(rig, xy, mask, d, tau, sigma, thresholds, options)
 
 
 distances = jax.jit(epipolar_distances)

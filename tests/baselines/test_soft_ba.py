@@ -81,7 +81,7 @@ def test_soft_ba_options_checked():
         for bad in (0, -2, True):
             with pytest.raises(ValueError, match=name):
                 SoftBAOptions(**{name: bad})
-    for name in SoftBAOptions.NUMBERS:
+    for name in SoftBAOptions.THRESHOLDS:
         for bad in (0.0, -1.0, float("nan")):
             with pytest.raises(ValueError, match=name):
                 SoftBAOptions(**{name: bad})
