@@ -56,23 +56,32 @@ def _nearest_free(
     return jax.vmap(greedy_match, in_axes=1, out_axes=1)(jnp.where(allowed, d, jnp.inf))
 
 
-def _nearest_free_packed(pred, allowed_track, prev_class, gate_px, xy, free, det_class, size):
+def _nearest_free_packed(
+    pred: Float[Array, "T M 2"],
+    allowed_track: Bool[Array, "T M"],
+    prev_class: Int[Array, " T"],
+    gate_px: Float[Array, " T"],
+    xy: Float[Array, "M P 2"],
+    free: Bool[Array, "M P"],
+    det_class: Int[Array, "M P"],
+    size: int,
+) -> Int[Array, "T M"]:
     """:func:`_nearest_free` on each view's first ``size`` free detections, packed to the
     front in slot order (a view must hold at most ``size``): the same slots."""
     M, P = free.shape
+    views = jnp.arange(M)
     slot = jax.vmap(lambda f: jnp.nonzero(f, size=size, fill_value=P - 1)[0])(free)  # (M, K)
     held = jnp.arange(size)[None, :] < jnp.sum(free, axis=1, keepdims=True)
-    views = jnp.arange(M)[:, None]
     packed = _nearest_free(
         pred,
         allowed_track,
         prev_class,
         gate_px,
-        xy[views, slot],
+        xy[views[:, None], slot],
         held,
-        det_class[views, slot],
-    )
-    return jnp.where(packed >= 0, slot[jnp.arange(M)[None, :], jnp.maximum(packed, 0)], -1)
+        det_class[views[:, None], slot],
+    )  # (T, M): packed positions
+    return jnp.where(packed >= 0, slot[views[None, :], jnp.maximum(packed, 0)], -1)
 
 
 def recover_tracks(
