@@ -60,7 +60,7 @@ from .geometry._triangulate import triangulate_views_last
 from .graph._groups import gather_groups
 from .graph._sigma import estimate_sigma, focal_scale
 from .graph._sigma_robust import estimate_sigma_robust
-from .refine._validity import validity_gate
+from .refine._validity import ambiguous_groups, validity_gate
 
 
 class Observations(NamedTuple):
@@ -334,6 +334,7 @@ class GroupTableMethod(Method):
         return finish_table(
             rig,
             xy,
+            d,
             groups,
             valid,
             status
@@ -373,6 +374,7 @@ def scene_gate(
 def finish_table(
     rig: Rig,
     xy: Float[Array, "M P 2"],
+    d: Float[Array, "M P M P"],
     groups: Int[Array, "G M"],
     valid: Bool[Array, " G"],
     status: Int[Array, ""],
@@ -382,7 +384,9 @@ def finish_table(
 ) -> Association:
     """The :class:`~cdog_jax.Association` of a group table ``(G, M)``: every valid group's
     multi-view DLT point, the validity gate (with ``thresholds.max_err_frac`` and
-    ``thresholds.min_parallax_deg``), its errors; ``xy (M, P, 2)`` pixels (padding zeroed)."""
+    ``thresholds.min_parallax_deg``, and rule 5: a degenerate group with a rival is dissolved,
+    raising :attr:`Status.AMBIGUOUS_GEOMETRY`), its errors; ``xy (M, P, 2)`` pixels (padding
+    zeroed), ``d (M, P, M, P)`` their epipolar distances (px)."""
     P = xy.shape[1]
     member = valid[:, None] & (groups >= 0)
     xy_g = gather_groups(groups, xy)
@@ -390,6 +394,9 @@ def finish_table(
     member, valid, X = validity_gate(
         rig, xy_g, member, X, tau, thresholds.max_err_frac, thresholds.min_parallax_deg
     )
+    ambiguous = valid & ambiguous_groups(rig, d, groups, member, X, tau)
+    valid = valid & ~ambiguous
+    member = member & valid[:, None]
     bpe, err_px = group_errors(rig, X, xy_g, member)
     return association_from_groups(
         groups,
@@ -401,7 +408,7 @@ def finish_table(
         P,
         jnp.asarray(sigma, xy.dtype),
         jnp.asarray(tau, xy.dtype),
-        status,
+        status | raise_flag(jnp.any(ambiguous), Status.AMBIGUOUS_GEOMETRY),
     )
 
 
@@ -470,4 +477,4 @@ class HostGroupTableMethod(GroupTableMethod):
             rig, np.asarray(xy), mask, np.asarray(d), float(tau), thresholds
         )
         status = raise_flag(fallback, Status.SIGMA_FALLBACK)
-        return _finish(rig, xy, groups, valid, status, sigma, tau, thresholds)
+        return _finish(rig, xy, d, groups, valid, status, sigma, tau, thresholds)

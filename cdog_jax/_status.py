@@ -25,6 +25,7 @@ class Status(enum.IntFlag):
     REFINE_CAPPED = 16  # point refinement stopped at Config.refine_max_steps
     LENS_NOT_INVERTED = 32  # undistortion failed at some detection (the lens model folds there)
     NONFINITE_DETECTION = 64  # a valid slot held NaN or inf (under jit): left out
+    AMBIGUOUS_GEOMETRY = 128  # groups the epipolar geometry could not vouch for: dissolved
 
 
 _MESSAGES = {
@@ -39,6 +40,12 @@ _MESSAGES = {
     Status.REFINE_CAPPED: "point refinement stopped at its step bound (Config.refine_max_steps)",
     Status.NONFINITE_DETECTION: "a detection in a valid slot was not finite (NaN or inf) and was "
     "left out of the association (inside a compiled program it cannot be refused)",
+    Status.AMBIGUOUS_GEOMETRY: "some groups were dissolved because the epipolar geometry cannot "
+    "vouch for them: their point lies in one plane with the centres of the cameras "
+    "that see it (closer than the gate can resolve), where every epipolar line is the same "
+    "line, and another detection fits that "
+    "line as well as a member (points at the height of a ring of cameras, or a rig whose "
+    "centres are in a line); their detections are left unassigned",
     Status.LENS_NOT_INVERTED: "the lens model could not be inverted at some detection (distorting "
     "its undistorted pixel again misses it by more than 0.1 px: the distortion coefficients fold "
     "the image there, e.g. a large negative k1); those detections' points are unreliable: check "

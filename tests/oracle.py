@@ -45,6 +45,8 @@ __all__ = [
     "support_keep",
     "detach_ambiguous",
     "validity_gate",
+    "dissolve_ambiguous",
+    "off_plane_deg",
     "oracle_associate",
     "look_at",
     "make_rig",
@@ -1224,6 +1226,58 @@ def validity_gate(K, R, t, xy, groups, gvalid, pts, tau, max_err_frac, min_paral
     return groups, gvalid, pts
 
 
+def off_plane_deg(C, X, member, front):
+    """Rule 5 (§12): per group, the cameras measured (the members; for a pair, also every
+    camera its point is in front of, ``front (G, M)``), the plane through the point ``X (G, 3)``
+    and the measured pair of lines of sight farthest from parallel, and the largest angle
+    (degrees) of a measured line of sight to that plane; ``inf`` with fewer than three
+    measured. ``C (M, 3)``: camera centres."""
+    out = np.full(len(X), np.inf)
+    for g in range(len(X)):
+        members = np.flatnonzero(member[g])
+        seen = np.union1d(members, np.flatnonzero(front[g])) if len(members) == 2 else members
+        if len(seen) < 3:
+            continue
+        u = C[seen] - X[g]
+        u = u / np.linalg.norm(u, axis=1, keepdims=True)
+        a, b = max(
+            ((a, b) for a in range(len(seen)) for b in range(len(seen))),
+            key=lambda p: np.linalg.norm(np.cross(u[p[0]], u[p[1]])),
+        )
+        n = np.cross(u[a], u[b])
+        out[g] = np.degrees(np.arcsin(min(np.max(np.abs(u @ n)) / np.linalg.norm(n), 1.0)))
+    return out
+
+
+def dissolve_ambiguous(K, R, t, d, groups, gvalid, pts, tau):
+    """Rule 5 (§12): a valid group is dissolved when its cameras are within ``asin(τ / f)``
+    of one plane with its point (:func:`off_plane_deg`; ``f`` the median focal length) and
+    a member view holds another detection within τ of every other member's epipolar line
+    (``d (M, P, M, P)``). Returns ``groups, gvalid, dissolved_any`` (copies)."""
+    K, R, t = (np.asarray(a, np.float64) for a in (K, R, t))
+    groups, gvalid = groups.copy(), np.asarray(gvalid, bool).copy()
+    M, P = d.shape[:2]
+    C = np.stack([-R[m].T @ t[m] for m in range(M)])
+    member = groups >= 0
+    front = np.einsum("mij,gj->gmi", R, pts)[..., 2] + t[None, :, 2] > 0
+    f = np.median(0.5 * (np.abs(K[:, 0, 0]) + np.abs(K[:, 1, 1])))
+    bound = np.degrees(np.arcsin(min(tau / f, 1.0)))
+    off = off_plane_deg(C, pts, member & gvalid[:, None], front)
+    dissolved = False
+    for g in np.flatnonzero(gvalid & (off < bound)):
+        members = np.flatnonzero(member[g])
+        rival = any(
+            p != groups[g, n] and all(d[m, groups[g, m], n, p] <= tau for m in members if m != n)
+            for n in members
+            for p in range(P)
+        )
+        if rival:
+            groups[g] = -1
+            gvalid[g] = False
+            dissolved = True
+    return groups, gvalid, dissolved
+
+
 def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
     """The whole pipeline of docs/ALGORITHM.md on one scene, in float64 NumPy.
 
@@ -1336,6 +1390,7 @@ def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
     groups, gvalid, pts = validity_gate(
         K, R, t, xy, groups, gvalid, pts, tau, cfg.max_err_frac, cfg.min_parallax_deg
     )
+    groups, gvalid, _ = dissolve_ambiguous(K, R, t, d, groups, gvalid, pts, tau)
     for g in np.flatnonzero(gvalid):
         if (changed[g] != groups[g]).any():  # members detached: BPE and error of the new point
             r = np.linalg.norm(
