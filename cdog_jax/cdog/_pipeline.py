@@ -508,8 +508,9 @@ class ConfigMethods(Method):
         were checked against XLA's ``memory_analysis()``, ALGORITHM.md §14)."""
         f = float(itemsize)
         # d and its masked copy, the proposal/adjacency bool tables, and (above N ≈ 10⁴, where
-        # XLA stops reusing some of them) about 2 more bytes per pair.
-        stages = [2.0 * f + 5.0]
+        # XLA stops reusing some of them) about 2 more bytes per pair; d stays alive to the
+        # end, where the validity gate looks for rivals in it (one more float table).
+        stages = [3.0 * f + 5.0]
         if self.second_association:
             stages.append(f * (num_views / 2.0 + 1.0))  # (G, M, N) distances beside d
         if self.recover or self.regroup:

@@ -9,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from helpers import look_at
+from hypothesis import HealthCheck, given, settings, strategies as st
 from oracle import off_plane_deg as off_plane_oracle
 
 from cdog_jax import Rig, Status, associate, status_messages
@@ -151,3 +152,58 @@ def test_rivals_match_brute_force():
                     want[g] = True
     assert np.array_equal(got, want)
     assert 0 < want.sum() < asked.sum()
+
+
+def _planar_scene(seed, n_active, sigma, lift):
+    """Up to 12 cameras (one shape: the others masked out) with their centres in one plane
+    (a random tilt and height), 12 points in that plane lifted by up to ``lift``."""
+    rng = np.random.default_rng(seed)
+    M, n = 12, 12
+    normal = np.array([0.3 * rng.standard_normal(), 0.3 * rng.standard_normal(), 1.0])
+    normal /= np.linalg.norm(normal)
+    e1 = np.cross(normal, [1.0, 0.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(normal, e1)
+    height = rng.uniform(-1.0, 1.0) * normal
+    K, R, t = [], [], []
+    for m in range(M):
+        a = 2 * np.pi * m / n_active + 0.3 * rng.standard_normal()
+        c = height + rng.uniform(2.5, 4.0) * (np.cos(a) * e1 + np.sin(a) * e2)
+        Rm, tm = look_at(c, target=height + 0.2 * rng.standard_normal(3))
+        f = rng.uniform(600, 1200)
+        K.append([[f, 0.0, 320.0], [0.0, f, 240.0], [0.0, 0.0, 1.0]])
+        R.append(Rm)
+        t.append(tm)
+    rig = Rig(*(jnp.asarray(np.array(a), jnp.float32) for a in (K, R, t)))
+    uv = rng.uniform(-0.7, 0.7, (n, 2))
+    X = height + uv[:, :1] * e1 + uv[:, 1:] * e2 + lift * rng.uniform(-1, 1, (n, 1)) * normal
+    K, R, t = (np.asarray(a, np.float64) for a in (rig.K, rig.R, rig.t))
+    h = np.einsum("mij,mnj->mni", K, np.einsum("mij,nj->mni", R, X) + t[:, None, :])
+    xy = h[..., :2] / h[..., 2:3] + sigma * rng.standard_normal((M, n, 2))
+    mask = (h[..., 2] > 0) & (np.arange(M) < n_active)[:, None]
+    mask &= (xy[..., 0] >= 0) & (xy[..., 0] < 640) & (xy[..., 1] >= 0) & (xy[..., 1] < 480)
+    perm = np.stack([rng.permutation(n) for _ in range(M)])
+    xy = np.take_along_axis(np.where(mask[..., None], xy, 0.0), perm[..., None], axis=1)
+    mask = np.take_along_axis(mask, perm, axis=1)
+    inst = np.take_along_axis(np.broadcast_to(np.arange(n), (M, n)), perm, axis=1)
+    return rig, jnp.asarray(xy, jnp.float32), jnp.asarray(mask), inst
+
+
+@settings(
+    max_examples=25, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow]
+)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    n_active=st.integers(3, 12),
+    sigma=st.sampled_from([0.3, 1.0]),
+    lift=st.sampled_from([0.0, 0.002]),
+)
+def test_cameras_in_one_plane_give_right_groups_or_a_flag(seed, n_active, sigma, lift):
+    """Random rigs of 3–12 cameras with their centres in one plane (any tilt), points in that
+    plane or within 2 mm of it: every valid group of three or more views holds one point,
+    or the scene is flagged."""
+    rig, xy, mask, inst = _planar_scene(seed, n_active, sigma, lift)
+    result = associate(rig, xy, mask, method="best", sigma=sigma)
+    _, wrong = _right_and_wrong(result, inst)
+    flagged = bool(int(result.status) & Status.AMBIGUOUS_GEOMETRY)
+    assert flagged or not [size for size in wrong if size >= 3], wrong
