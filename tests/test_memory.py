@@ -1,5 +1,6 @@
 """The memory estimate: known from the shapes, checked before compiling, close to XLA's."""
 
+import platform
 import time
 
 import jax.numpy as jnp
@@ -15,6 +16,7 @@ from cdog_jax._runtime.memory import (
     check_memory,
     estimate_peak_bytes,
     limit_heap_arenas,
+    map_large_blocks,
     memory_budget_bytes,
     release_freed_memory,
 )
@@ -123,3 +125,40 @@ def test_the_c_heap_is_capped_and_trimmed_under_glibc_and_left_alone_elsewhere(m
 
     monkeypatch.setattr(ctypes, "CDLL", no_libc)
     assert limit_heap_arenas() is False and release_freed_memory() is False
+    assert map_large_blocks() is False
+
+
+_FRAGMENTS = """
+import sys
+import numpy as np
+from cdog_jax._runtime.memory import map_large_blocks
+if sys.argv[1] == "mapped":
+    assert map_large_blocks()
+def resident():
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * 4096
+big = np.ones(16 << 17); del big  # a 16 MiB block freed: glibc raises its threshold to it
+before = resident()
+blocks = [np.ones(1 << 18) for _ in range(50)]  # 50 tables of 2 MiB
+last = blocks[-1]; del blocks  # all freed but the last
+print((resident() - before) / 2**20)
+"""
+
+
+@pytest.mark.skipif(platform.libc_ver()[0] != "glibc", reason="glibc's heap only")
+def test_large_tables_go_back_to_the_system_when_freed():
+    """With glibc's own threshold, 2 MiB tables freed below one still alive stay resident
+    (the heap cannot shrink under it): a long recording's peak grew part by part. With the
+    command's fixed threshold each is unmapped when freed."""
+    import subprocess
+    import sys
+
+    def grown(mode):
+        done = subprocess.run(
+            [sys.executable, "-c", _FRAGMENTS, mode], capture_output=True, text=True
+        )
+        assert done.returncode == 0, done.stderr
+        return float(done.stdout)
+
+    assert grown("default") > 50.0
+    assert grown("mapped") < 10.0
