@@ -779,6 +779,8 @@ def run_associate(args: argparse.Namespace) -> int:
             kept.append((tracked, people, part.xy, part.mask, part.confidence, part.classes))
         if streamed:  # nothing of this part stays alive while the next is associated
             classed = tracked = result = people = part = _DONE
+            if parts is not None and k == 0:  # of the first part read, frame 0 (the figure's)
+                det = _each_frame_array(det, lambda a, _: a[:1].copy())
             release_freed_memory()  # and the heap it used goes back to the system
     class_counts = None if not counts else (np.concatenate(counts), np.concatenate(most))
     summary = _joined(stats)
