@@ -555,6 +555,7 @@ def run_associate(args: argparse.Namespace) -> int:
     from ..io import save_association_csv, save_association_json, save_association_npz
     from ..io._association_files import CsvParts, JsonParts, NpzParts
     from ..io._detections_checks import check_float_range
+    from ..io._trc import TrcParts
     from ..people._classes import associate_classes_at
     from ..people._persons import PersonLinker, concat_people, people_part
     from ..tracking._tracks import concat_tracked, track_part
@@ -722,9 +723,11 @@ def run_associate(args: argparse.Namespace) -> int:
             else (parts.reader.J if parts is not None else int(det.classes[det.mask].max()) + 1)
         )
     ext = None if args.out is None else os.path.splitext(args.out)[1].lower()
-    # In parts, a .npz, .json, .csv (or no file) keeps nothing of a part but its summary:
-    # what is written of it waits on disk beside the output; a .trc gathers the recording.
-    parts_writer = {".npz": NpzParts, ".json": JsonParts, ".csv": CsvParts}.get(ext)
+    # In parts, an output file (or none) keeps nothing of a part but its summary: what is
+    # written of it waits on disk beside the output.
+    parts_writer = {".npz": NpzParts, ".json": JsonParts, ".csv": CsvParts, ".trc": TrcParts}.get(
+        ext
+    )
     streamed = len(frames) > 1 and (ext is None or parts_writer is not None)
     out_parts = None
     if streamed and ext is not None:  # removed when written, or when the process ends
@@ -856,9 +859,12 @@ def run_associate(args: argparse.Namespace) -> int:
         if hit:
             lines.append(f"  warning: {hit} of {F} frame(s): {status_messages(int(flag))[0]}")
     if out_parts is not None:
-        _write(args.out, "--out", lambda: out_parts.write(args.out))
+        if ext == ".trc":
+            lines.append(_write_trc(args, None, None, parts=out_parts))
+        else:
+            _write(args.out, "--out", lambda: out_parts.write(args.out))
+            lines.append(f"Wrote {args.out}")
         waiting.cleanup()
-        lines.append(f"Wrote {args.out}")
     elif args.out is not None:
         one = F == 1 and not det.frames
         frame = (lambda a: a[0]) if one else (lambda a: a)
@@ -996,25 +1002,41 @@ def _joined(stats: list[_Stats]) -> _Stats:
     )
 
 
-def _write_trc(args, people, tracked) -> str:
-    """Write ``--out`` as ``.trc``: one file per person, else one marker per track. Returns
-    the summary line."""
+def _write_trc(args, people, tracked, *, parts=None) -> str:
+    """Write ``--out`` as ``.trc``: one file per person, else one marker per track (of the
+    whole recording, or of its ``parts``, a :class:`~cdog_jax.io._trc.TrcParts`). Returns the
+    summary line."""
     from ..io._trc import save_people_trc, save_trc, track_markers
 
     options = dict(rate=args.fps, units=args.units, z_up=args.z_up)
-    if people is not None:
+    if people is not None or (parts is not None and parts.people is not None):
         from ..io._trc import person_markers
 
         stem = os.path.splitext(args.out)[0]
         inputs = {"--rig": input_files(args.rig), "--points": _point_files(args.points)}
-        for pid in person_markers(people):
-            check_output(f"{stem}_person{pid}.trc", "--out", (".trc",), inputs)
+        targets = (
+            parts.people_files(args.out)
+            if parts is not None
+            else [f"{stem}_person{pid}.trc" for pid in person_markers(people)]
+        )
+        for target in targets:
+            check_output(target, "--out", (".trc",), inputs)
         written = []
         _write(
-            args.out, "--out", lambda: written.extend(save_people_trc(args.out, people, **options))
+            args.out,
+            "--out",
+            lambda: written.extend(
+                parts.write_people(args.out, **options)
+                if parts is not None
+                else save_people_trc(args.out, people, **options)
+            ),
         )
         shown = ", ".join(written[:4]) + (f", … ({len(written)} files)" if len(written) > 4 else "")
         return f"Wrote {shown or 'no file (no person was found)'}: one .trc file per person, {args.fps:g} frames/s"
+    if parts is not None:
+        count = []
+        _write(args.out, "--out", lambda: count.append(parts.write_tracks(args.out, **options)))
+        return f"Wrote {args.out}: {count[0]} marker(s), one per track, {args.fps:g} frames/s"
     markers, names = track_markers(tracked)
     _write(args.out, "--out", lambda: save_trc(args.out, markers, names, **options))
     return f"Wrote {args.out}: {len(names)} marker(s), one per track, {args.fps:g} frames/s"

@@ -65,13 +65,17 @@ def save_trc(
     ``z_up``: the world's up axis is Z, written as OpenSim's Y (module docstring)."""
     expect_args("save_trc", path=(path, PATH))
     X = np.asarray(markers, np.float64)
-    names = tuple(str(n) for n in names)
     if X.ndim != 3 or X.shape[2] != 3:
         raise ValueError(f"save_trc: markers must have shape (F, K, 3); got {X.shape}")
-    if len(names) != X.shape[1]:
-        raise ValueError(
-            f"save_trc: {X.shape[1]} markers need {X.shape[1]} names; got {len(names)}"
-        )
+    _save_trc_rows(path, lambda: iter((X,)), X.shape[0], names, rate, units, z_up)
+
+
+def _save_trc_rows(
+    path: PathLike, blocks: Any, F: int, names: Any, rate: Any, units: Any, z_up: bool
+) -> None:
+    """:func:`save_trc` of the ``F`` frames that ``blocks()`` yields a block at a time
+    (``(F_k, K, 3)`` arrays, frames in order; called once the arguments are checked)."""
+    names = tuple(str(n) for n in names)
     bad = [n for n in names if not n or any(c in n for c in "\t\r\n")]
     if bad:
         raise ValueError(
@@ -89,13 +93,14 @@ def save_trc(
         raise ValueError(f"save_trc: rate must be a number of frames per second > 0; got {rate!r}")
     if not isinstance(units, str) or not units or any(c.isspace() for c in units):
         raise ValueError(f"save_trc: units must be a word such as 'm' or 'mm'; got {units!r}")
-    if np.isinf(X).any():
-        raise ValueError(
-            "save_trc: markers hold an infinite coordinate (NaN marks a marker not seen)"
-        )
-    if z_up:
-        X = X[..., [1, 2, 0]]
-    F, K, _ = X.shape
+    K = len(names)
+    for X in blocks():  # checked whole before the file is opened
+        if X.shape[1:] != (K, 3):
+            raise ValueError(f"save_trc: {X.shape[1]} markers need {X.shape[1]} names; got {K}")
+        if np.isinf(X).any():
+            raise ValueError(
+                "save_trc: markers hold an infinite coordinate (NaN marks a marker not seen)"
+            )
     values = (_number(rate), _number(rate), F, K, units, _number(rate), 1, F)
     lines = [
         "\t".join(("PathFileType", "4", "(X/Y/Z)", os.path.basename(os.fspath(path)))),
@@ -107,10 +112,16 @@ def save_trc(
     ]
     with atomic_write(path, "w", newline="") as f:
         f.write("\n".join(lines) + "\n")
-        for i in range(F):
-            row = [str(i + 1), repr(round(i / rate, 9))]
-            row += ["" if math.isnan(v) else repr(float(v)) for v in X[i].reshape(-1)]
-            f.write("\t".join(row) + "\n")
+        i = 0
+        for X in blocks():
+            X = np.asarray(X, np.float64)
+            if z_up:
+                X = X[..., [1, 2, 0]]
+            for frame in X:
+                row = [str(i + 1), repr(round(i / rate, 9))]
+                row += ["" if math.isnan(v) else repr(float(v)) for v in frame.reshape(-1)]
+                f.write("\t".join(row) + "\n")
+                i += 1
 
 
 def load_trc(path: PathLike) -> Trc:
@@ -211,16 +222,117 @@ def track_markers(tracked: Any) -> tuple[np.ndarray, tuple[str, ...]]:
     """``(F, T, 3)`` the point of every track of a :class:`cdog_jax.TrackedAssociation` in
     every frame (NaN where not seen) and the markers' names: ``<class name>_<track>`` with
     classes, ``track<id>`` without."""
+    out, cls = _track_points(tracked)
+    return out, _track_names(tracked, cls)
+
+
+def _track_points(tracked: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``(F, T, 3)`` the point of every track in every frame (NaN where not seen) and
+    ``(T,)`` each track's class (−1: none, or not seen in these frames)."""
     a = tracked.association
     valid, tid, X = np.asarray(a.valid), np.asarray(tracked.track_id), np.asarray(a.points3d)
     F, T = valid.shape[0], int(tracked.num_tracks)
     out = np.full((F, T, 3), np.nan, X.dtype)
     f, g = np.nonzero(valid & (tid >= 0))
     out[f, tid[f, g]] = X[f, g]
-    if tracked.group_class is None:
-        return out, tuple(f"track{t}" for t in range(T))
-    gc = np.asarray(tracked.group_class)
     cls = np.full(T, -1)
-    cls[tid[f, g]] = gc[f, g]
+    if tracked.group_class is not None:
+        cls[tid[f, g]] = np.asarray(tracked.group_class)[f, g]
+    return out, cls
+
+
+def _track_names(tracked: Any, cls: np.ndarray) -> tuple[str, ...]:
+    """The markers' names of :func:`track_markers` for tracks of classes ``cls (T,)``."""
+    if tracked.group_class is None:
+        return tuple(f"track{t}" for t in range(len(cls)))
     names = marker_names(tracked.class_names, int(tracked.num_classes))
-    return out, tuple(f"{names[c] if c >= 0 else 'class'}_{t}" for t, c in enumerate(cls))
+    return tuple(f"{names[c] if c >= 0 else 'class'}_{t}" for t, c in enumerate(cls))
+
+
+class TrcParts:
+    """The ``.trc`` output of a recording given a part at a time (:meth:`add`: each part's
+    tracked association and people, frames in order), kept on disk in ``folder`` until
+    :meth:`write_people` or :meth:`write_tracks` writes the files: what
+    :func:`save_people_trc` and :func:`save_trc` of :func:`track_markers` write of the whole
+    recording. Memory: one part's arrays at a time."""
+
+    def __init__(self, folder: str):
+        self.folder = folder
+        self.parts: list[tuple[int, str]] = []  # (frames, file)
+        self.tracked = self.people = None  # the last part's (names, classes, counts)
+        self.track_class = np.zeros(0, np.int64)  # each track's class, over all parts
+        self.person_ids: set[int] = set()
+
+    def add(self, tracked: Any, xy: Any = None, mask: Any = None, **details: Any) -> None:
+        """One part: ``tracked`` (a :class:`cdog_jax.TrackedAssociation`) and, in
+        ``details``, ``people`` (a :class:`cdog_jax.People` or None); the detections and
+        other keywords (those of :class:`NpzParts`) are not written to a ``.trc``."""
+        people = details.get("people")
+        file = os.path.join(self.folder, f"{len(self.parts)}.npz")
+        if people is not None:
+            points, ids = np.asarray(people.points), np.asarray(people.person_id)
+            np.savez(file, points=points, person_id=ids)
+            self.person_ids.update(int(i) for i in np.unique(ids[ids >= 0]))
+            self.people = people
+            frames = points.shape[0]
+        else:
+            markers, cls = _track_points(tracked)
+            np.save(file[:-1] + "y", markers)
+            file = file[:-1] + "y"
+            grown = np.full(len(cls), -1, np.int64)
+            grown[: len(self.track_class)] = self.track_class
+            self.track_class = np.where(grown >= 0, grown, cls)
+            self.tracked = tracked
+            frames = markers.shape[0]
+        self.parts.append((frames, file))
+
+    @property
+    def frames(self) -> int:
+        return sum(n for n, _ in self.parts)
+
+    def people_files(self, path: PathLike) -> list[str]:
+        """The files :meth:`write_people` writes: one per person seen."""
+        stem, _ = os.path.splitext(os.fspath(path))
+        return [f"{stem}_person{pid}.trc" for pid in sorted(self.person_ids)]
+
+    def write_people(
+        self, path: PathLike, *, rate: float | int, units: str = "m", z_up: bool = False
+    ) -> list[str]:
+        """:func:`save_people_trc` of the whole recording. Returns the paths written."""
+        C = np.asarray(self.people.points).shape[2]
+        names = marker_names(self.people.class_names, C)
+        written = []
+        for pid, target in zip(sorted(self.person_ids), self.people_files(path)):
+
+            def blocks(pid=pid):
+                for _, file in self.parts:
+                    with np.load(file) as part:
+                        points, ids = part["points"], part["person_id"]
+                    X = np.full((points.shape[0], C, 3), np.nan, points.dtype)
+                    f, n = np.nonzero(ids == pid)
+                    X[f] = points[f, n]
+                    yield X
+
+            _save_trc_rows(target, blocks, self.frames, names, rate, units, z_up)
+            written.append(target)
+        return written
+
+    def write_tracks(
+        self, path: PathLike, *, rate: float | int, units: str = "m", z_up: bool = False
+    ) -> int:
+        """:func:`save_trc` of :func:`track_markers` of the whole recording (every part's
+        tracks, the last part's count). Returns the number of markers."""
+        T = len(self.track_class)
+
+        def blocks():
+            for _, file in self.parts:
+                X = np.load(file)
+                if X.shape[1] < T:  # tracks born in later parts: not seen here
+                    X = np.concatenate(
+                        [X, np.full((X.shape[0], T - X.shape[1], 3), np.nan, X.dtype)], axis=1
+                    )
+                yield X
+
+        names = _track_names(self.tracked, self.track_class)
+        _save_trc_rows(path, blocks, self.frames, names, rate, units, z_up)
+        return T

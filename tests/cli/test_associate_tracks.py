@@ -146,11 +146,22 @@ def test_a_recording_in_parts_gives_the_whole_recordings_output(tmp_path, capsys
         assert [s for s in whole_text.splitlines() if line in s] == [
             s for s in parts_text.splitlines() if line in s
         ]
-    # .npz, .csv and .json wait on disk part by part: the same rows as the whole at once
-    for name in ("csv", "json"):
+    # .npz, .csv, .json and .trc wait on disk part by part: the same rows as the whole at once
+    for name in ("csv", "json", "trc"):
         assert main([*common, "--out", tmp_path / f"whole.{name}"]) == 0
         assert main([*common, "--part-frames", "3", "--out", tmp_path / f"parts.{name}"]) == 0
     capsys.readouterr()
+    from cdog_jax.io import load_trc
+
+    people = sorted(p.name for p in tmp_path.glob("whole_person*.trc"))
+    assert len(people) >= 2
+    assert sorted(p.name for p in tmp_path.glob("parts_person*.trc")) == [
+        name.replace("whole", "parts") for name in people
+    ]
+    for name in people:  # one file per person, every frame a row
+        a, b = load_trc(tmp_path / name), load_trc(tmp_path / name.replace("whole", "parts"))
+        assert a.names == b.names and a.markers.shape == b.markers.shape and len(a.frame) == 7
+        np.testing.assert_allclose(a.markers, b.markers, rtol=0, atol=1e-5)
     whole, parts = (json.loads((tmp_path / f"{n}.json").read_text()) for n in ("whole", "parts"))
     assert len(parts["frames"]) == 7 and sum(len(f["groups"]) for f in parts["frames"]) > 100
     _assert_near(whole, parts, "")

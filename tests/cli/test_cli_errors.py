@@ -133,6 +133,15 @@ def test_trc_of_a_sequence_has_one_marker_per_track(files, capsys):
     np.testing.assert_allclose(
         np.sort(trc.markers[0], axis=0), np.sort(POINTS3D, axis=0), atol=1e-4
     )
+    # In parts (each part's markers wait on disk): the file of the whole at once.
+    seq.write_text(json.dumps({"frames": [{"views": VIEWS}] * 5}))
+    assert main(_associate(rig, seq, "--out", folder / "whole.trc")) == 0
+    assert main(_associate(rig, seq, "--out", folder / "parts.trc", "--part-frames", "2")) == 0
+    assert "4 marker(s), one per track" in capsys.readouterr().out
+    whole, parts = load_trc(folder / "whole.trc"), load_trc(folder / "parts.trc")
+    assert parts.names == whole.names and parts.markers.shape == (5, 4, 3)
+    np.testing.assert_array_equal(parts.frame, whole.frame)
+    np.testing.assert_allclose(parts.markers, whole.markers, rtol=0, atol=1e-5)
 
 
 def test_out_in_a_missing_folder(files, capsys):
