@@ -13,6 +13,9 @@ A valid group has
 :func:`validity_gate` first detaches the worst member of each group that breaks rule 4,
 one at a time and re-triangulating, while more than two members remain (at most ``M − 2``
 rounds); a group that still breaks any rule is dissolved (its members become unassigned).
+Rule 5 (:func:`ambiguous_groups`, comment below) then dissolves the groups the epipolar
+geometry cannot vouch for: degenerate (the point in one plane with its cameras' centres)
+and with a rival detection on the shared epipolar line.
 A group that needs no detaching keeps its point as given (weighted, refined), so the gate
 changes nothing for groups that already pass. Each rule is a pure function of a batch of
 groups, vmappable like the rest of the pipeline.
