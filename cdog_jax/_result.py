@@ -93,18 +93,3 @@ def batched_association(*, on_host: bool = False, **fields) -> Association:
     return jax.tree.unflatten(
         dataclass_tree(Association, names), leaves if on_host else jax.device_put(leaves)
     )
-
-
-def concat_frames(arrays, fill) -> np.ndarray:
-    """Arrays of the parts of one recording, ``(F_k, R_k, …)`` each, as one ``(ΣF_k, R, …)``:
-    frames one after the other, the row axis padded with ``fill`` to the widest part's."""
-    arrays = [np.asarray(a) for a in arrays]
-    rows = max(a.shape[1] for a in arrays)
-    return np.concatenate(
-        [
-            np.concatenate(
-                [a, np.full((a.shape[0], rows - a.shape[1], *a.shape[2:]), fill, a.dtype)], axis=1
-            )
-            for a in arrays
-        ]
-    )

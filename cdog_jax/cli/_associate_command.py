@@ -557,8 +557,8 @@ def run_associate(args: argparse.Namespace) -> int:
     from ..io._detections_checks import check_float_range
     from ..io._trc import TrcParts
     from ..people._classes import associate_classes_at
-    from ..people._persons import PersonLinker, concat_people, people_part
-    from ..tracking._tracks import concat_tracked, track_part
+    from ..people._persons import PersonLinker, people_part
+    from ..tracking._tracks import track_part
 
     _check_paths(
         args, {"--out": (args.out, _OUT_FORMATS), "--plot": (args.plot, _FIGURE_EXTENSIONS)}
@@ -725,17 +725,15 @@ def run_associate(args: argparse.Namespace) -> int:
     ext = None if args.out is None else os.path.splitext(args.out)[1].lower()
     # In parts, an output file (or none) keeps nothing of a part but its summary: what is
     # written of it waits on disk beside the output.
-    parts_writer = {".npz": NpzParts, ".json": JsonParts, ".csv": CsvParts, ".trc": TrcParts}.get(
-        ext
-    )
-    streamed = len(frames) > 1 and (ext is None or parts_writer is not None)
+    parts_writer = {".npz": NpzParts, ".json": JsonParts, ".csv": CsvParts, ".trc": TrcParts}
+    streamed = len(frames) > 1
     out_parts = None
     if streamed and ext is not None:  # removed when written, or when the process ends
         waiting = tempfile.TemporaryDirectory(
             prefix=".cdog-jax-parts-", dir=os.path.dirname(os.path.abspath(args.out))
         )
-        out_parts = parts_writer(waiting.name)
-    kept, counts, most, stats = [], [], [], []
+        out_parts = parts_writer[ext](waiting.name)
+    counts, most, stats = [], [], []
     for k, part_frames in enumerate(frames):
         if len(frames) == 1:
             part = det
@@ -778,8 +776,6 @@ def run_associate(args: argparse.Namespace) -> int:
                     people=people,
                 ),
             )
-        elif len(frames) > 1 and not streamed:
-            kept.append((tracked, people, part.xy, part.mask, part.confidence, part.classes))
         if streamed:  # nothing of this part stays alive while the next is associated
             classed = tracked = result = people = part = _DONE
             if parts is not None and k == 0:  # of the first part read, frame 0 (the figure's)
@@ -787,11 +783,6 @@ def run_associate(args: argparse.Namespace) -> int:
             release_freed_memory()  # and the heap it used goes back to the system
     class_counts = None if not counts else (np.concatenate(counts), np.concatenate(most))
     summary = _joined(stats)
-    if kept:
-        tracked = concat_tracked([p[0] for p in kept])
-        people = None if people is None else concat_people([p[1] for p in kept])
-        cat = lambda i: None if kept[0][i] is None else np.concatenate([p[i] for p in kept])  # noqa: E731
-        det = det._replace(xy=cat(2), mask=cat(3), confidence=cat(4), classes=cat(5))
     if tracked is not None and tracked is not _DONE:
         result = tracked.association
     elapsed = time.perf_counter() - t0

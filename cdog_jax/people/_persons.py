@@ -21,7 +21,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._result import concat_frames
 from ..geometry._camera import Rig
 from ..geometry._distortion import as_lens, undistorted_frames
 from ..geometry._projection import group_errors
@@ -720,19 +719,3 @@ def people_part(result, instances, linker: PersonLinker, min_votes: int | float 
         out.points[f, :n], out.person_id[f, :n] = skeleton[order], ids[order]
         out.merged[f, :n], out.split[f, :n] = merged[order], split[order]
     return out
-
-
-def concat_people(parts: list[People]) -> People:
-    """The people of the parts of one recording, identified one after the other
-    (:func:`people_part`, one linker), as one :class:`People`: frames in order, people and
-    group rows padded to the most of any part."""
-    return People(
-        points=concat_frames([p.points for p in parts], np.nan),
-        person_id=concat_frames([p.person_id for p in parts], -1),
-        group_person=concat_frames([p.group_person for p in parts], -1),
-        merged=concat_frames([p.merged for p in parts], False),
-        split=concat_frames([p.split for p in parts], False),
-        mixed=concat_frames([p.mixed for p in parts], False),
-        num_people=parts[-1].num_people,
-        class_names=parts[0].class_names,
-    )

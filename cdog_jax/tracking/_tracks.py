@@ -25,7 +25,7 @@ import numpy as np
 from jax import lax
 
 from .._expect import expect_args
-from .._result import Association, batched_association, concat_frames
+from .._result import Association, batched_association
 from .._types import Array, Bool, Float, Int
 from .._validate import as_array
 from ..geometry._camera import Rig
@@ -568,36 +568,4 @@ def _tracked(assoc, out: _Out, classed: bool, names, C) -> TrackedAssociation:
         num_classes=C,
         num_tracks=int(track.max()) + 1 if track.size and track.max() >= 0 else 0,
         unplaced=np.asarray(out.unplaced),
-    )
-
-
-def concat_tracked(parts: list[TrackedAssociation]) -> TrackedAssociation:
-    """The parts of one recording, tracked one after the other (:func:`track_part`), as one
-    result: frames in order, group rows padded with empty rows to the most of any part."""
-    A = [p.association for p in parts]
-    frames = lambda name: np.concatenate([np.asarray(getattr(a, name)) for a in A])  # noqa: E731
-    rows = lambda name, fill: concat_frames([getattr(a, name) for a in A], fill)  # noqa: E731
-    association = batched_association(
-        labels=frames("labels"),
-        groups=rows("groups", -1),
-        valid=rows("valid", False),
-        points3d=rows("points3d", 0),
-        bpe=rows("bpe", 0),
-        err_px=rows("err_px", 0),
-        n_views=rows("n_views", 0),
-        num_groups=frames("num_groups"),
-        sigma_px=frames("sigma_px"),
-        tau_px=frames("tau_px"),
-        status=frames("status"),
-    )
-    classed = parts[0].group_class is not None
-    return TrackedAssociation(
-        association=association,
-        track_id=concat_frames([p.track_id for p in parts], -1),
-        recovered=concat_frames([p.recovered for p in parts], False),
-        group_class=concat_frames([p.group_class for p in parts], -1) if classed else None,
-        class_names=parts[0].class_names,
-        num_classes=parts[0].num_classes,
-        num_tracks=max(p.num_tracks for p in parts),
-        unplaced=np.concatenate([np.asarray(p.unplaced) for p in parts]),
     )
