@@ -1,8 +1,8 @@
 """Points in the plane of a ring of cameras: what each method groups there, and what the
 validity gate's rule for degenerate geometry leaves (docs/ALGORITHM.md §12, rule 5).
 
-Five cameras on a ring of radius 3 m, all at one height, look at the ring's centre (640×480,
-f = 800 px); 30 points are drawn in a 1.2 m square at the cameras' height and then lifted by
+Five cameras evenly on a ring of radius 3 m, all at one height, look at the ring's centre
+(``cdog_jax.synthetic.ring_rig``; 640×480, f = 800 px); 30 points are drawn in a 1.2 m square at the cameras' height and then lifted by
 up to ``lift`` metres (0: every point in the plane of the camera centres, where every
 epipolar line of the scene is the same line). Detections have σ = 0.3 px. For each lift,
 seed and method the script prints the valid groups that hold one point (right), those that
@@ -16,38 +16,24 @@ from __future__ import annotations
 
 import argparse
 
-import jax.numpy as jnp
 import numpy as np
 
 from cdog_jax import Rig, Status, associate
+from cdog_jax.synthetic import ring_rig
 
 SLOTS = 64
 
 
-def look_at(centre: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """World-to-camera ``R (3, 3)``, ``t (3,)`` of a camera at ``centre`` looking at
-    ``target`` (z forward, y down, the world's z up)."""
-    z = target - centre
-    z = z / np.linalg.norm(z)
-    x = np.cross(z, [0.0, 0.0, 1.0])
-    x = x / np.linalg.norm(x)
-    y = np.cross(z, x)
-    R = np.stack([x, y, z])
-    return R, -R @ centre
-
-
-def ring(num_views: int, rng: np.random.Generator) -> Rig:
-    """Cameras on a ring of radius 3 in the plane z = 0, looking near the origin."""
-    K, R, t = [], [], []
-    for m in range(num_views):
-        angle = 2 * np.pi * m / num_views + 0.2 * rng.standard_normal()
-        centre = np.array([3 * np.cos(angle), 3 * np.sin(angle), 0.0])
-        target = np.array([0.1 * rng.standard_normal(), 0.1 * rng.standard_normal(), 0.0])
-        Rm, tm = look_at(centre, target)
-        K.append([[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]])
-        R.append(Rm)
-        t.append(tm)
-    return Rig(*(jnp.asarray(np.array(a), jnp.float32) for a in (K, R, t)))
+def ring() -> Rig:
+    """Five cameras evenly on a ring of radius 3 m in the plane z = 0, looking at its centre."""
+    return ring_rig(
+        num_views=5,
+        radius=3.0,
+        height=0.0,
+        target_height=0.0,
+        focal_px=800.0,
+        image_size=(640, 480),
+    )
 
 
 def scene(rig: Rig, X: np.ndarray, sigma: float, rng: np.random.Generator):
@@ -91,7 +77,7 @@ def main(argv: list[str] | None = None) -> None:
     for lift in args.lifts:
         for seed in range(args.seeds):
             rng = np.random.default_rng(seed)
-            rig = ring(5, rng)
+            rig = ring()
             X = np.c_[rng.uniform(-0.6, 0.6, (30, 2)), lift * rng.uniform(-1, 1, 30)]
             xy, mask, point = scene(rig, X, args.sigma, rng)
             for method in args.methods:
