@@ -259,7 +259,7 @@ class TrcParts:
     def __init__(self, folder: str):
         self.folder = folder
         self.parts: list[tuple[int, str]] = []  # (frames, file)
-        self.tracked = self.people = None  # the last part's (names, classes, counts)
+        self.tracked = self.people = None  # the last part's: its names and counts
         self.track_class = np.zeros(0, np.int64)  # each track's class, over all parts
         self.person_ids: set[int] = set()
 
@@ -268,7 +268,8 @@ class TrcParts:
         ``details``, ``people`` (a :class:`cdog_jax.People` or None); the detections and
         other keywords (those of :class:`NpzParts`) are not written to a ``.trc``."""
         people = details.get("people")
-        file = os.path.join(self.folder, f"{len(self.parts)}.npz")
+        ext = ".npy" if people is None else ".npz"
+        file = os.path.join(self.folder, f"{len(self.parts)}{ext}")
         if people is not None:
             points, ids = np.asarray(people.points), np.asarray(people.person_id)
             np.savez(file, points=points, person_id=ids)
@@ -277,8 +278,7 @@ class TrcParts:
             frames = points.shape[0]
         else:
             markers, cls = _track_points(tracked)
-            np.save(file[:-1] + "y", markers)
-            file = file[:-1] + "y"
+            np.save(file, markers)
             grown = np.full(len(cls), -1, np.int64)
             grown[: len(self.track_class)] = self.track_class
             self.track_class = np.where(grown >= 0, grown, cls)
