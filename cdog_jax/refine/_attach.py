@@ -14,15 +14,28 @@ def attach_cheapest(
     """The group table ``(G, M)`` with every node ``u`` whose smallest ``cost[:, u]`` is
     below ``gate`` attached to that group (ties: lowest group id), one node per (group,
     view). ``cost`` must be ``+inf`` where a node may not join a group."""
+    return attach_nearest(groups, *min_and_first_index(cost, axis=0), gate)
+
+
+def attach_nearest(
+    groups: Int[Array, "G M"],
+    best_cost: Float[Array, " N"],
+    best_group: Int[Array, " N"],
+    gate: Float[Array, ""],
+) -> Int[Array, "G M"]:
+    """:func:`attach_cheapest` from each node's smallest cost ``best_cost (N,)`` and the
+    first group attaining it ``best_group (N,)`` (as :func:`min_and_first_index` gives them
+    along the groups)."""
     G, M = groups.shape
-    N = cost.shape[1]
+    N = best_cost.shape[0]
     P = N // M
     node = jnp.arange(N, dtype=jnp.int32)
     node_view = node // P
-    best_cost, best_group = min_and_first_index(cost, axis=0)  # (N,)
     target = jnp.where(best_cost < gate, best_group, G)  # G: attaches nowhere
     safe = jnp.minimum(target, G - 1)
-    lowest = jnp.full((G, M), jnp.inf, cost.dtype).at[target, node_view].min(best_cost, mode="drop")
+    lowest = (
+        jnp.full((G, M), jnp.inf, best_cost.dtype).at[target, node_view].min(best_cost, mode="drop")
+    )
     is_best = (target < G) & (best_cost == lowest[safe, node_view])
     first = (
         jnp.full((G, M), N, jnp.int32)

@@ -3,12 +3,14 @@ merging (refine/_reassign.py) on small noise-free scenes whose answer is known."
 
 import jax.numpy as jnp
 import numpy as np
+import pytest
 from helpers import random_scene, ring_rig
 
 from cdog_jax import Config
 from cdog_jax.cdog._stage import GroupTable, Scene, State
 from cdog_jax.geometry._epipolar import epipolar_distances
 from cdog_jax.geometry._triangulate import dlt_blocks
+from cdog_jax.refine import _reassign
 from cdog_jax.refine._fit import fit_groups
 from cdog_jax.refine._reassign import ReassignOptions, merge_split_groups, reassign_stage
 from cdog_jax.refine._seed import SeedOptions, seed_stage
@@ -17,10 +19,10 @@ RIG = ring_rig(4)
 P = 12
 
 
-def _scene(sigma=0.0, seed=3, two_view=(), **numbers):
+def _scene(sigma=0.0, seed=3, two_view=(), num_points=10, capacity=P, **numbers):
     """A 10-point scene on 4 views (every point in all 4); the points ``two_view`` keep only
     their detections in views 0 and 1 (views 2 and 3 see them, and miss them)."""
-    xy, mask, inst, _ = random_scene(RIG, 10, P, sigma=sigma, seed=seed)
+    xy, mask, inst, _ = random_scene(RIG, num_points, capacity, sigma=sigma, seed=seed)
     mask[2:] &= ~np.isin(inst[2:], two_view)
     inst = np.where(mask, inst, -1)
     xy, mask = jnp.asarray(xy, jnp.float32), jnp.asarray(mask)
@@ -43,8 +45,8 @@ def _scene(sigma=0.0, seed=3, two_view=(), **numbers):
 
 def _truth(inst, mask):
     """The true group table ``(G, M)``: row k holds instance k's slot in every view."""
-    M = mask.shape[0]
-    G = M * P // 2
+    M, capacity = mask.shape
+    G = M * capacity // 2
     groups = np.full((G, M), -1, np.int32)
     for m in range(M):
         for i in np.flatnonzero(np.asarray(mask[m])):
@@ -167,3 +169,35 @@ def test_seeding_a_chunk_of_free_detections_at_a_time_is_seeding_at_once(monkeyp
     np.testing.assert_array_equal(np.asarray(chunked.table.groups), np.asarray(whole.table.groups))
     np.testing.assert_array_equal(np.asarray(chunked.table.valid), np.asarray(whole.table.valid))
     assert len(_partition(whole.table, 4) - _partition(given, 4)) >= 5  # seeding did find groups
+
+
+@pytest.mark.parametrize("split_all", [False, True])
+def test_a_large_table_measured_a_block_of_rows_at_a_time_gives_the_whole_tables_answer(
+    monkeypatch, split_all
+):
+    # 4 views × 80 slots: 160 group rows, more than twice ROW_BLOCK, so the rounds measure
+    # blocks of rows up to the last group. The groups lie scattered over the table, in a
+    # noisy scene; one point is split and two swap a member, or (split_all) every point is
+    # split over views {0, 1} and {2, 3}: 150-odd groups, so that the last block overlaps
+    # the one before it.
+    scene, inst = _scene(sigma=2.0, seed=4, num_points=78, capacity=80)
+    groups, valid = _truth(inst, scene.mask)
+    if split_all:
+        free = np.flatnonzero(~valid)
+        for g in np.flatnonzero(valid & ((groups[:, :2] >= 0).all(1))):
+            if (groups[g, 2:] >= 0).sum() == 2 and len(free):
+                groups[free[0], 2:], groups[g, 2:] = groups[g, 2:], -1
+                valid[free[0]], free = True, free[1:]
+        table = GroupTable(jnp.asarray(groups), jnp.asarray(valid))
+        assert int(np.sum(valid)) > 2 * _reassign.ROW_BLOCK
+    else:
+        table, _, _ = _split_and_swap(groups, valid, swap=True)
+    order = np.random.default_rng(0).permutation(len(valid))
+    state = State(GroupTable(table.groups[order], table.valid[order]), None, jnp.int32(0))
+    assert state.table.groups.shape[0] > 2 * _reassign.ROW_BLOCK
+    blocked = reassign_stage(scene, state, ReassignOptions(3)).table
+    monkeypatch.setattr(_reassign, "ROW_BLOCK", 10**6)  # the whole table at once
+    whole = reassign_stage(scene, state, ReassignOptions(3)).table
+    np.testing.assert_array_equal(np.asarray(blocked.groups), np.asarray(whole.groups))
+    np.testing.assert_array_equal(np.asarray(blocked.valid), np.asarray(whole.valid))
+    assert _partition(whole, 4) != _partition(state.table, 4)  # the rounds changed something
