@@ -46,18 +46,23 @@ def _assert_same(got, want, float_rtol=0.0):
 
 
 def test_ladders():
-    assert [slot_capacity(p) for p in (1, 5, 7, 32, 33, 64, 65, 118, 129, 600)] == [
+    assert [slot_capacity(p) for p in (1, 5, 7, 32, 33, 64, 65, 118, 129, 130, 600)] == [
         4,
         6,
         8,
         32,
         48,
         64,
-        96,
+        80,
         128,
-        192,
-        768,
+        160,
+        160,
+        640,
     ]
+    capacities = [slot_capacity(n) for n in range(65, 4097)]
+    assert all(n <= c < 1.25 * n for n, c in enumerate(capacities, start=65))
+    assert all(slot_capacity(c) == c for c in capacities)  # a rung pads to itself
+    assert len(set(capacities)) == 24  # four programs per doubling: 80, 96, 112, 128, 160, …
     assert [chunk_size(b, 16) for b in (1, 2, 3, 5, 16, 17, 100)] == [1, 2, 3, 6, 16, 16, 16]
     assert chunk_size(9, 10) == 10
     rungs = [ladder_rung(n) for n in range(1, 4097)]

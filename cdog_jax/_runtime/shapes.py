@@ -1,10 +1,12 @@
 """Few shapes, few compiled programs, little padding: :func:`cdog_jax.associate` pads the slot
 capacity ``P`` to a rung of a fine ladder (powers of two and one and a half times them:
-4, 6, 8, 12, 16, 24, 32, 48, …) and :func:`cdog_jax.associate_batch` also pads the number of
-scenes ``B`` (a rung of the same ladder from 1 up to ``batch_size``, then whole chunks of
+4, 6, 8, 12, 16, 24, 32, 48, 64; above 64 four rungs per doubling: 80, 96, 112, 128, 160,
+…) and :func:`cdog_jax.associate_batch` also pads the number of scenes ``B`` (a rung of the
+ladder of two rungs per doubling from 1 up to ``batch_size``, then whole chunks of
 ``batch_size``), so that a process compiles two programs per doubling of its frames'
-counts while a padded program does at most 1.5× the slots (2.25× the pairwise work) and
-1.5× the scenes of the unpadded one. Padding is neutral: padded slots hold no detection,
+counts (four above 64 slots) while a padded program does at most 1.5× the slots (2.25×
+the pairwise work; 1.25× and 1.56× above 64 slots) and 1.5× the scenes of the unpadded
+one. Padding is neutral: padded slots hold no detection,
 padded scenes none at all, and the result is trimmed back to the caller's shapes (bitwise
 what the unpadded program returns; ALGORITHM.md §16). For the same reason trailing slots
 that no view fills are not sent to the program at all: the ladder's rung is chosen from the
@@ -36,10 +38,22 @@ def ladder_rung(count: int, smallest: int = 1) -> int:
     return three_quarters if power >= 4 and n <= three_quarters else power
 
 
+FINE_FROM = 64
+"""Above this many slots per view the slot ladder has four rungs per doubling (…, 64, 80,
+96, 112, 128, 160, …): the pairwise work of a scene grows with the square of its slots, so
+that 130 slots run at 160 (1.5× the pairwise work) rather than 192 (2.2×)."""
+
+
 def slot_capacity(num_slots: int) -> int:
     """The padded capacity for ``num_slots`` slots per view: the smallest ladder rung
-    (:func:`ladder_rung`) ``>= max(num_slots, MIN_CAPACITY)``."""
-    return ladder_rung(num_slots, MIN_CAPACITY)
+    (:func:`ladder_rung`) ``>= max(num_slots, MIN_CAPACITY)`` up to :data:`FINE_FROM`; above
+    it the smallest multiple of an eighth of the next power of two (less than a quarter of
+    padding)."""
+    n = max(int(num_slots), MIN_CAPACITY)
+    if n <= FINE_FROM:
+        return ladder_rung(n, MIN_CAPACITY)
+    step = (1 << (n - 1).bit_length()) // 8  # the octave (power / 2, power] in quarters
+    return -(-n // step) * step
 
 
 def chunk_size(num_scenes: int, batch_size: int) -> int:
