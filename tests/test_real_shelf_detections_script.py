@@ -1,0 +1,60 @@
+"""experiments/real/shelf_detections.py: its counts on a scene whose answer is known, and the
+script on the made-up stand-in for Shelf (perfect detections: every joint found)."""
+
+import os
+import runpy
+
+import numpy as np
+from test_real_shelf_script import _write_standin
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+stats = runpy.run_path(
+    os.path.join(HERE, "..", "experiments", "real", "shelf_detections.py"),
+    run_name="shelf_detections",
+)
+BODY25 = runpy.run_path(os.path.join(HERE, "..", "experiments", "real", "shelf_score.py"))[
+    "BODY25_OF_SHELF"
+]
+
+
+def test_found_swapped_missed_hidden_doubles_and_unexplained():
+    # One camera 5 m from the plane z = 0: a point (x, y, 0) lands at (500 + 20x, 400 + 20y).
+    K = np.array([[[100.0, 0, 500], [0, 100, 400], [0, 0, 1]]])
+    R, t = np.eye(3)[None], np.array([[0.0, 0, 5]])
+    far = np.zeros((15, 3))
+    far[:12, 0] = np.arange(12)  # actor 0's limb joint j at pixel (500 + 20 j, 400)
+    near = np.zeros((15, 3))  # actor 1, 1 m nearer, its image box over actor 0's joint 3
+    near[:12] = np.c_[np.linspace(2.0, 2.8, 12), np.linspace(-0.2, 0.2, 12), -np.ones(12)]
+    person = np.zeros((25, 3))
+    for j in range(12):
+        person[BODY25[j]] = (500 + 20 * j, 400, 0.9)
+    person[BODY25[0], :2] += (1, 2)  # found, 1 px right and 2 down
+    person[BODY25[3], 2] = 0.0  # missed, and hidden by actor 1
+    person[BODY25[6], 2] = 0.0  # no right wrist, but a left wrist where it is: swapped
+    person[BODY25[11], :2] = (500 + 20 * 6, 400)  # (so the left wrist is missed)
+    other = np.zeros((25, 3))
+    other[BODY25[1]] = (500 + 20 * 1 + 2, 400, 0.8)  # a second right knee: a double
+    other[BODY25[0]] = (100, 100, 0.8)  # a right ankle near no actor: unexplained
+    views = [[[person, other]]]
+    out = stats["detection_stats"](
+        views, [{0: far, 1: near}], K, R, t, (1000, 800), [0], radius=5.0
+    )
+    assert out["joint_views"] == 24  # actor 1 has no detection: its 12 joints are missed
+    assert np.isclose(out["found"], 9 / 24) and np.isclose(out["swapped"], 1 / 24)
+    assert np.isclose(out["missed"], 14 / 24)
+    assert np.isclose(out["hidden_share"], 1 / 24) and out["missed_when_hidden"] == 1.0
+    assert np.isclose(out["doubles"], 1 / 24) and out["unexplained_per_view_frame"] == 1.0
+    joints = out["per_joint"]
+    assert joints["right ankle"]["median_error_px"] == np.hypot(1, 2)  # actor 1 missed it
+    assert joints["right wrist"]["swapped"] == 0.5 and joints["left wrist"]["missed"] == 1.0
+
+
+def test_the_script_on_the_standin(tmp_path):
+    folder = str(tmp_path / "shelf")
+    os.makedirs(folder)
+    _write_standin(folder)
+    out = stats["main"]([folder, "--split", "all", "--json", str(tmp_path / "d.json")])
+    assert out["frames"] == 3 and out["joint_views"] == 3 * 2 * 12 * 5
+    assert out["found"] == 1.0 and out["missed"] == 0.0 and out["swapped"] == 0.0
+    assert out["error_p99_px"] < 1e-3 and out["unexplained_per_view_frame"] == 0.0
+    assert os.path.exists(tmp_path / "d.json")
