@@ -12,6 +12,7 @@ from ._scene import (
 )
 from ._skeleton import (
     SKELETON_JOINTS as SKELETON_JOINTS,
+    KeypointErrors as KeypointErrors,
     SkeletonScenes as SkeletonScenes,
     generate_skeleton_scenes as generate_skeleton_scenes,
 )

@@ -21,9 +21,10 @@ from jaxtyping import ArrayLike, PRNGKeyArray, Real
 from .._expect import ARRAY, expect_args
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
+from ..geometry._projection import project_views_last
 from ..io._keypoints import SKELETONS
 from ._realism import Realism, perturb_rig, view_sigmas
-from ._render import RealScene, render_points
+from ._render import REAL, RealScene, render_points
 from ._ring import RING_IMAGE_SIZE
 
 SKELETON_JOINTS: tuple[str, ...] = SKELETONS["COCO_17"]
@@ -89,6 +90,124 @@ _GRID_SPACING = (
     1.0  # start positions: distinct cells of a 3 × 3 grid of this spacing (metres), jittered
 )
 _GRID_JITTER = 0.2
+
+
+COCO_MIRROR = np.array([0, 2, 1, 4, 3, 6, 5, 8, 7, 10, 9, 12, 11, 14, 13, 16, 15], np.int32)
+"""The joint of the other side for each COCO-17 joint (the nose is its own)."""
+
+_HIDING_PAD = 0.1  # a person's image box, padded by this share of its size on each side
+_MISS, _SWAP = 1001, 1002  # fold_in tags of the keypoint errors (apart from the render's)
+
+
+class KeypointErrors(eqx.Module):
+    """What a keypoint detector does to people beyond the pixel noise of :class:`Realism`;
+    every field a traced number (a sweep over them compiles once). The defaults do nothing.
+
+    Attributes:
+        miss_rate: probability in ``[0, 1]`` that a joint in sight of a camera is not
+            detected there.
+        hidden_miss_rate: the same for a joint that another person hides: it lies in the
+            image box of that person's joints (padded by 10 %), whose joints are nearer the
+            camera on average.
+        swap_rate: probability in ``[0, 1]`` that a detected joint is labelled as its
+            mirrored joint (left for right; the nose keeps its label).
+
+    :meth:`shelf` gives the rates measured on Shelf's real OpenPose detections.
+    """
+
+    miss_rate: float | Float[Array, ""] = 0.0
+    hidden_miss_rate: float | Float[Array, ""] = 0.0
+    swap_rate: float | Float[Array, ""] = 0.0
+
+    def __check_init__(self):
+        for name in ("miss_rate", "hidden_miss_rate", "swap_rate"):
+            value = getattr(self, name)
+            if isinstance(value, (int, float)) and not 0 <= value <= 1:
+                raise ValueError(f"KeypointErrors.{name} must be in [0, 1]; got {value!r}")
+
+    @classmethod
+    def shelf(cls) -> KeypointErrors:
+        """The rates of Shelf's OpenPose detections of its annotated actors (dev frames,
+        joints within 50 px of the annotation; experiments/RESULTS.md, "Shelf's detections
+        beside its ground truth"): 8.4 % missed in sight, 24 % when hidden by a person, 0.5 %
+        swapped."""
+        return cls(miss_rate=0.084, hidden_miss_rate=0.241, swap_rate=0.005)
+
+    def as_arrays(self, dtype) -> KeypointErrors:
+        """The same rates as ``()`` arrays of ``dtype``."""
+        return jax.tree_util.tree_map(lambda v: jnp.asarray(v, dtype), self)
+
+
+def hidden_joints(
+    rig: Rig,
+    joints: Float[Array, "K J 3"],
+    exists: Bool[Array, " K"],
+    image_size: tuple[int, int],
+) -> Bool[Array, "K J M"]:
+    """``(K, J, M)``: joint ``j`` of person ``k`` is hidden in view ``m`` by another existing
+    person: it projects into that person's image box (its in-front joints' pixels, padded by
+    10 % of the box's size on each side) and that person's joints are nearer the camera on
+    average (depth along the optical axis). Joints behind a camera are never hidden."""
+    K, J = joints.shape[:2]
+    xy, front = project_views_last(rig, joints.reshape(-1, 3))  # (K·J, M, 2), (K·J, M)
+    xy, front = xy.reshape(K, J, -1, 2), front.reshape(K, J, -1)
+    # Distance along the optical axis (K[2, 2] = -1: the camera looks down -z).
+    z = jnp.einsum("mj,kpj->kpm", rig.R[:, 2, :], joints) + rig.t[None, None, :, 2]
+    depth = z * jnp.sign(rig.K[None, None, :, 2, 2])  # (K, J, M)
+    ok = (front & exists[:, None, None])[..., None]  # (K, J, M, 1)
+    lo = jnp.min(jnp.where(ok, xy, jnp.inf), axis=1)  # (K, M, 2)
+    hi = jnp.max(jnp.where(ok, xy, -jnp.inf), axis=1)
+    pad = _HIDING_PAD * jnp.where(jnp.isfinite(hi - lo), hi - lo, 0.0)
+    lo, hi = lo - pad, hi + pad
+    count = jnp.sum(ok[..., 0], axis=1, dtype=depth.dtype)
+    mean_depth = jnp.sum(jnp.where(ok[..., 0], depth, 0.0), axis=1) / jnp.maximum(count, 1.0)
+    inside = jnp.all(
+        (xy[:, :, None] >= lo[None, None]) & (xy[:, :, None] <= hi[None, None]), axis=-1
+    )  # (K, J, K', M): joint (k, j) in the box of person k'
+    nearer = mean_depth[None, :, :] < mean_depth[:, None, :]  # (K, K', M)
+    other = ~jnp.eye(K, dtype=bool) & exists[None, :]  # (K, K')
+    hiding = inside & (nearer & other[..., None])[:, None] & front[:, :, None]
+    return jnp.any(hiding, axis=2)
+
+
+def detector_errors(
+    key: PRNGKeyArray,
+    scene: RealScene,
+    hidden: Bool[Array, "I M"],
+    errors: KeypointErrors,
+    num_joints: int,
+) -> RealScene:
+    """``scene`` with its real detections missed (``errors.miss_rate``, or
+    ``hidden_miss_rate`` where ``hidden (I, M)`` says the point is hidden in that view) and
+    relabelled as their mirrored joint (``swap_rate``); a missed detection's slot becomes
+    padding. Doubles and clutter are left as they are."""
+    M, S = scene.mask.shape
+    real = scene.mask & (scene.kind == REAL)
+    point = jnp.maximum(scene.instance, 0)  # (M, S)
+    view = jnp.broadcast_to(jnp.arange(M, dtype=jnp.int32)[:, None], (M, S))
+    rate = jnp.where(hidden[point, view], errors.hidden_miss_rate, errors.miss_rate)
+    dtype = rate.dtype
+    missed = real & (jax.random.uniform(jax.random.fold_in(key, _MISS), (M, S), dtype) < rate)
+    swapped = (
+        real
+        & ~missed
+        & (jax.random.uniform(jax.random.fold_in(key, _SWAP), (M, S), dtype) < errors.swap_rate)
+    )
+    mirror = jnp.asarray(COCO_MIRROR if num_joints == len(COCO_MIRROR) else np.arange(num_joints))
+    mask = scene.mask & ~missed
+    return eqx.tree_at(
+        lambda r: (r.xy, r.mask, r.instance, r.kind, r.class_id),
+        scene,
+        (
+            jnp.where(mask[..., None], scene.xy, 0.0),
+            mask,
+            jnp.where(mask, scene.instance, -1),
+            jnp.where(mask, scene.kind, -1),
+            jnp.where(mask, jnp.where(swapped, mirror[scene.class_id], scene.class_id), 0).astype(
+                jnp.int32
+            ),
+        ),
+    )
 
 
 class SkeletonScenes(eqx.Module):
@@ -193,6 +312,7 @@ def generate_skeleton_scenes(
     sigma_px: Real[ArrayLike, ""],
     *,
     realism: Realism = Realism(),
+    keypoint_errors: KeypointErrors = KeypointErrors(),
     num_frames: int,
     max_people: int = 5,
     fps: float = 10.0,
@@ -208,11 +328,17 @@ def generate_skeleton_scenes(
     (:func:`view_sigmas`) are drawn once for the sequence, as a real rig's would be; each
     frame is then rendered with :func:`render_points` (clutter of a uniform joint class).
     ``num_people`` (``<= max_people <= 9``), ``sigma_px`` and the ``realism`` fields may be
-    traced; the keyword arguments are static. For :func:`cdog_jax.associate_classes` pass
+    traced, and so may ``keypoint_errors`` (:class:`KeypointErrors`: joints missed, more
+    often where another person hides them, and left/right swaps, drawn per frame); the other
+    keyword arguments are static. For :func:`cdog_jax.associate_classes` pass
     ``frames.xy, frames.mask, frames.class_id`` with ``class_names=SKELETON_JOINTS``.
     """
     expect_args(
-        "generate_skeleton_scenes", key=(key, ARRAY), rig=(rig, Rig), realism=(realism, Realism)
+        "generate_skeleton_scenes",
+        key=(key, ARRAY),
+        rig=(rig, Rig),
+        realism=(realism, Realism),
+        keypoint_errors=(keypoint_errors, KeypointErrors),
     )
     for name, value, low in (
         ("num_frames", num_frames, 1),
@@ -235,6 +361,7 @@ def generate_skeleton_scenes(
         jnp.asarray(num_people, jnp.int32),
         jnp.asarray(sigma_px, dtype),
         realism.as_arrays(dtype),
+        keypoint_errors.as_arrays(dtype),
         num_frames=num_frames,
         max_people=max_people,
         fps=float(fps),
@@ -261,6 +388,7 @@ def _skeleton_scenes(
     num_people,
     sigma_px,
     realism,
+    keypoint_errors,
     *,
     num_frames,
     max_people,
@@ -281,7 +409,7 @@ def _skeleton_scenes(
     point_class = jnp.tile(jnp.arange(J, dtype=jnp.int32), max_people)
 
     def frame(k, X):
-        return render_points(
+        scene = render_points(
             k,
             true_rig,
             X.reshape(-1, 3),
@@ -294,6 +422,8 @@ def _skeleton_scenes(
             clutter_capacity=clutter_capacity,
             num_classes=J,
         )
+        hidden = hidden_joints(true_rig, X, exists, image_size)  # (K, J, M)
+        return detector_errors(k, scene, hidden.reshape(-1, rig.num_views), keypoint_errors, J)
 
     frames = jax.vmap(frame)(jax.random.split(k_render, num_frames), joints)
     return SkeletonScenes(frames=frames, joints3d=joints, exists=exists, rig=true_rig)

@@ -15,6 +15,7 @@ from cdog_jax.synthetic import (
     ring_rig,
 )
 from cdog_jax.synthetic._render import CLUTTER, DOUBLE, REAL
+from cdog_jax.synthetic._ring import RING_IMAGE_SIZE
 from cdog_jax.synthetic._skeleton import (
     HEIGHT_SCALE,
     SKELETON_BONES,
@@ -115,3 +116,102 @@ def test_scenes_truth_doubles_and_clutter():
     assert (
         real.sum(axis=(1, 2)).min() >= 0.9 * K * J * RIG.num_views
     )  # people near the centre are in view
+
+
+def _hidden_numpy(K_, R_, t_, joints, exists, image_size, pad=0.1):
+    """The box rule of ``hidden_joints`` in float64 NumPy, one frame ``joints (K, J, 3)``."""
+    M = K_.shape[0]
+    n_people = joints.shape[0]
+    out = np.zeros(joints.shape[:2] + (M,), bool)
+    for m in range(M):
+        cam = joints @ R_[m].T + t_[m]
+        depth = cam[..., 2] * np.sign(K_[m, 2, 2])
+        uv = cam @ K_[m].T
+        xy = uv[..., :2] / uv[..., 2:]
+        front = depth > 0
+        boxes = {}
+        for b in range(n_people):
+            if not exists[b] or not front[b].any():
+                continue
+            lo, hi = xy[b][front[b]].min(0), xy[b][front[b]].max(0)
+            boxes[b] = (lo - pad * (hi - lo), hi + pad * (hi - lo), depth[b][front[b]].mean())
+        for a in range(n_people):
+            for j in range(joints.shape[1]):
+                out[a, j, m] = front[a, j] and any(
+                    b != a
+                    and a in boxes
+                    and boxes[b][2] < boxes[a][2]
+                    and np.all(boxes[b][0] <= xy[a, j])
+                    and np.all(xy[a, j] <= boxes[b][1])
+                    for b in boxes
+                )
+    return out
+
+
+def test_hidden_joints_against_numpy():
+    from cdog_jax.synthetic._skeleton import hidden_joints
+
+    joints, exists = _motion(jax.random.PRNGKey(3), 5)
+    K_, R_, t_ = (np.asarray(a, np.float64) for a in (RIG.K, RIG.R, RIG.t))
+    total = 0
+    for f in range(0, F, 4):
+        got = np.asarray(hidden_joints(RIG, joints[f], exists, RING_IMAGE_SIZE))
+        want = _hidden_numpy(
+            K_, R_, t_, np.asarray(joints[f], np.float64), np.asarray(exists), RING_IMAGE_SIZE
+        )
+        np.testing.assert_array_equal(got, want)
+        total += int(want.sum())
+    assert total > 0  # five people in a ring of cameras hide each other
+
+
+def _errors_scenes(**rates):
+    from cdog_jax.synthetic import KeypointErrors
+
+    return generate_skeleton_scenes(
+        jax.random.PRNGKey(1),
+        RIG,
+        4,
+        1.0,
+        num_frames=4,
+        max_people=K,
+        keypoint_errors=KeypointErrors(**rates),
+    )
+
+
+def _real_pairs(frames):
+    """{(frame, view, point id)} of the real detections."""
+    real = np.asarray(frames.mask & (frames.kind == REAL))
+    f, m, s = np.nonzero(real)
+    return set(zip(f.tolist(), m.tolist(), np.asarray(frames.instance)[f, m, s].tolist()))
+
+
+def test_keypoint_errors_miss_hidden_joints_and_swap_sides():
+    from cdog_jax.synthetic._skeleton import COCO_MIRROR, hidden_joints
+
+    clean = _errors_scenes()
+    everything = _real_pairs(clean.frames)
+    hidden = np.stack(
+        [
+            np.asarray(hidden_joints(clean.rig, clean.joints3d[f], clean.exists, RING_IMAGE_SIZE))
+            for f in range(4)
+        ]
+    )  # (F, K, J, M)
+    hidden_pairs = {(f, m, k * J + j) for f, k, j, m in zip(*np.nonzero(hidden))}
+    assert hidden_pairs & everything  # some joints in sight are hidden
+    # Only the hidden joints go; all of them.
+    gone = everything - _real_pairs(_errors_scenes(hidden_miss_rate=1.0).frames)
+    assert gone == hidden_pairs & everything
+    # Only the joints in sight go; all of them.
+    gone = everything - _real_pairs(_errors_scenes(miss_rate=1.0).frames)
+    assert gone == everything - hidden_pairs
+    # A share of them: 30 % within a few points.
+    gone = everything - _real_pairs(_errors_scenes(miss_rate=0.3, hidden_miss_rate=0.3).frames)
+    assert abs(len(gone) / len(everything) - 0.3) < 0.04
+    # Every detection relabelled as the other side's joint (the nose as itself), in place.
+    swapped = _errors_scenes(swap_rate=1.0).frames
+    real = np.asarray(swapped.mask & (swapped.kind == REAL))
+    joint = np.asarray(swapped.instance)[real] % J
+    np.testing.assert_array_equal(np.asarray(swapped.class_id)[real], COCO_MIRROR[joint])
+    np.testing.assert_array_equal(np.asarray(swapped.xy), np.asarray(clean.frames.xy))
+    with pytest.raises(ValueError, match="swap_rate"):
+        _errors_scenes(swap_rate=1.5)
