@@ -104,8 +104,8 @@ class KeypointErrors(eqx.Module):
     every field a traced number (a sweep over them compiles once). The defaults do nothing.
 
     Attributes:
-        miss_rate: probability in ``[0, 1]`` that a joint in sight of a camera is not
-            detected there.
+        miss_rate: probability in ``[0, 1]`` that a joint in sight of a camera, and hidden
+            by no other person, is not detected there.
         hidden_miss_rate: the same for a joint that another person hides: it lies in the
             image box of that person's joints (padded by 10 %), whose joints are nearer the
             camera on average.
@@ -175,11 +175,10 @@ def detector_errors(
     scene: RealScene,
     hidden: Bool[Array, "I M"],
     errors: KeypointErrors,
-    num_joints: int,
 ) -> RealScene:
     """``scene`` with its real detections missed (``errors.miss_rate``, or
     ``hidden_miss_rate`` where ``hidden (I, M)`` says the point is hidden in that view) and
-    relabelled as their mirrored joint (``swap_rate``); a missed detection's slot becomes
+    relabelled as their mirrored COCO-17 joint (``swap_rate``); a missed detection's slot becomes
     padding. Doubles and clutter are left as they are."""
     M, S = scene.mask.shape
     real = scene.mask & (scene.kind == REAL)
@@ -193,7 +192,7 @@ def detector_errors(
         & ~missed
         & (jax.random.uniform(jax.random.fold_in(key, _SWAP), (M, S), dtype) < errors.swap_rate)
     )
-    mirror = jnp.asarray(COCO_MIRROR if num_joints == len(COCO_MIRROR) else np.arange(num_joints))
+    mirror = jnp.asarray(COCO_MIRROR)
     mask = scene.mask & ~missed
     return eqx.tree_at(
         lambda r: (r.xy, r.mask, r.instance, r.kind, r.class_id),
@@ -423,7 +422,7 @@ def _skeleton_scenes(
             num_classes=J,
         )
         hidden = hidden_joints(true_rig, X, exists, image_size)  # (K, J, M)
-        return detector_errors(k, scene, hidden.reshape(-1, rig.num_views), keypoint_errors, J)
+        return detector_errors(k, scene, hidden.reshape(-1, rig.num_views), keypoint_errors)
 
     frames = jax.vmap(frame)(jax.random.split(k_render, num_frames), joints)
     return SkeletonScenes(frames=frames, joints3d=joints, exists=exists, rig=true_rig)
