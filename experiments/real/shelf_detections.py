@@ -170,6 +170,7 @@ def _summary(table, doubles, unexplained, num_frames, M, radius) -> dict:
     per_joint = {
         JOINT_NAMES[j]: {
             "missed": share(outcome == 2, table[:, 2] == j),
+            "missed_in_sight": share(outcome == 2, (table[:, 2] == j) & ~hidden),
             "swapped": share(outcome == 1, table[:, 2] == j),
             "median_error_px": float(np.median(radial[table[found][:, 2] == j]))
             if np.any(table[found][:, 2] == j)
@@ -252,7 +253,8 @@ def main(argv: list[str] | None = None) -> dict:
     )
     for name, row in out["per_joint"].items():
         print(
-            f"  {name:15s} missed {row['missed']:.3f}  swapped {row['swapped']:.3f}  "
+            f"  {name:15s} missed {row['missed']:.3f} (in sight {row['missed_in_sight']:.3f})  "
+            f"swapped {row['swapped']:.3f}  "
             f"median error {row['median_error_px']:.1f} px"
         )
     if args.json:

@@ -213,5 +213,11 @@ def test_keypoint_errors_miss_hidden_joints_and_swap_sides():
     joint = np.asarray(swapped.instance)[real] % J
     np.testing.assert_array_equal(np.asarray(swapped.class_id)[real], COCO_MIRROR[joint])
     np.testing.assert_array_equal(np.asarray(swapped.xy), np.asarray(clean.frames.xy))
+    # A rate per joint: only the wrists in sight go, all of them.
+    wrists = np.where(np.isin(np.arange(J), [9, 10]), 1.0, 0.0)
+    gone = everything - _real_pairs(_errors_scenes(miss_rate=wrists).frames)
+    assert gone == {p for p in everything - hidden_pairs if p[2] % J in (9, 10)}
     with pytest.raises(ValueError, match="swap_rate"):
         _errors_scenes(swap_rate=1.5)
+    with pytest.raises(ValueError, match=r"miss_rate must have shape \(\) or \(17,\)"):
+        _errors_scenes(miss_rate=np.zeros(3))
