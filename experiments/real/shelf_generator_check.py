@@ -17,7 +17,11 @@ per second, in ``--sequences`` sequences. Their detections are rendered three wa
   a person hides them, left/right swaps).
 
 Recall on the synthetic scenes counts every existing person's limb joints, on Shelf the
-annotated actors'. The check of the defaults work: each preset within 0.02 of Shelf.
+annotated actors'. A last line gives Shelf's PCP (10 parts, actors 0–2, :mod:`shelf_score`)
+of the people of ``--pcp-preset`` with the person vote (each view's people numbered in a
+random order, as a 2D pose detector numbers them; ``identify_people``), beside
+``--real-pcp``: the same on Shelf (``shelf_table.py``'s row without the temporal prior).
+The check of the defaults work: each preset within 0.02 of Shelf, PCP within 2 points.
 
     python experiments/real/shelf_generator_check.py PATH/TO/data/shelf [--real-json rows.json]
 
@@ -36,6 +40,7 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 shelf = runpy.run_path(os.path.join(HERE, "shelf.py"), run_name="shelf")
+shelf_score = runpy.run_path(os.path.join(HERE, "shelf_score.py"), run_name="shelf_score")
 
 PRESETS = ("best", "extended", "paper", "reference")
 SHELF_CENTRE = np.array([0.5, -0.2, 0.0])  # metres: the middle of Shelf's actors on the floor
@@ -54,8 +59,10 @@ def shelf_rig(data: str):
 
 
 def synthetic_scenes(rig, size, *, sigma, view_spread, errors, sequences, frames, seed=0):
-    """``(xy, mask, classes, joints3d, exists)`` stacked over sequences: ``(F, M, S, 2)``,
-    ``(F, M, S)``, ``(F, M, S)``, ``(F, K, 17, 3)``, ``(F, K)``."""
+    """``(xy, mask, classes, joints3d, exists, instances)`` stacked over sequences:
+    ``(F, M, S, 2)``, ``(F, M, S)``, ``(F, M, S)``, ``(F, K, 17, 3)``, ``(F, K)`` and the
+    per-view instance of every detection ``(F, M, S)`` (its person, numbered in each view and
+    frame in a random order, as a 2D pose detector numbers them; -1 for none)."""
     import jax
 
     from cdog_jax.synthetic import KeypointErrors, Realism, generate_skeleton_scenes
@@ -76,13 +83,20 @@ def synthetic_scenes(rig, size, *, sigma, view_spread, errors, sequences, frames
             image_size=tuple(size),
         )
         f = scenes.frames
+        person = np.asarray(scenes.person)
+        K = scenes.exists.shape[0]
+        order = np.argsort(rng.random(person.shape[:2] + (K,)), axis=-1)  # (F, M, K)
+        instances = np.where(
+            person >= 0, np.take_along_axis(order, np.maximum(person, 0), axis=-1), -1
+        )
         parts.append(
             (
                 np.asarray(f.xy),
                 np.asarray(f.mask),
                 np.asarray(f.class_id),
                 np.asarray(scenes.joints3d),
-                np.broadcast_to(np.asarray(scenes.exists), (frames, scenes.exists.shape[0])),
+                np.broadcast_to(np.asarray(scenes.exists), (frames, K)),
+                instances,
             )
         )
     return tuple(np.concatenate(a) for a in zip(*parts))
@@ -110,12 +124,54 @@ def synthetic_recall(assoc, joints3d, exists) -> float:
 def run_synthetic(rig, scenes, preset: str) -> tuple[float, float]:
     import cdog_jax
 
-    xy, mask, classes, joints3d, exists = scenes
+    xy, mask, classes, joints3d, exists, _ = scenes
     start = time.perf_counter()
     out = cdog_jax.associate_classes(
         rig, xy, mask, classes, num_classes=17, method=preset, sigma_pool="scene"
     )
     return synthetic_recall(out, joints3d, exists), time.perf_counter() - start
+
+
+# BODY_25 index of every COCO-17 joint; BODY_25's neck and mid-hip are made from the
+# shoulders and the hips, as Shelf's PCP reads them (shelf_score.shelf_from_body25).
+BODY25_OF_COCO = (0, 16, 15, 18, 17, 5, 2, 6, 3, 7, 4, 12, 9, 13, 10, 14, 11)
+
+
+def shelf_joints(coco: np.ndarray) -> np.ndarray:
+    """Shelf's ``(15, 3)`` joints from COCO-17 joints ``(17, 3)`` (NaN: missing)."""
+    body = np.full((25, 3), np.nan)
+    body[list(BODY25_OF_COCO)] = coco
+    body[1] = 0.5 * (coco[5] + coco[6])  # neck: the shoulders' centre
+    body[8] = 0.5 * (coco[11] + coco[12])  # mid-hip
+    return shelf_score["shelf_from_body25"](body)
+
+
+def synthetic_pcp(rig, scenes, preset: str) -> float:
+    """Shelf's PCP (10 parts, actors 0–2) of the people of ``preset`` with the person vote:
+    ``associate_classes(..., instances=, person_vote=True)``, then ``identify_people``."""
+    import cdog_jax
+
+    xy, mask, classes, joints3d, exists, instances = scenes
+    result = cdog_jax.associate_classes(
+        rig,
+        xy,
+        mask,
+        classes,
+        num_classes=17,
+        method=preset,
+        instances=instances,
+        person_vote=True,
+    )
+    people = cdog_jax.identify_people(result, instances)
+    predicted = [
+        [shelf_joints(people.points[f, n]) for n in np.flatnonzero(people.person_id[f] >= 0)]
+        for f in range(xy.shape[0])
+    ]
+    truth = [
+        {int(k): shelf_joints(joints3d[f, k]) for k in np.flatnonzero(exists[f])}
+        for f in range(xy.shape[0])
+    ]
+    return shelf_score["pcp"](predicted, truth, range(xy.shape[0]))["pcp_mean"]
 
 
 def real_rows(data: str, work: str) -> dict[str, float]:
@@ -135,6 +191,13 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--sequences", type=int, default=16)
     p.add_argument("--frames", type=int, default=10)
     p.add_argument("--presets", default=",".join(PRESETS))
+    p.add_argument(
+        "--real-pcp",
+        type=float,
+        help="Shelf's dev PCP of best() with the person vote and no temporal prior "
+        "(shelf_table.py's --no-temporal-prior row), for the PCP line",
+    )
+    p.add_argument("--pcp-preset", default="best", help="the preset of the PCP line")
     p.add_argument("--json", help="write the table here")
     args = p.parse_args(argv)
     presets = [s.strip() for s in args.presets.split(",")]
@@ -150,6 +213,7 @@ def main(argv: list[str] | None = None) -> dict:
         "+ keypoint errors": dict(view_spread=0.22, errors=True),
     }
     table = {name: {"shelf dev frames": real.get(name)} for name in presets}
+    table["pcp"] = {"shelf dev frames": args.real_pcp}
     for setting, options in settings.items():
         scenes = synthetic_scenes(
             rig, size, sigma=args.sigma, sequences=args.sequences, frames=args.frames, **options
@@ -158,6 +222,8 @@ def main(argv: list[str] | None = None) -> dict:
             recall, seconds = run_synthetic(rig, scenes, name)
             table[name][setting] = recall
             print(f"{setting:18s} {name:10s} recall {recall:.3f} ({seconds:.0f} s)", flush=True)
+        table["pcp"][setting] = synthetic_pcp(rig, scenes, args.pcp_preset)
+        print(f"{setting:18s} {args.pcp_preset}() people, PCP {table['pcp'][setting]}", flush=True)
     print("| preset | Shelf dev frames | " + " | ".join(settings) + " |")
     print("|---|---|" + "---|" * len(settings))
     for name in presets:
@@ -165,6 +231,13 @@ def main(argv: list[str] | None = None) -> dict:
         cells = [f"{row[s]:.3f}" for s in settings]
         shown = "" if row["shelf dev frames"] is None else f"{row['shelf dev frames']:.3f}"
         print(f"| {name}() | {shown} | " + " | ".join(cells) + " |")
+    row = table["pcp"]
+    real_pcp = "" if row["shelf dev frames"] is None else f"{row['shelf dev frames']:.1f}"
+    print(
+        f"| PCP, {args.pcp_preset}() + person vote | {real_pcp} | "
+        + " | ".join(f"{row[s]:.1f}" for s in settings)
+        + " |"
+    )
     if args.json:
         with open(args.json, "w") as f:
             json.dump(table, f, indent=1)
