@@ -182,15 +182,20 @@ def person_markers(people: Any) -> dict[int, np.ndarray]:
     """``{person id: (F, C, 3)}`` the skeleton of every person of a :class:`cdog_jax.People`
     over all its frames (NaN where the person or the joint is not seen)."""
     points, ids = np.asarray(people.points), np.asarray(people.person_id)
-    F, _, C, _ = points.shape
-    out = {}
-    for pid in range(int(people.num_people)):
-        f, n = np.nonzero(ids == pid)
-        if f.size:
-            X = np.full((F, C, 3), np.nan, points.dtype)
-            X[f] = points[f, n]
-            out[pid] = X
-    return out
+    return {
+        pid: _person_rows(points, ids, pid)
+        for pid in range(int(people.num_people))
+        if np.any(ids == pid)
+    }
+
+
+def _person_rows(points: np.ndarray, ids: np.ndarray, pid: int) -> np.ndarray:
+    """``(F, C, 3)`` person ``pid``'s joints in every frame of ``points (F, N, C, 3)`` whose
+    rows ``ids (F, N)`` name it (NaN in frames without it)."""
+    X = np.full((points.shape[0],) + points.shape[2:], np.nan, points.dtype)
+    f, n = np.nonzero(ids == pid)
+    X[f] = points[f, n]
+    return X
 
 
 def marker_names(class_names: Any, num_classes: int) -> tuple[str, ...]:
@@ -307,11 +312,7 @@ class TrcParts:
             def blocks(pid=pid):
                 for _, file in self.parts:
                     with np.load(file) as part:
-                        points, ids = part["points"], part["person_id"]
-                    X = np.full((points.shape[0], C, 3), np.nan, points.dtype)
-                    f, n = np.nonzero(ids == pid)
-                    X[f] = points[f, n]
-                    yield X
+                        yield _person_rows(part["points"], part["person_id"], pid)
 
             _save_trc_rows(target, blocks, self.frames, names, rate, units, z_up)
             written.append(target)

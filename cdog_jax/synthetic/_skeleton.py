@@ -92,7 +92,15 @@ _GRID_SPACING = (
 _GRID_JITTER = 0.2
 
 
-COCO_MIRROR = np.array([0, 2, 1, 4, 3, 6, 5, 8, 7, 10, 9, 12, 11, 14, 13, 16, 15], np.int32)
+COCO_MIRROR = np.array(
+    [
+        SKELETON_JOINTS.index(
+            name.replace("left", "\0").replace("right", "left").replace("\0", "right")
+        )
+        for name in SKELETON_JOINTS
+    ],
+    np.int32,
+)
 """The joint of the other side for each COCO-17 joint (the nose is its own)."""
 
 _HIDING_PAD = 0.1  # a person's image box, padded by this share of its size on each side
