@@ -155,15 +155,18 @@ def _rule_modules(method) -> list:
 
 def cache_folder(cache: str, name: str, method, base: Grid) -> str:
     """The cache folder of ``method`` (registered as ``name``) on the base grid ``base``."""
-    from cdog_jax.metrics import _scores
-    from cdog_jax.synthetic import _scene
+    # The files that generate and score the scenes, reached through their public functions.
+    from cdog_jax.metrics import scene_metrics
+    from cdog_jax.synthetic import generate_scene
 
     key = json.dumps(
         {
             "name": name,
             "method": repr(method),
             "version": cdog_jax.__version__,
-            "source": _source_hash(type(method), *_rule_modules(method), _scene, _scores),
+            "source": _source_hash(
+                type(method), *_rule_modules(method), generate_scene, scene_metrics
+            ),
             "grid": dataclasses.asdict(base),
             "buckets": BUCKETS,
         },
