@@ -19,7 +19,7 @@ from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..geometry._triangulate import dlt_blocks
 from ..graph._groups import groups_from_labels
-from ..refine._hypotheses import score_hypotheses, voter_distances
+from ..refine._hypotheses import accepted_row, score_hypotheses
 from ._candidates import nearest_candidates, symmetric_cost
 
 
@@ -96,11 +96,11 @@ def voting_groups(
 
     # Each step jumps to the next ranked hypothesis whose two detections are unused and
     # accepts it, so the loop runs once per group (not once per hypothesis); a step that
-    # finds none ends it. Every acceptance uses two unused detections, so at most G steps
-    # accept: the bound G + 1 cannot be reached.
+    # finds none ends it. Every acceptance uses two unused detections, so after G = N // 2
+    # of them no hypothesis is left: the bound (as seeding's) ends nothing early.
     def cond(carry):
         _, _, num_groups, k = carry
-        return (k < num_ranked) & (num_groups <= G)
+        return (k < num_ranked) & (num_groups < G)
 
     def body(carry):
         used, groups, num_groups, k = carry
@@ -109,13 +109,7 @@ def voting_groups(
         k = jnp.min(jnp.where(alive, rank, num_ranked))
         found = k < num_ranked
         h = jnp.minimum(k, src.shape[0] - 1)
-        a, b = src[h], dst[h]
-        dist = jnp.where(
-            used, jnp.inf, voter_distances(xy, mask, xy_hat[h], vote_views[h])
-        )  # (M, P)
-        slot = jnp.argmin(dist, axis=-1).astype(jnp.int32)  # first of equals: smallest slot
-        row = jnp.where(jnp.min(dist, axis=-1) < gate, slot, -1)
-        row = row.at[a // P].set(a % P).at[b // P].set(b % P)
+        row = accepted_row(xy, mask, used, xy_hat[h], vote_views[h], src[h], dst[h], gate)
         groups = groups.at[num_groups].set(jnp.where(found, row, groups[num_groups]), mode="drop")
         used = used | (found & (slots[None, :] == row[:, None]))
         return used, groups, num_groups + found.astype(jnp.int32), k + 1

@@ -41,6 +41,28 @@ def voter_distances(
     return jnp.where(votes, pixel_distances(xy_hat, xy), jnp.inf)
 
 
+def accepted_row(
+    xy: Float[Array, "M P 2"],
+    eligible: Bool[Array, "M P"],
+    used: Bool[Array, "M P"],
+    xy_hat: Float[Array, "M 2"],
+    vote_views: Bool[Array, " M"],
+    src: Int[Array, ""],
+    dst: Int[Array, ""],
+    gate_px: Float[Array, ""],
+) -> Int[Array, " M"]:
+    """The group row ``(M,)`` (slot per view or -1) that accepting one hypothesis makes: its
+    pair ``src``, ``dst`` (flat nodes ``view · P + slot``) and, in every other view where it
+    may vote, the nearest ``eligible`` detection not yet ``used`` within ``gate_px`` of its
+    point's pixel ``xy_hat`` (the first of equals: the smallest slot). Shared by seeding and
+    the ``voting`` baseline, which differ only in the order they try hypotheses in."""
+    P = eligible.shape[1]
+    dist = jnp.where(used, jnp.inf, voter_distances(xy, eligible, xy_hat, vote_views))  # (M, P)
+    slot = jnp.argmin(dist, axis=-1).astype(jnp.int32)
+    row = jnp.where(jnp.min(dist, axis=-1) < gate_px, slot, -1)
+    return row.at[src // P].set(src % P).at[dst // P].set(dst % P)
+
+
 def score_hypotheses(
     rig: Rig,
     xy: Float[Array, "M P 2"],

@@ -29,7 +29,7 @@ from ..geometry._camera import Rig
 from ..graph._adjacency import min_and_first_index
 from ..graph._groups import compact_groups
 from ._attach import leftover_nodes
-from ._hypotheses import score_hypotheses, voter_distances
+from ._hypotheses import accepted_row, score_hypotheses
 from ._support import missing_views
 
 
@@ -193,13 +193,9 @@ def seed_groups(
         h = jnp.min(jnp.where(alive, row_index, R))
         found = h < R
         h = jnp.minimum(h, R - 1)
-        a, b = hyp.src[h], hyp.dst[h]
-        dist = jnp.where(
-            used, jnp.inf, voter_distances(xy, free, hyp.xy_hat[h], hyp.vote_views[h])
-        )  # (M, P)
-        slot = jnp.argmin(dist, axis=-1).astype(jnp.int32)
-        row = jnp.where(jnp.min(dist, axis=-1) < gate_px, slot, -1)
-        row = row.at[a // P].set(a % P).at[b // P].set(b % P)
+        row = accepted_row(
+            xy, free, used, hyp.xy_hat[h], hyp.vote_views[h], hyp.src[h], hyp.dst[h], gate_px
+        )
         # Voters taken by earlier groups may leave fewer than min_views members: skip it.
         accept = found & (jnp.sum(row >= 0, dtype=jnp.int32) >= min_views)
         groups = groups.at[num_groups].set(jnp.where(accept, row, groups[num_groups]), mode="drop")

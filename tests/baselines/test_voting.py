@@ -79,3 +79,23 @@ def test_voting_single_view_has_no_groups():
         1.0,
     )
     assert g.shape == (2, 1) and not np.asarray(v).any() and int(st) == 0
+
+
+def test_voting_fills_every_row_when_every_detection_pairs_up():
+    """Two views, every slot a detection of a point both see: N // 2 groups, every row of
+    the table, and the loop's bound (the table's rows) ends nothing early."""
+    rig = default_rig(num_views=2)
+    rng = np.random.default_rng(3)
+    points = []
+    while len(points) < 6:  # points both views see, inside the image
+        X = rng.uniform(-0.8, 0.8, 3)
+        pix, front = project(rig, jnp.asarray(X[None], rig.K.dtype))
+        pix = np.asarray(pix)[:, 0]
+        if np.asarray(front).all() and ((pix > 20) & (pix < [620, 460])).all():
+            points.append(pix)
+    xy = np.stack(points, axis=1).astype(np.float32)  # (2, 6, 2)
+    mask = np.ones((2, 6), bool)
+    g, v, st = run(voting_groups, VotingOptions(), rig, jnp.asarray(xy), jnp.asarray(mask), 0.0)
+    check_table(g, v, st, mask)
+    assert np.asarray(v).shape == (6,) and np.asarray(v).all()
+    assert group_sets(g, v) == {frozenset({(0, k), (1, k)}) for k in range(6)}
