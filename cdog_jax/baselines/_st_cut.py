@@ -71,7 +71,7 @@ def _two_view_points(
 def projection_matrices(rig: Rig) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``K, R, t`` of ``rig`` as float64 arrays and the projections ``K [R | t]`` ``(M, 3, 4)``."""
     K, R, t = (np.asarray(a, np.float64) for a in (rig.K, rig.R, rig.t))
-    return K, R, t, K @ np.concatenate([R, t[:, :, None]], axis=2)
+    return K, R, t, rig.host_proj()
 
 
 def edge_points(

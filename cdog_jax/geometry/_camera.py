@@ -38,6 +38,12 @@ class Rig(eqx.Module):
             "...ij,...jk->...ik", self.K, jnp.concatenate([self.R, self.t[..., None]], -1)
         )
 
+    def host_proj(self) -> np.ndarray:
+        """:attr:`proj` computed in float64 by NumPy, ``(M, 3, 4)``: for the host-side
+        (NumPy) methods and checks, which must not round the cameras to float32 first."""
+        K, R, t = (np.asarray(a, np.float64) for a in (self.K, self.R, self.t))
+        return np.einsum("...ij,...jk->...ik", K, np.concatenate([R, t[..., None]], -1))
+
     @property
     def centers(self) -> Float[Array, "M 3"]:
         """Camera centres in world coordinates, ``C = -Rᵀ t``, ``(M, 3)``."""

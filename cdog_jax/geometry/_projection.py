@@ -44,9 +44,7 @@ def project_views_last(
     rig: Rig, X_world: Float[Array, "*S 3"]
 ) -> tuple[Float[Array, "*S M 2"], Bool[Array, "*S M"]]:
     """:func:`project` with the view axis last but one: ``(*S, M, 2)`` and ``(*S, M)``."""
-    proj = jnp.einsum(
-        "mij,mjk->mik", rig.K, jnp.concatenate([rig.R, rig.t[:, :, None]], axis=-1)
-    )  # (M, 3, 4)
+    proj = rig.proj  # (M, 3, 4)
     h = affine_per_view(proj[:, :, :3], proj[:, :, 3], X_world)  # (*S, M, 3)
     depth = affine_per_view(rig.R[:, 2:3, :], rig.t[:, 2:3], X_world)[..., 0]  # X_cam z, (*S, M)
     xy, ok = points_from_homogeneous(h)

@@ -335,10 +335,7 @@ class _Camera:
 
     def __init__(self, rig: Rig):
         self.rig = rig
-        Rt = np.concatenate(
-            [np.asarray(rig.R, np.float64), np.asarray(rig.t, np.float64)[:, :, None]], axis=-1
-        )
-        self.P = np.einsum("mij,mjk->mik", np.asarray(rig.K, np.float64), Rt)  # (M, 3, 4)
+        self.P = rig.host_proj()  # (M, 3, 4), float64
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         h = (
