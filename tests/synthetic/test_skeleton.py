@@ -217,7 +217,12 @@ def test_keypoint_errors_miss_hidden_joints_and_swap_sides():
     wrists = np.where(np.isin(np.arange(J), [9, 10]), 1.0, 0.0)
     gone = everything - _real_pairs(_errors_scenes(miss_rate=wrists).frames)
     assert gone == {p for p in everything - hidden_pairs if p[2] % J in (9, 10)}
+    # A hidden rate per joint: only the hidden wrists go, all of them.
+    gone = everything - _real_pairs(_errors_scenes(hidden_miss_rate=wrists).frames)
+    assert gone and gone == {p for p in hidden_pairs & everything if p[2] % J in (9, 10)}
     with pytest.raises(ValueError, match="swap_rate"):
         _errors_scenes(swap_rate=1.5)
+    with pytest.raises(ValueError, match=r"hidden_miss_rate must have shape \(\) or \(17,\)"):
+        _errors_scenes(hidden_miss_rate=np.zeros(3))
     with pytest.raises(ValueError, match=r"miss_rate must have shape \(\) or \(17,\)"):
         _errors_scenes(miss_rate=np.zeros(3))
