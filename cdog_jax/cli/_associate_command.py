@@ -211,8 +211,9 @@ def add_parsers(subparsers) -> None:
         "--part-frames",
         type=_positive_int,
         default=PART_FRAMES,
-        help=f"a long recording is associated, tracked and identified in parts of this many frames, one "
-        f"after the other (memory: that of one part; default {PART_FRAMES})",
+        help="a recording more than a quarter longer than this many frames is associated, tracked and "
+        f"identified in parts of it, one after the other (memory: that of one part; default "
+        f"{PART_FRAMES})",
     )
     p.add_argument(
         "--temporal-prior",
@@ -252,9 +253,18 @@ def add_parsers(subparsers) -> None:
     r.set_defaults(func=run_rig)
 
 
-PART_FRAMES = 500
+PART_FRAMES = 300
 """Frames of a recording associated at once by ``cdog-jax associate``: a longer one goes in
 parts (the tracks and people continue from part to part), so its memory stays that of one."""
+
+
+def in_parts(frames: int, part_frames: int) -> bool:
+    """A recording of ``frames`` goes in parts of ``part_frames``: when it is more than a
+    quarter longer than one part. Up to that it is one part: split, its short last part
+    would be padded to a whole part's work (a recording of 301 frames in parts of 300 would
+    cost two parts' time) for a peak memory a quarter lower at most."""
+    return frames > part_frames + part_frames // 4
+
 
 _DONE = object()
 """What a streamed part's results are replaced with once written (they are not kept)."""
@@ -385,7 +395,9 @@ def _load(args):
                     f"--keypoints: expected one of {', '.join(SKELETONS)}; got {keypoints!r}"
                 )
             part_frames = getattr(args, "part_frames", None)
-            if part_frames and len(_OpenPoseFiles(args.points, None).frame_ids) > part_frames:
+            if part_frames and in_parts(
+                len(_OpenPoseFiles(args.points, None).frame_ids), part_frames
+            ):
                 tally = _Tally(rig_file.rig.K.dtype, args.points)
                 reader = OpenPoseParts(
                     args.points,
@@ -711,7 +723,7 @@ def run_associate(args: argparse.Namespace) -> int:
     frames = [slice(s, s + args.part_frames) for s in range(0, F, args.part_frames)]
     if parts is not None:
         frames = parts.reader.parts
-    elif not sequence or len(frames) < 2:
+    elif not sequence or not in_parts(F, args.part_frames):
         frames = [slice(None)]
     # Every part meets the programs the first compiled: the whole recording's shapes.
     num_classes, shapes = None, {}

@@ -213,3 +213,11 @@ def _assert_near(a, b, where: str) -> None:
         assert isinstance(b, float) and abs(a - b) <= 1e-5 * max(1.0, abs(a)), where
     else:
         assert a == b, where
+
+
+def test_a_recording_a_quarter_longer_than_a_part_stays_whole():
+    from cdog_jax.cli._associate_command import PART_FRAMES, in_parts
+
+    assert not in_parts(PART_FRAMES, PART_FRAMES)
+    assert not in_parts(301, 300) and not in_parts(375, 300) and in_parts(376, 300)
+    assert not in_parts(2, 2) and in_parts(3, 2)  # small parts: any frame more splits
