@@ -125,7 +125,8 @@ SHELF_MISSED = _sides_averaged(
     }
 )
 """``(17,)`` how often Shelf's OpenPose detector misses each joint of an annotated actor in
-sight of a camera (dev frames, within 50 px; left and right averaged):
+sight of a camera, hidden by another person or not (dev frames, within 50 px; left and right
+averaged):
 ``experiments/real/shelf_detections.py``."""
 SHELF_HIDDEN_RATIO = 0.241 / 0.084
 """How many times more often Shelf's detector misses a joint that another annotated actor
@@ -182,7 +183,7 @@ class KeypointErrors(eqx.Module):
         """The rates of Shelf's OpenPose detections of its annotated actors (dev frames,
         joints within 50 px of the annotation; experiments/RESULTS.md, "Shelf's detections
         beside its ground truth"), fitted to these scenes: each joint is missed as often as
-        Shelf's detector misses it (:data:`SHELF_MISSED`: shoulders 2.1 %, elbows 15.9 %,
+        Shelf's detector misses it (shoulders 2.1 %, elbows 15.9 %,
         wrists 21.9 %, hips 4.1 %, knees 5.2 %, ankles 6.5 %; the face the limbs' mean),
         a hidden joint 2.9 times as often as one in sight (Shelf's ratio), given the share
         of hidden joints in people scenes seen by Shelf's cameras (21.8 %); 0.5 % swapped."""
