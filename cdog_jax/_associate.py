@@ -137,10 +137,10 @@ def associate(
     detections' extent ``hypot(max |x|, max |y|)`` where that is larger.
 
     The compiled program runs at a padded capacity: the smallest rung of the ladder 4, 6, 8,
-    12, 16, 24, 32, 48, 64, 80, 96, 112, 128, 160, … that holds the slots in use (``P`` less the trailing slots no view
-    fills), or the slots in use themselves where only that fits the memory budget, so that
-    frames of different counts share a handful of programs; the result is brought back to
-    ``P``.
+    12, 16, 24, 32, 48, 64, 80, 96, 112, 128, 160, … that holds the slots in use (``P`` less
+    the trailing slots no view fills), or the slots in use themselves where only that fits
+    the memory budget, so that frames of different counts share a handful of programs; the
+    result is brought back to ``P``.
 
     Returns:
         An :class:`Association` (labels, groups, points, errors). Its ``status`` is

@@ -211,9 +211,9 @@ def add_parsers(subparsers) -> None:
         "--part-frames",
         type=_positive_int,
         default=PART_FRAMES,
-        help="a recording more than a quarter longer than this many frames is associated, tracked and "
-        f"identified in parts of it, one after the other (memory: that of one part; default "
-        f"{PART_FRAMES})",
+        help="a recording more than a quarter longer than this many frames is associated, "
+        "tracked and identified in parts of it, one after the other (memory: that of one "
+        f"part; default {PART_FRAMES})",
     )
     p.add_argument(
         "--temporal-prior",

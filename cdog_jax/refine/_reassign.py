@@ -222,8 +222,8 @@ def merge_split_groups(
 def reassign_stage(scene: Scene, state: State, options: ReassignOptions) -> State:
     """Rounds of nearest-point re-assignment and merging of split groups, refitting between.
 
-    A table of more than twice :data:`ROW_BLOCK` rows is first compacted (its groups to the front,
-    in their order) and then measured only up to its last group: a round fills or merges
+    A table of more than twice :data:`ROW_BLOCK` rows is first compacted (its groups to the
+    front, in their order) and then measured only up to its last group: a round fills or merges
     only rows that held a group, and every tie goes to the earlier row in both orders, so
     the result is the same."""
     P = scene.mask.shape[1]
