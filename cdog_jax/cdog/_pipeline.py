@@ -666,7 +666,8 @@ class Config(ConfigMethods):
 
     # reassign: each detection to its nearest group point, refitting and merging ------------
     reassign: bool = False
-    # Rounds of re-assignment, refitting and merging.
+    # The most rounds of re-assignment, refitting and merging (a round that changes nothing
+    # ends them).
     reassign_iters: int = 3
     # Traced, > 0: a detection joins its nearest point within reassign_frac · τ.
     reassign_frac: float = 2.0

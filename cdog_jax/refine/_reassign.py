@@ -20,7 +20,10 @@ whose views do not overlap. Each of ``reassign_iters`` rounds, with the gate
    smallest. Each ``k`` takes at most one group per round (the nearest), and a group that
    moves takes none.
 
-The rounds are a ``fori_loop`` of fixed length: there is no bound to reach.
+At most ``reassign_iters`` rounds. A round reads nothing but the table (and the scene), so
+a round that returns its table unchanged has reached a fixed point: every later round would
+return it again, and the loop stops there with the same table (in a batch, once every scene
+has stopped).
 """
 
 from collections.abc import Callable
@@ -225,27 +228,44 @@ def reassign_stage(scene: Scene, state: State, options: ReassignOptions) -> Stat
     A table of more than twice :data:`ROW_BLOCK` rows is first compacted (its groups to the
     front, in their order) and then measured only up to its last group: a round fills or merges
     only rows that held a group, and every tie goes to the earlier row in both orders, so
-    the result is the same."""
-    P = scene.mask.shape[1]
+    the result is the same. The rounds stop early where one returns its table unchanged (a
+    fixed point of :func:`reassign_round`)."""
     gate = scene.thresholds.reassign_frac * scene.tau
     table, filled = state.table, None
     if table.groups.shape[0] > 2 * ROW_BLOCK:
         groups, valid, _ = compact_groups(table.groups, table.valid)
         table, filled = GroupTable(groups, valid), jnp.sum(valid, dtype=jnp.int32)
 
-    def one_round(_, table):
-        fit = fit_groups(scene, table)
-        usable = _usable(table, fit.X)
+    def body(carry):
+        done, table, _ = carry
+        new = reassign_round(scene, table, gate, filled)
+        changed = jnp.any(new.groups != table.groups) | jnp.any(new.valid != table.valid)
+        return done + 1, new, changed
 
-        def err_of_rows(start):
-            return _node_errors(scene, _rows(fit.X, start, filled), _rows(usable, start, filled))
-
-        table = reassign_nearest(table, err_of_rows, gate, P, filled)
-        return merge_split_groups(scene, table, fit_groups(scene, table).X, gate, filled)
-
-    table = jax.lax.fori_loop(0, options.reassign_iters, one_round, table)
+    _, table, _ = jax.lax.while_loop(
+        lambda carry: (carry[0] < options.reassign_iters) & carry[2],
+        body,
+        (jnp.int32(0), table, jnp.bool_(True)),
+    )
     groups, valid, _ = compact_groups(table.groups, table.valid)
     return state._replace(table=GroupTable(groups, valid), fit=None)
+
+
+def reassign_round(
+    scene: Scene, table: GroupTable, gate: Float[Array, ""], filled: Int[Array, ""] | None = None
+) -> GroupTable:
+    """One round of :func:`reassign_stage`: the table fitted, every detection re-assigned to
+    its nearest group point within ``gate`` px, the table fitted again and split groups
+    merged. A function of the table alone (``filled`` as :func:`min_over_rows` reads it)."""
+    P = scene.mask.shape[1]
+    fit = fit_groups(scene, table)
+    usable = _usable(table, fit.X)
+
+    def err_of_rows(start):
+        return _node_errors(scene, _rows(fit.X, start, filled), _rows(usable, start, filled))
+
+    table = reassign_nearest(table, err_of_rows, gate, P, filled)
+    return merge_split_groups(scene, table, fit_groups(scene, table).X, gate, filled)
 
 
 REASSIGN = Stage(

@@ -10,6 +10,7 @@ from cdog_jax import Config
 from cdog_jax.cdog._stage import GroupTable, Scene, State
 from cdog_jax.geometry._epipolar import epipolar_distances
 from cdog_jax.geometry._triangulate import dlt_blocks
+from cdog_jax.graph._groups import compact_groups
 from cdog_jax.refine import _reassign
 from cdog_jax.refine._fit import fit_groups
 from cdog_jax.refine._reassign import ReassignOptions, merge_split_groups, reassign_stage
@@ -201,3 +202,31 @@ def test_a_large_table_measured_a_block_of_rows_at_a_time_gives_the_whole_tables
     np.testing.assert_array_equal(np.asarray(blocked.groups), np.asarray(whole.groups))
     np.testing.assert_array_equal(np.asarray(blocked.valid), np.asarray(whole.valid))
     assert _partition(whole, 4) != _partition(state.table, 4)  # the rounds changed something
+
+
+@pytest.mark.parametrize("seed, sigma, rounds_that_change", [(10, 1.0, 3), (3, 2.0, 1)])
+def test_the_rounds_stop_at_a_fixed_point_with_the_table_of_every_round_run(
+    seed, sigma, rounds_that_change
+):
+    # reassign_stage stops where a round returns its table unchanged; its table is that of
+    # reassign_round applied reassign_iters times, whatever the bound. In the first scene
+    # (split and swapped points) three rounds change the table, so a loop that stopped too
+    # early differs; in the second only the first does, so the stop is reached.
+    scene, inst = _scene(sigma=sigma, seed=seed, num_points=10)
+    groups, valid = _truth(inst, scene.mask)
+    table, _, _ = _split_and_swap(groups, valid, swap=True)
+    gate = scene.thresholds.reassign_frac * scene.tau
+    rounds = [table]
+    for _ in range(6):
+        rounds.append(_reassign.reassign_round(scene, rounds[-1], gate))
+
+    def same(a, b):
+        return np.array_equal(np.asarray(a.groups), np.asarray(b.groups)) and np.array_equal(
+            np.asarray(a.valid), np.asarray(b.valid)
+        )
+
+    assert next(k for k in range(6) if same(rounds[k], rounds[k + 1])) == rounds_that_change
+    for iters in (1, 2, 3, 6):
+        got = reassign_stage(scene, State(table, None, jnp.int32(0)), ReassignOptions(iters))
+        want = GroupTable(*compact_groups(rounds[iters].groups, rounds[iters].valid)[:2])
+        assert same(got.table, want), iters
