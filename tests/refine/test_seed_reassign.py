@@ -12,6 +12,7 @@ from cdog_jax.geometry._epipolar import epipolar_distances
 from cdog_jax.geometry._triangulate import dlt_blocks
 from cdog_jax.graph._groups import compact_groups
 from cdog_jax.refine import _reassign
+from cdog_jax.refine._attach import leftover_nodes
 from cdog_jax.refine._fit import fit_groups
 from cdog_jax.refine._reassign import ReassignOptions, merge_split_groups, reassign_stage
 from cdog_jax.refine._seed import SeedOptions, seed_stage
@@ -152,8 +153,8 @@ def test_reassignment_detaches_wrong_members_and_seeding_again_restores_them():
 
 def test_seeding_a_chunk_of_free_detections_at_a_time_is_seeding_at_once(monkeypatch):
     # Above one chunk, the free detections' hypotheses are made and scored a chunk at a
-    # time; with chunks of 8 detections (3 of them here) the seeded groups are those of one
-    # pass over all.
+    # time; with chunks of 8 detections (the default; 3 of them here) or 5 the seeded
+    # groups are those of one pass over all.
     import cdog_jax.refine._seed as seed_module
 
     scene, inst = _scene(sigma=1.0, seed=5, two_view=(7,))
@@ -163,13 +164,16 @@ def test_seeding_a_chunk_of_free_detections_at_a_time_is_seeding_at_once(monkeyp
         jnp.asarray(np.where((valid & kept)[:, None], groups, -1)), jnp.asarray(valid & kept)
     )
     start = State(given, None, jnp.int32(0))
-    whole = seed_stage(scene, start, SeedOptions(2))
-    assert 4 * P <= seed_module.SOURCE_CHUNK  # one chunk: every detection's hypotheses at once
-    monkeypatch.setattr(seed_module, "SOURCE_CHUNK", 8)
-    chunked = seed_stage(scene, start, SeedOptions(2))
-    np.testing.assert_array_equal(np.asarray(chunked.table.groups), np.asarray(whole.table.groups))
-    np.testing.assert_array_equal(np.asarray(chunked.table.valid), np.asarray(whole.table.valid))
-    assert len(_partition(whole.table, 4) - _partition(given, 4)) >= 5  # seeding did find groups
+    assert int(np.sum(np.asarray(leftover_nodes(*given, scene.mask)))) > 2 * 8
+    chunked = {}
+    for chunk in (4 * P, 8, 5):  # 4 · P: every detection's hypotheses at once
+        monkeypatch.setattr(seed_module, "SOURCE_CHUNK", chunk)
+        chunked[chunk] = seed_stage(scene, start, SeedOptions(2)).table
+    whole = chunked[4 * P]
+    for chunk in (8, 5):
+        np.testing.assert_array_equal(np.asarray(chunked[chunk].groups), np.asarray(whole.groups))
+        np.testing.assert_array_equal(np.asarray(chunked[chunk].valid), np.asarray(whole.valid))
+    assert len(_partition(whole, 4) - _partition(given, 4)) >= 5  # seeding did find groups
 
 
 @pytest.mark.parametrize("split_all", [False, True])
