@@ -172,6 +172,31 @@ def stage_options(stage: Stage, config: Config):
     return stage.options(**{name: getattr(config, name) for name in stage.options._fields})
 
 
+_DERIVED: dict = {}
+"""``(id(config), what, changes) → (config, copy)``: the copies :meth:`Config.replace` and
+:meth:`Config.structure` made, so that a loop that derives the same copy of the same config
+every call (a live frame: the σ made given, the jit key) checks and builds it once (about
+0.2 ms each). Keyed by the config's identity (kept alive beside its copy): equal configs of
+other field types (``1`` and ``1.0``) never share a copy."""
+_DERIVED_MOST = 256
+
+
+def _derived(config, what: str, changes: dict):
+    """``dataclasses.replace(config, **changes)``, made once per config object and changes."""
+    try:
+        key = (id(config), what, tuple((k, type(v), v) for k, v in sorted(changes.items())))
+        hit = _DERIVED.get(key)
+    except TypeError:  # a value that cannot be hashed: made anew
+        return dataclasses.replace(config, **changes)
+    if hit is not None and hit[0] is config:
+        return hit[1]
+    copy = dataclasses.replace(config, **changes)
+    if len(_DERIVED) >= _DERIVED_MOST:
+        _DERIVED.clear()
+    _DERIVED[key] = (config, copy)
+    return copy
+
+
 def plan(
     config: Config, stages: tuple[Stage, ...] | None = None
 ) -> tuple[tuple[Stage, object], ...]:
@@ -471,7 +496,7 @@ class ConfigMethods(Method):
 
     def replace(self, **changes) -> Config:
         """A copy with ``changes`` applied; checked like a new Config."""
-        return dataclasses.replace(self, **changes)
+        return _derived(self, "replace", changes)
 
     def thresholds(self, sigma_px=0.0, *, dtype=None) -> Thresholds:
         """The numeric fields (and σ) as a :class:`Thresholds` of scalar arrays.
@@ -490,9 +515,8 @@ class ConfigMethods(Method):
 
     def structure(self) -> Config:
         """This config with its numeric fields reset to the defaults: the part a jit key needs."""
-        return dataclasses.replace(
-            self, **{name: type(self).options[name].default for name in _numbers(type(self))}
-        )
+        defaults = {name: type(self).options[name].default for name in _numbers(type(self))}
+        return _derived(self, "structure", defaults)
 
     def check_thresholds(self, thresholds: Thresholds) -> None:
         """Raise for a concrete threshold outside its range (:data:`RANGES`)."""
