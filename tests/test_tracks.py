@@ -481,3 +481,25 @@ def test_a_recording_tracked_in_parts_equals_the_whole(max_gap):
                 rtol=0, atol=1e-5,
             )  # fmt: skip
     assert state.rows == result.association.valid.shape[1]
+
+
+@pytest.mark.parametrize("displaced", [0, 1, 2, 3])
+def test_the_prior_drops_the_worst_view_until_the_rest_agree(displaced):
+    # A point seen by 6 views, missed by the association in frame 1, where the first
+    # `displaced` views see its detection 11 px off: the prior drops them one a round, the
+    # worst first, and recovers the point from the views that agree (a search that stopped
+    # after fewer rounds would keep an outlier and refuse the point).
+    views = 6
+    rig = ring_rig(num_views=views)
+    truth = np.stack([X0 + STEP * f for f in range(2)])
+    xy = np.stack([project_np(rig, truth[f])[0] for f in range(2)]).astype(np.float32)
+    instance = np.broadcast_to(np.arange(2), (2, views, 2))
+    mask = np.ones((2, views, 2), bool)
+    result = associate_batch(rig, xy, mask, method="paper", sigma=1.0)
+    missed = _without_group(result, 1, 0, instance)
+    xy[1, :displaced, 0] += 8.0
+    tracked = track_groups(rig, missed, xy=xy, mask=mask, temporal_prior=True, max_err_px=3.0)
+    f, g = np.argwhere(np.asarray(tracked.recovered))[0]
+    assert f == 1 and int(tracked.association.n_views[f, g]) == views - displaced
+    kept = np.asarray(tracked.association.groups[f, g]) >= 0
+    assert not kept[:displaced].any() and kept[displaced:].all()
