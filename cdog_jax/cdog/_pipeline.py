@@ -175,8 +175,8 @@ def stage_options(stage: Stage, config: Config):
 _DERIVED: dict = {}
 """``(id(config), what, changes) → (config, copy)``: the copies :meth:`Config.replace` and
 :meth:`Config.structure` made, so that a loop that derives the same copy of the same config
-every call (a live frame: the σ made given, the jit key) checks and builds it once (about
-0.2 ms each). Keyed by the config's identity (kept alive beside its copy): equal configs of
+every call (a live frame: the σ made given, the jit key) checks and builds it once (a
+fraction of a millisecond each). Keyed by the config's identity (kept alive beside its copy): equal configs of
 other field types (``1`` and ``1.0``) never share a copy."""
 _DERIVED_MOST = 256
 

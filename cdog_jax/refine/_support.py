@@ -85,8 +85,8 @@ def support_keep(
 
     # P(Bin(T, q) >= k): a sum of the binomial pmf over j = k … T ≤ M. Its log-factorials
     # are of whole numbers up to M: read from one table of lgamma(0 … M + 1) (the same
-    # values, M + 2 evaluations instead of three per group and j).
-    log_factorial = jax.lax.lgamma(jnp.arange(M + 2, dtype=dtype))  # [n] = lgamma(n) = log (n − 1)!
+    # values, M + 2 evaluations instead of three per group and j); [n] = log (n − 1)!.
+    log_factorial = jax.lax.lgamma(jnp.arange(M + 2, dtype=dtype))
     j_views = jnp.arange(M + 1, dtype=jnp.int32)[None, :]  # (1, M + 1)
     j = j_views.astype(dtype)
     Tc, kc = T[:, None], k[:, None]
