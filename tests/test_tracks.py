@@ -486,7 +486,7 @@ def test_a_recording_tracked_in_parts_equals_the_whole(max_gap):
 @pytest.mark.parametrize("displaced", [0, 1, 2, 3])
 def test_the_prior_drops_the_worst_view_until_the_rest_agree(displaced):
     # A point seen by 6 views, missed by the association in frame 1, where the first
-    # `displaced` views see its detection 11 px off: the prior drops them one a round, the
+    # `displaced` views see its detection 8 px off: the prior drops them one a round, the
     # worst first, and recovers the point from the views that agree (a search that stopped
     # after fewer rounds would keep an outlier and refuse the point).
     views = 6

@@ -16,8 +16,8 @@ def test_compaction_is_the_stable_sort_of_the_rows_on_validity(flags):
     valid = np.asarray(flags)
     G = len(valid)
     groups = np.arange(G * 3, dtype=np.int32).reshape(G, 3)  # every row tells where it came from
-    # One program per length: the lengths the strategy draws, padded to 12 with invalid rows,
-    # sort the same way on both sides.
+    # One program for every length drawn: the rows padded to 12 with invalid ones, which
+    # sort last on both sides.
     pad = 12 - G
     valid_p = np.concatenate([valid, np.zeros(pad, bool)])
     groups_p = np.concatenate([groups, np.full((pad, 3), -1, np.int32)])
