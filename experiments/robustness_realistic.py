@@ -9,7 +9,10 @@ epipolar distance 5.7 px, 27 % beyond 10 px), what recall within 10 cm, share of
 joining two true instances and σ̂ error each preset reaches.
 
 Presets: ``paper``, ``extended``, ``reference``, ``best`` and ``best_robust`` (``best()`` with
-``sigma_mode="robust"``, the σ estimator for heavy tails).
+``sigma_mode="robust"``, the σ estimator for heavy tails). For the gate fitted to the robust
+estimator's true-pair distances (``tau_mode="fitted"``), ``--presets extended_robust
+extended_fitted paper_robust paper_fitted --sigma-pool scene``: each preset with the robust
+estimator, with and without the fitted gate (which fits τ per scene, so σ too is per scene).
 
 Method (``cdog_jax.synthetic``):
 
@@ -71,9 +74,17 @@ from cdog_jax.synthetic import (
 )
 
 PRESETS = ("paper", "extended", "reference", "best", "best_robust")
-# Presets that are not registered names: best() with the heavy-tail σ estimator.
-METHODS = {"best_robust": Config.best(sigma_mode="robust")}
-ROBUST = {"best_robust"}  # presets whose σ̂ comes from the robust estimator
+# Presets that are not registered names: the heavy-tail σ estimator, and the gate fitted to
+# its true-pair distances (τ per scene: on skeletons with --sigma-pool scene).
+METHODS = {
+    "best_robust": Config.best(sigma_mode="robust"),
+    "extended_robust": Config.extended(sigma_mode="robust"),
+    "extended_fitted": Config.extended(sigma_mode="robust", tau_mode="fitted"),
+    "paper_robust": Config.paper(sigma_mode="robust"),
+    "paper_fitted": Config.paper(sigma_mode="robust", tau_mode="fitted"),
+}
+GATE_PRESETS = ("extended_robust", "extended_fitted", "paper_robust", "paper_fitted")
+ROBUST = set(METHODS)  # presets whose σ̂ comes from the robust estimator
 
 
 def _method(preset):
@@ -276,7 +287,7 @@ def run_box(lv, scenes, family, preset, batch, rig, sigma="auto"):
     )
 
 
-def run_skeleton(family, preset, batch, rig, sigma="auto"):
+def run_skeleton(family, preset, batch, rig, sigma="auto", sigma_pool="frame"):
     out = associate_classes(
         rig,
         batch.xy,
@@ -285,6 +296,7 @@ def run_skeleton(family, preset, batch, rig, sigma="auto"):
         class_names=SKELETON_JOINTS,
         method=_method(preset),
         sigma=sigma,
+        sigma_pool=sigma_pool,
     )
     J = len(SKELETON_JOINTS)
     point_class = np.arange(batch.points3d.shape[1]) % J
@@ -351,7 +363,7 @@ def fit_tails(family, sequences, frames, seed, nus=FIT_NUS):
     return rows, best
 
 
-def targets(family, best, sequences, frames, seed, presets, given=True):
+def targets(family, best, sequences, frames, seed, presets, given=True, sigma_pool="frame"):
     """Skeleton scenes of 3, 4, 5 people with the fitted tails: recall within 10 cm, joined
     share, σ̂/σ per preset, with σ estimated and with the true σ given (not for a preset whose
     method estimates σ whatever it is given: ``best_robust``)."""
@@ -370,7 +382,7 @@ def targets(family, best, sequences, frames, seed, presets, given=True):
     }
     for preset in presets:
         for sigma in ("auto", best["sigma"]) if given and preset not in ROBUST else ("auto",):
-            s = run_skeleton(fam, preset, batch, rig, sigma=sigma)
+            s = run_skeleton(fam, preset, batch, rig, sigma=sigma, sigma_pool=sigma_pool)
             out["rows"].append(
                 {
                     "preset": preset,
@@ -396,10 +408,11 @@ def run(
     families=tuple(FAMILIES),
     quick=False,
     seed=SEED,
+    sigma_pool="frame",
     log=print,
 ):
     t0 = time.perf_counter()
-    out = {"presets": list(presets), "families": {}, "seed": seed}
+    out = {"presets": list(presets), "families": {}, "seed": seed, "sigma_pool": sigma_pool}
     for name in families:
         family = FAMILIES[name]
         lv = levels(family, quick)
@@ -410,7 +423,9 @@ def run(
         else:
             rig, batch = skeleton_batch(lv, sequences, frames, family, seed)
             per_level = sequences * frames
-            per_scene = {p: run_skeleton(family, p, batch, rig) for p in presets}
+            per_scene = {
+                p: run_skeleton(family, p, batch, rig, sigma_pool=sigma_pool) for p in presets
+            }
         out["families"][name] = {
             "sigma": family["sigma"],
             "radius": family["radius"],
@@ -428,7 +443,14 @@ def run(
     )
     log(f"fit: ν = {best['nu']}, σ = {best['sigma']:.2f} px, {time.perf_counter() - t0:.0f} s")
     out["targets"] = targets(
-        fam, best, sequences if quick else 4 * sequences, frames, seed, presets, given=not quick
+        fam,
+        best,
+        sequences if quick else 4 * sequences,
+        frames,
+        seed,
+        presets,
+        given=not quick,
+        sigma_pool=sigma_pool,
     )
     out["seconds"] = time.perf_counter() - t0
     return out
@@ -449,7 +471,9 @@ def markdown(out) -> str:
         head = ["level"] + [f"{p} {k}" for k in ("PG-F1", "G-F1", "recall", "σ̂/σ") for p in presets]
         lines += [
             "",
-            f"{name} (σ = {fam['sigma']:g} px, recall within {fam['radius']:g}, {fam['per_level']} scenes per level):",
+            f"{name} (σ = {fam['sigma']:g} px, recall within {fam['radius']:g}, {fam['per_level']} scenes per level"
+            + (f", σ pooled per {out.get('sigma_pool', 'frame')}" if name == "skeleton" else "")
+            + "):",
             "",
             "| " + " | ".join(head) + " |",
             "|" + "---|" * len(head),
@@ -565,13 +589,27 @@ def main(argv=None):
         help="skeleton sequences per level (×4 for the fit and the targets)",
     )
     parser.add_argument("--frames", type=int, default=5, help="frames per skeleton sequence")
-    parser.add_argument("--presets", nargs="+", choices=PRESETS, default=list(PRESETS))
+    parser.add_argument(
+        "--presets",
+        nargs="+",
+        choices=PRESETS + GATE_PRESETS,
+        default=None,
+        help=f"default: {' '.join(PRESETS)}",
+    )
     parser.add_argument("--seed", type=int, default=SEED)
     parser.add_argument("--families", nargs="+", choices=list(FAMILIES), default=list(FAMILIES))
     parser.add_argument(
+        "--sigma-pool",
+        choices=("frame", "scene"),
+        default="frame",
+        help="skeletons: one σ per frame (default, as associate_classes) or per (frame, joint) "
+        "scene (needed by the fitted gate)",
+    )
+    parser.add_argument(
         "--quick",
         action="store_true",
-        help="tiny run: skeletons only, paper() only, one level per factor, 2 frames, σ estimated only",
+        help="tiny run: skeletons only, paper() only (unless --presets), one level per factor, "
+        "2 frames, σ estimated only",
     )
     parser.add_argument(
         "--figure", default=os.path.join("experiments", "figures", "robustness_realistic.png")
@@ -579,13 +617,9 @@ def main(argv=None):
     parser.add_argument("--json", default=None, help="also write the numbers here")
     args = parser.parse_args(argv)
     if args.quick:
-        args.scenes, args.sequences, args.frames, args.presets, args.families = (
-            1,
-            1,
-            2,
-            ["paper"],
-            ["skeleton"],
-        )
+        args.scenes, args.sequences, args.frames, args.families = (1, 1, 2, ["skeleton"])
+        args.presets = args.presets or ["paper"]
+    args.presets = args.presets or list(PRESETS)
     out = run(
         scenes=args.scenes,
         sequences=args.sequences,
@@ -594,6 +628,7 @@ def main(argv=None):
         families=tuple(args.families),
         quick=args.quick,
         seed=args.seed,
+        sigma_pool=args.sigma_pool,
     )
     os.makedirs(os.path.dirname(os.path.abspath(args.figure)), exist_ok=True)
     figure(out, args.figure)

@@ -4,6 +4,8 @@ import importlib.util
 import math
 import pathlib
 
+import pytest
+
 SCRIPT = pathlib.Path(__file__).resolve().parents[1] / "experiments" / "robustness_realistic.py"
 
 
@@ -34,3 +36,18 @@ def test_robustness_realistic_quick(tmp_path, capsys):
     assert t["nu"] in script.FIT_NUS and t["sigma"] > 0 and len(t["rows"]) >= 1
     table = capsys.readouterr().out
     assert "| level | paper PG-F1 |" in table and "recall within 10 cm" in table
+
+
+def test_the_fitted_gate_runs_with_sigma_per_scene(tmp_path):
+    """The fitted gate's preset runs on skeletons with σ per (frame, joint) scene, and is
+    refused with σ pooled per frame (the gate is fitted per scene)."""
+    script = _load()
+    args = ["--quick", "--presets", "paper_fitted", "--figure", str(tmp_path / "r.png")]
+    out = script.main([*args, "--sigma-pool", "scene"])
+    assert out["presets"] == ["paper_fitted"] and out["sigma_pool"] == "scene"
+    rows = out["families"]["skeleton"]["rows"]
+    assert rows[0]["paper_fitted"]["recall"] == 1.0
+    for r in rows:
+        assert 0.0 <= r["paper_fitted"]["pg_f1"] <= 1.0, r
+    with pytest.raises(ValueError, match="sigma_pool='scene'"):
+        script.main(args)

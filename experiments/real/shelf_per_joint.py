@@ -9,8 +9,9 @@ recall@10cm of the 12 limb joints (:mod:`shelf_score`); the held-out frames are 
 
 The rows: the presets; then ``best()`` with one rule changed at a time: the validity
 gate's parallax and error bounds off, σ given instead of estimated, the robust σ
-estimator, σ pooled over each frame's joint types (as ``cdog-jax associate`` pools it), and
-the stages the former default ran. A rule that costs real recall shows as a row above
+estimator, the gate fitted to the robust estimator's true-pair distances
+(``tau_mode="fitted"``; also for ``extended()``), σ pooled over each frame's joint types (as
+``cdog-jax associate`` pools it), and the stages the former default ran. A rule that costs real recall shows as a row above
 ``best()``; the ground truth's own grouping bounds what any rule can reach.
 
     python experiments/real/shelf_per_joint.py PATH/TO/data/shelf [--rows best,paper] [--out rows.json]
@@ -42,6 +43,9 @@ ROWS: dict[str, tuple[str, dict, dict]] = {
     "best() σ = 4 px": ("best", {}, {"sigma": 4.0}),
     "best() σ = 8 px": ("best", {}, {"sigma": 8.0}),
     "best() robust σ": ("best", {"sigma_mode": "robust"}, {}),
+    "best() fitted gate": ("best", {"sigma_mode": "robust", "tau_mode": "fitted"}, {}),
+    "extended() robust σ": ("extended", {"sigma_mode": "robust"}, {}),
+    "extended() fitted gate": ("extended", {"sigma_mode": "robust", "tau_mode": "fitted"}, {}),
     "best() σ pooled per frame": ("best", {}, {"sigma_pool": "frame"}),
     "best() with IQR BPE filter regroup": (
         "best",
