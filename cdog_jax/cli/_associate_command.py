@@ -145,8 +145,9 @@ def add_parsers(subparsers) -> None:
         "--sigma",
         type=_sigma,
         default="auto",
-        help='detection noise σ in px; "auto" (default) estimates it assuming Gaussian noise; "robust" '
-        "estimates it allowing heavy tails (keypoint detectors, where far-off detections are common)",
+        help='detection noise σ in px; "auto" (default) estimates it assuming Gaussian noise (on '
+        'real pose keypoints too it finds more joints); "robust" estimates it allowing heavy '
+        "tails, nearer the true σ when far-off detections are common",
     )
     add_method_argument(p)
     p.add_argument(
