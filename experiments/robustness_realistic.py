@@ -366,7 +366,7 @@ def fit_tails(family, sequences, frames, seed, nus=FIT_NUS):
 def targets(family, best, sequences, frames, seed, presets, given=True, sigma_pool="frame"):
     """Skeleton scenes of 3, 4, 5 people with the fitted tails: recall within 10 cm, joined
     share, σ̂/σ per preset, with σ estimated and with the true σ given (not for a preset whose
-    method estimates σ whatever it is given: ``best_robust``)."""
+    method estimates σ whatever it is given: those of :data:`ROBUST`)."""
     fam = dict(family, sigma=best["sigma"])
     rig, batch = skeleton_batch(
         [("tails", best["nu"])], sequences, frames, fam, seed + 11, people=(3, 4, 5)

@@ -10,9 +10,10 @@ recall@10cm of the 12 limb joints (:mod:`shelf_score`); the held-out frames are 
 The rows: the presets; then ``best()`` with one rule changed at a time: the validity
 gate's parallax and error bounds off, σ given instead of estimated, the robust σ
 estimator, the gate fitted to the robust estimator's true-pair distances
-(``tau_mode="fitted"``; also for ``extended()``), σ pooled over each frame's joint types (as
-``cdog-jax associate`` pools it), and the stages the former default ran. A rule that costs real recall shows as a row above
-``best()``; the ground truth's own grouping bounds what any rule can reach.
+(``tau_mode="fitted"``; also for ``extended()``), σ pooled over each frame's joint types
+(as ``cdog-jax associate`` pools it), and the stages the former default ran. A rule that
+costs real recall shows as a row above ``best()``; the ground truth's own grouping bounds
+what any rule can reach.
 
     python experiments/real/shelf_per_joint.py PATH/TO/data/shelf [--rows best,paper] [--out rows.json]
 """
