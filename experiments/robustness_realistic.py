@@ -83,7 +83,7 @@ METHODS = {
     "paper_robust": Config.paper(sigma_mode="robust"),
     "paper_fitted": Config.paper(sigma_mode="robust", tau_mode="fitted"),
 }
-GATE_PRESETS = ("extended_robust", "extended_fitted", "paper_robust", "paper_fitted")
+GATE_PRESETS = tuple(name for name in METHODS if name not in PRESETS)  # by --presets only
 ROBUST = set(METHODS)  # presets whose σ̂ comes from the robust estimator
 
 
