@@ -42,7 +42,8 @@ def test_the_fitted_gate_runs_with_sigma_per_scene(tmp_path):
     """The fitted gate's preset runs on skeletons with σ per (frame, joint) scene, and is
     refused with σ pooled per frame (the gate is fitted per scene)."""
     script = _load()
-    args = ["--quick", "--presets", "paper_fitted", "--figure", str(tmp_path / "r.png")]
+    args = ["--quick", "--presets", "paper_fitted", "--families", "skeleton"]
+    args += ["--figure", str(tmp_path / "r.png")]
     out = script.main([*args, "--sigma-pool", "scene"])
     assert out["presets"] == ["paper_fitted"] and out["sigma_pool"] == "scene"
     rows = out["families"]["skeleton"]["rows"]
