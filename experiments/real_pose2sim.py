@@ -23,6 +23,7 @@ associates every joint type of every frame in one call (``cdog_jax.associate_cla
     python experiments/real_pose2sim.py                       # download (once), run, print
     python experiments/real_pose2sim.py --results experiments/RESULTS.md --figure experiments/figures/pose2sim.png
     python experiments/real_pose2sim.py --demo-dir DIR        # a demo folder already unpacked
+    python experiments/real_pose2sim.py --presets paper,extended,best --sigma-pools best
 """
 
 from __future__ import annotations
@@ -120,8 +121,9 @@ def find_inputs(demo: str) -> tuple[str, list[tuple[str, str, int]]]:
     return calib[0], trials
 
 
-def associate_trial(rig_file, pose: str, preset: str):
-    """Read one trial and associate all its joints; returns ``(detections, ClassAssociation, seconds)``."""
+def associate_trial(rig_file, pose: str, preset: str, sigma="auto", sigma_pool: str = "frame"):
+    """Read one trial and associate all its joints (σ estimated and pooled as ``sigma_pool``
+    says, or a given σ in px); returns ``(detections, ClassAssociation, seconds)``."""
     import jax
 
     from cdog_jax import associate_classes
@@ -139,7 +141,8 @@ def associate_trial(rig_file, pose: str, preset: str):
         det.classes,
         class_names=det.class_names,
         method=preset,
-        sigma="auto",
+        sigma=sigma,
+        sigma_pool=sigma_pool,
         dist=dist,
     )
     jax.block_until_ready(out.association.points3d)
@@ -173,6 +176,8 @@ def trial_stats(det, out, participants: int) -> dict:
         "err_p90": float(np.percentile(err, 90)) if err.size else float("nan"),
         "views_mean": float(n_views.mean()) if n_views.size else float("nan"),
         "sigma_median": float(np.median(np.asarray(a.sigma_px))),
+        "sigma_min": float(np.min(np.asarray(a.sigma_px))),
+        "sigma_max": float(np.max(np.asarray(a.sigma_px))),
         "pairs": int(seen.sum()),
         "exact": float(np.mean(per[seen] == participants)),
         "fewer": float(np.mean(per[seen] < participants)),
@@ -181,6 +186,38 @@ def trial_stats(det, out, participants: int) -> dict:
         "visible_fewer": float(np.mean(per[seen] < visible[seen])),
         "visible_more": float(np.mean(per[seen] > visible[seen])),
     }
+
+
+def sigma_table(rig_file, trials, preset: str, given: float, stats: dict) -> list[str]:
+    """The σ table's Markdown lines (printed as they come): the first multi-participant trial
+    associated with σ estimated and pooled each way, and with σ given; each row's numbers
+    also go into ``stats[name, preset, "sigma", setting]``."""
+    name, pose, participants = next(t for t in trials if t[2] > 1)
+    lines = [
+        f"σ on {name} ({preset}):",
+        "",
+        "| σ | σ̂ median (range) px | 3D points | assigned | = visible | fewer | more |",
+        "|---|---|---:|---:|---:|---:|---:|",
+    ]
+    print("\n".join(lines), flush=True)
+    settings = (
+        ("pooled per frame (default)", "auto", "frame"),
+        ("pooled over all frames", "auto", "all"),
+        ("per (frame, joint) scene", "auto", "scene"),
+        (f"given {given:g} px", given, "frame"),
+    )
+    for label, sigma, pool in settings:
+        det, out, _ = associate_trial(rig_file, pose, preset, sigma=sigma, sigma_pool=pool)
+        s = stats[name, preset, "sigma", label] = trial_stats(det, out, participants)
+        spread = f" ({s['sigma_min']:.1f}–{s['sigma_max']:.1f})" if pool != "all" else ""
+        spread = "" if isinstance(sigma, float) else spread
+        lines.append(
+            f"| {label} | {s['sigma_median']:.1f}{spread} | {s['points']} | "
+            f"{s['assigned'] / s['detections']:.3f} | {s['visible_exact']:.3f} | "
+            f"{s['visible_fewer']:.3f} | {s['visible_more']:.3f} |"
+        )
+        print(lines[-1], flush=True)
+    return ["", *lines]
 
 
 def plot_frame(rig_file, det, out, frame: int, path: str, title: str) -> None:
@@ -263,6 +300,15 @@ def main(argv=None) -> dict:
     )
     p.add_argument("--frame", type=int, default=50, help="frame of the figure")
     p.add_argument(
+        "--sigma-pools",
+        metavar="PRESET",
+        default=None,
+        help="also the σ table: the multi-participant trial with PRESET, σ estimated "
+        "per frame from all joint types (the default), once for all frames, per (frame, joint) "
+        "scene, and given (--sigma-given)",
+    )
+    p.add_argument("--sigma-given", type=float, default=8.0, help="the σ table's given σ (px)")
+    p.add_argument(
         "--results", default=None, help="append a section with the table to this Markdown file"
     )
     args = p.parse_args(argv)
@@ -308,6 +354,8 @@ def main(argv=None) -> dict:
             f"Pose2Sim demo {name}, frame {frame}, {preset} preset",
         )
         print(f"Figure: {args.figure} ({os.path.getsize(args.figure) // 1024} KB)")
+    if args.sigma_pools:
+        rows += sigma_table(rig_file, trials, args.sigma_pools, args.sigma_given, stats)
     if args.results:
         with open(args.results, "a") as f:
             f.write("\n" + "\n".join(rows) + "\n")

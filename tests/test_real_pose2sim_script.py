@@ -84,6 +84,8 @@ def test_real_pose2sim_processing(tmp_path, capsys):
             str(results),
             "--frame",
             "1",
+            "--sigma-pools",
+            "paper",
         ]
     )
     s = stats["S00_P01_T02_Participants1-2", "paper"]
@@ -93,3 +95,16 @@ def test_real_pose2sim_processing(tmp_path, capsys):
     assert figure.stat().st_size > 10_000
     assert "| S00_P01_T02_Participants1-2 | 2 | paper | 2 | 400 | 100 |" in results.read_text()
     assert "Figure:" in capsys.readouterr().out
+    # The σ table: the two-participant trial again, σ pooled each way and given; pooled per
+    # frame is the table's own run above.
+    rows = {k[3]: v for k, v in stats.items() if len(k) == 4}
+    assert list(rows) == [
+        "pooled per frame (default)",
+        "pooled over all frames",
+        "per (frame, joint) scene",
+        "given 8 px",
+    ]
+    assert rows["pooled per frame (default)"] == s
+    assert rows["given 8 px"]["sigma_median"] == 8.0
+    assert all(r["points"] == 2 * 50 for r in rows.values())
+    assert "| given 8 px | 8.0 | 100 |" in results.read_text()
