@@ -43,6 +43,7 @@ __all__ = [
     "group_bpe",
     "bpe_jump_keep",
     "support_keep",
+    "support_test",
     "detach_ambiguous",
     "validity_gate",
     "dissolve_ambiguous",
@@ -914,10 +915,12 @@ def _view_misses(K, R, t, xy, mask, X, m, radius):
     return bool(inside and not np.any(np.sum((det - pix) ** 2, axis=1) < radius * radius))
 
 
-def seed_groups(K, R, t, xy, free, d, tau, gate, min_views, mask=None, support=np.inf):
+def seed_groups(K, R, t, xy, free, d, tau, gate, min_views, mask=None, support=np.inf, miss=None):
     """§8f: groups seeded from two-view hypotheses on the ``free`` (M, P) detections, as a
     list of (M,) rows in the order they are accepted. A hypothesis whose point a third view
-    sees with no detection of ``mask`` within ``support`` pixels is not seeded."""
+    sees with no detection of ``mask`` within ``support`` pixels is not seeded; with
+    ``miss = (q, alpha)`` (the support filter's miss rate and level), only when its ``k``
+    such views beside its ``n`` members are implausible: ``P(Bin(n + k, q) ≥ k) < alpha``."""
     mask = free if mask is None else mask
     M, P = free.shape
     hyps = []  # (count, err, index, a, b, distances (M, P) of the other views)
@@ -956,11 +959,12 @@ def seed_groups(K, R, t, xy, free, d, tau, gate, min_views, mask=None, support=n
                             dist[v, j] = np.linalg.norm(pix[v] - xy[v, j])
                     if dist[v].min() < gate:
                         total, count = total + dist[v].min(), count + 1
-                if any(
+                k = sum(
                     _view_misses(K, R, t, xy, mask, X, v, support)
                     for v in range(M)
                     if v not in (m, n)
-                ):
+                )
+                if k and (miss is None or _binomial_tail(count + k, k, miss[0]) < miss[1]):
                     continue
                 if count >= min_views:
                     hyps.append((-count, total / count, index, (m, i), (n, best), dist))
@@ -1093,7 +1097,7 @@ def _compact(rows, G, M):
     return groups, gvalid
 
 
-def _seed_stage(K, R, t, xy, mask, d, groups, gvalid, tau, cfg):
+def _seed_stage(K, R, t, xy, mask, d, groups, gvalid, tau, cfg, miss=None):
     G, M = groups.shape
     free = _free(mask, groups, gvalid)
     new = seed_groups(
@@ -1108,11 +1112,22 @@ def _seed_stage(K, R, t, xy, mask, d, groups, gvalid, tau, cfg):
         cfg.seed_min_views,
         mask,
         cfg.seed_support_frac * tau,
+        miss,
     )
     return _compact([groups[g] for g in np.flatnonzero(gvalid)] + new, G, M)
 
 
+def _binomial_tail(T, k, q):
+    """P(Bin(T, q) ≥ k)."""
+    return sum(math.comb(T, j) * q**j * (1.0 - q) ** (T - j) for j in range(k, T + 1))
+
+
 def support_keep(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg):
+    """:func:`support_test`'s groups kept."""
+    return support_test(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg)[0]
+
+
+def support_test(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg):
     """Visibility support (§8d, beyond the paper; ``Config.support_filter``).
 
     A view is *missing* for a valid group when it is not a member view, the group's point is
@@ -1121,7 +1136,7 @@ def support_keep(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg):
     missing views over the groups with ≥ ``support_ref_views`` members whose point is in
     front of all their cameras (at least ``support_min_rate``), a group of ``n`` members and
     ``k ≥ 1`` missing views is dropped when ``P(Bin(n + k, q) ≥ k) < support_alpha``, and
-    any group whose point is behind a member camera is dropped."""
+    any group whose point is behind a member camera is dropped. Returns ``(keep, q)``."""
     K, R, t, xy = (np.asarray(a, np.float64) for a in (K, R, t, xy))
     M = mask.shape[0]
     radius = cfg.support_frac * tau
@@ -1150,9 +1165,8 @@ def support_keep(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg):
     keep = gvalid.copy()
     for g in n_mem:
         k, T = n_miss[g], n_mem[g] + n_miss[g]
-        tail = sum(math.comb(T, j) * q**j * (1.0 - q) ** (T - j) for j in range(k, T + 1))
-        keep[g] = not behind[g] and (k == 0 or tail >= cfg.support_alpha)
-    return keep
+        keep[g] = not behind[g] and (k == 0 or _binomial_tail(T, k, q) >= cfg.support_alpha)
+    return keep, q
 
 
 def detach_ambiguous(K, R, t, xy, mask, groups, gvalid, tau, frac):
@@ -1343,10 +1357,12 @@ def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
         )
         groups[~keep] = -1
         gvalid = keep
+    miss = None  # the support filter's miss rate and level, which seeding then uses
     if getattr(cfg, "support_filter", False):  # §8d
-        keep = support_keep(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg)
+        keep, q = support_test(K, R, t, xy, mask, groups, gvalid, pts, tau, cfg)
         groups[~keep] = -1
         gvalid = keep
+        miss = (q, cfg.support_alpha)
     stages["labels_bpe"] = _group_labels(groups, gvalid, M, P)
 
     # §8b recovery by reprojection, §8c regrouping of leftovers
@@ -1368,12 +1384,12 @@ def oracle_associate(K, R, t, xy, mask, config, sigma=1.0, return_stages=False):
             gvalid[g] = True
     # §8f seeding from two-view hypotheses, §8g re-assignment and merging, §8f again
     if cfg.seed:
-        groups, gvalid = _seed_stage(K, R, t, xy, mask, d, groups, gvalid, tau, cfg)
+        groups, gvalid = _seed_stage(K, R, t, xy, mask, d, groups, gvalid, tau, cfg, miss)
     if cfg.reassign:
         groups, gvalid = reassign_groups(K, R, t, xy, mask, groups, gvalid, tau, cfg)
         groups, gvalid = _compact([groups[g] for g in np.flatnonzero(gvalid)], G, M)
     if cfg.seed and cfg.reassign:
-        groups, gvalid = _seed_stage(K, R, t, xy, mask, d, groups, gvalid, tau, cfg)
+        groups, gvalid = _seed_stage(K, R, t, xy, mask, d, groups, gvalid, tau, cfg, miss)
     if cfg.recover or cfg.regroup or cfg.seed or cfg.reassign:
         pts, bpe, err = group_bpe(K, R, t, xy, groups, gvalid)
         if getattr(cfg, "support_filter", False):  # §8d on the grown and regrouped groups

@@ -101,7 +101,9 @@ def regroup_stage(scene: Scene, state: State, options: RegroupOptions) -> State:
     again = run_plan(
         options.plan, scene._replace(node_valid=left), state._replace(status=jnp.int32(0))
     )
-    return State(_merge_groups(state.table, again.table), None, state.status | again.status)
+    return state._replace(
+        table=_merge_groups(state.table, again.table), fit=None, status=state.status | again.status
+    )
 
 
 REGROUP = Stage(
@@ -251,8 +253,12 @@ class _StageStep(NamedTuple):
 
     def __call__(self, scene: Scene, machine: _Machine) -> _Machine:
         out = self.run(scene._replace(node_valid=machine.node_valid), machine.state, self.options)
+        kept = machine.state
         return machine._replace(
-            state=out._replace(fit=machine.state.fit if out.fit is None else out.fit)
+            state=out._replace(
+                fit=kept.fit if out.fit is None else out.fit,
+                miss_rate=kept.miss_rate if out.miss_rate is None else out.miss_rate,
+            )
         )
 
 
@@ -267,7 +273,7 @@ def _merge_aside(scene: Scene, machine: _Machine) -> _Machine:
     """Regrouping ends: the new groups join the table set aside (:func:`regroup_stage`)."""
     table, status = machine.aside
     state = machine.state
-    merged = State(_merge_groups(table, state.table), state.fit, status | state.status)
+    merged = state._replace(table=_merge_groups(table, state.table), status=status | state.status)
     return _Machine(merged, scene.mask.reshape(-1), machine.aside)
 
 
@@ -312,7 +318,16 @@ def run_plan_shared(steps, scene: Scene, state: State) -> State:
         fit = jax.tree.map(
             lambda a: jnp.zeros(a.shape, a.dtype), jax.eval_shape(fit_groups, scene, state.table)
         )
-    machine = _Machine(state._replace(fit=fit), scene.node_valid, (state.table, state.status))
+    # The miss rate likewise: NaN until the support filter estimates it (seeding then keeps
+    # its rule without one).
+    miss_rate = state.miss_rate
+    if miss_rate is None:
+        miss_rate = jnp.asarray(jnp.nan, scene.xy.dtype)
+    machine = _Machine(
+        state._replace(fit=fit, miss_rate=miss_rate),
+        scene.node_valid,
+        (state.table, state.status),
+    )
     branches = [lambda m, step=step: step(scene, m) for step in distinct]
     machine = jax.lax.fori_loop(
         0, len(flat), lambda k, m: jax.lax.switch(jnp.asarray(which)[k], branches, m), machine
@@ -446,17 +461,17 @@ class ConfigMethods(Method):
     def best(cls, **overrides) -> Config:
         """Our most accurate C-DOG, the default: the union graph with δ-pruning, recovery by
         reprojection (``recover``), then groups seeded from two-view hypotheses on what is
-        still left (``seed``; a pair whose point another view sees with no detection near
-        is refused), rounds of nearest-point re-assignment with merging of split groups
-        (``reassign``), and seeding once more on what those rounds detached. Leaves few
-        detections unassigned at large σ, where pruning leaves most of a dense scene over
-        (docs/ALGORITHM.md §8f–8g). For precision, groups that views seeing their point do
-        not detect are dropped (``support_filter`` at 1.5 τ, ``support_alpha`` 0.07) and
-        each group of ≥ 3 detaches a member that another detection fits as well
-        (``detach_ambiguous``; §8d, §8h). The IQR, the BPE filter and regrouping of
-        :meth:`extended` are left out: after seeding and re-assignment they changed
-        neither real detections (Shelf) nor the synthetic grid, except for the worse
-        (experiments/RESULTS.md, "Every stage of best()")."""
+        still left (``seed``; a pair whose point other views see with no detection near is
+        refused unless the scene's miss rate makes those misses plausible), rounds of
+        nearest-point re-assignment with merging of split groups (``reassign``), and seeding
+        once more on what those rounds detached. Leaves few detections unassigned at large
+        σ, where pruning leaves most of a dense scene over (docs/ALGORITHM.md §8f–8g). For
+        precision, groups that views seeing their point do not detect are dropped
+        (``support_filter`` at 1.5 τ, ``support_alpha`` 0.07) and each group of ≥ 3 detaches
+        a member that another detection fits as well (``detach_ambiguous``; §8d, §8h). The
+        IQR, the BPE filter and regrouping of :meth:`extended` are left out: after seeding
+        and re-assignment they changed neither real detections (Shelf) nor the synthetic
+        grid, except for the worse (experiments/RESULTS.md, "Every stage of best()")."""
         base = dict(
             adjacency="union",
             iqr=False,
@@ -684,8 +699,8 @@ class Config(ConfigMethods):
     seed_min_views: int = 2
     # Traced, > 0: a detection within seed_frac · τ votes for a two-view point.
     seed_frac: float = 1.5
-    # Traced, > 0: no seed where a view sees the point with no detection within
-    # seed_support_frac · τ.
+    # Traced, > 0: a view that sees a two-view point with no detection within
+    # seed_support_frac · τ counts against it (with the support filter, as in its test).
     seed_support_frac: float = 1.5
 
     # reassign: each detection to its nearest group point, refitting and merging ------------

@@ -70,11 +70,14 @@ class Fit(NamedTuple):
 
 class State(NamedTuple):
     """The group table, the fit of the table as it was last fitted (``None`` before the
-    first fit), and the int32 :class:`~cdog_jax.Status` bits raised so far."""
+    first fit), the int32 :class:`~cdog_jax.Status` bits raised so far, and the scene's miss
+    rate as the support filter estimated it (``()``, the share of views that see a trusted
+    group's point without detecting it; ``None`` before the filter runs)."""
 
     table: GroupTable
     fit: Fit | None
     status: Int[Array, ""]
+    miss_rate: Float[Array, ""] | None = None
 
     def flag(self, condition: Bool[Array, ""], flag: Status) -> State:
         """This state with ``flag`` raised where ``condition`` holds."""

@@ -72,7 +72,7 @@ def graph_stage(scene: Scene, state: State, options: GraphOptions) -> State:
     groups, valid, status = graph_groups(
         scene.d, scene.node_valid, scene.tau, scene.thresholds, options
     )
-    return State(GroupTable(groups, valid), None, state.status | status)
+    return state._replace(table=GroupTable(groups, valid), fit=None, status=state.status | status)
 
 
 GRAPH = Stage(

@@ -7,8 +7,11 @@ leftover detection is paired with its cheapest leftover detection in each other 
 (symmetric epipolar cost ``½ (d[m, i, n, j] + d[n, j, m, i])`` below τ), the pair is
 triangulated (two-view DLT, well conditioned, in front of both cameras) and reprojected
 into the other views, where the nearest leftover detection within ``seed_frac · τ`` pixels
-votes for it. Hypotheses are ranked by votes (more first), then mean reprojection error
-over all their members (smaller first), then index; in that order each one whose two
+votes for it. A view that sees the point with no detection near counts against it
+(:class:`SeedSupport`: with the support filter's estimate of the scene's miss rate, as many
+such views as that rate makes plausible are allowed; without it, none). Hypotheses are
+ranked by votes (more first), then mean reprojection error over all their members (smaller
+first), then index; in that order each one whose two
 detections are both still free becomes a group of its pair and its voters that are still
 free (one per view). Each step of the loop takes the next hypothesis in that order whose
 two detections are free (two reductions over the hypotheses, no sort), so it runs once per
@@ -30,7 +33,7 @@ from ..graph._adjacency import min_and_first_index
 from ..graph._groups import compact_groups
 from ._attach import leftover_nodes
 from ._hypotheses import accepted_row, score_hypotheses
-from ._support import missing_views
+from ._support import misses_plausible, missing_views
 
 
 class SeedOptions(NamedTuple):
@@ -50,11 +53,36 @@ its scene with the most leftovers needs (25 class scenes of 5 views × 8 slots: 
 of 10 views × 130 points as fast with chunks of 8, 16 or 64)."""
 
 
+class SeedSupport(NamedTuple):
+    """When a view that sees a hypothesis' point without a detection within ``radius_px``
+    refuses it. Without a miss rate (``None``, or NaN: the support filter has not run), one
+    such view does. With the scene's miss rate ``q`` (the support filter's estimate), the
+    support filter's own test: ``k`` such views beside ``n`` members are refused when
+    ``P(Bin(n + k, q) ≥ k) < alpha``, so that a point whose detection the detector missed in
+    a view can still be seeded where misses are common."""
+
+    radius_px: Float[Array, ""]
+    miss_rate: Float[Array, ""] | None = None
+    alpha: Float[Array, ""] | None = None
+
+    def plausible(self, missing: Bool[Array, "R M"], count: Int[Array, " R"]) -> Bool[Array, " R"]:
+        """``(R,)``: the hypotheses of ``count`` members and ``missing (R, M)`` views kept."""
+        none_missing = ~jnp.any(missing, axis=1)
+        if self.miss_rate is None:
+            return none_missing
+        q = self.miss_rate
+        k = jnp.sum(missing, axis=1, dtype=jnp.int32)
+        tested = misses_plausible(
+            k, count + k, jnp.where(jnp.isnan(q), 0.5, q), self.alpha, missing.shape[1]
+        )
+        return jnp.where(jnp.isnan(q), none_missing, tested)
+
+
 class _Hypotheses(NamedTuple):
     """Two-view hypotheses, one row each (``R``): ``src``/``dst`` flat nodes ``view · P +
-    slot``, ``ok`` usable (gated, well placed, ``count ≥ min_views``, no view missing it),
-    ``err`` mean reprojection error (px; ``inf`` where not ok), ``count`` members,
-    ``xy_hat (R, M, 2)`` and ``vote_views (R, M)`` as in :class:`ScoredHypotheses`."""
+    slot``, ``ok`` usable (gated, well placed, ``count ≥ min_views``, its missing views
+    plausible), ``err`` mean reprojection error (px; ``inf`` where not ok), ``count``
+    members, ``xy_hat (R, M, 2)`` and ``vote_views (R, M)`` as in :class:`ScoredHypotheses`."""
 
     ok: Bool[Array, " R"]
     err: Float[Array, " R"]
@@ -66,7 +94,7 @@ class _Hypotheses(NamedTuple):
 
 
 def _hypotheses_of(
-    rig, xy, mask, free, d, blocks, sources, tau_px, gate_px, support_px, min_views
+    rig, xy, mask, free, d, blocks, sources, tau_px, gate_px, support, min_views
 ) -> _Hypotheses:
     """The hypotheses of the detections ``sources (C,)`` (flat nodes; ``N`` or a detection
     that is not free: none), ``C · M`` rows, source by source, view by view: each source
@@ -97,8 +125,8 @@ def _hypotheses_of(
     pair = (views[None, :] == (src // P)[:, None]) | (
         views[None, :] == (dst // P)[:, None]
     )  # (C·M, M)
-    missing, _ = missing_views(rig, xy, mask, scored.X, pair, support_px)
-    ok = scored.ok & (scored.count >= min_views) & ~jnp.any(missing, axis=1)
+    missing, _ = missing_views(rig, xy, mask, scored.X, pair, support.radius_px)
+    ok = scored.ok & (scored.count >= min_views) & support.plausible(missing, scored.count)
     return _Hypotheses(
         ok,
         jnp.where(ok, scored.err, jnp.inf),
@@ -111,7 +139,7 @@ def _hypotheses_of(
 
 
 def _all_hypotheses(
-    rig, xy, mask, free, d, blocks, tau_px, gate_px, support_px, min_views
+    rig, xy, mask, free, d, blocks, tau_px, gate_px, support, min_views
 ) -> _Hypotheses:
     """Every free detection's hypotheses (:func:`_hypotheses_of`), the free detections in
     node order, :data:`SOURCE_CHUNK` at a time; rows past the last free detection are not ok."""
@@ -121,7 +149,7 @@ def _all_hypotheses(
 
     def make(sources):
         return _hypotheses_of(
-            rig, xy, mask, free, d, blocks, sources, tau_px, gate_px, support_px, min_views
+            rig, xy, mask, free, d, blocks, sources, tau_px, gate_px, support, min_views
         )
 
     if N <= SOURCE_CHUNK:
@@ -168,17 +196,18 @@ def seed_groups(
     blocks: tuple,
     tau_px: Float[Array, ""],
     gate_px: Float[Array, ""],
-    support_px: Float[Array, ""],
+    support: SeedSupport,
     min_views: int,
 ) -> Int[Array, "G M"]:
     """New groups ``(G, M)`` (slot per view or -1; unused rows all -1, ``G = M·P // 2``)
     made of the ``free (M, P)`` detections only; ``xy (M, P, 2)`` pixels, ``d`` the epipolar
-    distances (px), ``blocks`` the per-node DLT blocks, ``tau_px`` the pair gate and
-    ``gate_px`` the vote gate (px)."""
+    distances (px), ``blocks`` the per-node DLT blocks, ``tau_px`` the pair gate,
+    ``gate_px`` the vote gate (px) and ``support`` the test of the views that see a
+    hypothesis' point without a detection near."""
     M, P = free.shape
     N, G = M * P, max(M * P // 2, 1)
     slots = jnp.arange(P, dtype=jnp.int32)
-    hyp = _all_hypotheses(rig, xy, mask, free, d, blocks, tau_px, gate_px, support_px, min_views)
+    hyp = _all_hypotheses(rig, xy, mask, free, d, blocks, tau_px, gate_px, support, min_views)
     R = hyp.ok.shape[0]
     row_index = jnp.arange(R, dtype=jnp.int32)
 
@@ -231,7 +260,11 @@ def seed_stage(scene: Scene, state: State, options: SeedOptions) -> State:
         scene.blocks,
         scene.tau,
         scene.thresholds.seed_frac * scene.tau,
-        scene.thresholds.seed_support_frac * scene.tau,
+        SeedSupport(
+            scene.thresholds.seed_support_frac * scene.tau,
+            state.miss_rate,
+            scene.thresholds.support_alpha,
+        ),
         options.seed_min_views,
     )
     G = table.groups.shape[0]
@@ -259,7 +292,7 @@ SEED = Stage(
             "seed_support_frac",
             1.5,
             Range(0.0, low_open=True),
-            doc="seeding: a two-view point is not seeded where a view sees it with no detection within seed_support_frac · τ",
+            doc="seeding: a view that sees a two-view point with no detection within seed_support_frac · τ counts against it (with the support filter, as in its test)",
         ),
     ),
 )

@@ -21,8 +21,9 @@ where points are seen). Views without a detection never count as missing.
 
 import jax
 import jax.numpy as jnp
+from jaxtyping import ArrayLike
 
-from .._types import Array, Bool, Float
+from .._types import Array, Bool, Float, Int
 from ..cdog._config import Range, Switch, Threshold, ThresholdsBase
 from ..cdog._stage import Scene, Stage, State
 from ..geometry._camera import Rig
@@ -51,7 +52,42 @@ def missing_views(
     return inside & ~member & ~near, in_front
 
 
-def support_keep(
+def misses_plausible(
+    k_views: Int[Array, " G"],
+    T_views: Int[Array, " G"],
+    q: Float[Array, ""],
+    alpha: Float[ArrayLike, ""],
+    num_views: int,
+) -> Bool[Array, " G"]:
+    """``(G,)``: ``k_views`` missing views of ``T_views`` that should detect a point are
+    plausible at the miss rate ``q``: none is missing, or ``P(Bin(T, q) ≥ k) ≥ alpha``
+    (``T ≤ num_views``)."""
+    dtype = q.dtype
+    k, T = k_views.astype(dtype), T_views.astype(dtype)
+    # P(Bin(T, q) >= k): a sum of the binomial pmf over j = k … T ≤ M. Its log-factorials
+    # are of whole numbers up to M: read from one table of lgamma(0 … M + 1) (the same
+    # values, M + 2 evaluations instead of three per group and j); [n] = log (n − 1)!.
+    M = num_views
+    log_factorial = jax.lax.lgamma(jnp.arange(M + 2, dtype=dtype))
+    j_views = jnp.arange(M + 1, dtype=jnp.int32)[None, :]  # (1, M + 1)
+    j = j_views.astype(dtype)
+    Tc, kc = T[:, None], k[:, None]
+    j_ok = j <= Tc
+    jT = jnp.where(j_ok, j, 0.0)
+    jT_views = jnp.where(j_ok, j_views, 0)
+    T_col = T_views[:, None]
+    log_pmf = (
+        log_factorial[T_col + 1]
+        - log_factorial[jT_views + 1]
+        - log_factorial[T_col - jT_views + 1]
+        + jT * jnp.log(q)
+        + (Tc - jT) * jnp.log1p(-q)
+    )
+    tail = jnp.sum(jnp.where(j_ok & (j >= kc), jnp.exp(log_pmf), 0.0), axis=1)  # (G,)
+    return (k == 0) | (tail >= alpha)
+
+
+def support_test(
     rig: Rig,
     xy: Float[Array, "M P 2"],
     mask: Bool[Array, "M P"],
@@ -60,8 +96,9 @@ def support_keep(
     valid: Bool[Array, " G"],
     tau_px: Float[Array, ""],
     thresholds: ThresholdsBase,
-) -> Bool[Array, " G"]:
-    """``(G,)``: the valid groups that pass the visibility-support test (module docstring).
+) -> tuple[Bool[Array, " G"], Float[Array, ""]]:
+    """``(keep (G,), q ())``: the valid groups that pass the visibility-support test and the
+    scene's miss rate it estimated (module docstring).
 
     Args:
         xy, mask: the scene's detections ``(M, P, 2)`` (pixels) and ``(M, P)``.
@@ -82,33 +119,20 @@ def support_keep(
     k_ref, T_ref = jnp.sum(jnp.where(ref, k, 0.0)), jnp.sum(jnp.where(ref, T, 0.0))
     q = jnp.where(T_ref > 0, k_ref / jnp.where(T_ref > 0, T_ref, 1.0), 0.0)
     q = jnp.clip(jnp.maximum(q, thresholds.support_min_rate), 1e-6, 1.0 - 1e-6)
+    plausible = misses_plausible(k_views, T_views, q, thresholds.support_alpha, M)
+    return valid & ~behind & plausible, q
 
-    # P(Bin(T, q) >= k): a sum of the binomial pmf over j = k … T ≤ M. Its log-factorials
-    # are of whole numbers up to M: read from one table of lgamma(0 … M + 1) (the same
-    # values, M + 2 evaluations instead of three per group and j); [n] = log (n − 1)!.
-    log_factorial = jax.lax.lgamma(jnp.arange(M + 2, dtype=dtype))
-    j_views = jnp.arange(M + 1, dtype=jnp.int32)[None, :]  # (1, M + 1)
-    j = j_views.astype(dtype)
-    Tc, kc = T[:, None], k[:, None]
-    j_ok = j <= Tc
-    jT = jnp.where(j_ok, j, 0.0)
-    jT_views = jnp.where(j_ok, j_views, 0)
-    T_col = T_views[:, None]
-    log_pmf = (
-        log_factorial[T_col + 1]
-        - log_factorial[jT_views + 1]
-        - log_factorial[T_col - jT_views + 1]
-        + jT * jnp.log(q)
-        + (Tc - jT) * jnp.log1p(-q)
-    )
-    tail = jnp.sum(jnp.where(j_ok & (j >= kc), jnp.exp(log_pmf), 0.0), axis=1)  # (G,)
-    return valid & ~behind & ((k == 0) | (tail >= thresholds.support_alpha))
+
+def support_keep(*args) -> Bool[Array, " G"]:
+    """``(G,)``: the valid groups that pass the visibility-support test (:func:`support_test`,
+    the same arguments)."""
+    return support_test(*args)[0]
 
 
 def support_stage(scene: Scene, state: State, options: None) -> State:
     """Drop the groups that views seeing their point do not detect (needs a fit)."""
     fit = state.fit
-    keep = support_keep(
+    keep, miss_rate = support_test(
         scene.rig,
         scene.xy,
         scene.mask,
@@ -119,7 +143,9 @@ def support_stage(scene: Scene, state: State, options: None) -> State:
         scene.thresholds,
     )
     return state._replace(
-        table=state.table.keep(keep), fit=fit._replace(member=fit.member & keep[:, None])
+        table=state.table.keep(keep),
+        fit=fit._replace(member=fit.member & keep[:, None]),
+        miss_rate=miss_rate,
     )
 
 

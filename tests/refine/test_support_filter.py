@@ -104,3 +104,34 @@ def test_pipeline_drops_a_two_view_ghost():
     np.testing.assert_array_equal(lf[:, :P] >= 0, True)
     for i in range(P):  # the real points: one group each, all views
         assert len(set(lf[:, i])) == 1
+
+
+def test_seeding_allows_the_misses_the_scene_miss_rate_makes_plausible():
+    """Seeding's test of the views that see a two-view point with no detection near: none
+    allowed without a miss rate (or a NaN one: the filter has not run); with one, the
+    filter's binomial test, P(Bin(n + k, q) ≥ k) ≥ alpha, against the plain formula."""
+    import itertools
+    import math
+
+    from cdog_jax.refine._seed import SeedSupport
+
+    rows = list(itertools.product(range(2, 5), range(0, 4)))  # (members n, missing k)
+    count = jnp.asarray([n for n, _ in rows], jnp.int32)
+    missing = jnp.asarray([[v < k for v in range(M + 2)] for _, k in rows])  # (R, 7 views)
+    alpha = jnp.float32(0.07)
+    radius = jnp.float32(3.0)
+    none = np.asarray([k == 0 for _, k in rows])
+    for q in (None, jnp.float32(jnp.nan)):
+        got = jax.jit(lambda m, c, q=q: SeedSupport(radius, q, alpha).plausible(m, c))
+        np.testing.assert_array_equal(np.asarray(got(missing, count)), none)
+    for q in (0.02, 0.1, 0.3):
+        got = SeedSupport(radius, jnp.float32(q), alpha).plausible(missing, count)
+        tail = [
+            sum(math.comb(n + k, j) * q**j * (1 - q) ** (n + k - j) for j in range(k, n + k + 1))
+            for n, k in rows
+        ]
+        expected = none | (np.asarray(tail) >= 0.07)
+        np.testing.assert_array_equal(np.asarray(got), expected, err_msg=str(q))
+    # At the floor rate a pair with one missing view is refused, at a 10 % rate kept.
+    assert not bool(SeedSupport(radius, jnp.float32(0.02), alpha).plausible(missing, count)[1])
+    assert bool(SeedSupport(radius, jnp.float32(0.1), alpha).plausible(missing, count)[1])
