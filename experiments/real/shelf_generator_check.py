@@ -146,9 +146,10 @@ def shelf_joints(coco: np.ndarray) -> np.ndarray:
     return shelf_score["shelf_from_body25"](body)
 
 
-def synthetic_pcp(rig, scenes, preset: str) -> float:
+def synthetic_pcp(rig, scenes, preset: str) -> dict:
     """Shelf's PCP (10 parts, actors 0–2) of the people of ``preset`` with the person vote:
-    ``associate_classes(..., instances=, person_vote=True)``, then ``identify_people``."""
+    ``associate_classes(..., instances=, person_vote=True)``, then ``identify_people``; the
+    scores of :mod:`shelf_score` (``pcp_mean``, ``pcp_parts``, ...)."""
     import cdog_jax
 
     xy, mask, classes, joints3d, exists, instances = scenes
@@ -171,7 +172,7 @@ def synthetic_pcp(rig, scenes, preset: str) -> float:
         {int(k): shelf_joints(joints3d[f, k]) for k in np.flatnonzero(exists[f])}
         for f in range(xy.shape[0])
     ]
-    return shelf_score["pcp"](predicted, truth, range(xy.shape[0]))["pcp_mean"]
+    return shelf_score["pcp"](predicted, truth, range(xy.shape[0]))
 
 
 def real_rows(data: str, work: str) -> dict[str, float]:
@@ -214,6 +215,7 @@ def main(argv: list[str] | None = None) -> dict:
     }
     table = {name: {"shelf dev frames": real.get(name)} for name in presets}
     table["pcp"] = {"shelf dev frames": args.real_pcp}
+    table["pcp_parts"] = {}
     for setting, options in settings.items():
         scenes = synthetic_scenes(
             rig, size, sigma=args.sigma, sequences=args.sequences, frames=args.frames, **options
@@ -222,7 +224,8 @@ def main(argv: list[str] | None = None) -> dict:
             recall, seconds = run_synthetic(rig, scenes, name)
             table[name][setting] = recall
             print(f"{setting:18s} {name:10s} recall {recall:.3f} ({seconds:.0f} s)", flush=True)
-        table["pcp"][setting] = synthetic_pcp(rig, scenes, args.pcp_preset)
+        score = synthetic_pcp(rig, scenes, args.pcp_preset)
+        table["pcp"][setting], table["pcp_parts"][setting] = score["pcp_mean"], score["pcp_parts"]
         print(f"{setting:18s} {args.pcp_preset}() people, PCP {table['pcp'][setting]}", flush=True)
     print("| preset | Shelf dev frames | " + " | ".join(settings) + " |")
     print("|---|---|" + "---|" * len(settings))
