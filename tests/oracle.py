@@ -964,7 +964,8 @@ def seed_groups(K, R, t, xy, free, d, tau, gate, min_views, mask=None, support=n
                     for v in range(M)
                     if v not in (m, n)
                 )
-                if k and (miss is None or _binomial_tail(count + k, k, miss[0]) < miss[1]):
+                seen = min(count + k, M)  # a voter's view may be missing too (smaller radius)
+                if k and (miss is None or _binomial_tail(seen, k, miss[0]) < miss[1]):
                     continue
                 if count >= min_views:
                     hyps.append((-count, total / count, index, (m, i), (n, best), dist))

@@ -70,11 +70,12 @@ class SeedSupport(NamedTuple):
         none_missing = ~jnp.any(missing, axis=1)
         if self.miss_rate is None:
             return none_missing
-        q = self.miss_rate
+        q, M = self.miss_rate, missing.shape[1]
         k = jnp.sum(missing, axis=1, dtype=jnp.int32)
-        tested = misses_plausible(
-            k, count + k, jnp.where(jnp.isnan(q), 0.5, q), self.alpha, missing.shape[1]
-        )
+        # A voter's view can count as missing too when the support radius is below the vote
+        # gate (seed_support_frac < seed_frac): the views that should detect are at most M.
+        seen = jnp.minimum(count + k, M)
+        tested = misses_plausible(k, seen, jnp.where(jnp.isnan(q), 0.5, q), self.alpha, M)
         return jnp.where(jnp.isnan(q), none_missing, tested)
 
 

@@ -135,3 +135,10 @@ def test_seeding_allows_the_misses_the_scene_miss_rate_makes_plausible():
     # At the floor rate a pair with one missing view is refused, at a 10 % rate kept.
     assert not bool(SeedSupport(radius, jnp.float32(0.02), alpha).plausible(missing, count)[1])
     assert bool(SeedSupport(radius, jnp.float32(0.1), alpha).plausible(missing, count)[1])
+    # Members and missing views counted over more views than there are (a voter's view
+    # missing too, with a support radius below the vote gate): at most every view.
+    over = SeedSupport(radius, jnp.float32(0.12), alpha).plausible(
+        missing[-1:], jnp.asarray([6], jnp.int32)
+    )  # 6 members, 3 missing views of 7: P(Bin(7, q) ≥ 3) ≈ 0.04 (of 9 views, 0.08)
+    tail = sum(math.comb(7, j) * 0.12**j * 0.88 ** (7 - j) for j in range(3, 8))
+    assert tail < 0.07 and not bool(over[0])
