@@ -381,7 +381,6 @@ def main(argv=None):
     parser.add_argument("--stages", action="store_true", help="per-stage table at the worst levels")
     parser.add_argument(
         "--methods",
-        "--configs",
         dest="configs",
         default="all",
         help="'all' (the presets and variants above, then every registered method) or a comma-separated list",
