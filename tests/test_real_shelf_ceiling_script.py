@@ -45,3 +45,11 @@ def test_the_stand_in_reaches_every_part(tmp_path):
     for row in rows:
         assert row["pcp_mean"] == 100.0 and row["recall_10cm"] == 1.0
         assert row["mpjpe_mm"] < 1.0 and row["scored"] == 6  # 2 actors × 3 frames
+
+
+def test_a_detection_serves_one_joint_nearest_pairs_first():
+    at = [np.array([0.0, 0.0]), np.array([10.0, 0.0]), np.array([np.nan, np.nan])]
+    dets = np.array([[8.0, 0.0], [100.0, 0.0]])  # the first nearer joint 1 (2 px) than 0 (8)
+    assert ceiling["nearest_pairs"](at, dets, radius=40.0) == [(1, 0)]
+    assert ceiling["nearest_pairs"](at, dets, radius=1.0) == []
+    assert ceiling["nearest_pairs"](at, np.zeros((0, 2)), radius=40.0) == []

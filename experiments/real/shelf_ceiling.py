@@ -13,9 +13,11 @@ truth instead of from any method, triangulates it the way the library does (DLT,
   BODY_25 joints is triangulated from the views whose person holds it. This is the best a
   method can do that keeps OpenPose's people whole (as the person vote does).
 - **joints** (``by joint``): the same, but each of the 13 annotated joint types is taken
-  from the detection of that type nearest the true joint's projection in each view,
-  whatever person holds it, within ``--radius`` px (the others, needed for the head, as in
-  ``by person``). This is the best any grouping of these detections can do, joint by joint.
+  from the detections of that type in each view, whatever person holds them: each true
+  joint's projection takes the nearest one within ``--radius`` px, nearest pairs first, one
+  detection per joint (the others, needed for the head, as in ``by person``). This is
+  about the best any association of these detections can do that puts each detection in
+  one group.
 
 An actor's frame with none of its joints triangulated scores no part, as for a method.
 
@@ -66,6 +68,24 @@ def assign_people(people: list[np.ndarray], uv: dict[int, np.ndarray], radius: f
     return out
 
 
+def nearest_pairs(at: list[np.ndarray], dets: np.ndarray, radius: float) -> list[tuple[int, int]]:
+    """One-to-one ``(i, k)``: point ``at[i] (2,)`` takes detection ``dets[k]`` (``(n, 2)``
+    px), nearest pairs first, each within ``radius`` px (a NaN point takes none)."""
+    pairs = sorted(
+        (float(np.linalg.norm(dets[k] - p)), i, k)
+        for i, p in enumerate(at)
+        for k in range(len(dets))
+        if np.linalg.norm(dets[k] - p) <= radius
+    )
+    out, used_i, used_k = [], set(), set()
+    for _, i, k in pairs:
+        if i not in used_i and k not in used_k:
+            out.append((i, k))
+            used_i.add(i)
+            used_k.add(k)
+    return out
+
+
 def ceiling_tracks(views, gt, K, R, t, size, frames, radius: float, by_joint: bool):
     """The ground truth's grouping as tracks for :func:`cdog_jax.triangulate`:
     ``xy (M, T, 2)`` px, ``mask (M, T)`` and ``keys``: ``(frame, actor, BODY_25 joint)`` of
@@ -90,14 +110,14 @@ def ceiling_tracks(views, gt, K, R, t, size, frames, radius: float, by_joint: bo
                     person = people[owner[a]]
                     seen[i, :, m] = person[:, 2] > 0
                     chosen[i, :, m] = person[:, :2]
-                if not by_joint:
-                    continue
-                for s, b in ANNOTATED.items():
-                    dets = np.array([p[b, :2] for p in people if p[b, 2] > 0]).reshape(-1, 2)
-                    d, k = shelf_detections["_nearest"](dets, uv[a][s])
-                    seen[i, b, m] = d <= radius
-                    if d <= radius:
-                        chosen[i, b, m] = dets[k]
+            if not by_joint:
+                continue
+            for s, b in ANNOTATED.items():
+                dets = np.array([p[b, :2] for p in people if p[b, 2] > 0]).reshape(-1, 2)
+                seen[:, b, m] = False
+                for i, k in nearest_pairs([uv[a][s] for a in actors], dets, radius):
+                    seen[i, b, m] = True
+                    chosen[i, b, m] = dets[k]
         for i, a in enumerate(actors):
             for b in range(25):
                 keys.append((f, a, b))
