@@ -38,17 +38,17 @@ def test_robustness_realistic_quick(tmp_path, capsys):
     assert "| level | paper PG-F1 |" in table and "recall within 10 cm" in table
 
 
-def test_the_fitted_gate_runs_with_sigma_per_scene(tmp_path):
+def test_the_fitted_gate_runs_with_sigma_per_scene():
     """The fitted gate's preset runs on skeletons with σ per (frame, joint) scene, and is
     refused with σ pooled per frame (the gate is fitted per scene)."""
     script = _load()
-    args = ["--quick", "--presets", "paper_fitted", "--families", "skeleton"]
-    args += ["--figure", str(tmp_path / "r.png")]
-    out = script.main([*args, "--sigma-pool", "scene"])
-    assert out["presets"] == ["paper_fitted"] and out["sigma_pool"] == "scene"
-    rows = out["families"]["skeleton"]["rows"]
+    family = script.FAMILIES["skeleton"]
+    lv = script.levels(family, quick=True)[:2]  # the clean level and one other
+    rig, batch = script.skeleton_batch(lv, 1, 2, family, script.SEED)
+    scores = script.run_skeleton(family, "paper_fitted", batch, rig, sigma_pool="scene")
+    rows = script.summarise({"paper_fitted": scores}, lv, 2)
     assert rows[0]["paper_fitted"]["recall"] == 1.0
     for r in rows:
         assert 0.0 <= r["paper_fitted"]["pg_f1"] <= 1.0, r
     with pytest.raises(ValueError, match="sigma_pool='scene'"):
-        script.main(args)
+        script.run_skeleton(family, "paper_fitted", batch, rig)
