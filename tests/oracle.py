@@ -309,10 +309,11 @@ def _softmax0(parts):
     return e / e.sum(axis=0), top + np.log(e.sum(axis=0))
 
 
-def estimate_sigma(d, mask, focal_px, iters=40):
+def estimate_sigma(d, mask, focal_px, iters=40, select_after=10):
     """§0.1: EM on the censored mixture (a true match nearest / a true match behind a nearer
     unrelated point / no true match / uniform) of the nearest distances, each with weight ½,
-    from three starts; σ = c / √2, or the 1 px fallback, or capped at 1 % of the focal length.
+    from three starts, each ``select_after`` steps, the most likely of them then alone up to
+    ``iters``; σ = c / √2, or the 1 px fallback, or capped at 1 % of the focal length.
     Returns ``(sigma, fallback)``.
     The recipe of ALGORITHM.md §0.1."""
     x, count, _ = sigma_samples(d, mask)
@@ -323,14 +324,9 @@ def estimate_sigma(d, mask, focal_px, iters=40):
     spread_min = 0.05 * focal
     top_count = max(float(count.max()) if x.size else 1.0, 1.0)
     xs = np.sort(x)
-    fits = []
-    for q in (0.1, 0.25, 0.5):
-        z = NormalDist().inv_cdf(0.5 * (1.0 + q))  # half-normal quantile / scale
-        at_q = float(xs[int(math.floor(q * (x.size - 1)))]) if x.size else 0.0
-        c = min(max(at_q / z, 1e-3), width)
-        inv_kappa = min(max(float(np.sum(w * count * x)) / total, spread_min), width * top_count)
-        pi = np.array([0.6, 0.3, 0.1])
-        for _ in range(iters):
+
+    def em(c, inv_kappa, pi, steps):
+        for _ in range(steps):
             r, _ = _softmax0(_sigma_log_parts_normal(x, count, c, inv_kappa, pi, width))
             match, hidden, none, uniform = r * w
             a = x / c
@@ -352,12 +348,20 @@ def estimate_sigma(d, mask, focal_px, iters=40):
             pi = np.clip(np.array([n_true, np.sum(none), np.sum(uniform)]) / total, 1e-4, 1.0)
             pi = pi / pi.sum()
         r, log_total = _softmax0(_sigma_log_parts_normal(x, count, c, inv_kappa, pi, width))
-        fits.append((float(np.sum(w * log_total)), c, float(np.sum(w * (r[0] + r[1])))))
+        return float(np.sum(w * log_total)), (c, inv_kappa, pi), float(np.sum(w * (r[0] + r[1])))
+
+    fits = []
+    for q in (0.1, 0.25, 0.5):
+        z = NormalDist().inv_cdf(0.5 * (1.0 + q))  # half-normal quantile / scale
+        at_q = float(xs[int(math.floor(q * (x.size - 1)))]) if x.size else 0.0
+        c = min(max(at_q / z, 1e-3), width)
+        inv_kappa = min(max(float(np.sum(w * count * x)) / total, spread_min), width * top_count)
+        fits.append(em(c, inv_kappa, np.array([0.6, 0.3, 0.1]), select_after))
     top = max(f[0] for f in fits)
     best = next(
         k for k, f in enumerate(fits) if f[0] >= top - 1e-5 * (1.0 + abs(top))
     )  # near-ties: the first
-    _, c, n_match = fits[best]
+    _, (c, _, _), n_match = em(*fits[best][1], iters - select_after)
     return _trusted_sigma(c / math.sqrt(2.0), n_match, focal)
 
 

@@ -14,7 +14,8 @@ scattered over the image). Three kinds of sample, modelled jointly (a censored m
 
 plus a uniform on ``[0, W]`` for anything else (far-off detections). EM with closed-form
 steps (the censored half-normal and exponential moments) runs a fixed number of iterations
-from several low-quantile starts; the most likely fit wins.
+from several low-quantile starts: each takes :data:`SELECT_AFTER` of them, then the most
+likely goes on alone.
 
 The estimate is not trusted (``fallback``) when the expected number of pairs with a true
 match is below :data:`MIN_MATCHES` (then ``σ = FALLBACK_SIGMA_PX``), or when ``σ̂`` exceeds
@@ -28,10 +29,11 @@ import jax.numpy as jnp
 import numpy as np
 from jax.scipy.special import erfinv
 
-from .._types import Array, Bool, Float
+from .._types import Array, Bool, Float, Int
 
 EM_ITERS = 40
 START_QUANTILES = (0.1, 0.25, 0.5)  # the half-normal scale starts from these sample quantiles
+SELECT_AFTER = 10  # EM steps of every start; the most likely then goes on alone to EM_ITERS
 MIN_MATCHES = 2.5  # expected true-match pairs needed to use σ̂ (three pairs that fit well)
 MAX_SIGMA_PER_FOCAL = 0.01  # a plausible σ is at most 1 % of the focal length
 UNIFORM_PER_FOCAL = 0.1  # the uniform spans at least 10 % of the focal length
@@ -119,9 +121,12 @@ def _log_parts(x, count, c, inv_kappa, pi, width):
     return mixture_log_parts(x, count, log_hn, log_t_beyond, inv_kappa, pi, width)
 
 
-def run_em(log_parts, true_moments, x, w, count, c0, inv_kappa0, width, spread_min):
-    """:data:`EM_ITERS` steps of the censored mixture from the scale ``c0`` and the unrelated
-    points' spread ``inv_kappa0``; returns ``(c, inv_kappa, pi)``. ``log_parts(c, inv_kappa,
+def run_em(
+    log_parts, true_moments, x, w, count, c0, inv_kappa0, width, spread_min, pi0=None, iters=None
+):
+    """``iters`` (default :data:`EM_ITERS`) steps of the censored mixture from the scale
+    ``c0``, the unrelated points' spread ``inv_kappa0`` and the shares ``pi0`` (default 0.6,
+    0.3, 0.1); returns ``(c, inv_kappa, pi)``. ``log_parts(c, inv_kappa,
     pi)``: the ``(4, S)`` log joint densities; ``true_moments(c, match, hidden)``: ``(S,)``
     each sample's share of ``Σ E[T²]`` over the true pairs (its responsibilities
     ``match``, ``hidden`` times the squared distance they imply), so that ``c² = Σ / n_true``."""
@@ -146,28 +151,18 @@ def run_em(log_parts, true_moments, x, w, count, c0, inv_kappa0, width, spread_m
         pi = jnp.clip(jnp.stack([n_true, jnp.sum(none), jnp.sum(uniform)]) / total, 1e-4, 1.0)
         return c, inv_kappa, pi / jnp.sum(pi)
 
-    pi0 = jnp.asarray([0.6, 0.3, 0.1], x.dtype)
-    return jax.lax.fori_loop(0, EM_ITERS, step, (c0, inv_kappa0, pi0))
+    if pi0 is None:
+        pi0 = jnp.asarray([0.6, 0.3, 0.1], x.dtype)
+    iters = EM_ITERS if iters is None else iters
+    return jax.lax.fori_loop(0, iters, step, (c0, inv_kappa0, pi0))
 
 
-def _em(x, w, count, c0, inv_kappa0, width, spread_min):
-    """EM from half-normal scale ``c0``; returns the scale, the expected number of pairs
-    with a true match (``match`` or ``hidden``) and the log-likelihood."""
-
-    def log_parts(c, inv_kappa, pi):
-        return _log_parts(x, count, c, inv_kappa, pi, width)
-
-    def true_moments(c, match, hidden):
-        return match * x * x + hidden * half_normal_beyond_moment(x, c)
-
-    c, inv_kappa, pi = run_em(
-        log_parts, true_moments, x, w, count, c0, inv_kappa0, width, spread_min
-    )
-    parts = log_parts(c, inv_kappa, pi)
-    log_lik = jnp.sum(w * jax.nn.logsumexp(parts, axis=0))
-    resp = jax.nn.softmax(parts, axis=0)
-    n_match = jnp.sum(w * (resp[0] + resp[1]))
-    return c, n_match, log_lik
+def most_likely(log_lik: Float[Array, " Q"]) -> Int[Array, ""]:
+    """The index of the largest log-likelihood; fits that reach one optimum differ only by
+    round-off, so near-ties (within :data:`TIE_RELATIVE`) go to the first; NaN loses."""
+    log_lik = jnp.where(jnp.isfinite(log_lik), log_lik, -jnp.inf)
+    top = jnp.max(log_lik)
+    return jnp.argmax(log_lik >= top - TIE_RELATIVE * (1.0 + jnp.abs(top)))
 
 
 def estimate_sigma(
@@ -225,13 +220,29 @@ def sigma_from_samples(
     focal_px, width, c0, scaled_mean, spread_min = em_start(x, w, count, focal_px)
     inv_kappa0 = jnp.clip(scaled_mean, spread_min, width * jnp.maximum(jnp.max(count), 1.0))
 
-    em = jax.vmap(_em, in_axes=(None, None, None, 0, None, None, None))
-    c, n_match, log_lik = em(x, w, count, c0, inv_kappa0, width, spread_min)
-    log_lik = jnp.where(jnp.isfinite(log_lik), log_lik, -jnp.inf)
-    top = jnp.max(log_lik)
-    # Starts that reach one optimum differ only by round-off: near-ties go to the first.
-    best = jnp.argmax(log_lik >= top - TIE_RELATIVE * (1.0 + jnp.abs(top)))
-    sigma, fallback = trusted_sigma(c[best] / jnp.sqrt(2.0), n_match[best], focal_px)
+    def log_parts(c, inv_kappa, pi):
+        return _log_parts(x, count, c, inv_kappa, pi, width)
+
+    def true_moments(c, match, hidden):
+        return match * x * x + hidden * half_normal_beyond_moment(x, c)
+
+    def em(c, inv_kappa, pi, iters):
+        c, inv_kappa, pi = run_em(
+            log_parts, true_moments, x, w, count, c, inv_kappa, width, spread_min, pi, iters
+        )
+        parts = log_parts(c, inv_kappa, pi)
+        return c, inv_kappa, pi, jnp.sum(w * jax.nn.logsumexp(parts, axis=0)), parts
+
+    # Every start takes SELECT_AFTER steps; by then the starts bound for one optimum agree
+    # and the most likely is on its way to the best one; it alone takes the remaining steps
+    # (the EM's cost is per start and step).
+    pi0 = jnp.broadcast_to(jnp.asarray([0.6, 0.3, 0.1], dtype), (len(START_QUANTILES), 3))
+    heads = jax.vmap(lambda c, pi: em(c, inv_kappa0, pi, SELECT_AFTER)[:4])(c0, pi0)
+    best = most_likely(heads[3])
+    c, _, _, _, parts = em(*(a[best] for a in heads[:3]), EM_ITERS - SELECT_AFTER)
+    resp = jax.nn.softmax(parts, axis=0)
+    n_match = jnp.sum(w * (resp[0] + resp[1]))
+    sigma, fallback = trusted_sigma(c / jnp.sqrt(2.0), n_match, focal_px)
     return sigma.astype(dtype), fallback
 
 

@@ -28,10 +28,10 @@ from .._types import Array, Bool, Float
 from ._sigma import (
     MIN_SCALE_PX,
     START_QUANTILES,
-    TIE_RELATIVE,
     em_start,
     half_normal_beyond_moment,
     mixture_log_parts,
+    most_likely,
     nearest_samples,
     run_em,
     trusted_sigma,
@@ -251,11 +251,7 @@ def fit_noise(
         for nu in NU_GRID
     ]
     c, inv_kappa, pi, log_lik = (jnp.concatenate(parts) for parts in zip(*fits))
-    log_lik = jnp.where(jnp.isfinite(log_lik), log_lik, -jnp.inf)
-    top = jnp.max(log_lik)
-    # Fits that reach one optimum differ only by round-off: near-ties go to the first
-    # (the half-normal before the heavier tails).
-    best = jnp.argmax(log_lik >= top - TIE_RELATIVE * (1.0 + jnp.abs(top)))
+    best = most_likely(log_lik)  # near-ties: the first (the half-normal before heavier tails)
     levels = jnp.stack([jnp.asarray(0.5, dtype), jnp.asarray(coverage, dtype)])
     branches = [
         lambda c, k, p, nu=nu: _true_quantiles(levels, x, x2, w, count, c, k, p, width, nu)

@@ -180,3 +180,13 @@ def test_log_half_normal_tail_matches_oracle(dtype):
     np.testing.assert_allclose(got, want, rtol=2e-6 if dtype == np.float32 else 1e-12)
     assert edge[0] == pytest.approx(np.log(0.5)) and edge[2] == -np.inf
     assert edge[1] < 0 and not np.isnan(edge[1])
+
+
+def test_most_likely_takes_the_first_of_near_ties_and_never_nan():
+    from cdog_jax.graph._sigma import most_likely
+
+    lik = jnp.asarray([-100.0, -99.1, np.nan, -99.0])
+    assert int(most_likely(lik)) == 3
+    # Within 1e-5 (1 + |top|) = 1e-3 of the top: a tie, the first of them wins.
+    assert int(most_likely(lik.at[1].set(-99.0005))) == 1
+    assert int(most_likely(jnp.asarray([np.nan, -5.0]))) == 1
