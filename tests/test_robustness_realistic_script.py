@@ -52,3 +52,16 @@ def test_the_fitted_gate_runs_with_sigma_per_scene():
         assert 0.0 <= r["paper_fitted"]["pg_f1"] <= 1.0, r
     with pytest.raises(ValueError, match="sigma_pool='scene'"):
         script.run_skeleton(family, "paper_fitted", batch, rig)
+
+
+def test_the_shelf_errors_family_is_the_skeletons_with_the_detectors_errors():
+    """Its scenes are the skeleton family's people with Shelf's missed joints and swaps: the
+    same seed gives fewer detections; the presets run on it."""
+    script = _load()
+    lv = script.levels(script.FAMILIES["skeleton"], quick=True)[:1]
+    _, plain = script.skeleton_batch(lv, 1, 2, script.FAMILIES["skeleton"], script.SEED)
+    family = script.FAMILIES["shelf_errors"]
+    rig, batch = script.skeleton_batch(lv, 1, 2, family, script.SEED)
+    assert 0 < int(batch.mask.sum()) < int(plain.mask.sum())
+    rows = script.summarise({"paper": script.run_skeleton(family, "paper", batch, rig)}, lv, 2)
+    assert 0.5 < rows[0]["paper"]["recall"] <= 1.0
