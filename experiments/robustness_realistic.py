@@ -493,7 +493,7 @@ def markdown(out) -> str:
         lines += [
             "",
             f"{name} (σ = {fam['sigma']:g} px, recall within {fam['radius']:g}, {fam['per_level']} scenes per level"
-            + (f", σ pooled per {out.get('sigma_pool', 'frame')}" if name == "skeleton" else "")
+            + (f", σ pooled per {out.get('sigma_pool', 'frame')}" if name != "box" else "")
             + "):",
             "",
             "| " + " | ".join(head) + " |",
