@@ -115,21 +115,12 @@ FAMILIES = {
         clutter=48,
         clutter_levels=(5.0, 15.0, 30.0),
     ),
-    # The same people with what Shelf's OpenPose detections show beyond pixel noise
-    # (KeypointErrors.shelf(): joints missed, more often where another person hides them,
-    # left/right swaps), every factor then on top: the study on the generator fitted to
-    # real detections (experiments/real/shelf_generator_check.py).
-    "shelf_errors": dict(
-        sigma=3.0,
-        radius=0.1,
-        distance=5.0,
-        people=4,
-        doubles=40,
-        clutter=48,
-        clutter_levels=(5.0, 15.0, 30.0),
-        keypoint_errors="shelf",
-    ),
 }
+# The same people with what Shelf's OpenPose detections show beyond pixel noise
+# (KeypointErrors.shelf(): joints missed, more often where another person hides them,
+# left/right swaps), every factor then on top: the study on the generator fitted to real
+# detections (experiments/real/shelf_generator_check.py).
+FAMILIES["shelf_errors"] = dict(FAMILIES["skeleton"], keypoint_errors="shelf")
 FACTORS = {
     # factor: (axis label, levels)
     "tails": ("Student-t ν (∞: Gaussian)", (math.inf, 10.0, 5.0, 3.0, 2.0)),
