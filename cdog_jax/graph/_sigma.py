@@ -236,8 +236,7 @@ def sigma_from_samples(
     # Every start takes SELECT_AFTER steps; by then the starts bound for one optimum agree
     # and the most likely is on its way to the best one; it alone takes the remaining steps
     # (the EM's cost is per start and step).
-    pi0 = jnp.broadcast_to(jnp.asarray([0.6, 0.3, 0.1], dtype), (len(START_QUANTILES), 3))
-    heads = jax.vmap(lambda c, pi: em(c, inv_kappa0, pi, SELECT_AFTER)[:4])(c0, pi0)
+    heads = jax.vmap(lambda c: em(c, inv_kappa0, None, SELECT_AFTER)[:4])(c0)
     best = most_likely(heads[3])
     c, _, _, _, parts = em(*(a[best] for a in heads[:3]), EM_ITERS - SELECT_AFTER)
     resp = jax.nn.softmax(parts, axis=0)

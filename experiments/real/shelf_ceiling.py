@@ -32,7 +32,10 @@ import os
 import runpy
 import sys
 
+import jax.numpy as jnp
 import numpy as np
+
+import cdog_jax
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 shelf_detections = runpy.run_path(
@@ -43,6 +46,18 @@ shelf_score = runpy.run_path(os.path.join(HERE, "shelf_score.py"), run_name="she
 
 ANNOTATED = shelf_score["BODY25_OF_SHELF"]  # Shelf joint → BODY_25 joint (13 of them)
 MIN_SHARED_JOINTS = 3  # a person is compared with an actor on at least this many joints
+
+
+def one_to_one(pairs: list[tuple[float, int, int]]) -> list[tuple[int, int]]:
+    """``(i, k)`` from candidate ``(distance, i, k)``: nearest pairs first, each ``i`` and
+    each ``k`` taken once."""
+    out, used_i, used_k = [], set(), set()
+    for _, i, k in sorted(pairs):
+        if i not in used_i and k not in used_k:
+            out.append((i, k))
+            used_i.add(i)
+            used_k.add(k)
+    return out
 
 
 def assign_people(people: list[np.ndarray], uv: dict[int, np.ndarray], radius: float) -> dict:
@@ -60,30 +75,20 @@ def assign_people(people: list[np.ndarray], uv: dict[int, np.ndarray], radius: f
             ]
             if len(d) >= MIN_SHARED_JOINTS and np.median(d) <= radius:
                 pairs.append((float(np.median(d)), a, k))
-    out, used = {}, set()
-    for _, a, k in sorted(pairs):
-        if a not in out and k not in used:
-            out[a] = k
-            used.add(k)
-    return out
+    return dict(one_to_one(pairs))
 
 
 def nearest_pairs(at: list[np.ndarray], dets: np.ndarray, radius: float) -> list[tuple[int, int]]:
     """One-to-one ``(i, k)``: point ``at[i] (2,)`` takes detection ``dets[k]`` (``(n, 2)``
     px), nearest pairs first, each within ``radius`` px (a NaN point takes none)."""
-    pairs = sorted(
-        (float(np.linalg.norm(dets[k] - p)), i, k)
-        for i, p in enumerate(at)
-        for k in range(len(dets))
-        if np.linalg.norm(dets[k] - p) <= radius
+    return one_to_one(
+        [
+            (float(np.linalg.norm(dets[k] - p)), i, k)
+            for i, p in enumerate(at)
+            for k in range(len(dets))
+            if np.linalg.norm(dets[k] - p) <= radius
+        ]
     )
-    out, used_i, used_k = [], set(), set()
-    for _, i, k in pairs:
-        if i not in used_i and k not in used_k:
-            out.append((i, k))
-            used_i.add(i)
-            used_k.add(k)
-    return out
 
 
 def ceiling_tracks(views, gt, K, R, t, size, frames, radius: float, by_joint: bool):
@@ -130,11 +135,7 @@ def ceiling_tracks(views, gt, K, R, t, size, frames, radius: float, by_joint: bo
 def ceiling_people(rig, views, gt, K, R, t, size, frames, radius: float, by_joint: bool):
     """``people[f]``: the triangulated actors of frame ``f`` as BODY_25 ``(25, 3)`` (NaN
     where fewer than two views hold the joint), a list over every frame of ``gt``."""
-    import cdog_jax
-
     xy, mask, keys = ceiling_tracks(views, gt, K, R, t, size, frames, radius, by_joint)
-    import jax.numpy as jnp
-
     points, ok = cdog_jax.triangulate(rig, jnp.asarray(xy, rig.K.dtype), jnp.asarray(mask))
     points, ok = np.asarray(points, float), np.asarray(ok)
     found: dict[tuple[int, int], np.ndarray] = {}
@@ -158,8 +159,6 @@ def main(argv: list[str] | None = None) -> list[dict]:
     parser.add_argument("--radius", type=float, default=40.0, help="px (default 40)")
     parser.add_argument("--json", help="also write the rows here")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
-    import cdog_jax
-
     K, R, t, size, views, gt = shelf_detections["read_views"](args.data)
     count = min(len(gt), *(len(v) for v in views))
     gt = gt[:count]
