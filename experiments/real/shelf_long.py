@@ -7,7 +7,9 @@ one OpenPose folder per camera) are linked ``--repeat`` times over into one long
 (frame ``k + 301 r`` of a view is a link to frame ``k``), so that the long run reads the same
 detections in the same way; nothing is scored. Each length runs ``--runs`` times as a whole
 process after one warm-up (the compilation cache filled); the script prints the median wall
-time and the largest peak resident memory (the child's ``ru_maxrss``).
+time, the largest peak resident memory (the child's ``ru_maxrss``) and each run's peak: a
+long recording goes through the command in parts, and its peak is the largest of its parts'
+peaks, each of which varies from run to run as a short recording's does.
 
     python experiments/real/shelf_long.py PATH/TO/data/shelf                # 301 and 3,010
     python experiments/real/shelf_long.py PATH/TO/data/shelf --repeat 20 -- --no-temporal-prior
@@ -105,15 +107,16 @@ def main(argv: list[str] | None = None) -> dict:
                 "frames_per_s": round(count / wall, 1),
                 "peak_mib": round(max(peaks)),
                 "walls_s": [round(w, 2) for w in walls],
+                "peaks_mib": [round(p) for p in peaks],
             }
         )
     print(f"cdog-jax associate {' '.join(extra) or '(defaults)'}, {args.runs} runs each:")
-    print("| frames | wall (median) | frames/s | peak memory |")
-    print("|---|---|---|---|")
+    print("| frames | wall (median) | frames/s | peak memory (largest) | each run's peak |")
+    print("|---|---|---|---|---|")
     for row in rows:
         print(
             f"| {row['frames']:,} | {row['wall_s']:.1f} s | {row['frames_per_s']:.0f} "
-            f"| {row['peak_mib']:,} MiB |"
+            f"| {row['peak_mib']:,} MiB | {', '.join(f'{p:,}' for p in row['peaks_mib'])} MiB |"
         )
     result = {"options": " ".join(extra), "rows": rows, "machine_cpus": os.cpu_count()}
     if args.json:

@@ -43,8 +43,8 @@ SCENES = _scenes()
 
 def _partition(labels, mask):
     """The groups as a set of frozensets of (view, slot)."""
-    groups = {}
-    for m, i in zip(*np.nonzero((np.asarray(labels) >= 0) & mask)):
+    groups, labels = {}, np.asarray(labels)  # read on the host once, not slot by slot
+    for m, i in zip(*np.nonzero((labels >= 0) & mask)):
         groups.setdefault(int(labels[m, i]), set()).add((int(m), int(i)))
     return {frozenset(g) for g in groups.values()}
 
