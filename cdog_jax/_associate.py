@@ -21,7 +21,15 @@ from ._method import Method, Observations, method_argument
 from ._result import Association, association_from_groups
 from ._runtime.devices import chunk_devices
 from ._runtime.memory import check_memory
-from ._runtime.shapes import chunk_size, occupied_slots, pad_scenes, pad_slots, slot_capacity, trim
+from ._runtime.shapes import (
+    chunk_size,
+    occupied_slots,
+    pad_scenes,
+    pad_slots,
+    scene_capacity,
+    slot_capacity,
+    trim,
+)
 from ._runtime.stored_programs import call_stored
 from ._status import Status
 from ._types import Array, ArrayLike, Float, Int
@@ -136,11 +144,12 @@ def associate(
     at most the image diagonal: twice the largest principal point of ``rig.K``, or the
     detections' extent ``hypot(max |x|, max |y|)`` where that is larger.
 
-    The compiled program runs at a padded capacity: the smallest rung of the ladder 4, 6, 8,
-    12, 16, 24, 32, 48, 64, 80, 96, 112, 128, 160, … that holds the slots in use (``P`` less
-    the trailing slots no view fills), or the slots in use themselves where only that fits
-    the memory budget, so that frames of different counts share a handful of programs; the
-    result is brought back to ``P``.
+    The compiled program runs at a padded capacity: the smallest rung of the ladder 32, 64,
+    128, 160, 192, 224, 256, 320, … that holds the slots in use (``P`` less the trailing
+    slots no view fills), or the slots in use themselves where only that fits the memory
+    budget, so that frames of different counts share a handful of programs (a first call at
+    a new capacity compiles for seconds; up to 128 slots a scene runs in milliseconds at any
+    of them); the result is brought back to ``P``.
 
     Returns:
         An :class:`Association` (labels, groups, points, errors). Its ``status`` is
@@ -159,7 +168,15 @@ def associate(
     dtype = _float_dtype(xy)
     M, P = np.shape(mask)
     capacity = _capacity(
-        "associate", M, occupied_slots(mask), method, dtype, 1, memory_budget_gb, vmapped=None
+        "associate",
+        M,
+        occupied_slots(mask),
+        method,
+        dtype,
+        1,
+        memory_budget_gb,
+        vmapped=None,
+        ladder=scene_capacity,
     )
     static, thresholds = _prepare(method, sigma, thresholds, dtype)
     np_dtype = np.dtype(dtype)
@@ -188,12 +205,15 @@ def _single_scene(rig, xy, mask, thresholds, extras, method):
     return call_stored(_associate_extras_jit, (rig, xy, mask, thresholds, *extras), method)
 
 
-def _capacity(where, M, P, method, dtype, batch_size, budget_gb, vmapped) -> int:
-    """The padded slot capacity (:func:`slot_capacity`), or ``P`` itself where only the
-    unpadded shapes fit the memory budget; raises ``MemoryError`` where neither does.
-    ``P``: the slots in use (:func:`occupied_slots`; one at least)."""
+def _capacity(
+    where, M, P, method, dtype, batch_size, budget_gb, vmapped, ladder=slot_capacity
+) -> int:
+    """The padded slot capacity (``ladder(P)``: :func:`slot_capacity` or
+    :func:`scene_capacity`), or ``P`` itself where only the unpadded shapes fit the memory
+    budget; raises ``MemoryError`` where neither does. ``P``: the slots in use
+    (:func:`occupied_slots`; one at least)."""
     P = max(int(P), 1)
-    capacity = slot_capacity(P)
+    capacity = ladder(P)
     try:
         check_memory(where, M, capacity, method, dtype, batch_size, budget_gb, vmapped=vmapped)
     except MemoryError:

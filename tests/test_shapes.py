@@ -15,7 +15,7 @@ from cdog_jax._associate import (
     _prepare,
     associate_batch_at,
 )
-from cdog_jax._runtime.shapes import chunk_size, ladder_rung, slot_capacity
+from cdog_jax._runtime.shapes import chunk_size, ladder_rung, scene_capacity, slot_capacity
 
 RIG = ring_rig(5)
 P = 13  # not on the ladder: associate runs at 16
@@ -59,6 +59,21 @@ def test_ladders():
         160,
         640,
     ]
+    # One scene alone: 32, 64 or 128 up to 128 slots (few programs for a notebook's loop),
+    # the fine rungs above.
+    assert [scene_capacity(p) for p in (1, 5, 32, 33, 64, 65, 128, 129, 130, 600)] == [
+        32,
+        32,
+        32,
+        64,
+        64,
+        128,
+        128,
+        160,
+        160,
+        640,
+    ]
+    assert len({scene_capacity(n) for n in range(1, 129)}) == 3
     capacities = [slot_capacity(n) for n in range(65, 4097)]
     assert all(n <= c < 1.25 * n for n, c in enumerate(capacities, start=65))
     assert all(slot_capacity(c) == c for c in capacities)  # a rung pads to itself
@@ -178,13 +193,14 @@ def test_frames_within_one_rung_compile_one_program():
             associate(RIG, xy[:, :count], mask[:, :count], method=Config.paper(), sigma=1.0)
     finally:
         jax.monitoring.unregister_event_duration_listener(listener)
-    assert len(compiles) <= 1, compiles  # the 12-slot program (none if already compiled)
+    assert len(compiles) <= 1, compiles  # the 32-slot program (none if already compiled)
 
 
 def test_trailing_empty_slots_are_left_out(monkeypatch):
     """Slots that no view fills at the end of ``P`` are not sent to the program: 13 slots in
-    use of 40 run at 16 slots, not 48, and the result is bitwise that of the program at 40
-    slots (labels of the empty slots -1, the extra group rows empty)."""
+    use of 40 run at 32 slots alone (not 64) and at 16 in a batch (not 48), and the result
+    is bitwise that of the program at 40 slots (labels of the empty slots -1, the extra
+    group rows empty)."""
     import cdog_jax._associate as associate_module
 
     scenes = [_scene(seed, clutter=1) for seed in (6, 7)]
@@ -201,7 +217,7 @@ def test_trailing_empty_slots_are_left_out(monkeypatch):
     )
     config = Config.paper()
     got = associate(RIG, *wide[0], method=config)
-    assert shapes == [(RIG.num_views, 16, 2)]
+    assert shapes == [(RIG.num_views, 32, 2)]
     _assert_same(got, _unpadded(*wide[0], config))
     batch = associate_batch(
         RIG,
