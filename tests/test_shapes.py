@@ -18,7 +18,7 @@ from cdog_jax._associate import (
 from cdog_jax._runtime.shapes import chunk_size, ladder_rung, scene_capacity, slot_capacity
 
 RIG = ring_rig(5)
-P = 13  # not on the ladder: associate runs at 16
+P = 13  # on no ladder: associate runs at 32, associate_batch at 16
 
 
 def _unpadded(xy, mask, config, sigma=1.0, dist=None, weights=None, min_views=2):
