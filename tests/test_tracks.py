@@ -503,3 +503,57 @@ def test_the_prior_drops_the_worst_view_until_the_rest_agree(displaced):
     assert f == 1 and int(tracked.association.n_views[f, g]) == views - displaced
     kept = np.asarray(tracked.association.groups[f, g]) >= 0
     assert not kept[:displaced].any() and kept[displaced:].all()
+
+
+@pytest.mark.parametrize("lost_count", [5, 33])
+def test_the_prior_on_the_lost_tracks_packed_equals_it_on_every_row(lost_count):
+    """The prior's search, triangulations and view dropping on the lost tracks alone,
+    packed to the front (a frame losing at most ``LOST_ROWS`` of its tracks), give the table
+    of the same work on every row, bit for bit: the same groups in the same free rows."""
+    from cdog_jax.tracking._temporal_prior import LOST_ROWS, _recover, recover_tracks
+    from cdog_jax.tracking._tracks import _Out
+
+    rig = ring_rig(4)
+    rng = np.random.default_rng(lost_count)
+    T, H, P = 48, 40, 24
+    M = rig.num_views
+    prev_X = rng.uniform(-0.5, 0.5, (T, 3)).astype(np.float32)
+    moved = prev_X + rng.normal(0, 0.01, (T, 3)).astype(np.float32)
+    lost = np.zeros(T, bool)
+    lost[rng.choice(T, lost_count, replace=False)] = True
+    assert (lost.sum() <= LOST_ROWS) == (lost_count == 5)
+    # Each view holds the moved points of some lost tracks (plus noise) and strays, shuffled.
+    xy = rng.uniform(0, 640, (M, P, 2)).astype(np.float32)
+    mask = rng.random((M, P)) < 0.7
+    pixels, _ = project_np(rig, moved)  # (M, T, 2)
+    classes = rng.integers(0, 2, T).astype(np.int32)
+    det_class = rng.integers(0, 2, (M, P)).astype(np.int32)
+    for m in range(M):
+        for k, t in enumerate(np.flatnonzero(lost)[: P // 2]):
+            if rng.random() < 0.8:
+                xy[m, 2 * k] = pixels[m, t] + rng.normal(0, 0.5, 2)
+                mask[m, 2 * k], det_class[m, 2 * k] = True, classes[t]
+    labels = np.where(rng.random((M, P)) < 0.2, 0, -1).astype(np.int32)
+    valid = np.arange(H) < 10
+    out = _Out(
+        np.zeros((H, 3), np.float32),
+        valid,
+        np.zeros(H, np.int32),
+        np.full((H, M), -1, np.int32),
+        np.zeros(H, np.float32),
+        np.zeros(H, np.float32),
+        labels,
+        np.where(valid, np.arange(H), -1).astype(np.int32),
+        np.zeros(H, bool),
+        np.int32(0),
+    )
+    track = np.arange(T, dtype=np.int32) + 100
+    gate = np.full(T, 40.0, np.float32)
+    frame = (rig, out, xy, mask, det_class, np.float32(4.0), 2)
+    packed = jax.jit(recover_tracks, static_argnums=11)(
+        rig, out, prev_X, lost, classes, track, xy, mask, det_class, gate, np.float32(4.0), 2
+    )
+    every = jax.jit(_recover, static_argnums=6)(*frame, prev_X, lost, classes, track, gate)
+    assert int(np.asarray(packed.recovered).sum()) > 0  # the test finds tracks
+    for name, a, b in zip(_Out._fields, packed, every):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b), err_msg=name)

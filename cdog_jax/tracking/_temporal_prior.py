@@ -84,6 +84,14 @@ def _nearest_free_packed(
     return jnp.where(packed >= 0, slot[views[None, :], jnp.maximum(packed, 0)], -1)
 
 
+LOST_ROWS = 32
+"""Lost tracks that the search holds at once: a frame loses few of its tracks (a live frame
+carries 256 rows), so the search, the triangulations and the view dropping run on them
+alone, packed to the front in row order; a frame that loses more runs them on every row.
+Either way the same groups in the same rows (the packing keeps the tracks' order, which
+breaks the matching's ties and gives each found track its free row)."""
+
+
 def recover_tracks(
     rig: Rig,
     out: Any,
@@ -104,6 +112,38 @@ def recover_tracks(
     class, id) found among the unassigned detections ``xy (M, P, 2)`` (pixels), ``mask``,
     ``det_class (M, P)``, within ``gate_px (T,)`` of its reprojections. ``unplaced``: tracks
     found with no free row left."""
+    tracks = (prev_X, lost, prev_class, prev_track, gate_px)
+    frame = (rig, out, xy, mask, det_class, err_gate_px, min_views)
+    if prev_X.shape[0] <= LOST_ROWS:
+        return _recover(*frame, *tracks)
+
+    def packed(tracks):
+        lost = tracks[1]
+        rows = jnp.nonzero(lost, size=LOST_ROWS, fill_value=0)[0]
+        held = jnp.arange(LOST_ROWS) < jnp.sum(lost)
+        X, _, cls, track, gate = (a[rows] for a in tracks)
+        return _recover(*frame, X, held, cls, track, gate)
+
+    return lax.cond(
+        jnp.sum(lost) <= LOST_ROWS, packed, lambda tracks: _recover(*frame, *tracks), tracks
+    )
+
+
+def _recover(
+    rig,
+    out,
+    xy,
+    mask,
+    det_class,
+    err_gate_px,
+    min_views,
+    prev_X,
+    lost,
+    prev_class,
+    prev_track,
+    gate_px,
+) -> Any:
+    """:func:`recover_tracks` on the tracks given (all, or the lost ones packed)."""
     H = out.valid.shape[0]
     T = prev_X.shape[0]
     M, P = mask.shape
