@@ -509,7 +509,8 @@ def test_the_prior_drops_the_worst_view_until_the_rest_agree(displaced):
 def test_the_prior_on_the_lost_tracks_packed_equals_it_on_every_row(lost_count):
     """The prior's search, triangulations and view dropping on the lost tracks alone,
     packed to the front (a frame losing at most ``LOST_ROWS`` of its tracks), give the table
-    of the same work on every row, bit for bit: the same groups in the same free rows."""
+    of the same work on every row, bit for bit under the suite's switches (no fused
+    multiply-adds: tests/conftest.py): the same groups in the same free rows."""
     from cdog_jax.tracking._temporal_prior import LOST_ROWS, _recover, recover_tracks
     from cdog_jax.tracking._tracks import _Out
 

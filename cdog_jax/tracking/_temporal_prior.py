@@ -89,7 +89,9 @@ LOST_ROWS = 32
 carries 256 rows), so the search, the triangulations and the view dropping run on them
 alone, packed to the front in row order; a frame that loses more runs them on every row.
 Either way the same groups in the same rows (the packing keeps the tracks' order, which
-breaks the matching's ties and gives each found track its free row)."""
+breaks the matching's ties and gives each found track its free row), the points within
+float32 round-off: where XLA fuses a multiply and an add into one rounding depends on a
+program's shapes (bit for bit under the test suite's switches, which forbid that fusion)."""
 
 
 def recover_tracks(
