@@ -88,5 +88,7 @@ def test_the_generator_check_on_the_standin(tmp_path):
     assert row["shelf dev frames"] == 0.5
     # Noise of 5 px at 4 m: the clean scenes' joints are found; the detector's misses cost.
     assert row["clean"] > 0.9 and row["+ keypoint errors"] < row["clean"]
+    # Far-off detections on top of the detector's misses: no joint is gained.
+    assert row["+ error tails"] <= row["+ keypoint errors"]
     # The people of the clean scenes: every part of the three actors within half its length.
     assert table["pcp"]["shelf dev frames"] is None and table["pcp"]["clean"] > 90.0

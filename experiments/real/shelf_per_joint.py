@@ -5,7 +5,8 @@ Each scene holds one joint type's detections in the five views (one per person O
 found, plus its spurious ones); nothing links joints or frames: no person vote, no temporal
 prior, σ estimated per scene (``associate_classes(..., sigma_pool="scene")``, which is one
 ``associate`` per scene, batched). Scored on Shelf's dev frames (the even blocks of 25) by
-recall@10cm of the 12 limb joints (:mod:`shelf_score`); the held-out frames are never read.
+recall@10cm of the 12 limb joints (:mod:`shelf_score`); ``--split held-out`` scores the odd
+blocks instead, once, when nothing more is to be chosen on them.
 
 The rows: the presets; then ``best()`` with one rule changed at a time: the validity
 gate's parallax and error bounds off, σ given instead of estimated, the robust σ
@@ -57,7 +58,7 @@ ROWS: dict[str, tuple[str, dict, dict]] = {
 
 
 def run(rig, det, frames: np.ndarray, method, options: dict) -> tuple[dict, float]:
-    """One row: the 3D points per dev frame and joint type, and the wall time (s)."""
+    """One row: the 3D points per scored frame and joint type, and the wall time (s)."""
     import cdog_jax
 
     options = {"sigma_pool": "scene", **options}
@@ -90,6 +91,12 @@ def main(argv: list[str] | None = None) -> list[dict]:
     )
     parser.add_argument("--rows", help=f"comma-separated rows (default all: {', '.join(ROWS)})")
     parser.add_argument("--out", help="also write the rows as JSON here")
+    parser.add_argument(
+        "--split",
+        choices=("dev", "held-out"),
+        default="dev",
+        help="the frames scored (default dev: the even blocks of 25)",
+    )
     args = parser.parse_args(argv)
     names = list(ROWS) if args.rows is None else [r.strip() for r in args.rows.split(",")]
     unknown = [n for n in names if n not in ROWS]
@@ -102,7 +109,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
     prepared = shelf["prepare"](args.data, args.work)
     rig = load_rig(prepared["rig"]).rig
     det = load_openpose(prepared["pose"], keypoints="BODY_25")
-    dev = shelf["split_frames"](prepared["frames"], "dev")
+    dev = shelf["split_frames"](prepared["frames"], args.split)
     rows = []
     for name in names:
         preset, fields, options = ROWS[name]
