@@ -15,7 +15,7 @@ worker seconds are about twice the wall time of a run on two workers.
 Usage::
 
     PYTHONPATH=experiments SUITE_CENSUS_OUT=/tmp/census python -m pytest -p suite_census
-    python experiments/suite_census.py /tmp/census [--top 25]
+    python experiments/suite_census.py /tmp/census [--top 25] [--programs 30]
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ _EVENTS = {
 
 _current = ["<collection>"]
 _tests: dict = collections.defaultdict(lambda: collections.defaultdict(float))
+_programs: list = []  # (test, program name, seconds) of every program compilation
 
 
 def _record(event: str, seconds: float, **kwargs) -> None:
@@ -46,6 +47,8 @@ def _record(event: str, seconds: float, **kwargs) -> None:
         size = "small" if seconds < SMALL_S else "program"
         row[f"compile_{size}_s"] += seconds
         row[f"compile_{size}_n"] += 1
+        if size == "program":
+            _programs.append((_current[0], str(kwargs.get("fun_name", "?")), seconds))
     else:
         row[f"{kind}_s"] += seconds
         row[f"{kind}_n"] += 1
@@ -78,6 +81,7 @@ def pytest_sessionfinish(session) -> None:
     folder.mkdir(parents=True, exist_ok=True)
     worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
     (folder / f"{worker}.json").write_text(json.dumps({k: dict(v) for k, v in _tests.items()}))
+    (folder / f"{worker}.programs").write_text(json.dumps(_programs))
 
 
 COLUMNS = ("wall_s", "compile_program_s", "compile_small_s", "trace_s", "lower_s")
@@ -100,6 +104,22 @@ def summarise(folder: str | Path) -> tuple[dict, dict]:
     return totals, per_file
 
 
+def programs_by_name(folder: str | Path) -> list[tuple[str, int, float, int]]:
+    """``(program name, compilations, seconds, test files)`` over every worker's
+    ``.programs`` file, most seconds first: which functions are compiled again and again
+    (for new shapes or options) and by how many test files."""
+    rows: dict = collections.defaultdict(lambda: [0, 0.0, set()])
+    for path in sorted(Path(folder).glob("*.programs")):
+        for test, name, seconds in json.loads(path.read_text()):
+            row = rows[name]
+            row[0] += 1
+            row[1] += seconds
+            row[2].add(test.split("::")[0])
+    return sorted(
+        ((name, n, s, len(files)) for name, (n, s, files) in rows.items()), key=lambda r: -r[2]
+    )
+
+
 def _line(name: str, row: dict) -> str:
     cells = [f"{row[c]:.0f}" for c in (*COLUMNS, "rest_s")]
     return (
@@ -113,6 +133,9 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("folder", help="the SUITE_CENSUS_OUT folder of a run")
     parser.add_argument("--top", type=int, default=25, help="test files to list, by wall time")
+    parser.add_argument(
+        "--programs", type=int, default=0, help="also list this many programs, by compile time"
+    )
     args = parser.parse_args(argv)
     totals, per_file = summarise(args.folder)
     if not per_file:
@@ -125,6 +148,12 @@ def main(argv=None) -> None:
     print(_line("all tests", totals))
     for name, row in sorted(per_file.items(), key=lambda item: -item[1]["wall_s"])[: args.top]:
         print(_line(name, row))
+    if args.programs:
+        print("\nprograms compiled (>= 0.1 s), by compile seconds over the workers")
+        print("| program | compilations | seconds | test files |")
+        print("|---|---|---|---|")
+        for name, n, seconds, files in programs_by_name(args.folder)[: args.programs]:
+            print(f"| {name} | {n} | {seconds:.0f} | {files} |")
 
 
 if __name__ == "__main__":

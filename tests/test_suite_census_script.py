@@ -65,3 +65,20 @@ def test_census_counts_a_child_test(tmp_path, capsys):
     suite_census.main([str(out)])
     text = capsys.readouterr().out
     assert "| all tests |" in text and "| test_tiny.py |" in text
+
+
+def test_programs_are_summed_by_name_over_the_workers(tmp_path, capsys):
+    sys.path.insert(0, EXPERIMENTS)
+    try:
+        import suite_census
+    finally:
+        sys.path.remove(EXPERIMENTS)
+    (tmp_path / "gw0.json").write_text('{"tests/a.py::t": {"wall_s": 3.0}}')
+    (tmp_path / "gw0.programs").write_text(
+        '[["tests/a.py::t", "f", 1.0], ["tests/a.py::u", "g", 0.5], ["tests/a.py::t", "f", 2.0]]'
+    )
+    (tmp_path / "gw1.programs").write_text('[["tests/b.py::t", "f", 0.5]]')
+    assert suite_census.programs_by_name(tmp_path) == [("f", 3, 3.5, 2), ("g", 1, 0.5, 1)]
+    suite_census.main([str(tmp_path), "--programs", "1"])
+    text = capsys.readouterr().out
+    assert "| f | 3 | 4 | 2 |" in text and "| g |" not in text
