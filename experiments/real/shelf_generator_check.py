@@ -6,7 +6,7 @@ to look like them.
 The synthetic scenes: Shelf's own five cameras (``calibration.json``, 1032 × 776 px), moved
 so that the generator's walking area (about the world origin) lies where Shelf's actors
 stand; 3–5 people (Shelf's cameras see 2–6) walking for ``--frames`` frames at 25 frames
-per second, in ``--sequences`` sequences. Their detections are rendered three ways:
+per second, in ``--sequences`` sequences. Their detections are rendered four ways:
 
 - ``clean``: Gaussian noise of ``--sigma`` px (default 5: the σ that C-DOG's estimator finds
   on Shelf's dev frames is 5.2 px; the 10.4 px of ``shelf_detections.py`` are measured
