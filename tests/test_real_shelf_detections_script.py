@@ -6,6 +6,7 @@ import os
 import runpy
 
 import numpy as np
+import pytest
 from test_real_shelf_script import _write_standin
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -92,3 +93,33 @@ def test_the_generator_check_on_the_standin(tmp_path):
     assert row["+ error tails"] <= row["+ keypoint errors"]
     # The people of the clean scenes: every part of the three actors within half its length.
     assert table["pcp"]["shelf dev frames"] is None and table["pcp"]["clean"] > 90.0
+
+
+def test_the_generator_check_leaves_out_a_stage(tmp_path):
+    """``--left-out``: a preset with one stage left out, joint by joint on the stand-in (as on
+    Shelf's dev frames) and on the synthetic scenes, beside the preset's own recall."""
+    folder = str(tmp_path / "shelf")
+    os.makedirs(folder)
+    _write_standin(folder)
+    check = runpy.run_path(
+        os.path.join(HERE, "..", "experiments", "real", "shelf_generator_check.py"),
+        run_name="shelf_generator_check",
+    )
+    rig, size = check["shelf_rig"](folder)
+    scenes = check["synthetic_scenes"](
+        rig, size, sigma=5.0, view_spread=0.22, errors=True, sequences=1, frames=2
+    )
+    table = {"extended": {"shelf dev frames": 0.5, "+ keypoint errors": 0.75}}
+    (row,) = check["left_out_rows"](
+        folder, str(tmp_path / "work"), rig, scenes, ["extended() − regroup"], table
+    )
+    # On the stand-in's clean frames every joint is found without the stage; what it is
+    # worth is the preset's recall less the row's, on each yardstick.
+    assert row["row"] == "extended() − regroup" and row["shelf"] == 1.0
+    assert row["worth_on_shelf"] == 0.5 - 1.0
+    assert 0.0 <= row["synthetic"] <= 1.0 and row["worth_on_synthetic"] == 0.75 - row["synthetic"]
+    # Rows it does not have, or whose preset the command does not run, are refused first.
+    base = [folder, "--real-json", str(tmp_path / "none.json"), "--presets", "paper"]
+    for wrong in (["--left-out", "no such"], ["--left-out", "best() − seed"]):
+        with pytest.raises(SystemExit):
+            check["main"](base + wrong)

@@ -31,6 +31,14 @@ The check of the defaults work: each preset within 0.02 of Shelf, PCP within 2 p
     python experiments/real/shelf_generator_check.py PATH/TO/data/shelf [--real-json rows.json]
 
 ``--real-json`` reads the real rows from ``shelf_per_joint.py --out`` instead of running them.
+
+Which stages does the generator overrate? ``--left-out ROWS`` (names of :data:`LEFT_OUT`,
+comma-separated, or ``all``) runs a preset with one of its stages left out, joint by joint
+on Shelf's dev frames and on the ``+ keypoint errors`` scenes, beside the preset itself
+(which ``--presets`` must hold): what the stage is worth on each. A stage worth more on the
+synthetic scenes than on Shelf is one whose difficulty the generator does not reproduce.
+
+    python experiments/real/shelf_generator_check.py PATH/TO/data/shelf --left-out all
 """
 
 from __future__ import annotations
@@ -51,6 +59,20 @@ PRESETS = ("best", "extended", "paper", "reference")
 SHELF_CENTRE = np.array([0.5, -0.2, 0.0])  # metres: the middle of Shelf's actors on the floor
 LIMBS = tuple(range(5, 17))  # COCO-17's shoulders … ankles: Shelf's 12 limb joints
 RECALL_RADIUS_M = 0.1
+
+#: A preset with one stage or option left out: ``(preset, Config fields)``.
+LEFT_OUT: dict[str, tuple[str, dict]] = {
+    "best() − seed": ("best", {"seed": False}),
+    "best() − reassign": ("best", {"reassign": False}),
+    "best() − support_filter": ("best", {"support_filter": False}),
+    "best() − recover": ("best", {"recover": False}),
+    "best() − detach_ambiguous": ("best", {"detach_ambiguous": False}),
+    "extended() − regroup": ("extended", {"regroup": False}),
+    "extended() mutual adjacency": ("extended", {"adjacency": "mutual"}),
+    "extended() − recover": ("extended", {"recover": False}),
+    "extended() − IQR": ("extended", {"iqr": False}),
+    "extended() − BPE filter": ("extended", {"bpe_filter": False}),
+}
 
 
 def shelf_rig(data: str):
@@ -138,13 +160,15 @@ def synthetic_recall(assoc, joints3d, exists) -> float:
     return hit / max(total, 1)
 
 
-def run_synthetic(rig, scenes, preset: str) -> tuple[float, float]:
+def run_synthetic(rig, scenes, method) -> tuple[float, float]:
+    """Recall of ``method`` (a preset's name or a :class:`cdog_jax.Config`) on ``scenes``
+    joint by joint, and its wall time (s)."""
     import cdog_jax
 
     xy, mask, classes, joints3d, exists, _ = scenes
     start = time.perf_counter()
     out = cdog_jax.associate_classes(
-        rig, xy, mask, classes, num_classes=17, method=preset, sigma_pool="scene"
+        rig, xy, mask, classes, num_classes=17, method=method, sigma_pool="scene"
     )
     return synthetic_recall(out, joints3d, exists), time.perf_counter() - start
 
@@ -198,6 +222,52 @@ def real_rows(data: str, work: str) -> dict[str, float]:
     return {r["row"].rstrip("()"): r["recall_10cm"] for r in rows}
 
 
+def real_recall_of(data: str, work: str, methods: dict) -> dict[str, float]:
+    """Recall@10cm of each ``methods`` entry (a name and a :class:`cdog_jax.Config`) joint by
+    joint on Shelf's dev frames, as ``shelf_per_joint.py`` measures its rows."""
+    from cdog_jax.io import load_openpose, load_rig
+
+    per_joint = runpy.run_path(os.path.join(HERE, "shelf_per_joint.py"), run_name="per_joint")
+    prepared = shelf["prepare"](data, work)
+    rig = load_rig(prepared["rig"]).rig
+    det = load_openpose(prepared["pose"], keypoints="BODY_25")
+    dev = shelf["split_frames"](prepared["frames"], "dev")
+    truth = [prepared["gt"][f] for f in dev]
+    out = {}
+    for name, method in methods.items():
+        result, _ = per_joint["run"](rig, det, dev, method, {})
+        points = shelf_score["points_by_joint"](result)
+        out[name] = shelf_score["joint_recall"](points, truth, range(len(dev)))
+    return out
+
+
+def left_out_rows(data, work, rig, scenes, rows, table) -> list[dict]:
+    """Each ``LEFT_OUT`` row's recall on Shelf and on ``scenes`` (the ``+ keypoint errors``
+    scenes), and what the stage is worth on each: its preset's recall (from ``table``) less
+    the row's."""
+    import cdog_jax
+
+    methods = {row: getattr(cdog_jax.Config, LEFT_OUT[row][0])(**LEFT_OUT[row][1]) for row in rows}
+    real = real_recall_of(data, work, methods)
+    out = []
+    for row, method in methods.items():
+        preset = LEFT_OUT[row][0]
+        synthetic, _ = run_synthetic(rig, scenes, method)
+        base_real = table[preset]["shelf dev frames"]
+        base_synthetic = table[preset]["+ keypoint errors"]
+        out.append(
+            {
+                "row": row,
+                "shelf": real[row],
+                "synthetic": synthetic,
+                "worth_on_shelf": None if base_real is None else base_real - real[row],
+                "worth_on_synthetic": base_synthetic - synthetic,
+            }
+        )
+        print(f"{row:28s} Shelf {real[row]:.3f} synthetic {synthetic:.3f}", flush=True)
+    return out
+
+
 def main(argv: list[str] | None = None) -> dict:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("data", help="a local copy of the 4D-association repository's data/shelf")
@@ -222,9 +292,25 @@ def main(argv: list[str] | None = None) -> dict:
         "(shelf_table.py's --no-temporal-prior row), for the PCP line",
     )
     p.add_argument("--pcp-preset", default="best", help="the preset of the PCP line")
+    p.add_argument(
+        "--left-out",
+        help="also these rows, comma-separated, or 'all': " + "; ".join(LEFT_OUT),
+    )
     p.add_argument("--json", help="write the table here")
     args = p.parse_args(argv)
     presets = [s.strip() for s in args.presets.split(",")]
+    left_out = []
+    if args.left_out:
+        left_out = (
+            list(LEFT_OUT)
+            if args.left_out == "all"
+            else [s.strip() for s in args.left_out.split(",")]
+        )
+        for row in left_out:
+            if row not in LEFT_OUT:
+                p.error(f"--left-out: no row named {row!r}; the rows: {'; '.join(LEFT_OUT)}")
+            if LEFT_OUT[row][0] not in presets:
+                p.error(f"--left-out {row!r} needs {LEFT_OUT[row][0]!r} in --presets")
     if args.real_json:
         with open(args.real_json) as f:
             real = {r["row"].rstrip("()"): r["recall_10cm"] for r in json.load(f)}
@@ -253,6 +339,8 @@ def main(argv: list[str] | None = None) -> dict:
         score = synthetic_pcp(rig, scenes, args.pcp_preset)
         table["pcp"][setting], table["pcp_parts"][setting] = score["pcp_mean"], score["pcp_parts"]
         print(f"{setting:18s} {args.pcp_preset}() people, PCP {table['pcp'][setting]}", flush=True)
+        if setting == "+ keypoint errors" and left_out:
+            table["left_out"] = left_out_rows(args.data, args.work, rig, scenes, left_out, table)
     print("| preset | Shelf dev frames | " + " | ".join(settings) + " |")
     print("|---|---|" + "---|" * len(settings))
     for name in presets:
@@ -267,6 +355,15 @@ def main(argv: list[str] | None = None) -> dict:
         + " | ".join(f"{row[s]:.1f}" for s in settings)
         + " |"
     )
+    if left_out:
+        print("\n| left out | Shelf dev frames | + keypoint errors | worth on Shelf / synthetic |")
+        print("|---|---|---|---|")
+        for r in table["left_out"]:
+            worth = "" if r["worth_on_shelf"] is None else f"{r['worth_on_shelf']:+.3f}"
+            print(
+                f"| {r['row']} | {r['shelf']:.3f} | {r['synthetic']:.3f} | "
+                f"{worth} / {r['worth_on_synthetic']:+.3f} |"
+            )
     if args.json:
         with open(args.json, "w") as f:
             json.dump(table, f, indent=1)
