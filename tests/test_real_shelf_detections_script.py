@@ -109,6 +109,13 @@ def test_the_generator_check_leaves_out_a_stage(tmp_path):
     scenes = check["synthetic_scenes"](
         rig, size, sigma=5.0, view_spread=0.22, errors=True, sequences=1, frames=2
     )
+    # --nu: the same scenes (people, misses) with Student-t noise, its bulk's spread kept.
+    heavy = check["synthetic_scenes"](
+        rig, size, sigma=5.0, view_spread=0.22, errors=True, sequences=1, frames=2, nu=3.0
+    )
+    assert np.array_equal(heavy[1], scenes[1]) and np.array_equal(heavy[2], scenes[2])
+    moved = np.abs(heavy[0] - scenes[0])[scenes[1]]
+    assert np.median(moved) < 1.0 and np.max(moved) > 10.0  # the bulk kept, the tail grown
     table = {"extended": {"shelf dev frames": 0.5, "+ keypoint errors": 0.75}}
     (row,) = check["left_out_rows"](
         folder, str(tmp_path / "work"), rig, scenes, ["extended() − regroup"], table

@@ -21,6 +21,9 @@ per second, in ``--sequences`` sequences. Their detections are rendered four way
   --radius 100``), some of them the misplaced detections that the 50 px rates count as
   missed.
 
+``--nu`` makes the noise of every setting Student-t with that many degrees of freedom, the
+spread of its bulk kept (``Realism.nu``): heavier tails at the same σ.
+
 Recall on the synthetic scenes counts every existing person's limb joints, on Shelf the
 annotated actors'. A last line gives Shelf's PCP (10 parts, actors 0–2, :mod:`shelf_score`)
 of the people of ``--pcp-preset`` with the person vote (each view's people numbered in a
@@ -45,6 +48,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import runpy
 import time
@@ -96,6 +100,7 @@ def synthetic_scenes(
     frames,
     tail_share=0.0,
     tail_scale=10.0,
+    nu=math.inf,
     seed=0,
 ):
     """``(xy, mask, classes, joints3d, exists, instances)`` stacked over sequences:
@@ -114,7 +119,9 @@ def synthetic_scenes(
             rig,
             int(rng.integers(3, 6)),
             sigma,
-            realism=Realism(view_spread=view_spread, far_share=tail_share, far_scale=tail_scale),
+            realism=Realism(
+                nu=nu, view_spread=view_spread, far_share=tail_share, far_scale=tail_scale
+            ),
             keypoint_errors=KeypointErrors.shelf() if errors else KeypointErrors(),
             num_frames=frames,
             max_people=5,
@@ -291,6 +298,13 @@ def main(argv: list[str] | None = None) -> dict:
         help="Shelf's dev PCP of best() with the person vote and no temporal prior "
         "(shelf_table.py's --no-temporal-prior row), for the PCP line",
     )
+    p.add_argument(
+        "--nu",
+        type=float,
+        default=math.inf,
+        help="Student-t degrees of freedom of every setting's noise, its bulk's spread kept "
+        "(Realism.nu; default inf: Gaussian)",
+    )
     p.add_argument("--pcp-preset", default="best", help="the preset of the PCP line")
     p.add_argument(
         "--left-out",
@@ -330,7 +344,13 @@ def main(argv: list[str] | None = None) -> dict:
     table["pcp_parts"] = {}
     for setting, options in settings.items():
         scenes = synthetic_scenes(
-            rig, size, sigma=args.sigma, sequences=args.sequences, frames=args.frames, **options
+            rig,
+            size,
+            sigma=args.sigma,
+            sequences=args.sequences,
+            frames=args.frames,
+            nu=args.nu,
+            **options,
         )
         for name in presets:
             recall, seconds = run_synthetic(rig, scenes, name)
