@@ -15,6 +15,13 @@ _COMPILE_CACHE = os.environ[_RUN_CACHE_VARIABLE]
 os.environ["CDOG_JAX_CACHE_DIR"] = _COMPILE_CACHE
 os.environ.pop("CDOG_JAX_CACHE", None)
 
+# The suite's strict numerics (no implicit rank or dtype promotion), set through the
+# environment so that child processes (command-line tests) inherit them: their programs and
+# their stored programs' keys are then those of this process, and each is loaded from the
+# run's cache instead of being compiled again.
+os.environ["JAX_NUMPY_RANK_PROMOTION"] = "raise"
+os.environ["JAX_NUMPY_DTYPE_PROMOTION"] = "strict"
+
 import sys  # noqa: E402
 
 import jax  # noqa: E402
