@@ -62,6 +62,25 @@ def test_the_script_on_the_standin(tmp_path):
     assert os.path.exists(tmp_path / "d.json")
 
 
+def test_cameras_seeing_a_person_need_most_of_its_joints_in_their_image():
+    # One camera 5 m from the plane z = 0 (1000 × 800 px): (x, y, 0) lands at
+    # (500 + 20 x, 400 + 20 y); a second camera looks the other way.
+    K = np.array([[[100.0, 0, 500], [0, 100, 400], [0, 0, 1]]] * 2)
+    R = np.array([np.eye(3), np.diag([1.0, -1.0, -1.0])])
+    t = np.array([[0.0, 0, 5], [0.0, 0, -5]])
+    joints = np.zeros((3, 12, 3))
+    joints[0, :, 0] = np.linspace(-5, 5, 12)  # all 12 inside the first image
+    joints[1, :, 0] = np.linspace(-5, 35, 12)  # a third of them beyond its right edge
+    joints[2, :, 2] = -6.0  # behind the first camera, in the second's image
+    seen = stats["cameras_seeing"](K, R, t, (1000, 800), joints)
+    assert seen.tolist() == [1, 0, 1]
+    # Ten of twelve joints inside (83 %) is seen; nine (75 %) is not.
+    joints[1, :, 0] = np.r_[np.zeros(10), 30.0, 30.0]
+    assert stats["cameras_seeing"](K, R, t, (1000, 800), joints)[1] == 1
+    joints[1, :, 0] = np.r_[np.zeros(9), 30.0, 30.0, 30.0]
+    assert stats["cameras_seeing"](K, R, t, (1000, 800), joints)[1] == 0
+
+
 def test_the_generator_check_on_the_standin(tmp_path):
     folder = str(tmp_path / "shelf")
     os.makedirs(folder)
@@ -116,6 +135,9 @@ def test_the_generator_check_leaves_out_a_stage(tmp_path):
     assert np.array_equal(heavy[1], scenes[1]) and np.array_equal(heavy[2], scenes[2])
     moved = np.abs(heavy[0] - scenes[0])[scenes[1]]
     assert np.median(moved) < 1.0 and np.max(moved) > 10.0  # the bulk kept, the tail grown
+    # The people every camera sees: the stand-in's cameras ring the walking area.
+    seen = check["seen_by_every_camera"](rig, size, scenes[3])
+    assert seen.shape == scenes[4].shape and 0 < np.sum(seen & scenes[4]) <= np.sum(scenes[4])
     table = {"extended": {"shelf dev frames": 0.5, "+ keypoint errors": 0.75}}
     (row,) = check["left_out_rows"](
         folder, str(tmp_path / "work"), rig, scenes, ["extended() − regroup"], table

@@ -70,6 +70,28 @@ def project(K, R, t, X):
         return uv[..., :2] / uv[..., 2:], cam[..., 2]
 
 
+SEEN_SHARE = 0.8  # a camera sees a person when this share of its limb joints is in its image
+
+
+def cameras_seeing(K, R, t, size, joints: np.ndarray) -> np.ndarray:
+    """How many of the cameras ``K, R, t`` (``(M, 3, 3)``, ``(M, 3, 3)``, ``(M, 3)``, world to
+    camera) see each person of ``joints (..., J, 3)`` (its limb joints, metres): at least
+    :data:`SEEN_SHARE` of them in front of the camera and inside its image of ``size``
+    (width, height) px. Returns ``(...)`` ints. A camera that looks down its ``-z`` axis
+    (``K[2, 2] = -1``) counts depth along ``-z``."""
+    W, H = size
+    seen = np.zeros(joints.shape[:-2], int)
+    for m in range(len(K)):
+        cam = joints @ np.asarray(R[m]).T + np.asarray(t[m])
+        uv = cam @ np.asarray(K[m]).T
+        with np.errstate(invalid="ignore", divide="ignore"):
+            p = uv[..., :2] / uv[..., 2:]
+        front = cam[..., 2] * np.sign(K[m][2, 2]) > 0
+        inside = front & (p[..., 0] >= 0) & (p[..., 0] < W) & (p[..., 1] >= 0) & (p[..., 1] < H)
+        seen += np.mean(inside, axis=-1) >= SEEN_SHARE
+    return seen
+
+
 def _nearest(points: np.ndarray, at: np.ndarray) -> tuple[float, int]:
     """Distance from ``at (2,)`` to the nearest of ``points (n, 2)`` and its index."""
     if len(points) == 0:
@@ -233,6 +255,15 @@ def main(argv: list[str] | None = None) -> dict:
     count = min(len(gt), *(len(v) for v in views))
     frames = shelf.split_frames(count, args.split)
     out = detection_stats(views, gt, K, R, t, size, frames, args.radius)
+    actors = [
+        j[list(LIMB_JOINTS)]
+        for f in frames
+        for j in gt[f].values()
+        if np.all(np.isfinite(j[list(LIMB_JOINTS)]))
+    ]
+    seen = cameras_seeing(K, R, t, size, np.array(actors).reshape(-1, len(LIMB_JOINTS), 3))
+    out["actor_frames"] = len(actors)
+    out["actor_frames_seen_by_every_camera"] = int(np.sum(seen == len(K)))
     print(
         f"{len(frames)} {args.split} frames, {out['joint_views']} (actor, frame, limb joint, "
         f"view) in sight; within {args.radius:g} px:"
@@ -243,6 +274,11 @@ def main(argv: list[str] | None = None) -> dict:
         f"missed {out['missed_when_hidden']:.3f} of those, {out['missed_when_in_sight']:.3f} "
         f"of the others); doubles {out['doubles']:.4f}; unexplained detections "
         f"{out['unexplained_per_view_frame']:.2f} per view and frame"
+    )
+    print(
+        f"  annotated actors seen by every camera ({SEEN_SHARE:.0%} of their limb joints in "
+        f"its image): {out['actor_frames_seen_by_every_camera']} of {out['actor_frames']} "
+        "(actor, frame)"
     )
     print(
         f"  errors: σ {out['sigma_px']:.2f} px (1.4826·MAD), radial p50 / p90 / p99 "
