@@ -29,12 +29,13 @@ person counts, about half of them seen by four cameras or fewer.
 ``--nu`` makes the noise of every setting Student-t with that many degrees of freedom, the
 spread of its bulk kept (``Realism.nu``): heavier tails at the same σ.
 
-Recall on the synthetic scenes counts every existing person's limb joints, on Shelf the
-annotated actors'. A last line gives Shelf's PCP (10 parts, actors 0–2, :mod:`shelf_score`)
-of the people of ``--pcp-preset`` with the person vote (each view's people numbered in a
-random order, as a 2D pose detector numbers them; ``identify_people``), beside
-``--real-pcp``: the same on Shelf (``shelf_table.py``'s row without the temporal prior).
-The check of the defaults work: each preset within 0.02 of Shelf, PCP within 2 points.
+Recall on the synthetic scenes counts every existing person's limb joints (``--scored``:
+those every camera sees), on Shelf the annotated actors'. A last line gives Shelf's PCP (10
+parts, actors 0–2, :mod:`shelf_score`) of the people of ``--pcp-preset`` with the person
+vote (each view's people numbered in a random order, as a 2D pose detector numbers them;
+``identify_people``), beside ``--real-pcp``: the same on Shelf (``shelf_table.py``'s row
+without the temporal prior). The check of the defaults work: each preset within 0.02 of
+Shelf, PCP within 2 points.
 
     python experiments/real/shelf_generator_check.py PATH/TO/data/shelf [--real-json rows.json]
 
