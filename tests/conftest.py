@@ -50,8 +50,8 @@ cdog_jax.enable_compilation_cache()  # the run's folder (above); importing the p
 if "xla_cpu_use_fusion_emitters" not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {FAST_COMPILE_FLAGS}".strip()
 
-jax.config.update("jax_numpy_rank_promotion", "raise")
-jax.config.update("jax_numpy_dtype_promotion", "strict")
+assert jax.config.jax_numpy_rank_promotion == "raise"  # read from the environment above
+assert jax.config.jax_numpy_dtype_promotion == "strict"
 
 
 @pytest.fixture

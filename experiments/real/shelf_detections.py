@@ -82,11 +82,8 @@ def cameras_seeing(K, R, t, size, joints: np.ndarray) -> np.ndarray:
     W, H = size
     seen = np.zeros(joints.shape[:-2], int)
     for m in range(len(K)):
-        cam = joints @ np.asarray(R[m]).T + np.asarray(t[m])
-        uv = cam @ np.asarray(K[m]).T
-        with np.errstate(invalid="ignore", divide="ignore"):
-            p = uv[..., :2] / uv[..., 2:]
-        front = cam[..., 2] * np.sign(K[m][2, 2]) > 0
+        p, depth = project(np.asarray(K[m]), np.asarray(R[m]), np.asarray(t[m]), joints)
+        front = depth * np.sign(K[m][2, 2]) > 0
         inside = front & (p[..., 0] >= 0) & (p[..., 0] < W) & (p[..., 1] >= 0) & (p[..., 1] < H)
         seen += np.mean(inside, axis=-1) >= SEEN_SHARE
     return seen

@@ -247,25 +247,6 @@ def real_rows(data: str, work: str) -> dict[str, float]:
     return {r["row"].rstrip("()"): r["recall_10cm"] for r in rows}
 
 
-def real_recall_of(data: str, work: str, methods: dict) -> dict[str, float]:
-    """Recall@10cm of each ``methods`` entry (a name and a :class:`cdog_jax.Config`) joint by
-    joint on Shelf's dev frames, as ``shelf_per_joint.py`` measures its rows."""
-    from cdog_jax.io import load_openpose, load_rig
-
-    per_joint = runpy.run_path(os.path.join(HERE, "shelf_per_joint.py"), run_name="per_joint")
-    prepared = shelf["prepare"](data, work)
-    rig = load_rig(prepared["rig"]).rig
-    det = load_openpose(prepared["pose"], keypoints="BODY_25")
-    dev = shelf["split_frames"](prepared["frames"], "dev")
-    truth = [prepared["gt"][f] for f in dev]
-    out = {}
-    for name, method in methods.items():
-        result, _ = per_joint["run"](rig, det, dev, method, {})
-        points = shelf_score["points_by_joint"](result)
-        out[name] = shelf_score["joint_recall"](points, truth, range(len(dev)))
-    return out
-
-
 def left_out_rows(data, work, rig, scenes, rows, table) -> list[dict]:
     """Each ``LEFT_OUT`` row's recall on Shelf and on ``scenes`` (the ``+ keypoint errors``
     scenes), and what the stage is worth on each: its preset's recall (from ``table``) less
@@ -273,7 +254,9 @@ def left_out_rows(data, work, rig, scenes, rows, table) -> list[dict]:
     import cdog_jax
 
     methods = {row: getattr(cdog_jax.Config, LEFT_OUT[row][0])(**LEFT_OUT[row][1]) for row in rows}
-    real = real_recall_of(data, work, methods)
+    per_joint = runpy.run_path(os.path.join(HERE, "shelf_per_joint.py"), run_name="per_joint")
+    found = per_joint["recall_rows"](data, work, {row: (m, {}) for row, m in methods.items()})
+    real = {row: recall for row, (recall, _) in found.items()}
     out = []
     for row, method in methods.items():
         preset = LEFT_OUT[row][0]

@@ -81,6 +81,24 @@ def run(rig, det, frames: np.ndarray, method, options: dict) -> tuple[dict, floa
     return result, time.perf_counter() - start
 
 
+def recall_rows(data: str, work: str, methods: dict, split: str = "dev") -> dict:
+    """``{name: (recall@10cm, wall s)}`` of each ``methods`` entry (``name: (method,
+    associate_classes options)``), every (frame, joint type) of ``split`` a scene of its own."""
+    from cdog_jax.io import load_openpose, load_rig
+
+    prepared = shelf["prepare"](data, work)
+    rig = load_rig(prepared["rig"]).rig
+    det = load_openpose(prepared["pose"], keypoints="BODY_25")
+    frames = shelf["split_frames"](prepared["frames"], split)
+    truth = [prepared["gt"][f] for f in frames]
+    out = {}
+    for name, (method, options) in methods.items():
+        result, seconds = run(rig, det, frames, method, options)
+        points = shelf_score["points_by_joint"](result)
+        out[name] = (shelf_score["joint_recall"](points, truth, range(len(frames))), seconds)
+    return out
+
+
 def main(argv: list[str] | None = None) -> list[dict]:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("data", help="a local copy of the 4D-association repository's data/shelf")
@@ -104,21 +122,13 @@ def main(argv: list[str] | None = None) -> list[dict]:
         parser.error(f"unknown rows {unknown}; choose from {list(ROWS)}")
 
     import cdog_jax
-    from cdog_jax.io import load_openpose, load_rig
 
-    prepared = shelf["prepare"](args.data, args.work)
-    rig = load_rig(prepared["rig"]).rig
-    det = load_openpose(prepared["pose"], keypoints="BODY_25")
-    dev = shelf["split_frames"](prepared["frames"], args.split)
+    methods = {
+        name: (getattr(cdog_jax.Config, ROWS[name][0])(**ROWS[name][1]), ROWS[name][2])
+        for name in names
+    }
     rows = []
-    for name in names:
-        preset, fields, options = ROWS[name]
-        method = getattr(cdog_jax.Config, preset)(**fields)
-        result, seconds = run(rig, det, dev, method, options)
-        points = shelf_score["points_by_joint"](result)
-        recall = shelf_score["joint_recall"](
-            points, [prepared["gt"][f] for f in dev], range(len(dev))
-        )
+    for name, (recall, seconds) in recall_rows(args.data, args.work, methods, args.split).items():
         rows.append({"row": name, "recall_10cm": round(recall, 4), "seconds": round(seconds, 1)})
         print(f"| {name} | {recall:.3f} | {seconds:.1f} s |", flush=True)
     if args.out:
