@@ -520,3 +520,30 @@ def test_public_functions_name_the_expected_and_received_types(fn, args, kwargs,
         plain(fn)(*args, **kwargs)
     with pytest.raises(TypeError):  # the test-time type checker (where annotated) or the check
         fn(*args, **kwargs)
+
+
+def test_a_rig_checked_once_is_checked_again_when_it_could_have_changed():
+    """The rig's value checks are skipped for the same JAX arrays as the last rig checked
+    (they cannot change in place), and run again for NumPy arrays (which can) and for a
+    batched use of the same arrays."""
+    from cdog_jax._validate import check_rig
+
+    good = ring_rig(3)
+    rig = Rig(jnp.asarray(good.K), jnp.asarray(good.R), jnp.asarray(good.t))
+    check_rig(rig)
+    check_rig(rig)  # the same arrays: nothing to read again
+    K = np.array(good.K)
+    on_host = Rig.__new__(Rig)  # NumPy arrays, as a caller without the type checker gives
+    plain(Rig.__init__)(on_host, K, np.array(good.R), np.array(good.t))
+    check_rig(on_host)
+    K[1] = 0.0  # in place, after a check
+    with pytest.raises(ValueError, match="K of view 1 is singular"):
+        check_rig(on_host)
+    with pytest.raises(ValueError, match=r"rig.K must have shape \(B, M, 3, 3\)"):
+        check_rig(rig, batched=True)  # the same arrays, another question
+    bad_R = np.array(good.R)
+    bad_R[2] *= 1.1
+    bad = Rig(rig.K, jnp.asarray(bad_R), rig.t)
+    for _ in range(2):
+        with pytest.raises(ValueError, match="R of view 2 is not a rotation"):
+            check_rig(bad)
