@@ -152,3 +152,36 @@ def test_the_generator_check_leaves_out_a_stage(tmp_path):
     for wrong in (["--left-out", "no such"], ["--left-out", "best() − seed"]):
         with pytest.raises(SystemExit):
             check["main"](base + wrong)
+
+
+def test_the_robustness_study_makes_each_setting_harder_one_thing_at_a_time(tmp_path):
+    """``--robustness``: the fitted generator's scenes, then one thing at a time made harder
+    (the same people and motion in every setting: one draw)."""
+    folder = str(tmp_path / "shelf")
+    os.makedirs(folder)
+    _write_standin(folder)
+    check = runpy.run_path(
+        os.path.join(HERE, "..", "experiments", "real", "shelf_generator_check.py"),
+        run_name="shelf_generator_check",
+    )
+    rig, size = check["shelf_rig"](folder)
+    settings = check["robustness_settings"](6.0, 3.0)
+    assert settings["fitted"]["sigma"] == 6.0 and settings["σ × 1.5"]["sigma"] == 9.0
+    assert all(s["nu"] == 3.0 and s["view_spread"] == 0.22 for s in settings.values())
+
+    def scenes(name):
+        return check["synthetic_scenes"](rig, size, sequences=1, frames=2, **settings[name])
+
+    fitted, misses, clutter, crowd = (
+        scenes(n) for n in ("fitted", "misses × 2", "clutter 5 / view", "6–8 people")
+    )
+    # Twice the detector's misses: fewer of the same people's joints detected.
+    assert misses[0].shape == fitted[0].shape and misses[1].sum() < fitted[1].sum()
+    # Clutter: slots beyond the people's joints, holding detections of no person.
+    assert clutter[1].shape[-1] > fitted[1].shape[-1]
+    assert np.sum(clutter[1] & (clutter[5] < 0)) > np.sum(fitted[1] & (fitted[5] < 0))
+    # A crowd: room for 8 people, and more of them in the scenes.
+    assert crowd[4].shape[1] == 8 and crowd[4].sum() > fitted[4].sum()
+    # The study is not a check: the stages it would leave out are read from the check's scenes.
+    with pytest.raises(SystemExit):
+        check["main"]([folder, "--robustness", "--left-out", "all"])

@@ -48,6 +48,17 @@ on Shelf's dev frames and on the ``+ keypoint errors`` scenes, beside the preset
 synthetic scenes than on Shelf is one whose difficulty the generator does not reproduce.
 
     python experiments/real/shelf_generator_check.py PATH/TO/data/shelf --left-out all
+
+The robustness study on the fitted generator: ``--robustness`` runs, instead of the check's
+four renderings, the scenes of the fitted generator (``fitted``: the views' σ spread, the
+detector's errors, noise of ``--sigma`` px with ``--nu`` degrees of freedom) and the same
+people (one draw) with one thing at a time made harder (:func:`robustness_settings`): half
+and one and a half times the noise, twice the misses, 2 % swaps, 5 clutter detections per
+view, 5 % doubles, cameras rotated 0.2° off, 6–8 people. The Shelf column stays the
+``fitted`` setting's yardstick (the fitted generator is scored with ``--scored
+seen-by-every-camera``, as below).
+
+    python experiments/real/shelf_generator_check.py PATH/data/shelf --robustness --nu 3 --sigma 6
 """
 
 from __future__ import annotations
@@ -88,6 +99,38 @@ LEFT_OUT: dict[str, tuple[str, dict]] = {
 }
 
 
+def robustness_settings(sigma: float, nu: float) -> dict[str, dict]:
+    """The robustness study on the fitted generator: its scenes (``fitted``: the views' σ
+    spread, :meth:`KeypointErrors.shelf`, noise of ``sigma`` px with ``nu`` degrees of
+    freedom), then one thing at a time made harder. Each value: the keyword arguments of
+    :func:`synthetic_scenes` beyond the rig, the size and the draw."""
+    from cdog_jax.synthetic import KeypointErrors
+
+    shelf_errors = KeypointErrors.shelf()
+
+    def errors(miss_factor: float = 1.0, swap_rate: float | None = None) -> KeypointErrors:
+        return KeypointErrors(
+            miss_rate=np.minimum(1.0, miss_factor * np.asarray(shelf_errors.miss_rate)),
+            hidden_miss_rate=np.minimum(
+                1.0, miss_factor * np.asarray(shelf_errors.hidden_miss_rate)
+            ),
+            swap_rate=shelf_errors.swap_rate if swap_rate is None else swap_rate,
+        )
+
+    fitted = dict(sigma=sigma, nu=nu, view_spread=0.22, errors=shelf_errors)
+    return {
+        "fitted": fitted,
+        "σ × 0.5": {**fitted, "sigma": 0.5 * sigma},
+        "σ × 1.5": {**fitted, "sigma": 1.5 * sigma},
+        "misses × 2": {**fitted, "errors": errors(miss_factor=2.0)},
+        "swaps 2 %": {**fitted, "errors": errors(swap_rate=0.02)},
+        "clutter 5 / view": {**fitted, "realism": {"clutter_rate": 5.0}},
+        "doubles 5 %": {**fitted, "realism": {"double_rate": 0.05, "double_offset_px": 6.0}},
+        "cameras off 0.2°": {**fitted, "realism": {"rotation_deg": 0.2}},
+        "6–8 people": {**fitted, "people": (6, 8)},
+    }
+
+
 def shelf_rig(data: str):
     """Shelf's cameras with the world moved by :data:`SHELF_CENTRE` (a generator point ``X``
     is Shelf's ``X + SHELF_CENTRE``), and the image size."""
@@ -111,31 +154,50 @@ def synthetic_scenes(
     tail_scale=10.0,
     nu=math.inf,
     seed=0,
+    people=(3, 5),
+    realism=None,
 ):
     """``(xy, mask, classes, joints3d, exists, instances)`` stacked over sequences:
     ``(F, M, S, 2)``, ``(F, M, S)``, ``(F, M, S)``, ``(F, K, 17, 3)``, ``(F, K)`` and the
     per-view instance of every detection ``(F, M, S)`` (its person, numbered in each view and
-    frame in a random order, as a 2D pose detector numbers them; -1 for none)."""
+    frame in a random order, as a 2D pose detector numbers them; -1 for none).
+
+    ``errors``: :meth:`KeypointErrors.shelf` (True), none (False) or a
+    :class:`KeypointErrors`; ``people``: the fewest and most people of a sequence;
+    ``realism``: more :class:`Realism` fields (clutter, doubles, calibration error)."""
     import jax
 
     from cdog_jax.synthetic import KeypointErrors, Realism, generate_skeleton_scenes
 
+    if isinstance(errors, bool):
+        errors = KeypointErrors.shelf() if errors else KeypointErrors()
+    realism = dict(realism or {})
+    # Room for every double and most clutter: a view's slots beyond its people's joints.
+    clutter = realism.get("clutter_rate", 0.0)
+    clutter_capacity = 0 if not clutter else int(math.ceil(clutter + 4 * math.sqrt(clutter) + 2))
+    double_capacity = 0 if not realism.get("double_rate", 0.0) else 17 * people[1] // 4
     rng = np.random.default_rng(seed)
     parts = []
     for s in range(sequences):
         scenes = generate_skeleton_scenes(
             jax.random.PRNGKey(seed * 1000 + s),
             rig,
-            int(rng.integers(3, 6)),
+            int(rng.integers(people[0], people[1] + 1)),
             sigma,
             realism=Realism(
-                nu=nu, view_spread=view_spread, far_share=tail_share, far_scale=tail_scale
+                nu=nu,
+                view_spread=view_spread,
+                far_share=tail_share,
+                far_scale=tail_scale,
+                **realism,
             ),
-            keypoint_errors=KeypointErrors.shelf() if errors else KeypointErrors(),
+            keypoint_errors=errors,
             num_frames=frames,
-            max_people=5,
+            max_people=people[1],
             fps=25.0,
             image_size=tuple(size),
+            double_capacity=double_capacity,
+            clutter_capacity=clutter_capacity,
         )
         f = scenes.frames
         person = np.asarray(scenes.person)
@@ -318,8 +380,18 @@ def main(argv: list[str] | None = None) -> dict:
         "--left-out",
         help="also these rows, comma-separated, or 'all': " + "; ".join(LEFT_OUT),
     )
+    p.add_argument(
+        "--robustness",
+        action="store_true",
+        help="the robustness study instead of the check: the fitted generator (--sigma, --nu, "
+        "the views' spread, the detector's errors) and one thing at a time made harder: "
+        + "; ".join(robustness_settings(5.0, math.inf))
+        + " (σ relative to --sigma)",
+    )
     p.add_argument("--json", help="write the table here")
     args = p.parse_args(argv)
+    if args.robustness and args.left_out:
+        p.error("--left-out reads the check's '+ keypoint errors' scenes: not with --robustness")
     presets = [s.strip() for s in args.presets.split(",")]
     left_out = []
     if args.left_out:
@@ -339,26 +411,29 @@ def main(argv: list[str] | None = None) -> dict:
     else:
         real = real_rows(args.data, args.work)
     rig, size = shelf_rig(args.data)
-    settings = {
-        "clean": dict(view_spread=0.0, errors=False),
-        "+ view spread": dict(view_spread=0.22, errors=False),
-        "+ keypoint errors": dict(view_spread=0.22, errors=True),
-        "+ error tails": dict(
-            view_spread=0.22, errors=True, tail_share=args.tail_share, tail_scale=args.tail_scale
-        ),
-    }
+    noise = dict(sigma=args.sigma, nu=args.nu)
+    settings = (
+        robustness_settings(args.sigma, args.nu)
+        if args.robustness
+        else {
+            "clean": dict(**noise, view_spread=0.0, errors=False),
+            "+ view spread": dict(**noise, view_spread=0.22, errors=False),
+            "+ keypoint errors": dict(**noise, view_spread=0.22, errors=True),
+            "+ error tails": dict(
+                **noise,
+                view_spread=0.22,
+                errors=True,
+                tail_share=args.tail_share,
+                tail_scale=args.tail_scale,
+            ),
+        }
+    )
     table = {name: {"shelf dev frames": real.get(name)} for name in presets}
     table["pcp"] = {"shelf dev frames": args.real_pcp}
     table["pcp_parts"] = {}
     for setting, options in settings.items():
         scenes = synthetic_scenes(
-            rig,
-            size,
-            sigma=args.sigma,
-            sequences=args.sequences,
-            frames=args.frames,
-            nu=args.nu,
-            **options,
+            rig, size, sequences=args.sequences, frames=args.frames, **options
         )
         if args.scored == "seen-by-every-camera":  # the others are left out of the scores
             xy, mask, classes, joints3d, exists, instances = scenes
