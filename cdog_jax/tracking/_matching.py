@@ -6,6 +6,20 @@ import jax.numpy as jnp
 from jax import lax
 
 from .._types import Array, Float, Int
+from ..graph._adjacency import min_and_first_index
+
+
+def distance(a: Float[Array, "*S D"], b: Float[Array, "*S D"]) -> Float[Array, "*S"]:
+    """The Euclidean distance between ``a`` and ``b`` (broadcast) along their last axis of a
+    few coordinates, as ``jnp.linalg.norm(a - b, axis=-1)`` gives it: the squares summed
+    coordinate by coordinate in order. Written out because XLA's CPU backend hands a sum
+    over so short an axis to a library kernel that took 0.67 ms for a live frame's (256, 256,
+    3) table, where plain arithmetic takes a few microseconds."""
+    diff = a - b
+    total = diff[..., 0] * diff[..., 0]
+    for k in range(1, diff.shape[-1]):
+        total = total + diff[..., k] * diff[..., k]
+    return jnp.sqrt(total)
 
 
 def greedy_match(cost: Float[Array, "A B"]) -> Int[Array, " A"]:
@@ -26,8 +40,11 @@ def greedy_match(cost: Float[Array, "A B"]) -> Int[Array, " A"]:
     def step(carry):
         k, cost, match, _ = carry
         finite = jnp.isfinite(cost)
-        best_col = jnp.argmin(cost, axis=1).astype(jnp.int32)  # (A,) first of ties: smaller b
-        best_row = jnp.argmin(cost, axis=0).astype(jnp.int32)  # (B,) first of ties: smaller a
+        # argmin's answers (first of ties; the costs hold no NaN: a pair with none is +inf)
+        # from plain reductions: argmin's variadic reduce cost 0.1–0.15 ms a round on a
+        # live frame's (256, 256) table.
+        best_col = min_and_first_index(cost, axis=1)[1]  # (A,) first of ties: smaller b
+        best_row = min_and_first_index(cost, axis=0)[1]  # (B,) first of ties: smaller a
         row_ok = jnp.any(finite, axis=1)
         mutual = row_ok & (best_row[best_col] == jnp.arange(A, dtype=jnp.int32))  # (A,)
         match = jnp.where(mutual, best_col, match)

@@ -24,7 +24,7 @@ from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..geometry._projection import project_views_last, reprojection_errors_views_last
 from ..geometry._triangulate import triangulate_views_last
-from ._matching import greedy_match
+from ._matching import distance, greedy_match
 
 FREE_SLOTS = 32
 """Unassigned detections per view that the candidate search holds at once: a frame's free
@@ -46,7 +46,7 @@ def _nearest_free(
     """The slot ``(T, M)`` (``-1``: none) of every track's detection in every view: one to
     one per view, cheapest first, among the ``free`` detections of its class within
     ``gate_px`` of its predicted pixel ``pred``, where ``allowed_track``."""
-    d = jnp.linalg.norm(pred[:, :, None, :] - xy[None], axis=-1)  # (T, M, P)
+    d = distance(pred[:, :, None, :], xy[None])  # (T, M, P)
     allowed = (
         allowed_track[:, :, None]
         & free[None]
