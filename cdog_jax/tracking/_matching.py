@@ -9,19 +9,6 @@ from .._types import Array, Float, Int
 from ..graph._adjacency import min_and_first_index
 
 
-def distance(a: Float[Array, "*S D"], b: Float[Array, "*S D"]) -> Float[Array, "*S"]:
-    """The Euclidean distance between ``a`` and ``b`` (broadcast) along their last axis of a
-    few coordinates, as ``jnp.linalg.norm(a - b, axis=-1)`` gives it: the squares summed
-    coordinate by coordinate in order. Written out because XLA's CPU backend hands a sum
-    over so short an axis to a library kernel that took 0.67 ms for a live frame's (256, 256,
-    3) table, where plain arithmetic takes a few microseconds."""
-    diff = a - b
-    total = diff[..., 0] * diff[..., 0]
-    for k in range(1, diff.shape[-1]):
-        total = total + diff[..., k] * diff[..., k]
-    return jnp.sqrt(total)
-
-
 def greedy_match(cost: Float[Array, "A B"]) -> Int[Array, " A"]:
     """One-to-one matching of rows and columns, cheapest pair first: ``(A,)`` the column of
     every row, ``-1`` where unmatched. ``cost (A, B)``: ``+inf`` where a pair is not allowed.

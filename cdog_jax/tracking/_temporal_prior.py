@@ -24,7 +24,8 @@ from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
 from ..geometry._projection import project_views_last, reprojection_errors_views_last
 from ..geometry._triangulate import triangulate_views_last
-from ._matching import distance, greedy_match
+from ..geometry._vectors import distance
+from ._matching import greedy_match
 
 FREE_SLOTS = 32
 """Unassigned detections per view that the candidate search holds at once: a frame's free

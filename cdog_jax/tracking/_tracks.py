@@ -30,7 +30,8 @@ from .._types import Array, Bool, Float, Int
 from .._validate import as_array
 from ..geometry._camera import Rig
 from ..geometry._distortion import as_lens, undistorted_frames
-from ._matching import distance as _distance, greedy_match
+from ..geometry._vectors import distance
+from ._matching import greedy_match
 from ._temporal_prior import recover_tracks
 
 DEFAULT_MAX_STEP_PX = 60.0
@@ -91,7 +92,7 @@ def link_frame(
     """The group of this frame ``(H,)`` (``-1``: none) of every previous group: greedy
     cheapest-first on the 3D distance, same class, at most ``gate (H,)`` (scene units, per
     previous group)."""
-    d = _distance(prev_X[:, None, :], X[None, :, :])  # (H, G)
+    d = distance(prev_X[:, None, :], X[None, :, :])  # (H, G)
     allowed = (
         prev_valid[:, None]
         & valid[None, :]
