@@ -81,16 +81,22 @@ def test_cameras_seeing_a_person_need_most_of_its_joints_in_their_image():
     assert stats["cameras_seeing"](K, R, t, (1000, 800), joints)[1] == 0
 
 
-def test_the_generator_check_on_the_standin(tmp_path):
+def _generator_check_on_standin(tmp_path):
+    """shelf_generator_check.py's functions, and the made-up stand-in's folder."""
     folder = str(tmp_path / "shelf")
     os.makedirs(folder)
     _write_standin(folder)
-    real = tmp_path / "real.json"
-    real.write_text('[{"row": "paper()", "recall_10cm": 0.5}]')
     check = runpy.run_path(
         os.path.join(HERE, "..", "experiments", "real", "shelf_generator_check.py"),
         run_name="shelf_generator_check",
     )
+    return check, folder
+
+
+def test_the_generator_check_on_the_standin(tmp_path):
+    check, folder = _generator_check_on_standin(tmp_path)
+    real = tmp_path / "real.json"
+    real.write_text('[{"row": "paper()", "recall_10cm": 0.5}]')
     table = check["main"](
         [
             folder,
@@ -117,13 +123,7 @@ def test_the_generator_check_on_the_standin(tmp_path):
 def test_the_generator_check_leaves_out_a_stage(tmp_path):
     """``--left-out``: a preset with one stage left out, joint by joint on the stand-in (as on
     Shelf's dev frames) and on the synthetic scenes, beside the preset's own recall."""
-    folder = str(tmp_path / "shelf")
-    os.makedirs(folder)
-    _write_standin(folder)
-    check = runpy.run_path(
-        os.path.join(HERE, "..", "experiments", "real", "shelf_generator_check.py"),
-        run_name="shelf_generator_check",
-    )
+    check, folder = _generator_check_on_standin(tmp_path)
     rig, size = check["shelf_rig"](folder)
     scenes = check["synthetic_scenes"](
         rig, size, sigma=5.0, view_spread=0.22, errors=True, sequences=1, frames=2
@@ -157,13 +157,7 @@ def test_the_generator_check_leaves_out_a_stage(tmp_path):
 def test_the_robustness_study_makes_each_setting_harder_one_thing_at_a_time(tmp_path):
     """``--robustness``: the fitted generator's scenes, then one thing at a time made harder
     (the same people and motion in every setting: one draw)."""
-    folder = str(tmp_path / "shelf")
-    os.makedirs(folder)
-    _write_standin(folder)
-    check = runpy.run_path(
-        os.path.join(HERE, "..", "experiments", "real", "shelf_generator_check.py"),
-        run_name="shelf_generator_check",
-    )
+    check, folder = _generator_check_on_standin(tmp_path)
     rig, size = check["shelf_rig"](folder)
     settings = check["robustness_settings"](6.0, 3.0)
     assert settings["fitted"]["sigma"] == 6.0 and settings["σ × 1.5"]["sigma"] == 9.0
