@@ -172,7 +172,8 @@ def synthetic_scenes(
     if isinstance(errors, bool):
         errors = KeypointErrors.shelf() if errors else KeypointErrors()
     realism = dict(realism or {})
-    # Room for every double and most clutter: a view's slots beyond its people's joints.
+    # A view's slots beyond its people's joints: a quarter of them for doubles (at the
+    # study's 5 % a view overflows them about never) and the clutter's mean + 4 SD + 2.
     clutter = realism.get("clutter_rate", 0.0)
     clutter_capacity = 0 if not clutter else int(math.ceil(clutter + 4 * math.sqrt(clutter) + 2))
     double_capacity = 0 if not realism.get("double_rate", 0.0) else 17 * people[1] // 4
