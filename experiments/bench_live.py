@@ -8,8 +8,8 @@ Questions:
    per frame (p50 / p95 / p99), the first call (compile), and whether memory maps and
    resident memory stay flat over ``--frames`` frames.
 2. The same frames through one :class:`cdog_jax.LiveAssociator` (25 classes; its defaults:
-   tracks and the temporal prior, and without the prior): the first frame and the warm time
-   per frame.
+   tracks and the temporal prior; with σ fitted on the first frame and held; without the
+   prior): the first frame and the warm time per frame.
 3. One 10-camera frame of 130 points through :func:`cdog_jax.associate` with its defaults:
    the warm time per frame.
 
@@ -177,11 +177,12 @@ def main(argv=None):
     )
     for m in s["memory"]:
         print(f"  frame {m['frame']:>5}: {m['maps']} maps, {m['rss_gb']:.2f} GB resident")
-    loops = (
-        (("live", {}),)
-        if args.skip_prior
-        else (("live", {}), ("live_without_prior", {"temporal_prior": False}))
-    )
+    # σ fitted once, on the first frame, and held: what a live loop spares when it does not
+    # fit σ on every frame (docs/LIVE.md, "A σ held fixed").
+    held = float(cdog_jax.class_sigmas(rig, *frames[0][:3])[0])
+    loops = (("live", {}), ("live_sigma_held", {"sigma": held}))
+    if not args.skip_prior:
+        loops += (("live_without_prior", {"temporal_prior": False}),)
     for name, options in loops:
         out[name] = t = live_loop(frames, rig, args.frames, **options)
         print(

@@ -336,15 +336,15 @@ def test_the_table_of_settings(standin, tmp_path):
             "--runs",
             "1",
             "--settings",
-            "defaults,--no-person-vote --no-temporal-prior",
+            "defaults,--sigma held",
             "--markdown",
             str(tmp_path / "t.md"),
         ]
     )
-    assert [r["setting"] for r in rows] == [
-        "defaults",
-        "--no-person-vote --no-temporal-prior",
-    ]  # no skel.txt: no 4D row
+    assert len(rows) == 2 and rows[0]["setting"] == "defaults"  # no skel.txt: no 4D row
+    # The held σ: the one σ fitted on every frame's detections, given to the command.
+    held = rows[1]["setting"].split()
+    assert held[:1] == ["--sigma"] and 0.0 < float(held[1]) < 50.0, rows[1]["setting"]
     assert all(r["pcp_mean"] == 100.0 and r["recall_10cm"] == 1.0 for r in rows)
     text = (tmp_path / "t.md").read_text().splitlines()
     assert text[0].startswith("| setting (all frames of 3)") and text[2].startswith(

@@ -32,7 +32,23 @@ SETTINGS: dict[str, list[str]] = {
     "--method extended": ["--method", "extended"],
     "--method paper": ["--method", "paper"],
     "--method reference": ["--method", "reference"],
+    # σ fitted once on every frame's detections pooled, then held (what a live loop that
+    # does not fit σ per frame gets; docs/LIVE.md): computed by held_sigma_options.
+    "--sigma held": None,
 }
+
+
+def held_sigma_options(ready: dict) -> list[str]:
+    """``--sigma σ`` with the one σ (px) that ``class_sigmas(..., pool="all")`` fits on all
+    the recording's detections, as the command reads them."""
+    import cdog_jax
+    from cdog_jax.io import load_openpose, load_rig
+
+    rig = load_rig(ready["rig"])
+    det = load_openpose(ready["pose"], keypoints="BODY_25")
+    classes = np.where(det.mask, det.classes, 0)
+    sigma = cdog_jax.class_sigmas(rig.rig, det.xy, det.mask, classes, pool="all", dist=rig.dist)
+    return ["--sigma", f"{float(sigma[0]):.4f}"]
 
 
 def run_setting(
@@ -105,7 +121,12 @@ def main(argv: list[str] | None = None) -> list[dict]:
     frames = shelf["split_frames"](ready["frames"], args.split)
     runs = os.path.join(args.work, "runs")
     os.makedirs(runs, exist_ok=True)
-    rows = [run_setting(ready, n, SETTINGS[n], frames, runs, args.runs) for n in names]
+    rows = []
+    for n in names:
+        options = SETTINGS[n] if SETTINGS[n] is not None else held_sigma_options(ready)
+        rows.append(run_setting(ready, n, options, frames, runs, args.runs))
+        if SETTINGS[n] is None:
+            rows[-1]["setting"] = " ".join(options) + " (the recording's σ, fitted once)"
     four_d = four_d_row(args.data, ready["frames"], frames)
     if four_d is not None:
         rows.append(four_d)
