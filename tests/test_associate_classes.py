@@ -110,6 +110,23 @@ def test_pooled_sigma_one_per_frame(scene):
 
 
 @pytest.mark.parametrize("robust", [False, True], ids=["auto", "robust"])
+def test_a_frame_whose_pooled_sigma_falls_back_is_flagged(scene, robust):
+    """A frame with too little evidence for σ (one detection a view) gets the fallback σ and
+    ``Status.SIGMA_FALLBACK``, as a scene estimating its own σ does; a frame with enough
+    gets neither; pooled over both frames the fit has enough."""
+    rig, xy, mask, classes, _ = scene
+    method = cdog_jax.Config.best(sigma_mode="robust") if robust else None
+    thin = mask.copy()
+    thin[1] &= np.cumsum(mask[1], axis=1) <= 1
+    a = associate_classes(rig, xy, thin, classes, method=method).association
+    flagged = (np.asarray(a.status) & int(cdog_jax.Status.SIGMA_FALLBACK)) > 0
+    np.testing.assert_array_equal(flagged, [False, True])
+    assert np.asarray(a.sigma_px)[1] == 1.0  # the fallback σ (px)
+    pooled = associate_classes(rig, xy, thin, classes, method=method, sigma_pool="all")
+    assert not (np.asarray(pooled.association.status) & int(cdog_jax.Status.SIGMA_FALLBACK)).any()
+
+
+@pytest.mark.parametrize("robust", [False, True], ids=["auto", "robust"])
 def test_long_recordings_fit_sigma_in_chunks_bitwise_as_in_one(scene, monkeypatch, robust):
     """A long recording's σ samples and fits run in chunks (flat memory); each frame's σ is
     bitwise the one of a single call. Chunks of 2 scenes and 1 frame row force the path."""
@@ -123,6 +140,7 @@ def test_long_recordings_fit_sigma_in_chunks_bitwise_as_in_one(scene, monkeypatc
     chunked = associate_classes(rig, xy, mask, classes, sigma="auto", method=method).association
     np.testing.assert_array_equal(np.asarray(chunked.sigma_px), np.asarray(one.sigma_px))
     np.testing.assert_array_equal(np.asarray(chunked.labels), np.asarray(one.labels))
+    np.testing.assert_array_equal(np.asarray(chunked.status), np.asarray(one.status))
 
 
 @pytest.mark.parametrize("vote", [False, True], ids=["plain", "person-vote"])

@@ -28,6 +28,7 @@ from .._result import Association, batched_association
 from .._runtime.devices import chunk_devices
 from .._runtime.shapes import ladder_rung, slot_capacity
 from .._runtime.stored_programs import call_stored
+from .._status import Status
 from .._validate import as_array, check_observations, check_rig
 from ..cdog._config import REFERENCE_FOCAL_PX
 from ..geometry._camera import Rig
@@ -217,7 +218,12 @@ def associate_classes_at(
     auto = sigma == "auto" or method.sigma_mode != "given"
     if auto and sigma_pool != "scene":
         estimator = "robust" if method.sigma_mode == "robust" else "auto"
-        frame_sigma = _pooled_sigma(rig, scenes, F, dist, dtype, sigma_pool, estimator, min_samples)
+        frame_sigma, fell_back = _pooled_sigma(
+            rig, scenes, F, dist, dtype, sigma_pool, estimator, min_samples
+        )
+        # A frame whose σ fell back (too little evidence, or implausibly large) is flagged
+        # as a scene that estimates its own σ is.
+        frame_flags = np.where(fell_back, np.int32(Status.SIGMA_FALLBACK), np.int32(0))
         sigma_arg = np.asarray(frame_sigma[scenes.frame], dtype)
         if (
             getattr(method, "threshold_unit", "px") == "focal"
@@ -230,6 +236,7 @@ def associate_classes_at(
         method = method.replace(sigma_mode="given")
     else:
         sigma_arg = "auto" if auto else sigma
+        frame_flags = None
     # associate_batch runs the scenes in chunks of a ladder rung (at most batch_size): few
     # compiled programs, whatever the number of frames and classes, and little padding.
     result = associate_batch_at(
@@ -246,7 +253,7 @@ def associate_classes_at(
         min_slots=min_slots,
         on_host=True,
     )
-    out = _map_back(result, scenes, F, M, P, C, class_names, on_host)
+    out = _map_back(result, scenes, F, M, P, C, class_names, on_host, frame_flags)
     if vote is not None:
         fixed = person_consistent(
             rig,
@@ -299,7 +306,7 @@ def class_sigmas(
     dtype = jax.dtypes.canonicalize_dtype(
         xy.dtype if np.issubdtype(xy.dtype, np.floating) else np.float64
     )
-    return _pooled_sigma(rig, scenes, mask.shape[0], dist, dtype, pool, estimator)
+    return _pooled_sigma(rig, scenes, mask.shape[0], dist, dtype, pool, estimator)[0]
 
 
 def _check_classes(classes, mask: np.ndarray) -> np.ndarray:
@@ -475,20 +482,24 @@ def _chunked_samples(rig, scenes: _Scenes, dist, dtype, robust: bool) -> _UsedSa
 
 def _pooled_sigma(
     rig, scenes: _Scenes, F: int, dist, dtype, pool: str, estimator: str, min_samples: int = 0
-) -> np.ndarray:
+) -> tuple[np.ndarray, np.ndarray]:
     """``(F,)`` σ per frame by the estimator of ``sigma_mode=estimator`` (``"auto"`` or
     ``"robust"``) on the nearest-distance samples of all the frame's class scenes
-    (``pool="all"``: of all frames, one value); the fit's table at least ``min_samples`` wide."""
+    (``pool="all"``: of all frames, one value), and ``(F,)`` whether it fell back (the
+    estimator's ``fallback``: too little evidence, or σ̂ implausibly large); the fit's table
+    at least ``min_samples`` wide."""
     d = None if dist is None else np.asarray(dist, dtype)
     robust = estimator == "robust"
     samples = _chunked_samples(rig, scenes, d, dtype, robust)
     group = scenes.frame if pool == "frame" else np.zeros_like(scenes.frame)
     G = F if pool == "frame" else 1
     tables = _sample_tables(samples, group, G, min_samples)
-    sigma = _chunked_fit(
+    sigma, fell_back = _chunked_fit(
         _pooled_robust_fit if robust else _pooled_fit, tables, focal_scale(np.asarray(rig.K))
     )
-    return sigma if pool == "frame" else np.full(F, sigma[0])
+    if pool == "frame":
+        return sigma, fell_back
+    return np.full(F, sigma[0]), np.full(F, fell_back[0])
 
 
 def sigma_fit_widths(most: int) -> list[int]:
@@ -524,8 +535,9 @@ MiB on two devices, the peak of a long recording's command; at 2¹⁶ about 15 M
 of 500 Shelf frames runs faster (1.3 s against 1.8 s: the temporaries stay in cache)."""
 
 
-def _chunked_fit(fit, tables: list[np.ndarray], focal) -> np.ndarray:
-    """``(G,)`` σ of every row of ``tables`` (``(G, S)`` each) by ``fit``, in chunks of rows
+def _chunked_fit(fit, tables: list[np.ndarray], focal) -> tuple[np.ndarray, np.ndarray]:
+    """``(G,)`` σ of every row of ``tables`` (``(G, S)`` each) by ``fit`` and ``(G,)``
+    whether it fell back (``fit``'s two outputs), in chunks of rows
     of at most :data:`FIT_ELEMENTS` entries (a power of two rows), one program for all; with
     several devices, in at least one chunk per device (a ladder rung of rows), run side by
     side."""
@@ -535,20 +547,21 @@ def _chunked_fit(fit, tables: list[np.ndarray], focal) -> np.ndarray:
     if devices > 1 and G > 1:
         rows = min(rows, ladder_rung(-(-G // devices)))
     if G <= rows:
-        return np.asarray(call_stored(fit, (*tables, focal))[0])
+        return tuple(np.asarray(a) for a in call_stored(fit, (*tables, focal)))
     starts = range(0, G, rows)
     done, running = [], []
     for start, device in zip(starts, chunk_devices(len(starts))):
         if len(running) == devices:  # one chunk in flight per device: one's temporaries each
-            done += [np.asarray(sigma)[:n] for sigma, n in running]
+            done += [[np.asarray(a)[:n] for a in out] for out, n in running]
             running = []
         part = [t[start : start + rows] for t in tables]
         n = len(part[0])
         if n < rows:  # empty rows: weight 0, discarded
             part = [np.concatenate([t, np.zeros((rows - n, S), t.dtype)]) for t in part]
         args = (*part, focal) if device is None else jax.device_put((*part, focal), device)
-        running.append((call_stored(fit, args)[0], n))  # dispatched; the host waits above
-    return np.concatenate(done + [np.asarray(sigma)[:n] for sigma, n in running])
+        running.append((call_stored(fit, args), n))  # dispatched; the host waits above
+    done += [[np.asarray(a)[:n] for a in out] for out, n in running]
+    return np.concatenate([d[0] for d in done]), np.concatenate([d[1] for d in done])
 
 
 def _sample_tables(samples: _UsedSamples, group: np.ndarray, G: int, min_width: int = 0) -> list:
@@ -599,8 +612,12 @@ def _pooled_robust_fit(x, w, count, second, focal):
     )
 
 
-def _map_back(r, scenes: _Scenes, F, M, P, C, names, on_host: bool = False) -> ClassAssociation:
-    """Scene results ``(B, …)`` as one table of groups per frame, in the input's slots."""
+def _map_back(
+    r, scenes: _Scenes, F, M, P, C, names, on_host: bool = False, frame_flags=None
+) -> ClassAssociation:
+    """Scene results ``(B, …)`` as one table of groups per frame, in the input's slots;
+    ``frame_flags (F,)``: status bits of each frame beyond its scenes' (set where the frame
+    has a scene)."""
     b, g = np.nonzero(r.valid)
     f, c = scenes.frame[b], scenes.cls[b]
     order = np.lexsort((g, c, f))
@@ -628,6 +645,8 @@ def _map_back(r, scenes: _Scenes, F, M, P, C, names, on_host: bool = False) -> C
 
     status = np.zeros(F, np.int32)
     np.bitwise_or.at(status, scenes.frame, r.status.astype(np.int32))
+    if frame_flags is not None:
+        status |= np.where(np.bincount(scenes.frame, minlength=F) > 0, frame_flags, 0)
     sigma = _per_frame(r.sigma_px, scenes.frame, F)
     tau = _per_frame(r.tau_px, scenes.frame, F)
     assoc = batched_association(
