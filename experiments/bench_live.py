@@ -177,10 +177,9 @@ def main(argv=None):
     )
     for m in s["memory"]:
         print(f"  frame {m['frame']:>5}: {m['maps']} maps, {m['rss_gb']:.2f} GB resident")
-    # σ fitted once, on the first frame, and held: what a live loop spares when it does not
-    # fit σ on every frame (docs/LIVE.md, "A σ held fixed").
-    held = float(cdog_jax.class_sigmas(rig, *frames[0][:3])[0])
-    loops = (("live", {}), ("live_sigma_held", {"sigma": held}))
+    # σ fitted on the first frame and held: what a live loop spares when it does not fit σ
+    # on every frame (docs/LIVE.md, "A σ held").
+    loops = (("live", {}), ("live_sigma_held", {"sigma": "held"}))
     if not args.skip_prior:
         loops += (("live_without_prior", {"temporal_prior": False}),)
     for name, options in loops:

@@ -115,6 +115,33 @@ def test_sigma_fits_of_other_widths_compile_nothing(walk, monkeypatch):
     assert len(set(widths)) > 1 and max(widths) < live._fit_widths[-1]
 
 
+def test_a_held_sigma_is_the_first_trusted_estimate_and_answers_as_if_given(walk, monkeypatch):
+    """sigma="held": σ estimated as "auto" does until a frame's estimate is trusted (an
+    empty frame falls back: nothing held), then held: every frame answers bitwise as an
+    object given that σ, and no later frame fits σ; reset forgets it."""
+    rig, xy, mask, classes = walk
+    first = LiveAssociator(rig, num_classes=J).update(xy[0], mask[0], classes=classes[0])
+    held = LiveAssociator(rig, num_classes=J, sigma="held")
+    given = LiveAssociator(rig, num_classes=J, sigma=first.sigma_px)
+    # An empty frame (nothing fitted) and one of two detections a view (too few pairs).
+    sparse = mask[0] & (np.cumsum(mask[0], axis=1) <= 2)
+    for m in (np.zeros_like(mask[0]), sparse):
+        out = held.update(xy[0], m, classes=classes[0])
+        given.update(xy[0], m, classes=classes[0])
+        assert held.held_sigma is None, out.sigma_px
+    assert out.status & cdog_jax.Status.SIGMA_FALLBACK
+    fits, fit = [], people_classes._chunked_fit
+    monkeypatch.setattr(people_classes, "_chunked_fit", lambda *a: fits.append(1) or fit(*a))
+    for f in range(FRAMES):
+        a = held.update(xy[f], mask[f], classes=classes[f])
+        b = given.update(xy[f], mask[f], classes=classes[f])
+        for name in ("labels", "groups", "track_id", "recovered", "points3d", "sigma_px"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    assert held.held_sigma == first.sigma_px and len(fits) == 1  # frame 0's fit alone
+    held.reset()
+    assert held.held_sigma is None
+
+
 def test_a_frame_that_does_not_fit_raises_its_capacity_once(walk):
     """A view with more detections of one class than the programs hold (4): one warning,
     one larger program, the same answers as offline; the next such frame compiles nothing.
@@ -164,8 +191,10 @@ def test_bad_frames_refused_and_state_kept(walk):
     assert live.frame == 0
     with pytest.raises(ValueError, match="num_classes must be a positive int"):
         LiveAssociator(rig, num_classes=0)
-    with pytest.raises(ValueError, match="sigma must be 'auto' or a finite number"):
+    with pytest.raises(ValueError, match="sigma must be 'auto', 'held' or a finite number"):
         LiveAssociator(rig, sigma=-1.0)
+    with pytest.raises(ValueError, match="sigma must be 'auto', 'held'"):
+        LiveAssociator(rig, sigma="hold")
     with pytest.raises(TypeError):
         LiveAssociator(np.eye(3))
     assert cdog_jax.LiveFrame._fields[0] == "frame"

@@ -28,6 +28,17 @@ flushed at once (groups with their track id, class, 3D point and members). A bad
 {"line": n, "error": ...} line and the stream goes on."""
 
 
+def _sigma_option(text: str) -> float | str:
+    if text in ("auto", "held"):
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f'must be "auto", "held" or a number of pixels > 0; got {text!r}'
+        ) from None
+
+
 def add_parser(subparsers) -> None:
     """Declare ``track``."""
     p = subparsers.add_parser(
@@ -57,9 +68,11 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument(
         "--sigma",
-        type=float,
-        default=None,
-        help="detection noise σ in px (default: estimated in every frame)",
+        type=_sigma_option,
+        default="auto",
+        help='detection noise σ in px; "auto" (default) estimates it in every frame; "held" '
+        "estimates it until a frame's estimate is trusted, then keeps it (about a quarter "
+        "less time a frame)",
     )
     add_method_argument(p)
     p.add_argument(
@@ -97,7 +110,7 @@ def run_track(args: argparse.Namespace) -> int:
             )
     elif args.keypoints is not None:
         names = SKELETONS[args.keypoints]
-    if args.sigma is not None and not (args.sigma > 0 and args.sigma < float("inf")):
+    if isinstance(args.sigma, float) and not (args.sigma > 0 and args.sigma < float("inf")):
         raise InputError(f"--sigma: expected a finite number > 0 (px); got {args.sigma}")
     if args.max_gap < 0:
         raise InputError(f"--max-gap: expected an integer >= 0; got {args.max_gap}")
@@ -111,7 +124,7 @@ def run_track(args: argparse.Namespace) -> int:
         num_classes=args.classes,
         class_names=names,
         method=method_from(args.method, "cdog-jax track"),
-        sigma="auto" if args.sigma is None else args.sigma,
+        sigma=args.sigma,
         dist=rig_file.dist if _has_lens(rig_file.dist) else None,
         temporal_prior=args.temporal_prior,
         max_gap=args.max_gap,

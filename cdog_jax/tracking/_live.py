@@ -23,6 +23,7 @@ import numpy as np
 from .._expect import expect_args
 from .._method import method_argument
 from .._runtime.shapes import ladder_rung, slot_capacity
+from .._status import Status
 from .._validate import as_array, check_observations, check_rig
 from ..geometry._camera import Rig
 from ..geometry._distortion import as_lens, undistorted_frames
@@ -99,7 +100,10 @@ class LiveAssociator:
         num_classes, class_names: the detections' classes (keypoint types, marker colours):
             ``C`` class ids, or their names; neither: the detections carry no class.
         method, sigma, dist, min_views, person_vote: as in :func:`cdog_jax.associate_classes`
-            (``sigma="auto"``: estimated in every frame from that frame).
+            (``sigma="auto"``: estimated in every frame from that frame). ``sigma="held"``:
+            estimated as with ``"auto"`` until a frame's estimate is trusted (a frame with
+            detections, no ``Status.SIGMA_FALLBACK``), then that σ for every later frame (a quarter less
+            time a frame); :attr:`held_sigma` holds it, :meth:`reset` forgets it.
         temporal_prior: recover a track missed in a frame from that frame's unassigned
             detections (default on, as in :func:`cdog_jax.associate_sequence`).
         max_step, max_step_px, max_err_px, max_gap: as in :func:`cdog_jax.track_groups`.
@@ -148,7 +152,7 @@ class LiveAssociator:
         _check_gate("max_step_px", max_step_px)
         _check_gate("max_err_px", max_err_px, allow_none=True)
         if not (
-            sigma == "auto"
+            sigma in ("auto", "held")
             or (
                 isinstance(sigma, (int, float))
                 and not isinstance(sigma, bool)
@@ -157,7 +161,8 @@ class LiveAssociator:
             )
         ):
             raise ValueError(
-                f"LiveAssociator: sigma must be 'auto' or a finite number > 0 (px); got {sigma!r}"
+                "LiveAssociator: sigma must be 'auto', 'held' or a finite number > 0 (px); "
+                f"got {sigma!r}"
             )
         self.rig = rig
         self.classed = num_classes is not None
@@ -199,6 +204,7 @@ class LiveAssociator:
         self.frame = 0
         self._carry = None
         self._people = PersonLinker(self._min_votes)
+        self.held_sigma: float | None = None  # sigma="held": the σ (px) once it is held
 
     def update(
         self, xy: Any, mask: Any = None, *, classes: Any = None, instances: Any = None
@@ -252,7 +258,7 @@ class LiveAssociator:
             cls_p[None],
             num_classes=self.num_classes,
             method=self.method,
-            sigma=self.sigma,
+            sigma=self._frame_sigma(),
             dist=self.dist,
             min_views=self.min_views,
             instances=None if inst_p is None else inst_p[None],
@@ -264,6 +270,10 @@ class LiveAssociator:
             on_host=True,  # read here, field by field: no transfer to the device and back
         )
         assoc = result.association
+        if self.sigma == "held" and self.held_sigma is None:
+            sigma = float(np.asarray(assoc.sigma_px)[0])  # 0: an empty frame, nothing fitted
+            if sigma > 0 and not int(np.asarray(assoc.status)[0]) & Status.SIGMA_FALLBACK:
+                self.held_sigma = sigma
         found = int(np.asarray(assoc.num_groups)[0])
         if found > self.rows:
             old = self.rows
@@ -387,13 +397,19 @@ class LiveAssociator:
                 )
         return xy.astype(self.dtype), mask.astype(bool), classes, instances
 
+    def _frame_sigma(self) -> float | str:
+        """The ``sigma`` of this frame's association: ``"auto"`` until a σ is held."""
+        if self.sigma != "held":
+            return self.sigma
+        return "auto" if self.held_sigma is None else self.held_sigma
+
     def _warm_sigma_fits(self, M: int) -> None:
         """The σ fit's table widths for the current slots, each compiled now: a frame's fit
         then runs on the narrowest that holds its samples (a few programs, at every rung of
         the upper quarter of the fullest frame's table), not on the fullest frame's."""
         most = self.num_classes * self.slots * M * (M - 1) + 1  # a frame that fits, + 1
         self._fit_widths = sigma_fit_widths(most)
-        if self.sigma == "auto" or self.method.sigma_mode != "given":  # the fit runs
+        if self.sigma in ("auto", "held") or self.method.sigma_mode != "given":  # the fit runs
             warm_sigma_fits(self.rig, self._fit_widths, self.dtype, self.method.sigma_mode)
 
     def _table_rows(self, rows: int) -> int:

@@ -120,6 +120,24 @@ def test_a_rig_far_from_its_world_origin_streams_world_points(
     )
 
 
+def test_a_held_sigma_streams_the_live_associators_answers(stream, monkeypatch, capsys):
+    """``--sigma held``: the first frame's σ for every later line, the answers of a
+    ``LiveAssociator(sigma="held")``."""
+    import io
+
+    from cdog_jax.cli import main
+
+    rig_path, lines, rig, (xy, mask, cls) = stream
+    monkeypatch.setattr("sys.stdin", io.StringIO("\n".join(lines) + "\n"))
+    assert main(["track", "--rig", str(rig_path), "--keypoints", "COCO_17", "--sigma", "held"]) == 0
+    answers = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    live = LiveAssociator(rig, class_names=list(SKELETON_JOINTS), sigma="held")
+    for f, answer in enumerate(answers):
+        out = live.update(xy[f], mask[f], classes=np.where(mask[f], cls[f], 0))
+        assert answer["sigma_px"] == round(live.held_sigma, 4) == round(out.sigma_px, 4)
+        assert [g["track"] for g in answer["groups"]] == out.track_id.tolist()
+
+
 def test_track_command_errors_are_one_line(tmp_path, capsys):
     from cdog_jax.cli import main
 
@@ -127,3 +145,8 @@ def test_track_command_errors_are_one_line(tmp_path, capsys):
     assert capsys.readouterr().err.count("\n") == 1
     assert main(["track", "--rig", "x.json", "--class-names", "a,,b"]) == 2
     assert "--class-names" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # argparse: its usage, then one line
+        main(["track", "--rig", "x.json", "--sigma", "often"])
+    assert '"auto", "held" or a number' in capsys.readouterr().err.splitlines()[-1]
+    assert main(["track", "--rig", "x.json", "--sigma", "-1"]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
