@@ -522,6 +522,23 @@ def test_public_functions_name_the_expected_and_received_types(fn, args, kwargs,
         fn(*args, **kwargs)
 
 
+def test_the_rigs_focal_length_is_read_again_when_it_could_have_changed():
+    """The classes' σ fit reads the rig's focal length once for the same JAX ``K`` (it
+    cannot change in place) and again for a NumPy ``K`` (which can)."""
+    from cdog_jax.graph._sigma import focal_scale
+    from cdog_jax.people._classes import _rig_focal
+
+    good = ring_rig(3)
+    rig = Rig(jnp.asarray(good.K), jnp.asarray(good.R), jnp.asarray(good.t))
+    assert _rig_focal(rig) == _rig_focal(rig) == focal_scale(np.asarray(good.K))
+    K = np.array(good.K)
+    on_host = Rig.__new__(Rig)
+    plain(Rig.__init__)(on_host, K, np.array(good.R), np.array(good.t))
+    assert _rig_focal(on_host) == focal_scale(K)
+    K *= 2.0  # in place
+    assert _rig_focal(on_host) == focal_scale(K) == 2.0 * focal_scale(np.asarray(good.K))
+
+
 def test_a_rig_checked_once_is_checked_again_when_it_could_have_changed():
     """The rig's value checks are skipped for the same JAX arrays as the last rig checked
     (they cannot change in place), and run again for NumPy arrays (which can) and for a

@@ -229,8 +229,7 @@ def associate_classes_at(
             getattr(method, "threshold_unit", "px") == "focal"
         ):  # the pipeline reads a given σ in focal lengths
             sigma_arg = np.asarray(
-                sigma_arg
-                * (REFERENCE_FOCAL_PX / np.asarray(focal_scale(np.asarray(rig.K)), dtype)),
+                sigma_arg * (REFERENCE_FOCAL_PX / np.asarray(_rig_focal(rig), dtype)),
                 dtype,
             )
         method = method.replace(sigma_mode="given")
@@ -392,6 +391,23 @@ def _regroup(xy, mask, classes, C, weights) -> _Scenes:
     return _Scenes(s_xy, s_mask, slot, live // C, live % C, s_w)
 
 
+_last_focal: tuple = ()
+
+
+def _rig_focal(rig: Rig):
+    """:func:`focal_scale` of ``rig.K`` on the host. A JAX ``K`` cannot change in place: the
+    last one's value is kept, so that a frame loop on one rig reads it back and takes its
+    median once (a NumPy ``K`` is read every time)."""
+    global _last_focal
+    K = rig.K
+    if _last_focal and _last_focal[0] is K:
+        return _last_focal[1]
+    focal = focal_scale(np.asarray(K))
+    if isinstance(K, jax.Array):
+        _last_focal = (K, focal)
+    return focal
+
+
 def _at_least(scenes: _Scenes, count: int, slots: int) -> _Scenes:
     """``scenes`` followed by empty ones up to ``count`` scenes (of the last scene's frame,
     so the scenes stay sorted by frame) and with empty slots up to the ladder rung that
@@ -401,9 +417,10 @@ def _at_least(scenes: _Scenes, count: int, slots: int) -> _Scenes:
     B, _, Pc = scenes.mask.shape
     extra, wide = max(count - B, 0), slot_capacity(max(Pc, slots)) - Pc
 
-    def pad(a, fill):
-        widths = [(0, extra), (0, 0), (0, wide)] + [(0, 0)] * (a.ndim - 3)
-        return np.pad(a, widths, constant_values=fill)
+    def pad(a, fill):  # (np.pad takes several times as long for these small tables)
+        out = np.full((B + extra, a.shape[1], Pc + wide, *a.shape[3:]), fill, a.dtype)
+        out[:B, :, :Pc] = a
+        return out
 
     return _Scenes(
         pad(scenes.xy, 0),
@@ -495,7 +512,7 @@ def _pooled_sigma(
     G = F if pool == "frame" else 1
     tables = _sample_tables(samples, group, G, min_samples)
     sigma, fell_back = _chunked_fit(
-        _pooled_robust_fit if robust else _pooled_fit, tables, focal_scale(np.asarray(rig.K))
+        _pooled_robust_fit if robust else _pooled_fit, tables, _rig_focal(rig)
     )
     if pool == "frame":
         return sigma, fell_back
