@@ -124,6 +124,12 @@ def test_a_frame_whose_pooled_sigma_falls_back_is_flagged(scene, robust):
     assert np.asarray(a.sigma_px)[1] == 1.0  # the fallback σ (px)
     pooled = associate_classes(rig, xy, thin, classes, method=method, sigma_pool="all")
     assert not (np.asarray(pooled.association.status) & int(cdog_jax.Status.SIGMA_FALLBACK)).any()
+    # class_sigmas gives the same σ and names the frame that fell back.
+    estimator = "robust" if robust else "auto"
+    with pytest.warns(UserWarning, match=r"1 of 2 frames \(first: frame 1\) fell back"):
+        sigma = cdog_jax.class_sigmas(rig, xy, thin, classes, estimator=estimator)
+    np.testing.assert_array_equal(sigma, np.asarray(a.sigma_px))
+    cdog_jax.class_sigmas(rig, xy, thin, classes, estimator=estimator, pool="all")  # no warning
 
 
 @pytest.mark.parametrize("robust", [False, True], ids=["auto", "robust"])

@@ -14,6 +14,7 @@ one class by construction, and the graph of a class costs ``(M · P_c)²`` inste
 
 from __future__ import annotations
 
+import warnings
 from functools import partial
 from typing import NamedTuple
 
@@ -287,8 +288,10 @@ def class_sigmas(
     samples of all the frame's classes pooled (``pool="all"``: of all frames, one value
     repeated). ``estimator``: ``"auto"`` or ``"robust"`` (the ``sigma_mode`` whose fit is
     used, ALGORITHM.md §0.1). ``xy (F, M, P, 2)``, ``mask``, ``classes (F, M, P)`` and
-    ``dist`` as in :func:`associate_classes`. A frame with no class seen in two views gets
-    the fallback σ (``FALLBACK_SIGMA_PX``, 1 px)."""
+    ``dist`` as in :func:`associate_classes`. A frame whose fit falls back (too few likely
+    pairs, e.g. no class seen in two views: the fallback σ, ``FALLBACK_SIGMA_PX`` = 1 px; or
+    σ̂ above 1 % of the focal length: that bound) is named in a ``UserWarning``, as
+    :func:`associate_classes` flags it with ``Status.SIGMA_FALLBACK``."""
     expect_args("class_sigmas", rig=(rig, Rig))
     if estimator not in ("auto", "robust"):
         raise ValueError(f"class_sigmas: estimator must be 'auto' or 'robust'; got {estimator!r}")
@@ -300,12 +303,27 @@ def class_sigmas(
     classes = _check_classes(classes, mask)
     C = _num_classes(classes, mask, None, None)
     scenes = _regroup(xy, mask, classes, C, None)
+    F = mask.shape[0]
     if len(scenes.frame) == 0:
-        return np.full(mask.shape[0], FALLBACK_SIGMA_PX)
-    dtype = jax.dtypes.canonicalize_dtype(
-        xy.dtype if np.issubdtype(xy.dtype, np.floating) else np.float64
-    )
-    return _pooled_sigma(rig, scenes, mask.shape[0], dist, dtype, pool, estimator)[0]
+        sigma, fell_back = np.full(F, FALLBACK_SIGMA_PX), np.ones(F, bool)
+    else:
+        dtype = jax.dtypes.canonicalize_dtype(
+            xy.dtype if np.issubdtype(xy.dtype, np.floating) else np.float64
+        )
+        sigma, fell_back = _pooled_sigma(rig, scenes, F, dist, dtype, pool, estimator)
+    if fell_back.any():
+        frames = np.flatnonzero(fell_back)
+        which = (
+            "all frames pooled"
+            if pool == "all"
+            else f"{len(frames)} of {F} frames (first: frame {frames[0]})"
+        )
+        warnings.warn(
+            f"class_sigmas: the σ fit of {which} fell back: too few likely pairs (σ = "
+            f"{FALLBACK_SIGMA_PX:g} px) or σ̂ above 1 % of the focal length (σ = that bound)",
+            stacklevel=2,
+        )
+    return sigma
 
 
 def _check_classes(classes, mask: np.ndarray) -> np.ndarray:
