@@ -8,9 +8,11 @@ import sys
 
 import jax
 import jax.numpy as jnp
+import jaxlib
 import numpy as np
 
 from cdog_jax import Rig
+from cdog_jax._runtime import xla_kernels
 
 # Tolerances: float32 checks in pixels / relative scene size, float64 tight.
 # How the suite compiles (tests/conftest.py): XLA's older CPU code generator, LLVM without
@@ -22,6 +24,10 @@ FAST_COMPILE_FLAGS = (
     "--xla_cpu_use_fusion_emitters=false --xla_backend_optimization_level=0 --xla_cpu_max_isa=SSE4_2"
     if platform.machine().lower() in ("x86_64", "amd64")
     else "--xla_cpu_use_fusion_emitters=false"
+) + (
+    # The command line's own switch (cdog_jax/_runtime/xla_kernels.py), in the suite's
+    # process too: its child processes (command-line tests) then compile what it compiles.
+    f" {xla_kernels.FLAG}" if jaxlib.__version__.startswith(xla_kernels.MEASURED_JAXLIB) else ""
 )
 
 
