@@ -138,6 +138,11 @@ def test_a_held_sigma_is_the_first_trusted_estimate_and_answers_as_if_given(walk
         for name in ("labels", "groups", "track_id", "recovered", "points3d", "sigma_px"):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
     assert held.held_sigma == first.sigma_px and len(fits) == 1  # frame 0's fit alone
+    # An object given σ answers as the offline sequence given it.
+    offline = associate_sequence(rig, xy, mask, classes=classes, sigma=first.sigma_px)
+    given = LiveAssociator(rig, num_classes=J, sigma=first.sigma_px)
+    for f in range(FRAMES):
+        _assert_same_frame(given.update(xy[f], mask[f], classes=classes[f]), offline, f)
     held.reset()
     assert held.held_sigma is None
 
