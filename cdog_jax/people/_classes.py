@@ -572,10 +572,9 @@ of 500 Shelf frames runs faster (1.3 s against 1.8 s: the temporaries stay in ca
 
 def _chunked_fit(fit, tables: list[np.ndarray], focal) -> tuple[np.ndarray, np.ndarray]:
     """``(G,)`` σ of every row of ``tables`` (``(G, S)`` each) by ``fit`` and ``(G,)``
-    whether it fell back (``fit``'s two outputs), in chunks of rows
-    of at most :data:`FIT_ELEMENTS` entries (a power of two rows), one program for all; with
-    several devices, in at least one chunk per device (a ladder rung of rows), run side by
-    side."""
+    whether it fell back (``fit``'s two outputs), in chunks of rows of at most
+    :data:`FIT_ELEMENTS` entries (a power of two rows), one program for all; with several
+    devices, in at least one chunk per device (a ladder rung of rows), run side by side."""
     G, S = tables[0].shape
     rows = 1 << max(0, (FIT_ELEMENTS // S).bit_length() - 1)
     devices = len(jax.local_devices())

@@ -102,8 +102,9 @@ class LiveAssociator:
         method, sigma, dist, min_views, person_vote: as in :func:`cdog_jax.associate_classes`
             (``sigma="auto"``: estimated in every frame from that frame). ``sigma="held"``:
             estimated as with ``"auto"`` until a frame's estimate is trusted (a frame with
-            detections, no ``Status.SIGMA_FALLBACK``), then that σ for every later frame (a quarter less
-            time a frame); :attr:`held_sigma` holds it, :meth:`reset` forgets it.
+            detections, no ``Status.SIGMA_FALLBACK``), then that σ for every later frame
+            (a quarter less time a frame); :attr:`held_sigma` holds it, :meth:`reset`
+            forgets it.
         temporal_prior: recover a track missed in a frame from that frame's unassigned
             detections (default on, as in :func:`cdog_jax.associate_sequence`).
         max_step, max_step_px, max_err_px, max_gap: as in :func:`cdog_jax.track_groups`.
