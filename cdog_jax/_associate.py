@@ -415,8 +415,9 @@ def associate_batch(
     The rig is shared (``K (M, 3, 3)``) or per scene (``K (B, M, 3, 3)``); ``sigma`` and the
     thresholds may be scalars or ``(B,)`` arrays. Scenes run ``batch_size`` at a time
     (vmapped), which bounds memory; fewer scenes run as the smallest rung of the same ladder
-    that holds them, and ``P`` is padded as in :func:`associate`, so few programs are
-    compiled. Every field of the result gains a leading ``B`` axis. ``dist (M, 5)`` and
+    that holds them, and ``P`` is padded to a rung of a ladder of slots, so few programs are
+    compiled; scenes run one at a time (one scene, or ``batch_size=1``) run :func:`associate`'s
+    program at its capacity. Every field of the result gains a leading ``B`` axis. ``dist (M, 5)`` and
     ``min_views`` are shared by all scenes, ``weights (B, M, P)`` are per scene. Inputs are
     checked as in :func:`associate`; an error names the scene. The memory budget counts ``batch_size`` scenes (see
     :func:`associate`); ``status`` is per scene.
@@ -475,9 +476,25 @@ def associate_batch_at(
     M, P = np.shape(mask)[1:]
     chunk = chunk_size(B, batch_size)
     in_use = max(occupied_slots(mask), int(min_slots))
-    capacity = _capacity(
-        "associate_batch", M, in_use, method, dtype, chunk, memory_budget_gb, vmapped=True
-    )
+    if chunk == 1 and not min_slots:
+        # Scene by scene, each runs associate's program (its capacity rung): a one-frame
+        # batch, such as the command line's on one frame, and associate on that frame then
+        # compile, store and load one program.
+        capacity = _capacity(
+            "associate_batch",
+            M,
+            in_use,
+            method,
+            dtype,
+            1,
+            memory_budget_gb,
+            vmapped=None,
+            ladder=scene_capacity,
+        )
+    else:
+        capacity = _capacity(
+            "associate_batch", M, in_use, method, dtype, chunk, memory_budget_gb, vmapped=True
+        )
     static, thresholds = _prepare(method, sigma, thresholds, dtype)
     if dist is not None and not shared:
         raise ValueError(

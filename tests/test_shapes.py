@@ -156,9 +156,20 @@ def test_padded_batch_is_bitwise_one_scene_at_a_time():
 
 
 def test_one_scene_batch_runs_the_single_scene_program():
+    """A one-scene batch runs associate's program itself (same capacity): associate on the
+    scene afterwards compiles nothing."""
     xy, mask = _scene(5)
     batch = associate_batch(RIG, xy[None], mask[None], method=Config.extended(), sigma=1.0)
-    one = associate(RIG, xy, mask, method=Config.extended(), sigma=1.0)
+    compiles = []
+    listener = lambda name, secs, **kw: (  # noqa: E731
+        compiles.append(name) if name == "/jax/core/compile/backend_compile_duration" else None
+    )
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        one = associate(RIG, xy, mask, method=Config.extended(), sigma=1.0)
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)
+    assert compiles == []
     _assert_same(jax.tree.map(lambda a: a[0], batch), one)
     assert batch.labels.shape == (1, RIG.num_views, P) and isinstance(batch.labels, jax.Array)
 
@@ -198,7 +209,7 @@ def test_frames_within_one_rung_compile_one_program():
 
 def test_trailing_empty_slots_are_left_out(monkeypatch):
     """Slots that no view fills at the end of ``P`` are not sent to the program: 13 slots in
-    use of 40 run at 32 slots alone (not 64) and at 16 in a batch (not 48), and the result
+    use of 40 run at 32 slots (not 64), alone and one at a time in a batch, and the result
     is bitwise that of the program at 40 slots (labels of the empty slots -1, the extra
     group rows empty)."""
     import cdog_jax._associate as associate_module
@@ -228,4 +239,4 @@ def test_trailing_empty_slots_are_left_out(monkeypatch):
     )
     for b, (xy, mask) in enumerate(wide):
         _assert_same(jax.tree.map(lambda a: a[b], batch), _unpadded(xy, mask, config))
-    assert shapes[1:] == [(RIG.num_views, 16, 2)] * 2
+    assert shapes[1:] == [(RIG.num_views, 32, 2)] * 2  # one at a time: associate's rung
