@@ -36,6 +36,7 @@ _EVENTS = {
 _current = ["<collection>"]
 _tests: dict = collections.defaultdict(lambda: collections.defaultdict(float))
 _programs: list = []  # (test, program name, seconds) of every program compilation
+_stored: list = []  # (test, the stored program's function, method and argument shapes)
 
 
 def _record(event: str, seconds: float, **kwargs) -> None:
@@ -58,6 +59,23 @@ def pytest_configure(config) -> None:
     import jax
 
     jax.monitoring.register_event_duration_secs_listener(_record)
+    _tally_stored_programs()
+
+
+def _tally_stored_programs() -> None:
+    """Record which of the package's stored programs (one per function, method and argument
+    shapes: ``cdog_jax/_runtime/stored_programs.py``) each test meets first in its process."""
+    from cdog_jax._runtime import stored_programs
+
+    load_or_export = stored_programs._load_or_export
+
+    def tallied(path, fun, static, treedef, specs):
+        shapes = " ".join("x".join(map(str, spec.shape)) or "()" for spec in specs[:6])
+        described = f"{fun.__qualname__} {static.get('method', '')!r} {shapes}"
+        _stored.append((_current[0], described))
+        return load_or_export(path, fun, static, treedef, specs)
+
+    stored_programs._load_or_export = tallied
 
 
 try:
@@ -82,6 +100,7 @@ def pytest_sessionfinish(session) -> None:
     worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
     (folder / f"{worker}.json").write_text(json.dumps({k: dict(v) for k, v in _tests.items()}))
     (folder / f"{worker}.programs").write_text(json.dumps(_programs))
+    (folder / f"{worker}.stored").write_text(json.dumps(_stored))
 
 
 COLUMNS = ("wall_s", "compile_program_s", "compile_small_s", "trace_s", "lower_s")
@@ -120,6 +139,17 @@ def programs_by_name(folder: str | Path) -> list[tuple[str, int, float, int]]:
     )
 
 
+def stored_program_files(folder: str | Path) -> tuple[int, int]:
+    """``(distinct, in one file)`` over every worker's ``.stored`` file: how many distinct
+    stored programs (function, method, shapes) the tests meet, and how many of them only
+    one test file meets (a program that no other file shares is compiled for that file)."""
+    files: dict = collections.defaultdict(set)
+    for path in sorted(Path(folder).glob("*.stored")):
+        for test, described in json.loads(path.read_text()):
+            files[described].add(test.split("::")[0])
+    return len(files), sum(len(f) == 1 for f in files.values())
+
+
 def _line(name: str, row: dict) -> str:
     cells = [f"{row[c]:.0f}" for c in (*COLUMNS, "rest_s")]
     return (
@@ -154,6 +184,12 @@ def main(argv=None) -> None:
         print("|---|---|---|---|")
         for name, n, seconds, files in programs_by_name(args.folder)[: args.programs]:
             print(f"| {name} | {n} | {seconds:.0f} | {files} |")
+    distinct, alone = stored_program_files(args.folder)
+    if distinct:
+        print(
+            f"\nstored programs (function, method, shapes): {distinct} distinct, "
+            f"{alone} of them met by one test file only"
+        )
 
 
 if __name__ == "__main__":

@@ -15,6 +15,16 @@ import jax.numpy as jnp
 def test_one_program_and_one_operation():
     assert float(jax.jit(lambda x: jnp.sin(x).sum())(jnp.ones(5))) > 0
     assert float(jnp.cos(jnp.zeros(7))[0]) == 1.0
+
+def test_a_stored_program():
+    import numpy as np
+    import cdog_jax
+    from cdog_jax.synthetic import default_rig
+
+    cdog_jax.enable_compilation_cache()
+    rig = default_rig(num_views=3)
+    xy = np.zeros((3, 2, 2), np.float32)
+    cdog_jax.associate(rig, xy, np.ones((3, 2), bool), method="greedy")
 """
 
 
@@ -30,7 +40,7 @@ def test_census_counts_a_child_test(tmp_path, capsys):
         os.environ,
         PYTHONPATH=os.path.abspath(EXPERIMENTS),
         SUITE_CENSUS_OUT=str(out),
-        CDOG_JAX_CACHE="0",
+        CDOG_JAX_CACHE_DIR=str(tmp_path / "cache"),
     )
     done = subprocess.run(
         [
@@ -65,6 +75,8 @@ def test_census_counts_a_child_test(tmp_path, capsys):
     suite_census.main([str(out)])
     text = capsys.readouterr().out
     assert "| all tests |" in text and "| test_tiny.py |" in text
+    assert suite_census.stored_program_files(out) == (1, 1)  # greedy's one-scene program
+    assert "stored programs (function, method, shapes): 1 distinct, 1 of them" in text
 
 
 def test_programs_are_summed_by_name_over_the_workers(tmp_path, capsys):
@@ -82,3 +94,17 @@ def test_programs_are_summed_by_name_over_the_workers(tmp_path, capsys):
     suite_census.main([str(tmp_path), "--programs", "1"])
     text = capsys.readouterr().out
     assert "| f | 3 | 4 | 2 |" in text and "| g |" not in text
+
+
+def test_stored_programs_are_counted_by_the_files_that_meet_them(tmp_path):
+    sys.path.insert(0, EXPERIMENTS)
+    try:
+        import suite_census
+    finally:
+        sys.path.remove(EXPERIMENTS)
+    (tmp_path / "gw0.stored").write_text(
+        '[["tests/a.py::t", "f best 4x3"], ["tests/a.py::u", "f best 4x8"], '
+        '["tests/b.py::t", "f best 4x3"]]'
+    )
+    (tmp_path / "gw1.stored").write_text('[["tests/c.py::t", "g paper 2"]]')
+    assert suite_census.stored_program_files(tmp_path) == (3, 2)
