@@ -416,11 +416,12 @@ def associate_batch(
     thresholds may be scalars or ``(B,)`` arrays. Scenes run ``batch_size`` at a time
     (vmapped), which bounds memory; fewer scenes run as the smallest rung of the same ladder
     that holds them, and ``P`` is padded to a rung of a ladder of slots, so few programs are
-    compiled; scenes run one at a time (one scene, or ``batch_size=1``) run :func:`associate`'s
-    program at its capacity. Every field of the result gains a leading ``B`` axis. ``dist (M, 5)`` and
-    ``min_views`` are shared by all scenes, ``weights (B, M, P)`` are per scene. Inputs are
-    checked as in :func:`associate`; an error names the scene. The memory budget counts ``batch_size`` scenes (see
-    :func:`associate`); ``status`` is per scene.
+    compiled; scenes run one at a time (one scene, or ``batch_size=1``) run
+    :func:`associate`'s program at its capacity. Every field of the result gains a leading
+    ``B`` axis. ``dist (M, 5)`` and ``min_views`` are shared by all scenes, ``weights (B, M,
+    P)`` are per scene. Inputs are checked as in :func:`associate`; an error names the scene.
+    The memory budget counts ``batch_size`` scenes (see :func:`associate`); ``status`` is per
+    scene.
     """
     return associate_batch_at(
         rig,
