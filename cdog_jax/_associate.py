@@ -31,6 +31,7 @@ from ._runtime.shapes import (
     trim,
 )
 from ._runtime.stored_programs import call_stored
+from ._runtime.xla_kernels import jit
 from ._status import Status
 from ._types import Array, ArrayLike, Float, Int
 from ._validate import (
@@ -64,7 +65,7 @@ def _run_scene(rig, xy, mask, thresholds, method):
     return method.associate_scene(rig, Observations(xy, mask), thresholds)
 
 
-_associate_jit = jax.jit(_run_scene, static_argnames=("method",))
+_associate_jit = jit(_run_scene, static_argnames=("method",))
 
 
 def _prepare(method: Method, sigma, thresholds, dtype):
@@ -349,8 +350,8 @@ def _flag_lens(result: Association, failed) -> Association:
     return eqx.tree_at(lambda r: r.status, result, result.status | flag)
 
 
-_undistorted_jit = jax.jit(undistorted_checked)
-_finish_jit = jax.jit(finish_groups)
+_undistorted_jit = jit(undistorted_checked)
+_finish_jit = jit(finish_groups)
 
 
 def _associate_host(rig, xy, mask, thresholds, extras, method):
@@ -370,12 +371,12 @@ def _associate_host(rig, xy, mask, thresholds, extras, method):
     )
 
 
-@partial(jax.jit, static_argnames=("method",))
+@partial(jit, static_argnames=("method",))
 def _associate_extras_jit(rig, xy, mask, thresholds, dist, weights, min_views, *, method):
     return _associate_one(rig, xy, mask, thresholds, dist, weights, min_views, method)
 
 
-@partial(jax.jit, static_argnames=("method", "shared_rig"))
+@partial(jit, static_argnames=("method", "shared_rig"))
 def _associate_batch_jit(rig, xy, mask, thresholds, extras, *, method, shared_rig):
     """One chunk of scenes, vmapped (the caller loops over chunks, so memory stays bounded)."""
     if extras is None:

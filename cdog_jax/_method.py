@@ -50,6 +50,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._result import Association, association_from_groups
+from ._runtime.xla_kernels import jit
 from ._status import Status
 from ._types import Array, Bool, Float, Int
 from .cdog._stage import raise_flag
@@ -415,12 +416,12 @@ def finish_table(
 # --------------------------------------------------------------------------- on the host
 
 
-@partial(jax.jit, static_argnames=("sigma_mode",))
+@partial(jit, static_argnames=("sigma_mode",))
 def _gate(rig, observations, thresholds, sigma_mode):
     return scene_gate(rig, observations, thresholds, sigma_mode)
 
 
-_finish = jax.jit(finish_table)
+_finish = jit(finish_table)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -7,6 +7,8 @@ import subprocess
 import sys
 
 import jax.numpy as jnp
+import pytest
+from helpers import ring_rig, run_with_xla_defaults
 
 from cdog_jax._runtime import xla_kernels
 
@@ -42,3 +44,41 @@ def test_set_before_jax_starts_and_known_to_its_xla():
         "--xla_cpu_max_isa=SSE4_2",
         xla_kernels.FLAG,
     ], done.stdout + done.stderr
+
+
+def programs_compile_with_xla_kernels():
+    """Without any switch in ``XLA_FLAGS`` (XLA's defaults, as a library user runs): XLA hands
+    small sums to its YNN library; the package's ``jit`` asks for its own kernels for that
+    program alone, with the same results."""
+    import jax
+    import numpy as np
+
+    from cdog_jax.people._persons import _retriangulate
+
+    rig = ring_rig(4)
+    rng = np.random.default_rng(0)
+    xy = jnp.asarray(rng.uniform(100.0, 500.0, (16, 4, 2)), jnp.float32)
+    member = jnp.asarray(rng.random((16, 4)) > 0.2)
+    weights = jnp.ones((16, 4), jnp.float32)
+    args = (rig, xy, member, weights)
+    plain = jax.jit(_retriangulate.__wrapped__).lower(*args).compile()
+    own = _retriangulate.lower(*args).compile()
+    assert "__ynn_fusion" in plain.as_text()
+    assert "__ynn_fusion" not in own.as_text()
+    for a, b in zip(jax.tree.leaves(own(*args)), jax.tree.leaves(plain(*args))):
+        assert np.allclose(a, b, rtol=1e-5, atol=1e-5, equal_nan=True)
+
+
+def test_programs_compile_with_xla_kernels_without_a_process_setting():
+    run_with_xla_defaults(__file__, "programs_compile_with_xla_kernels")
+
+
+def test_a_jit_with_compile_options_is_refused_inside_another():
+    """Why :func:`xla_kernels.jit` serves only programs called from the host: JAX refuses a
+    nested ``jit`` with compile options (a user's ``jit`` around such a function fails)."""
+    import jax
+
+    inner = xla_kernels.jit(lambda x: x + 1.0)
+    assert float(inner(jnp.float32(1.0))) == 2.0
+    with pytest.raises(ValueError, match="compiler_options"):
+        jax.jit(lambda x: inner(x) * 2.0)(jnp.float32(1.0))

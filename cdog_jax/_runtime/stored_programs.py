@@ -37,6 +37,7 @@ import jax
 import numpy as np
 
 from .compile_cache import cache_dir_from_environment
+from .xla_kernels import jit
 
 _PACKAGE_ROOT = (
     Path(__file__).resolve().parents[1]
@@ -161,7 +162,7 @@ def _load_or_export(path: Path, fun: Callable, static: dict, treedef, specs):
         header, blob = path.read_bytes().split(b"\n", 1)
         meta = json.loads(header)
         out_tree = dataclass_tree(_import_name(meta["output"]), meta["fields"])
-        return out_tree, jax.jit(export.deserialize(bytearray(blob)).call)
+        return out_tree, jit(export.deserialize(bytearray(blob)).call)
     except Exception:  # missing, or from an interrupted or foreign writer: export it (again)
         pass
     traced = {}
@@ -191,7 +192,7 @@ def _load_or_export(path: Path, fun: Callable, static: dict, treedef, specs):
         {"output": f"{out_type.__module__}:{out_type.__qualname__}", "fields": names}
     )
     _write_whole(path, header.encode() + b"\n" + bytes(blob))
-    return dataclass_tree(out_type, names), jax.jit(exported.call)
+    return dataclass_tree(out_type, names), jit(exported.call)
 
 
 def dataclass_tree(kind: type, names) -> Any:

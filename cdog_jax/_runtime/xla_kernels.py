@@ -5,15 +5,27 @@ library. For our programs' shapes (a sum over two or three coordinates, a 3 × 3
 thousands of small kernels a call) XLA's own kernels are faster: on a 2-core CPU a live
 Shelf-like frame takes 1.3–2.2 ms less and the warm benchmark grid 15 % less, with the same
 groups, labels and points (sums whose terms are added in another order may round the last
-bit of a reprojection error or σ differently). XLA reads the switch once, when JAX starts
-its backend, for the whole process: the command line sets it for its own process; a
-library user sets ``XLA_FLAGS`` before starting Python (docs/LIVE.md).
+bit of a reprojection error or σ differently).
+
+The package's programs that are called from the host (one scene, a batch, the classes'
+scenes, the σ fit, a live frame's tracker step, the benchmark sweep) ask for them one by
+one (:func:`jit`: XLA's compile options of that program alone), so a library call gets them
+without any process-wide setting. JAX refuses compile options on a ``jit`` traced inside
+another, so the functions a user may call inside their own ``jit`` or ``vmap`` (geometry,
+the stages, synthetic scenes, ``track_sequence``, calibration) keep a plain ``jax.jit``.
+The command line also sets the switch for its whole process (:func:`use_xla_kernels`: XLA
+reads ``XLA_FLAGS`` once, when JAX starts its backend), which covers those too; both ways
+compile the same code.
 """
 
 from __future__ import annotations
 
+import functools
 import os
+from collections.abc import Callable
+from typing import Any
 
+import jax
 from jax._src import xla_bridge
 
 FLAG = "--xla_cpu_experimental_ynn_fusion_type="
@@ -21,7 +33,37 @@ FLAG = "--xla_cpu_experimental_ynn_fusion_type="
 
 MEASURED_JAXLIB = ("0.10.",)
 """jaxlib releases the switch was measured with. An XLA that does not know a flag stops
-the process when it starts, so the switch is set only on these."""
+the process when it starts (or refuses a program's compile option), so the switch is used
+only on these."""
+
+
+def _measured_jaxlib() -> bool:
+    try:
+        import jaxlib
+
+        version = str(jaxlib.__version__)
+    except (ImportError, AttributeError):
+        return False
+    return version.startswith(MEASURED_JAXLIB)
+
+
+COMPILER_OPTIONS: dict[str, str] | None = (
+    {FLAG.strip("-").rstrip("="): ""} if _measured_jaxlib() else None
+)
+"""XLA compile options of every program the package compiles (:func:`jit`): the switch,
+as one program's option; None on a jaxlib not in :data:`MEASURED_JAXLIB`."""
+
+
+def jit(fun: Callable | None = None, /, **options: Any) -> Any:
+    """``jax.jit(fun, **options)`` compiling with :data:`COMPILER_OPTIONS`; also a
+    decorator, bare or through ``functools.partial(jit, static_argnames=...)``.
+
+    Only for programs called from the host: traced inside another ``jit`` (or under
+    ``vmap`` within one), JAX refuses it (``ValueError``).
+    """
+    if fun is None:
+        return functools.partial(jit, **options)
+    return jax.jit(fun, compiler_options=COMPILER_OPTIONS, **options)
 
 
 def use_xla_kernels() -> bool:
@@ -34,13 +76,7 @@ def use_xla_kernels() -> bool:
     flags = os.environ.get("XLA_FLAGS", "")
     if xla_bridge.backends_are_initialized() or "ynn_fusion_type" in flags:
         return False
-    try:
-        import jaxlib
-
-        version = str(jaxlib.__version__)
-    except (ImportError, AttributeError):
-        return False
-    if not version.startswith(MEASURED_JAXLIB):
+    if not _measured_jaxlib():
         return False
     os.environ["XLA_FLAGS"] = f"{flags} {FLAG}".strip()
     return True

@@ -15,6 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._expect import ARRAY, INT, expect_args
+from .._runtime.xla_kernels import jit
 from ..synthetic._scene import Scene
 
 DRAW_CAPACITY = 130
@@ -153,7 +154,7 @@ def _milli_px(sigma: float) -> int:
     return int(round(1000.0 * float(sigma)))
 
 
-@jax.jit
+@jit
 def _fold_keys(base, milli, count, scene):
     one = lambda s, c, k: jax.random.fold_in(jax.random.fold_in(jax.random.fold_in(base, s), c), k)  # noqa: E731
     return jax.vmap(one)(milli, count, scene)

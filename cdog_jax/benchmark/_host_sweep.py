@@ -20,6 +20,7 @@ import numpy as np
 
 from .._expect import expect_args
 from .._method import Method, Observations, method_from
+from .._runtime.xla_kernels import jit
 from ..geometry._camera import Rig
 from ..metrics._scores import scene_metrics
 from ..synthetic._rig import DEFAULT_BOX, IMAGE_SIZE
@@ -36,7 +37,7 @@ from ._sweep import (
 )
 
 
-@functools.partial(jax.jit, static_argnames=("capacity", "draw_capacity", "image_size"))
+@functools.partial(jit, static_argnames=("capacity", "draw_capacity", "image_size"))
 def _scene(rig, box, key, count, sigma, *, capacity, draw_capacity, image_size):
     scene = generate_scene(
         key, rig, count, sigma, capacity=draw_capacity, box=box, image_size=image_size
@@ -44,12 +45,12 @@ def _scene(rig, box, key, count, sigma, *, capacity, draw_capacity, image_size):
     return compact_scene(scene, capacity=capacity)
 
 
-@functools.partial(jax.jit, static_argnames=("method",))
+@functools.partial(jit, static_argnames=("method",))
 def _associate_jit(rig, xy, mask, thresholds, *, method):
     return method.associate_scene(rig, Observations(xy, mask), thresholds)
 
 
-@jax.jit
+@jit
 def _score(rig, result, scene):
     return scene_metrics(rig, result, scene), (result.sigma_px, result.tau_px, result.num_groups)
 

@@ -49,6 +49,7 @@ from .._expect import expect_args
 from .._method import Method, Observations, method_from
 from .._runtime.memory import check_memory
 from .._runtime.progress import compiling, interactive, sweep_bar
+from .._runtime.xla_kernels import jit
 from ..cdog._pipeline import Config
 from ..geometry._camera import Rig
 from ..metrics._scores import Metrics, scene_metrics
@@ -251,9 +252,7 @@ def _compiled(plan: _Plan, bucket: int, args):
         return _COMPILED[cache_key], 0.0
     t0 = time.perf_counter()
     replicated = NamedSharding(plan.mesh, PartitionSpec())
-    fn = jax.jit(
-        functools.partial(_bucket_body, plan=plan, bucket=bucket), out_shardings=replicated
-    )
+    fn = jit(functools.partial(_bucket_body, plan=plan, bucket=bucket), out_shardings=replicated)
     compiled = fn.lower(*args).compile()
     elapsed = time.perf_counter() - t0
     _COMPILED[cache_key] = compiled
@@ -615,7 +614,7 @@ def _host_thresholds(config: Method, dtype):
     return jax.tree.map(lambda a: np.asarray(a, dtype), config.thresholds(0.0, dtype=dtype))
 
 
-@functools.partial(jax.jit, static_argnames=("capacity", "draw_capacity", "image_size"))
+@functools.partial(jit, static_argnames=("capacity", "draw_capacity", "image_size"))
 def _chunk_scenes(rig, box, keys, count, sigma, *, capacity, draw_capacity, image_size):
     one = lambda k, c, s: compact_scene(  # noqa: E731
         generate_scene(k, rig, c, s, capacity=draw_capacity, box=box, image_size=image_size),
@@ -628,7 +627,7 @@ TIMING_SCENES = 8
 """Scenes per timing chunk (rounded up to a multiple of the bucket's batch size)."""
 
 
-@functools.partial(jax.jit, static_argnames=("config", "batch"))
+@functools.partial(jit, static_argnames=("config", "batch"))
 def _associate_chunk(rig, xy, mask, thresholds, *, config, batch):
     """The sweep's association step alone on a chunk of scenes (``lax.map`` as in the sweep)."""
     one = lambda a: config.associate_scene(rig, Observations(a[0], a[1]), a[2])  # noqa: E731

@@ -24,6 +24,7 @@ import numpy as np
 from .._expect import expect_args
 from .._method import Method, Observations, finite_observations, register_method
 from .._result import Association, association_from_groups
+from .._runtime.xla_kernels import COMPILER_OPTIONS
 from .._status import Status
 from .._types import Array, Bool, Float, Int
 from ..geometry._camera import Rig
@@ -544,27 +545,25 @@ class ConfigMethods(Method):
 
     def table_bytes(self, num_views: int, itemsize: int) -> float:
         """Bytes per ``N²`` at the peak of one scene, by the stages that run (the coefficients
-        were checked against XLA's ``memory_analysis()``, ALGORITHM.md §14)."""
+        were checked against XLA's ``memory_analysis()`` of the programs the library
+        compiles, ALGORITHM.md §14)."""
         f = float(itemsize)
         # d and its masked copy, the proposal/adjacency bool tables, and (above N ≈ 10⁴, where
         # XLA stops reusing some of them) about 2 more bytes per pair; d stays alive to the
         # end, where the validity gate looks for rivals in it (one more float table).
         stages = [3.0 * f + 5.0]
-        if self.second_association:
-            stages.append(f * (num_views / 2.0 + 1.0))  # (G, M, N) distances beside d
-        if self.recover or self.regroup:
-            stages.append(3.0 * f + 6.0)  # d kept for regrouping, (G, N, 2) differences
-        if self.seed:
-            # (H, M, P) hypothesis tables with H = N·M, M·N² entries each: the distances, the
-            # votes and about half a table of differences that XLA does not fuse, beside d
-            # and the symmetric cost (checked against memory_analysis() at M = 4 and 8).
-            stages.append(num_views * (1.5 * f + 1.0) + 3.0 * f)
-        coeff = max(stages)
-        if self.support_filter and (self.recover or self.regroup):
-            coeff += f  # (G, M, P, 2) differences while the regrouped tables are alive
-        if self.refine:
-            coeff += 0.5 * f
-        return coeff
+        if self.second_association and COMPILER_OPTIONS is None:
+            # (G, M, N) distances beside d, which XLA's YNN kernels take as a table of their
+            # own; XLA's own kernels (the library's programs, xla_kernels.py) fuse them into
+            # their minimum over the views.
+            stages.append(f * (num_views / 2.0 + 1.0))
+        if self.recover or self.regroup or self.seed:
+            # d kept for regrouping, (G, N, 2) differences. Seeding builds its hypotheses 8
+            # free detections at a time; recovery, re-assignment and merging measure 64 group
+            # rows at a time; the support filter's and refinement's tables are linear in N
+            # (XLA's figure at 10 × 1,000 slots: 17.2 bytes per pair for every preset).
+            stages.append(3.0 * f + 6.0)
+        return max(stages)
 
 
 def _numbers(config_type: type) -> tuple[str, ...]:

@@ -9,6 +9,7 @@ import math
 import os
 import time
 
+from .._runtime.xla_kernels import jit
 from ._common import (
     _FIGURE_EXTENSIONS,
     _emit,
@@ -175,7 +176,7 @@ def run(args: argparse.Namespace) -> int:
         method=config,
         sigma=sigma_arg,
     )
-    metrics = timed("metrics (incl. compile)", jax.jit(scene_metrics), rig, result, scene)
+    metrics = timed("metrics (incl. compile)", jit(scene_metrics), rig, result, scene)
 
     mask = np.asarray(scene.mask)
     valid = np.asarray(result.valid)

@@ -29,6 +29,7 @@ from .._result import Association, batched_association
 from .._runtime.devices import chunk_devices
 from .._runtime.shapes import ladder_rung, slot_capacity
 from .._runtime.stored_programs import call_stored
+from .._runtime.xla_kernels import jit
 from .._status import Status
 from .._validate import as_array, check_observations, check_rig
 from ..cdog._config import REFERENCE_FOCAL_PX
@@ -450,7 +451,7 @@ def _at_least(scenes: _Scenes, count: int, slots: int) -> _Scenes:
     )
 
 
-@partial(jax.jit, static_argnames=("robust",))
+@partial(jit, static_argnames=("robust",))
 def _nearest_samples(rig, xy, mask, dist, robust: bool):
     """The σ estimator's samples of every scene, each ``(B, M, Pc, M)``: a detection's
     epipolar distance to the nearest detection of its scene in every other view, its weight
@@ -634,12 +635,12 @@ def _sample_tables(samples: _UsedSamples, group: np.ndarray, G: int, min_width: 
 # the process runs out of memory maps), and the robust estimator's twelve fits take
 # seconds more than compiling them.
 # Called through call_stored: a later process loads the lowered fit instead of tracing it.
-@jax.jit
+@jit
 def _pooled_fit(x, w, count, focal):
     return jax.vmap(sigma_from_samples, in_axes=(0, 0, 0, None))(x, w, count, focal)
 
 
-@jax.jit
+@jit
 def _pooled_robust_fit(x, w, count, second, focal):
     return jax.vmap(robust_sigma_from_samples, in_axes=(0, 0, 0, 0, None))(
         x, w, count, second, focal

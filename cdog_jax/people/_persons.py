@@ -17,10 +17,10 @@ from __future__ import annotations
 import dataclasses
 from typing import NamedTuple
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._runtime.xla_kernels import jit
 from ..geometry._camera import Rig
 from ..geometry._distortion import as_lens, undistorted_frames
 from ..geometry._projection import group_errors
@@ -368,7 +368,7 @@ class _Camera:
         return tuple(np.asarray(a)[:K] for a in out)
 
 
-@jax.jit
+@jit
 def _retriangulate(rig, xy_g, member, weights):
     X, ok = triangulate_views_last(rig, xy_g, member, weights=weights)
     bpe, err = group_errors(rig, X, xy_g, member)

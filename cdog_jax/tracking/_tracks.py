@@ -26,6 +26,7 @@ from jax import lax
 
 from .._expect import expect_args
 from .._result import Association, batched_association
+from .._runtime.xla_kernels import jit
 from .._types import Array, Bool, Float, Int
 from .._validate import as_array
 from ..geometry._camera import Rig
@@ -255,7 +256,7 @@ def track_sequence(
     return lax.scan(step, init, frames)
 
 
-track_one = jax.jit(track_step, static_argnames=("prior", "min_views", "max_gap"))
+track_one = jit(track_step, static_argnames=("prior", "min_views", "max_gap"))
 """One frame of :func:`track_step`, compiled (the live loop's linking)."""
 
 
