@@ -219,6 +219,7 @@ def test_the_checker_sees_every_kind_of_import(tmp_path, monkeypatch):
 INTERNAL_EXPERIMENTS = {
     "compile_profile.py": "compiles each stage of C-DOG's plan on its own",
     "suite_census.py": "tallies the package's stored programs that each test meets",
+    "memory_estimate.py": "reads XLA's memory figure of the program a library call compiles",
 }
 
 
