@@ -46,6 +46,17 @@ def refine_points(
     )
     import optimistix as optx  # here, not at import: only refinement needs it (a large import)
 
+    dtype = X0.dtype
+    # optimistix's damping and step sizes take JAX's default float: with 64-bit JAX on, a
+    # float32 problem meets float64 damping and lineax refuses the mixed structures. Such a
+    # problem is solved in the default float, its points returned in their own dtype.
+    default = jnp.dtype(jnp.result_type(float))  # float64 with 64-bit JAX on
+    work = default if jnp.finfo(default).bits > jnp.finfo(dtype).bits else dtype
+    if work != dtype:
+        rig, X0, xy_g = jax.tree.map(
+            lambda a: a.astype(work) if jnp.issubdtype(a.dtype, jnp.floating) else a,
+            (rig, X0, xy_g),
+        )
     solver = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-6)
 
     def one(X, xy, mem):
@@ -63,7 +74,7 @@ def refine_points(
         return jnp.where(better & used, sol.value, X), capped
 
     X, capped = jax.vmap(one)(X0, xy_g, member)
-    return X, jnp.any(capped)
+    return X.astype(dtype), jnp.any(capped)
 
 
 class RefineOptions(NamedTuple):
