@@ -21,6 +21,7 @@ per frame, 4D association runs at 30 frames/s with 5 cameras.
     python experiments/bench_live.py                 # 2,000 frames
     python experiments/bench_live.py --frames 300 --out live.json
     python experiments/bench_live.py --skip-prior --skip-ten-views   # memory over 2,000 frames
+    python experiments/bench_live.py --parts --frames 200   # inside and outside compiled code
 """
 
 from __future__ import annotations
@@ -134,6 +135,51 @@ def live_loop(frames, rig, count: int, **options) -> dict:
     }
 
 
+def live_parts(frames, rig, count: int, **options) -> dict:
+    """``count`` warm frames through one :class:`cdog_jax.LiveAssociator` (after 40 to warm
+    it), each compiled program timed to completion where the frame calls it (the library's
+    program calls wrapped for this process only): p50 of each part and of what is left
+    outside compiled code (ms)."""
+    import cdog_jax._associate as associate_module
+    import cdog_jax.people._classes as classes_module
+    import cdog_jax.tracking._live as live_module
+
+    times: dict[str, float] = {}
+
+    def timed(name_of, fun):
+        def run(*args, **kwargs):
+            t = time.perf_counter()
+            out = jax.block_until_ready(fun(*args, **kwargs))
+            name = name_of(args)
+            times[name] = times.get(name, 0.0) + time.perf_counter() - t
+            return out
+
+        return run
+
+    program = lambda args: getattr(args[0], "__name__", str(args[0])).strip("_")  # noqa: E731
+    saved = (associate_module.call_stored, classes_module.call_stored, live_module.track_one)
+    associate_module.call_stored = timed(program, saved[0])
+    classes_module.call_stored = timed(program, saved[1])
+    live_module.track_one = timed(lambda args: "track_one", saved[2])
+    try:
+        live = cdog_jax.LiveAssociator(rig, num_classes=25, **options)
+        parts: dict[str, list[float]] = {}
+        for i in range(40 + count):
+            xy, mask, cls, _ = frames[i % len(frames)]
+            times.clear()
+            t = time.perf_counter()
+            live.update(xy[0], mask[0], classes=cls[0])
+            whole = time.perf_counter() - t
+            if i >= 40:
+                for name, seconds in times.items():
+                    parts.setdefault(name, []).append(seconds)
+                parts.setdefault("outside compiled code", []).append(whole - sum(times.values()))
+                parts.setdefault("whole update", []).append(whole)
+    finally:
+        associate_module.call_stored, classes_module.call_stored, live_module.track_one = saved
+    return {name: float(np.median(v)) * 1e3 for name, v in parts.items()}
+
+
 def ten_views(count: int = 20) -> dict:
     rig = default_rig(num_views=10)
     scene = generate_scene(jax.random.PRNGKey(0), rig, 130, 1.0, capacity=130)
@@ -158,6 +204,11 @@ def main(argv=None):
     p.add_argument("--out", help="write the numbers as JSON here")
     p.add_argument("--skip-ten-views", action="store_true")
     p.add_argument(
+        "--parts",
+        action="store_true",
+        help="only the time of each compiled program of a live frame and of the rest (p50)",
+    )
+    p.add_argument(
         "--skip-prior",
         action="store_true",
         help="leave out the live loop without the temporal prior",
@@ -169,6 +220,14 @@ def main(argv=None):
     print(
         f"Shelf-like frames: 5 views, 25 classes, {min(sizes)}–{max(sizes)} detections, {args.frames} calls"
     )
+    if args.parts:
+        for name, options in (("σ per frame", {}), ("σ held", {"sigma": "held"})):
+            parts = live_parts(frames, rig, args.frames, **options)
+            print(
+                f"LiveAssociator, {name} (p50 ms): "
+                + ", ".join(f"{k} {v:.2f}" for k, v in parts.items())
+            )
+        return
     out = {"shelf_like": shelf_loop(frames, rig, args.frames), "targets_ms": TARGETS_MS}
     s = out["shelf_like"]
     print(

@@ -220,6 +220,7 @@ INTERNAL_EXPERIMENTS = {
     "compile_profile.py": "compiles each stage of C-DOG's plan on its own",
     "suite_census.py": "tallies the package's stored programs that each test meets",
     "memory_estimate.py": "reads XLA's memory figure of the program a library call compiles",
+    "bench_live.py": "times each compiled program of a live frame where the frame calls it",
 }
 
 
