@@ -82,3 +82,27 @@ def test_a_jit_with_compile_options_is_refused_inside_another():
     assert float(inner(jnp.float32(1.0))) == 2.0
     with pytest.raises(ValueError, match="compiler_options"):
         jax.jit(lambda x: inner(x) * 2.0)(jnp.float32(1.0))
+
+
+def test_only_where_jax_runs_on_its_cpu(monkeypatch):
+    """The compile option is a CPU switch: not asked for where an accelerator may be JAX's
+    backend (chosen first, or a plugin for one installed)."""
+    import importlib.metadata
+
+    monkeypatch.setenv("JAX_PLATFORMS", "cuda,cpu")
+    assert not xla_kernels._cpu_is_the_backend()
+    monkeypatch.setenv("JAX_PLATFORMS", "cpu")
+    assert xla_kernels._cpu_is_the_backend()
+    monkeypatch.setenv("JAX_PLATFORMS", "")
+    monkeypatch.setattr(
+        importlib.metadata, "entry_points", lambda group: ["jax_plugins.xla_cuda12"]
+    )
+    assert not xla_kernels._cpu_is_the_backend()
+    code = "from cdog_jax._runtime import xla_kernels as k\nprint(k.COMPILER_OPTIONS)\n"
+    # This machine runs JAX on its CPU (the parent's options): chosen so, the same options.
+    for platforms, expected in (("cpu", repr(xla_kernels.COMPILER_OPTIONS)), ("tpu", "None")):
+        env = dict(os.environ, JAX_PLATFORMS=platforms)
+        done = subprocess.run(
+            [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+        )
+        assert done.stdout.strip() == expected, done.stdout + done.stderr

@@ -21,6 +21,8 @@ compile the same code.
 from __future__ import annotations
 
 import functools
+import importlib.metadata
+import importlib.util
 import os
 from collections.abc import Callable
 from typing import Any
@@ -47,11 +49,25 @@ def _measured_jaxlib() -> bool:
     return version.startswith(MEASURED_JAXLIB)
 
 
+def _cpu_is_the_backend() -> bool:
+    """Whether JAX will run on its CPU backend, known without starting it: the first of the
+    platforms chosen (``JAX_PLATFORMS``, ``jax_platforms``) is the CPU, or none is chosen
+    and no accelerator plugin is installed (JAX finds GPU plugins in the ``jax_plugins``
+    namespace or entry points, TPUs through ``libtpu``)."""
+    chosen = os.environ.get("JAX_PLATFORMS") or jax.config.jax_platforms or ""
+    if chosen:
+        return chosen.split(",")[0].strip().lower() == "cpu"
+    if importlib.metadata.entry_points(group="jax_plugins"):
+        return False
+    return all(importlib.util.find_spec(name) is None for name in ("jax_plugins", "libtpu"))
+
+
 COMPILER_OPTIONS: dict[str, str] | None = (
-    {FLAG.strip("-").rstrip("="): ""} if _measured_jaxlib() else None
+    {FLAG.strip("-").rstrip("="): ""} if _measured_jaxlib() and _cpu_is_the_backend() else None
 )
 """XLA compile options of every program the package compiles (:func:`jit`): the switch,
-as one program's option; None on a jaxlib not in :data:`MEASURED_JAXLIB`."""
+as one program's option, where JAX runs on its CPU (it was measured there; an accelerator's
+compiler is left its own choices); None on a jaxlib not in :data:`MEASURED_JAXLIB`."""
 
 
 def jit(fun: Callable | None = None, /, **options: Any) -> Any:
