@@ -478,25 +478,21 @@ def associate_batch_at(
     M, P = np.shape(mask)[1:]
     chunk = chunk_size(B, batch_size)
     in_use = max(occupied_slots(mask), int(min_slots))
-    if chunk == 1 and not min_slots:
-        # Scene by scene, each runs associate's program (its capacity rung): a one-frame
-        # batch, such as the command line's on one frame, and associate on that frame then
-        # compile, store and load one program.
-        capacity = _capacity(
-            "associate_batch",
-            M,
-            in_use,
-            method,
-            dtype,
-            1,
-            memory_budget_gb,
-            vmapped=None,
-            ladder=scene_capacity,
-        )
-    else:
-        capacity = _capacity(
-            "associate_batch", M, in_use, method, dtype, chunk, memory_budget_gb, vmapped=True
-        )
+    # Scene by scene, each runs associate's program (its capacity rung): a one-frame batch,
+    # such as the command line's on one frame, and associate on that frame then compile,
+    # store and load one program.
+    one_at_a_time = chunk == 1 and not min_slots
+    capacity = _capacity(
+        "associate_batch",
+        M,
+        in_use,
+        method,
+        dtype,
+        chunk,
+        memory_budget_gb,
+        vmapped=None if one_at_a_time else True,
+        ladder=scene_capacity if one_at_a_time else slot_capacity,
+    )
     static, thresholds = _prepare(method, sigma, thresholds, dtype)
     if dist is not None and not shared:
         raise ValueError(
