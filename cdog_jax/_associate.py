@@ -454,11 +454,15 @@ def associate_batch_at(
     memory_budget_gb=None,
     min_slots=0,
     on_host=False,
+    untrimmed=False,
 ):
     """:func:`associate_batch` at a slot capacity of at least ``min_slots`` per view (the
     rung that holds it): a caller that must meet one compiled program on every call (a live
     loop) gives its capacity here; results are those of :func:`associate_batch`, as NumPy
-    arrays with ``on_host`` (a caller that reads them on the host: no transfer back)."""
+    arrays with ``on_host`` (a caller that reads them on the host: no transfer back).
+    ``untrimmed``: where one call of the program holds exactly the ``B`` scenes at the
+    input's slots, its arrays as it returns them (on the device: a caller that hands them
+    to another program), else as with ``on_host``."""
     expect_args("associate_batch", rig=(rig, Rig))
     expect(batch_size, INT, "batch_size", "associate_batch")
     method = method_argument(method, "associate_batch")
@@ -568,4 +572,6 @@ def associate_batch_at(
         results = [
             jax.tree.map(lambda *parts: np.concatenate([np.asarray(p) for p in parts]), *results)
         ]
-    return trim(results[0], P, num_scenes=B, on_host=on_host)
+    if untrimmed and results[0].labels.shape[:1] + results[0].labels.shape[2:] == (B, P):
+        return results[0]
+    return trim(results[0], P, num_scenes=B, on_host=on_host or untrimmed)

@@ -157,10 +157,16 @@ def live_parts(frames, rig, count: int, **options) -> dict:
         return run
 
     program = lambda args: getattr(args[0], "__name__", str(args[0])).strip("_")  # noqa: E731
-    saved = (associate_module.call_stored, classes_module.call_stored, live_module.track_one)
+    saved = (
+        associate_module.call_stored,
+        classes_module.call_stored,
+        live_module.track_one,
+        live_module.track_scenes,
+    )
     associate_module.call_stored = timed(program, saved[0])
     classes_module.call_stored = timed(program, saved[1])
     live_module.track_one = timed(lambda args: "track_one", saved[2])
+    live_module.track_scenes = timed(lambda args: "track_scenes", saved[3])
     try:
         live = cdog_jax.LiveAssociator(rig, num_classes=25, **options)
         parts: dict[str, list[float]] = {}
@@ -176,7 +182,12 @@ def live_parts(frames, rig, count: int, **options) -> dict:
                 parts.setdefault("outside compiled code", []).append(whole - sum(times.values()))
                 parts.setdefault("whole update", []).append(whole)
     finally:
-        associate_module.call_stored, classes_module.call_stored, live_module.track_one = saved
+        (
+            associate_module.call_stored,
+            classes_module.call_stored,
+            live_module.track_one,
+            live_module.track_scenes,
+        ) = saved
     return {name: float(np.median(v)) * 1e3 for name, v in parts.items()}
 
 

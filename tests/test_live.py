@@ -14,6 +14,7 @@ from cdog_jax import LiveAssociator, associate_sequence
 from cdog_jax.io import detections_from_array
 from cdog_jax.people import _classes as people_classes
 from cdog_jax.synthetic import default_rig, generate_skeleton_scenes
+from cdog_jax.tracking._tracks import tracking_frames
 
 M, PEOPLE, FRAMES, J = 4, 2, 6, 17
 LOWERING = "/jax/core/compile/jaxpr_to_mlir_module_duration"
@@ -243,3 +244,37 @@ def test_the_documented_loop_runs(capsys):
     exec(compile(block, "docs/LIVE.md", "exec"), {"__name__": "__live__"})
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 5 and all(line.startswith(f"frame {f}: ") for f, line in enumerate(lines))
+
+
+@pytest.mark.parametrize("rows", [16, 64], ids=["rows-cut", "rows-enough"])
+def test_the_frame_table_made_on_the_device_is_the_hosts(walk, rows):
+    """The tracker's program makes a frame's table from its class scenes' results as the
+    host does (the scenes mapped back to the frame, then the tracker's rows): the same
+    groups, labels, classes and points, bitwise, the first ``rows`` groups kept when the
+    frame holds more (the object then raises its rows and runs the frame again)."""
+    rig, xy, mask, classes = walk
+    shapes = dict(num_classes=J, min_scenes=J, min_slots=8, batch_size=J, sigma=2.0)
+    args = (rig, xy[:1], mask[:1], classes[:1])
+    scenes = people_classes.associate_classes_at(*args, scenes_only=True, **shapes)
+    host = people_classes.associate_classes_at(*args, on_host=True, **shapes)
+    a = host.association
+    found = int(a.num_groups[0])
+    assert found > 16  # the cut is exercised
+    oracle = tracking_frames(
+        a, host.group_class, a.labels, xy[:1], mask[:1], classes[:1], None, rows, True
+    )
+    table = jax.jit(people_classes.frame_of_scenes, static_argnums=(3, 4, 5))(
+        scenes.result,
+        scenes.scenes.slot.astype(np.int32),
+        scenes.scenes.cls.astype(np.int32),
+        mask.shape[2],
+        rows,
+        2 * rows,
+    )
+    X, valid, cls, groups, bpe, err_px, labels, got_found, tau = (np.asarray(t) for t in table)
+    assert int(got_found) == found and tau == oracle.err_gate_px[0]
+    for name, got in (("X", X), ("valid", valid), ("groups", groups), ("bpe", bpe)):
+        np.testing.assert_array_equal(got, getattr(oracle, name)[0], err_msg=name)
+    np.testing.assert_array_equal(err_px, oracle.err_px[0])
+    np.testing.assert_array_equal(labels, oracle.labels[0])
+    np.testing.assert_array_equal(cls[valid], oracle.cls[0][valid])

@@ -31,6 +31,7 @@ from .._runtime.shapes import ladder_rung, slot_capacity
 from .._runtime.stored_programs import call_stored
 from .._runtime.xla_kernels import jit
 from .._status import Status
+from .._types import Array, Int
 from .._validate import as_array, check_observations, check_rig
 from ..cdog._config import REFERENCE_FOCAL_PX
 from ..geometry._camera import Rig
@@ -73,6 +74,15 @@ class _Scenes(NamedTuple):
     frame: np.ndarray  # (B,) frame of each scene
     cls: np.ndarray  # (B,) class of each scene
     weights: np.ndarray | None  # (B, M, Pc)
+
+
+class SceneResults(NamedTuple):
+    """One frame's class scenes and their association before it is mapped to the frame
+    (:func:`associate_classes_at` with ``scenes_only``)."""
+
+    scenes: _Scenes
+    result: Association  # (B, G, …) per scene: the association program's own arrays
+    frame_flags: np.ndarray | None  # (1,) status bits of the frame beyond its scenes'
 
 
 def associate_classes(
@@ -170,6 +180,7 @@ def associate_classes_at(
     min_slots=0,
     min_samples=0,
     on_host=False,
+    scenes_only=False,
 ):
     """:func:`associate_classes` with at least ``min_scenes`` scenes (empty ones added) of at
     least ``min_slots`` slots per view, the σ fit's table at least ``min_samples`` wide: a
@@ -177,7 +188,9 @@ def associate_classes_at(
     shapes here; results are those of
     :func:`associate_classes`, up to the last bits of σ with ``sigma="auto"``; the
     association's fields NumPy arrays with ``on_host`` (for a caller that reads them on the
-    host)."""
+    host). ``scenes_only`` (one frame, no person vote): the class scenes' results before
+    they are mapped to the frame, :class:`SceneResults` (``None`` for a frame without a
+    scene), their arrays left where the program put them."""
     expect_args("associate_classes", rig=(rig, Rig))
     expect(batch_size, INT, "batch_size", "associate_classes")
     method = method_argument(method, "associate_classes")
@@ -213,7 +226,7 @@ def associate_classes_at(
     if B and (min_scenes or min_slots):
         scenes = _at_least(scenes, min_scenes, min_slots)
     if B == 0:
-        return _empty(rig, F, M, P, xy.dtype, C, class_names, on_host)
+        return None if scenes_only else _empty(rig, F, M, P, xy.dtype, C, class_names, on_host)
     dtype = jax.dtypes.canonicalize_dtype(
         xy.dtype if np.issubdtype(xy.dtype, np.floating) else np.float64
     )
@@ -253,7 +266,10 @@ def associate_classes_at(
         memory_budget_gb=memory_budget_gb,
         min_slots=min_slots,
         on_host=True,
+        untrimmed=scenes_only,
     )
+    if scenes_only:
+        return SceneResults(scenes, result, frame_flags)
     out = _map_back(result, scenes, F, M, P, C, class_names, on_host, frame_flags)
     if vote is not None:
         fixed = person_consistent(
@@ -678,12 +694,7 @@ def _map_back(
         out[f, row] = a[b, g]
         return out
 
-    status = np.zeros(F, np.int32)
-    np.bitwise_or.at(status, scenes.frame, r.status.astype(np.int32))
-    if frame_flags is not None:
-        status |= np.where(np.bincount(scenes.frame, minlength=F) > 0, frame_flags, 0)
-    sigma = _per_frame(r.sigma_px, scenes.frame, F)
-    tau = _per_frame(r.tau_px, scenes.frame, F)
+    sigma, tau, status = frame_fields(r, scenes.frame, F, frame_flags)
     assoc = batched_association(
         on_host=on_host,
         labels=labels,
@@ -699,6 +710,75 @@ def _map_back(
         status=status,
     )
     return ClassAssociation(assoc, group_class, None if names is None else tuple(names), C)
+
+
+def frame_fields(
+    r, frame: np.ndarray, F: int, frame_flags: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(F,)`` σ, τ and status of every frame from its scenes' (``r``'s fields ``(B,)``,
+    ``frame (B,)`` each scene's frame, sorted): the median σ and τ over its scenes, its
+    scenes' flags and the frame's own ``frame_flags`` (set where it has a scene)."""
+    status = np.zeros(F, np.int32)
+    np.bitwise_or.at(status, frame, np.asarray(r.status).astype(np.int32))
+    if frame_flags is not None:
+        status |= np.where(np.bincount(frame, minlength=F) > 0, frame_flags, 0)
+    sigma = _per_frame(np.asarray(r.sigma_px), frame, F)
+    tau = _per_frame(np.asarray(r.tau_px), frame, F)
+    return sigma, tau, status
+
+
+def frame_of_scenes(
+    result: Association,
+    slot: Int[Array, "B M Pc"],
+    scene_class: Int[Array, " B"],
+    num_slots: int,
+    rows: int,
+    table_rows: int,
+) -> tuple:
+    """One frame's table from its class scenes' results ``(B, G, …)``, traced: what
+    :func:`_map_back` and ``tracking_frames`` make on the host, for a program that hands
+    it on. ``slot (B, M, Pc)``: the frame slot of every scene slot (-1: none); the frame has
+    ``num_slots`` slots per view. Returns ``(X (H, 3), valid (H,), cls (H,), groups (H, M),
+    bpe (H,), err_px (H,), labels (M, num_slots), found, tau)``: the frame's groups in scene
+    order (the scenes are sorted by class), the first ``rows`` of them in ``H = table_rows``
+    rows, the labels of all of them, how many there are and the median τ of the scenes."""
+    B, G, M = result.groups.shape
+    valid = result.valid.reshape(B * G)
+    row = jnp.cumsum(valid, dtype=jnp.int32) - 1  # each valid group's row in the frame
+    scene = jnp.repeat(jnp.arange(B, dtype=jnp.int32), G)
+    views = jnp.arange(M, dtype=jnp.int32)
+    in_scene = result.groups.reshape(B * G, M)
+    groups = jnp.where(
+        valid[:, None] & (in_scene >= 0),
+        slot[scene[:, None], views[None, :], jnp.maximum(in_scene, 0)],
+        -1,
+    )
+    at = jnp.where(valid & (row < rows), row, table_rows)  # past the table: dropped
+
+    def place(a, fill):
+        a = a.reshape(B * G, *a.shape[2:])
+        return jnp.full((table_rows, *a.shape[1:]), fill, a.dtype).at[at].set(a, mode="drop")
+
+    flat = jnp.where(groups >= 0, views[None, :] * num_slots + groups, M * num_slots)
+    labels = (
+        jnp.full((M * num_slots,), -1, jnp.int32)
+        .at[flat.reshape(-1)]
+        .set(jnp.repeat(row, M), mode="drop")
+        .reshape(M, num_slots)
+    )
+    tau = jnp.sort(result.tau_px)  # the median as NumPy takes it
+    tau = tau[B // 2] if B % 2 else (tau[B // 2 - 1] + tau[B // 2]) / 2
+    return (
+        place(result.points3d, 0),
+        place(result.valid, False),
+        place(jnp.broadcast_to(scene_class[:, None], (B, G)).astype(jnp.int32), -1),
+        jnp.full((table_rows, M), -1, jnp.int32).at[at].set(groups, mode="drop"),
+        place(result.bpe, 0),
+        place(result.err_px, 0),
+        labels,
+        jnp.sum(valid, dtype=jnp.int32),
+        tau,
+    )
 
 
 def _per_frame(values: np.ndarray, frame: np.ndarray, F: int) -> np.ndarray:

@@ -28,7 +28,9 @@ from .._validate import as_array, check_observations, check_rig
 from ..geometry._camera import Rig
 from ..geometry._distortion import as_lens, undistorted_frames
 from ..people._classes import (
+    SceneResults,
     associate_classes_at,
+    frame_fields,
     given_classes,
     sigma_fit_widths,
     warm_sigma_fits,
@@ -40,6 +42,7 @@ from ._tracks import (
     grown_tracks,
     initial_tracks,
     track_one,
+    track_scenes,
     tracking_frames,
 )
 
@@ -252,85 +255,68 @@ class LiveAssociator:
 
         xy_p, mask_p, cls_p = pad(xy, 0), pad(mask, False), pad(classes, 0)
         inst_p = None if instances is None else pad(instances, -1)
-        result = associate_classes_at(
-            self.rig,
-            xy_p[None],
-            mask_p[None],
-            cls_p[None],
+        association = dict(
             num_classes=self.num_classes,
             method=self.method,
             sigma=self._frame_sigma(),
             dist=self.dist,
             min_views=self.min_views,
-            instances=None if inst_p is None else inst_p[None],
-            person_vote=self.person_vote,
             min_scenes=self.num_classes,
             min_slots=self.slots,
             batch_size=self.num_classes,  # one program of exactly one scene per class
             min_samples=self._fit_widths[0],
-            on_host=True,  # read here, field by field: no transfer to the device and back
         )
-        assoc = result.association
-        if self.sigma == "held" and self.held_sigma is None:
-            sigma = float(np.asarray(assoc.sigma_px)[0])  # 0: an empty frame, nothing fitted
-            if sigma > 0 and not int(np.asarray(assoc.status)[0]) & Status.SIGMA_FALLBACK:
-                self.held_sigma = sigma
-        found = int(np.asarray(assoc.num_groups)[0])
-        if found > self.rows:
-            old = self.rows
-            self._raise("rows", ladder_rung(found), f"{found} groups")
-            if self._carry is not None:
-                self._carry = jax.device_put(
-                    grown_tracks(
-                        self._carry,
-                        self._table_rows(old),
-                        self._table_rows(self.rows),
-                        self.max_gap,
-                    )
-                )
-        if self._carry is None:
-            # On the device from the start: the program's own output is, and arrays placed
-            # differently would be a second program.
-            self._carry = jax.device_put(
-                initial_tracks(self._table_rows(self.rows), self.max_gap, self.dtype)
+        frame_det = self._detections(xy_p, mask_p, cls_p)
+        scenes = None
+        if inst_p is None:  # no person vote: the scenes' results go to the tracker as they are
+            scenes = associate_classes_at(
+                self.rig, xy_p[None], mask_p[None], cls_p[None], scenes_only=True, **association
             )
-        if self.temporal_prior:
-            pinhole = (
-                xy_p[None]
-                if self.lens is None
-                else np.asarray(undistorted_frames(self.rig, xy_p[None], mask_p[None], self.lens))
-            )
-            det = (pinhole.astype(self.dtype), mask_p[None], cls_p[None])
+        if scenes is not None:
+            out, sigma, tau, status = self._track_scenes(scenes, frame_det)
         else:
-            det = (
-                np.zeros((1, M, self.frame_slots, 2), self.dtype),
-                np.zeros((1, M, self.frame_slots), bool),
-                np.zeros((1, M, self.frame_slots), np.int32),
+            result = associate_classes_at(
+                self.rig,
+                xy_p[None],
+                mask_p[None],
+                cls_p[None],
+                instances=None if inst_p is None else inst_p[None],
+                person_vote=self.person_vote,
+                on_host=True,  # read here, field by field: no transfer to the device and back
+                **association,
             )
-        group_class = result.group_class if self.classed else None
-        frames = tracking_frames(
-            assoc,
-            group_class,
-            np.asarray(assoc.labels),
-            *det,
-            self.max_err_px,
-            self.rows,
-            self.temporal_prior,
-        )
-        one = type(frames)(*(a[0] for a in frames))
-        carry, out = track_one(
-            self.rig,
-            self._carry,
-            one,
-            *self._gates,
-            prior=self.temporal_prior,
-            min_views=self.min_views,
-            max_gap=self.max_gap,
-        )
-        self._carry = carry
+            assoc = result.association
+            sigma, tau = float(assoc.sigma_px[0]), float(assoc.tau_px[0])
+            status = int(assoc.status[0])
+            self._grow_rows(int(assoc.num_groups[0]))
+            group_class = result.group_class if self.classed else None
+            frames = tracking_frames(
+                assoc,
+                group_class,
+                assoc.labels,
+                *(a[None] for a in frame_det),
+                self.max_err_px,
+                self.rows,
+                self.temporal_prior,
+            )
+            one = type(frames)(*(a[0] for a in frames))
+            self._carry, out = track_one(
+                self.rig,
+                self._tracks(),
+                one,
+                *self._gates,
+                prior=self.temporal_prior,
+                min_views=self.min_views,
+                max_gap=self.max_gap,
+            )
+        if self.sigma == "held" and self.held_sigma is None:
+            if sigma > 0 and not status & Status.SIGMA_FALLBACK:  # 0: an empty frame
+                self.held_sigma = sigma
         self._compiled = True
         # The frame's answer in one transfer to the host, not one per field read.
-        answer = _answer(self.frame, jax.device_get(out), order, P, self.classed, assoc)
+        answer = _answer(
+            self.frame, jax.device_get(out), order, P, self.classed, sigma, tau, status
+        )
         if instances is not None and self.classed:
             G = len(answer.groups)
             one = people_of_frame(
@@ -398,6 +384,70 @@ class LiveAssociator:
                 )
         return xy.astype(self.dtype), mask.astype(bool), classes, instances
 
+    def _detections(self, xy, mask, classes) -> tuple:
+        """The frame's packed detections ``(xy, mask, classes)`` as the temporal prior
+        searches them (undistorted pixels), or zeros without the prior."""
+        M = mask.shape[0]
+        if not self.temporal_prior:
+            return (
+                np.zeros((M, self.frame_slots, 2), self.dtype),
+                np.zeros((M, self.frame_slots), bool),
+                np.zeros((M, self.frame_slots), np.int32),
+            )
+        if self.lens is not None:
+            xy = np.asarray(undistorted_frames(self.rig, xy[None], mask[None], self.lens))[0]
+        return xy.astype(self.dtype), mask, classes.astype(np.int32)
+
+    def _grow_rows(self, found: int) -> None:
+        """Raise the tracker's rows to hold a frame of ``found`` groups (its carry grown)."""
+        if found <= self.rows:
+            return
+        old = self.rows
+        self._raise("rows", ladder_rung(found), f"{found} groups")
+        if self._carry is not None:
+            self._carry = _on_device(
+                grown_tracks(
+                    self._carry, self._table_rows(old), self._table_rows(self.rows), self.max_gap
+                )
+            )
+
+    def _tracks(self):
+        """The tracks carried into this frame (none before the first), on the device."""
+        if self._carry is None:
+            self._carry = _on_device(
+                initial_tracks(self._table_rows(self.rows), self.max_gap, self.dtype)
+            )
+        return self._carry
+
+    def _track_scenes(self, scenes: SceneResults, det: tuple):
+        """Map the class scenes' results to the frame and track it, in one program
+        (:func:`track_scenes`); a frame of more groups than the tracker's rows raises them and
+        runs again. Returns the frame's table and its σ, τ and status."""
+        sc = scenes.scenes
+        max_err = np.asarray(np.nan if self.max_err_px is None else self.max_err_px, self.dtype)
+        args = (sc.slot.astype(np.int32), sc.cls.astype(np.int32), *det, max_err, *self._gates)
+
+        def track():
+            return track_scenes(
+                self.rig,
+                self._tracks(),
+                scenes.result,
+                *args,
+                rows=self.rows,
+                prior=self.temporal_prior,
+                min_views=self.min_views,
+                max_gap=self.max_gap,
+            )
+
+        carry, out, found = track()
+        # The association's σ, τ and status, read while the tracker runs.
+        sigma, tau, status = frame_fields(scenes.result, sc.frame, 1, scenes.frame_flags)
+        while int(found) > self.rows:  # the tracks as they were, grown: the frame again
+            self._grow_rows(int(found))
+            carry, out, found = track()
+        self._carry = carry
+        return out, float(sigma[0]), float(tau[0]), int(status[0])
+
     def _frame_sigma(self) -> float | str:
         """The ``sigma`` of this frame's association: ``"auto"`` until a σ is held."""
         if self.sigma != "held":
@@ -431,6 +481,12 @@ class LiveAssociator:
         self.compiles += 1
 
 
+def _on_device(tracks: tuple) -> tuple:
+    """``tracks`` placed on the default device as the tracker's program returns them
+    (committed there: arrays placed otherwise would make the next frame a second program)."""
+    return jax.device_put(tracks, jax.local_devices()[0])
+
+
 def _most_per_class(mask: np.ndarray, classes: np.ndarray, C: int) -> int:
     """The most detections of one class in one view."""
     M = mask.shape[0]
@@ -440,7 +496,9 @@ def _most_per_class(mask: np.ndarray, classes: np.ndarray, C: int) -> int:
     return int(np.bincount(view * C + classes[mask], minlength=M * C).max())
 
 
-def _answer(frame: int, out, order: np.ndarray, P: int, classed: bool, assoc) -> LiveFrame:
+def _answer(
+    frame: int, out, order: np.ndarray, P: int, classed: bool, sigma: float, tau: float, status: int
+) -> LiveFrame:
     """The tracker's table of one frame as a :class:`LiveFrame`: its valid rows, in order
     (groups of the association, then recovered ones), slots those of the input
     (``order (M, P)``: the input slot of every packed slot)."""
@@ -470,7 +528,7 @@ def _answer(frame: int, out, order: np.ndarray, P: int, classed: bool, assoc) ->
         track_id=np.asarray(out.track)[rows],
         recovered=np.asarray(out.recovered)[rows],
         group_class=np.asarray(out.cls)[rows] if classed else None,
-        sigma_px=float(np.asarray(assoc.sigma_px)[0]),
-        tau_px=float(np.asarray(assoc.tau_px)[0]),
-        status=int(np.asarray(assoc.status)[0]),
+        sigma_px=sigma,
+        tau_px=tau,
+        status=status,
     )

@@ -32,6 +32,7 @@ from .._validate import as_array
 from ..geometry._camera import Rig
 from ..geometry._distortion import as_lens, undistorted_frames
 from ..geometry._vectors import distance
+from ..people._classes import frame_of_scenes
 from ._matching import greedy_match
 from ._temporal_prior import recover_tracks
 
@@ -258,6 +259,45 @@ def track_sequence(
 
 track_one = jit(track_step, static_argnames=("prior", "min_views", "max_gap"))
 """One frame of :func:`track_step`, compiled (the live loop's linking)."""
+
+
+@partial(jit, static_argnames=("rows", "prior", "min_views", "max_gap"))
+def track_scenes(
+    rig: Rig,
+    carry: tuple,
+    result: Association,
+    slot: Int[Array, "B M Pc"],
+    scene_class: Int[Array, " B"],
+    xy: Float[Array, "M P 2"],
+    mask: Bool[Array, "M P"],
+    det_class: Int[Array, "M P"],
+    max_err_px: Float[Array, ""],
+    max_step: Float[Array, ""],
+    max_step_px: Float[Array, ""],
+    *,
+    rows: int,
+    prior: bool,
+    min_views: int,
+    max_gap: int,
+) -> tuple[tuple, _Out, Int[Array, ""]]:
+    """One frame's class scenes ``result (B, G, …)`` (as the association program returns
+    them; ``slot``, ``scene_class`` as in :func:`~cdog_jax.people._classes.frame_of_scenes`)
+    made the frame's table of ``rows`` groups and tracked (:func:`track_step`), in one
+    program: the association's arrays never visit the host. ``xy``, ``mask``, ``det_class``:
+    the frame's detections (the prior's; zeros without it); ``max_err_px``: the prior's
+    error gate, or NaN for the frame's τ. Returns the new carry, the frame's final table and
+    the frame's number of groups: more than ``rows`` and the table holds only the first
+    ``rows`` (the caller raises ``rows`` and runs the frame again)."""
+    H = 2 * rows if prior else rows
+    X, valid, cls, groups, bpe, err_px, labels, found, tau = frame_of_scenes(
+        result, slot, scene_class, mask.shape[1], rows, H
+    )
+    err_gate = jnp.where(jnp.isnan(max_err_px), tau, max_err_px).astype(X.dtype)
+    frame = _Frame(X, valid, cls, groups, bpe, err_px, labels, xy, mask, det_class, err_gate)
+    carry, out = track_step(
+        rig, carry, frame, max_step, max_step_px, prior=prior, min_views=min_views, max_gap=max_gap
+    )
+    return carry, out, found
 
 
 def _unpack(result: Any) -> tuple[Any, np.ndarray | None, tuple | None, int | None]:
