@@ -22,6 +22,7 @@ per frame, 4D association runs at 30 frames/s with 5 cameras.
     python experiments/bench_live.py --frames 300 --out live.json
     python experiments/bench_live.py --skip-prior --skip-ten-views   # memory over 2,000 frames
     python experiments/bench_live.py --parts --frames 200   # inside and outside compiled code
+    python experiments/bench_live.py --shelf PATH/data/shelf --frames 600   # real frames
 """
 
 from __future__ import annotations
@@ -113,18 +114,24 @@ def shelf_loop(frames, rig, count: int, checkpoints: int = 5) -> dict:
     return {"frames": count, "warm_up_s": warm_up_s, **_percentiles(times), "memory": memory}
 
 
-def live_loop(frames, rig, count: int, **options) -> dict:
-    """``count`` frames through one :class:`cdog_jax.LiveAssociator` (25 classes): the first
-    frame (compile), warm percentiles, the capacity raises and the memory at the end."""
+def _update(live, frame, instances: bool):
+    xy, mask, cls, inst = frame
+    return live.update(xy[0], mask[0], classes=cls[0], instances=inst[0] if instances else None)
+
+
+def live_loop(frames, rig, count: int, instances: bool = False, **options) -> dict:
+    """``count`` frames through one :class:`cdog_jax.LiveAssociator` (25 classes; with each
+    frame's ``instances``, the person vote and person ids): the first frame (compile), warm
+    percentiles, the capacity raises and the memory at the end."""
     live = cdog_jax.LiveAssociator(rig, num_classes=25, **options)
     t = time.perf_counter()
-    live.update(frames[0][0][0], frames[0][1][0], classes=frames[0][2][0])
+    _update(live, frames[0], instances)
     first = time.perf_counter() - t
     times = []
     for i in range(1, count):
-        xy, mask, cls, _ = frames[i % len(frames)]
+        frame = frames[i % len(frames)]
         t = time.perf_counter()
-        live.update(xy[0], mask[0], classes=cls[0])
+        _update(live, frame, instances)
         times.append(time.perf_counter() - t)
     return {
         "first_s": first,
@@ -135,7 +142,7 @@ def live_loop(frames, rig, count: int, **options) -> dict:
     }
 
 
-def live_parts(frames, rig, count: int, **options) -> dict:
+def live_parts(frames, rig, count: int, instances: bool = False, **options) -> dict:
     """``count`` warm frames through one :class:`cdog_jax.LiveAssociator` (after 40 to warm
     it), each compiled program timed to completion where the frame calls it (the library's
     program calls wrapped for this process only): p50 of each part and of what is left
@@ -171,10 +178,9 @@ def live_parts(frames, rig, count: int, **options) -> dict:
         live = cdog_jax.LiveAssociator(rig, num_classes=25, **options)
         parts: dict[str, list[float]] = {}
         for i in range(40 + count):
-            xy, mask, cls, _ = frames[i % len(frames)]
             times.clear()
             t = time.perf_counter()
-            live.update(xy[0], mask[0], classes=cls[0])
+            _update(live, frames[i % len(frames)], instances)
             whole = time.perf_counter() - t
             if i >= 40:
                 for name, seconds in times.items():
@@ -189,6 +195,31 @@ def live_parts(frames, rig, count: int, **options) -> dict:
             live_module.track_scenes,
         ) = saved
     return {name: float(np.median(v)) * 1e3 for name, v in parts.items()}
+
+
+def shelf_frames(data: str):
+    """Shelf's real frames as a user with OpenPose output has them (``experiments/real/
+    shelf.py`` writes the rig and one OpenPose folder per camera from the ``data/shelf``
+    folder of github.com/zhangyux15/4d_association; :func:`cdog_jax.io.load_rig` and
+    :func:`cdog_jax.io.load_openpose` read them): the rig and the frames as
+    :func:`shelf_like_frames` gives them, each with the per-view person of every detection."""
+    import os
+    import sys
+    import tempfile
+
+    from cdog_jax.io import load_openpose, load_rig
+
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "real"))
+    from shelf import prepare
+
+    paths = prepare(data, tempfile.mkdtemp(prefix="shelf_live_"))
+    rig = load_rig(paths["rig"]).rig
+    det = load_openpose(paths["pose"], keypoints="BODY_25")
+    xy = np.where(det.mask[..., None], det.xy, 0.0).astype(np.float32)
+    return rig, [
+        (xy[f][None], det.mask[f][None], det.classes[f][None], det.instances[f][None])
+        for f in range(det.xy.shape[0])
+    ]
 
 
 def ten_views(count: int = 20) -> dict:
@@ -224,7 +255,15 @@ def main(argv=None):
         action="store_true",
         help="leave out the live loop without the temporal prior",
     )
+    p.add_argument(
+        "--shelf",
+        metavar="PATH",
+        help="Shelf's real frames (the data/shelf folder of github.com/zhangyux15/4d_association) "
+        "through LiveAssociator, with and without each frame's OpenPose people, instead",
+    )
     args = p.parse_args(argv)
+    if args.shelf:
+        return shelf_main(args)
     rig = default_rig(num_views=5)
     frames = shelf_like_frames(rig, args.pool)
     sizes = [int(f[1].sum()) for f in frames]
@@ -267,6 +306,39 @@ def main(argv=None):
     if args.out:
         with open(args.out, "w") as f:
             json.dump(out, f, indent=1)
+
+
+def shelf_main(args) -> dict:
+    """Shelf's 301 real frames, in order (cycled for ``--frames``), through
+    :class:`cdog_jax.LiveAssociator` with its defaults: with each frame's OpenPose people
+    (the person vote, as a user with OpenPose output runs it) and without; ``--parts``: the
+    time of each compiled program and of the rest."""
+    rig, frames = shelf_frames(args.shelf)
+    sizes = [int(f[1].sum()) for f in frames]
+    print(
+        f"Shelf: {len(frames)} real frames, 5 views, 25 classes, {min(sizes)}–{max(sizes)} "
+        f"detections, {args.frames} calls"
+    )
+    out = {}
+    for name, options in (
+        ("with people", {"instances": True}),
+        ("without people", {}),
+        ("without people, σ held", {"sigma": "held"}),
+    ):
+        if args.parts:
+            parts = live_parts(frames, rig, args.frames, **options)
+            print(f"{name} (p50 ms): " + ", ".join(f"{k} {v:.2f}" for k, v in parts.items()))
+            continue
+        out[name] = t = live_loop(frames, rig, args.frames, **options)
+        print(
+            f"{name}: first frame {t['first_s']:.1f} s; per frame p50 {t['p50_ms']:.1f} / "
+            f"p95 {t['p95_ms']:.1f} / p99 {t['p99_ms']:.1f} ms (targets {TARGETS_MS['shelf_p50']} / "
+            f"{TARGETS_MS['shelf_p99']}); {t['raises']} capacity raises; {t['maps']} maps, {t['rss_gb']:.2f} GB"
+        )
+    if args.out:
+        with open(args.out, "w") as f:
+            json.dump(out, f, indent=1)
+    return out
 
 
 if __name__ == "__main__":

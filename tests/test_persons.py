@@ -330,3 +330,28 @@ def test_cli_person_vote_reads_the_instance_column(swapped, tmp_path, capsys):
         == 2
     )
     assert "--person-vote: the detections carry no per-view person index" in capsys.readouterr().err
+
+
+def test_the_votes_dlt_runs_one_program_at_a_live_loops_rows():
+    """A live loop gives its group capacity as the DLT table's least rows and compiles that
+    table first: a later frame that re-triangulates 3 or 20 groups lowers no program (the
+    rows of a power of two ≥ 8 each would be one more)."""
+    import jax
+
+    from cdog_jax.people._persons import _Camera, warm_retriangulation
+
+    rig = default_rig(num_views=M)
+    xy = np.random.default_rng(0).uniform(100, 400, (M, 24, 2))
+    warm_retriangulation(rig, 40)
+    lowered = []
+    listener = lambda name, secs, **kw: lowered.append(name)  # noqa: E731
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        camera = _Camera(rig, 40)
+        for K in (3, 20):
+            rows = np.tile(np.arange(K)[:, None], (1, M))
+            X = camera.triangulate(xy, rows)
+            assert X.shape == (K, 3) and np.isfinite(X).all()
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)
+    assert "/jax/core/compile/jaxpr_to_mlir_module_duration" not in lowered

@@ -405,3 +405,21 @@ def test_the_per_joint_rows(standin, tmp_path):
     assert json.loads((tmp_path / "r.json").read_text()) == rows
     with pytest.raises(SystemExit):
         per_joint["main"]([folder, "--rows", "no such"])
+
+
+def test_the_live_benchmark_reads_shelf_as_a_user_has_it(standin):
+    """experiments/bench_live.py --shelf: the rig and the OpenPose frames, each detection with
+    its joint class and its view's person, as load_rig and load_openpose give them."""
+    folder, people, orders, (K, R, t) = standin
+    bench = runpy.run_path(os.path.join(HERE, "..", "experiments", "bench_live.py"))
+    rig, frames = bench["shelf_frames"](folder)
+    np.testing.assert_allclose(np.asarray(rig.K), K, rtol=1e-6)
+    assert len(frames) == 3
+    for xy, mask, classes, instances in frames:
+        assert xy.shape[:3] == mask.shape == classes.shape == instances.shape
+        assert xy.shape[:2] == (1, 5) and xy.dtype == np.float32
+        # two people, every BODY_25 joint of each in every view
+        counts = np.stack([np.bincount(classes[0, m][mask[0, m]], minlength=25) for m in range(5)])
+        assert (counts == 2).all()
+        assert sorted(set(instances[mask].tolist())) == [0, 1]
+        assert not np.isnan(xy).any()

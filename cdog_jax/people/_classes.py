@@ -179,11 +179,13 @@ def associate_classes_at(
     min_scenes=0,
     min_slots=0,
     min_samples=0,
+    min_vote_rows=8,
     on_host=False,
     scenes_only=False,
 ):
     """:func:`associate_classes` with at least ``min_scenes`` scenes (empty ones added) of at
-    least ``min_slots`` slots per view, the σ fit's table at least ``min_samples`` wide: a
+    least ``min_slots`` slots per view, the σ fit's table at least ``min_samples`` wide, the
+    person vote's DLT tables at least ``min_vote_rows`` rows: a
     caller that must meet the same compiled programs on every call (a live loop) gives its
     shapes here; results are those of
     :func:`associate_classes`, up to the last bits of σ with ``sigma="auto"``; the
@@ -284,6 +286,7 @@ def associate_classes_at(
             dist=dist,
             weights=weights,
             min_views=min_views,
+            min_rows=min_vote_rows,
         )
         a = out.association
         assoc = batched_association(

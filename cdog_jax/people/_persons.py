@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -331,11 +332,12 @@ def consistent_groups(
 
 class _Camera:
     """Projection and DLT on pinhole pixels of one rig (host side; DLT compiled once per
-    padded group count)."""
+    padded group count: a power of two, at least ``min_rows``)."""
 
-    def __init__(self, rig: Rig):
+    def __init__(self, rig: Rig, min_rows: int = 8):
         self.rig = rig
         self.P = rig.host_proj()  # (M, 3, 4), float64
+        self.min_rows = min_rows
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         h = (
@@ -354,7 +356,7 @@ class _Camera:
         """Points, ok, BPE (px²), mean error (px) of groups ``rows (K, M)`` on ``xy (M, P, 2)``
         (DLT weighted by ``weights (M, P)`` when given, as the pipeline's final points)."""
         K, M = rows.shape
-        pad = max(8, 1 << (K - 1).bit_length())
+        pad = retriangulation_rows(max(K, self.min_rows))
         table = np.full((pad, M), -1, np.int64)
         table[:K] = rows
         member = table >= 0
@@ -373,6 +375,22 @@ def _retriangulate(rig, xy_g, member, weights):
     X, ok = triangulate_views_last(rig, xy_g, member, weights=weights)
     bpe, err = group_errors(rig, X, xy_g, member)
     return X, ok, bpe, err
+
+
+def retriangulation_rows(groups: int) -> int:
+    """The rows of the vote's DLT table for ``groups`` groups: the power of two that holds
+    them, at least 8 (few programs; a row costs little beside the call)."""
+    return max(8, 1 << (max(groups, 1) - 1).bit_length())
+
+
+def warm_retriangulation(rig: Rig, groups: int) -> None:
+    """Compile (or load) the vote's DLT for tables of ``groups`` rows
+    (:func:`retriangulation_rows`), as :func:`person_consistent` with ``min_rows=groups``
+    runs it: a live loop then compiles nothing when a later frame first changes a group."""
+    rows, M = retriangulation_rows(groups), rig.num_views
+    dtype = np.dtype(rig.K.dtype)
+    zeros = np.zeros((rows, M), dtype)
+    jax.block_until_ready(_retriangulate(rig, np.zeros((rows, M, 2), dtype), zeros > 0, zeros))
 
 
 class PersonGroups(NamedTuple):
@@ -403,6 +421,7 @@ def person_consistent(
     dist=None,
     weights=None,
     min_views: int = 2,
+    min_rows: int = 8,
 ) -> PersonGroups:
     """The groups of a batched association ``assoc`` (``(F, …)``, as
     :func:`cdog_jax.associate_classes` builds it, with ``group_class (F, G)``) made
@@ -410,14 +429,15 @@ def person_consistent(
     ``vote.gate · tau_px`` of the frame). ``xy (F, M, P, 2)`` as detected (undistorted with
     ``dist`` first), ``mask``, ``classes (F, M, P)``; ``weights (F, M, P)`` weight the DLT
     of the changed groups. Valid groups come first, by class, kept groups in their order,
-    new ones after them."""
+    new ones after them. The DLT of changed groups runs on tables of at least ``min_rows``
+    rows (:func:`retriangulation_rows`; a live loop gives its group capacity: one program)."""
     F, M, P = mask.shape
     dtype = np.asarray(assoc.points3d).dtype
     pinhole = np.asarray(xy, np.float64)
     if dist is not None:
         lens, xy_j = as_lens(dist, rig.K.dtype), jnp.asarray(xy, rig.K.dtype)
         pinhole = np.asarray(undistorted_frames(rig, xy_j, jnp.asarray(mask), lens), np.float64)
-    camera = _Camera(rig)
+    camera = _Camera(rig, min_rows)
     fields = {
         k: np.asarray(getattr(assoc, k)) for k in ("groups", "valid", "points3d", "bpe", "err_px")
     }

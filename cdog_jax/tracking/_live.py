@@ -35,7 +35,13 @@ from ..people._classes import (
     sigma_fit_widths,
     warm_sigma_fits,
 )
-from ..people._persons import PersonLinker, PersonVote, people_of_frame
+from ..people._persons import (
+    PersonLinker,
+    PersonVote,
+    people_of_frame,
+    person_vote_argument,
+    warm_retriangulation,
+)
 from ._tracks import (
     DEFAULT_MAX_STEP_PX,
     _check_gate,
@@ -194,6 +200,7 @@ class LiveAssociator:
         self.rows = ladder_rung(self.num_classes * self.slots // 2, 8)
         self.compiles = 0
         self._compiled = False
+        self._vote_rows = 0  # the tracker's rows the person vote's DLT was compiled for
         self._fit_widths = [0]  # set on the first frame
         self.reset()
 
@@ -267,21 +274,28 @@ class LiveAssociator:
             min_samples=self._fit_widths[0],
         )
         frame_det = self._detections(xy_p, mask_p, cls_p)
+        vote = person_vote_argument(self.person_vote, inst_p)
         scenes = None
-        if inst_p is None:  # no person vote: the scenes' results go to the tracker as they are
+        if vote is None:  # no person vote: the scenes' results go to the tracker as they are
             scenes = associate_classes_at(
                 self.rig, xy_p[None], mask_p[None], cls_p[None], scenes_only=True, **association
             )
         if scenes is not None:
             out, sigma, tau, status = self._track_scenes(scenes, frame_det)
         else:
+            if vote is not None and self._vote_rows != self.rows:
+                # The vote's DLT at the tracker's rows, compiled now: every later frame that
+                # changes a group meets it.
+                warm_retriangulation(self.rig, self.rows)
+                self._vote_rows = self.rows
             result = associate_classes_at(
                 self.rig,
                 xy_p[None],
                 mask_p[None],
                 cls_p[None],
                 instances=None if inst_p is None else inst_p[None],
-                person_vote=self.person_vote,
+                person_vote=vote,
+                min_vote_rows=self.rows,
                 on_host=True,  # read here, field by field: no transfer to the device and back
                 **association,
             )
