@@ -104,12 +104,14 @@ def person_nodes(instances: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     M = instances.shape[0]
     known = instances >= 0
     view = np.broadcast_to(np.arange(M)[:, None], instances.shape)
-    pairs, inverse = np.unique(
-        np.stack([view[known], instances[known]], axis=1), axis=0, return_inverse=True
+    # One integer per (view, instance), in their order: np.unique of rows sorts far slower.
+    span = int(instances.max()) + 1 if known.any() else 1
+    keys, inverse = np.unique(
+        view[known].astype(np.int64) * span + instances[known], return_inverse=True
     )
     node = np.full(instances.shape, -1, np.int64)
     node[known] = inverse.reshape(-1)
-    return node, pairs[:, 0] if len(pairs) else np.zeros(0, np.int64)
+    return node, keys // span
 
 
 def vote_matrix(groups: np.ndarray, valid: np.ndarray, node: np.ndarray) -> np.ndarray:
@@ -118,12 +120,12 @@ def vote_matrix(groups: np.ndarray, valid: np.ndarray, node: np.ndarray) -> np.n
     M = groups.shape[1]
     N = int(node.max()) + 1 if node.size else 0
     member = _member_values(node, groups, valid)  # (G, M)
+    a, b = member[:, :, None], member[:, None, :]  # every ordered pair of a group's views
+    pair = (a >= 0) & (b >= 0) & ~np.eye(M, dtype=bool)[None]
     votes = np.zeros((N, N), np.int64)
-    for a in range(M):
-        for b in range(M):
-            both = (member[:, a] >= 0) & (member[:, b] >= 0)
-            if a != b and both.any():
-                np.add.at(votes, (member[both, a], member[both, b]), 1)
+    np.add.at(
+        votes, (np.broadcast_to(a, pair.shape)[pair], np.broadcast_to(b, pair.shape)[pair]), 1
+    )
     return votes
 
 
@@ -132,7 +134,11 @@ def cluster_people(votes: np.ndarray, node_view: np.ndarray, min_votes: int | fl
     linkage, each step merging the two clusters with the most votes per node pair between
     them among those that share no view (``node_view (N,)``), while that mean is at least
     ``min_votes``. (A sum over the pairs would let a few stray votes from each node of a
-    large cluster add up to a merge.)"""
+    large cluster add up to a merge.)
+
+    The table of allowed merges is kept from step to step: a merge of ``b`` into ``a``
+    changes only the row and column of ``a`` (and removes those of ``b``), each entry as
+    the whole table would give it."""
     N = votes.shape[0]
     num_views = int(node_view.max()) + 1 if N else 0
     W = votes.astype(np.float64).copy()
@@ -142,13 +148,13 @@ def cluster_people(votes: np.ndarray, node_view: np.ndarray, min_votes: int | fl
     alive = np.ones(N, bool)
     label = np.arange(N)
     upper = np.triu(np.ones((N, N), bool), 1)
-    while True:
-        disjoint = ~(views.astype(np.int64) @ views.T.astype(np.int64)).astype(bool)
-        mean = W / (size[:, None] * size[None, :])
-        allowed = upper & alive[:, None] & alive[None, :] & disjoint & (mean >= min_votes)
-        if not allowed.any():
+    disjoint = ~(views.astype(np.int64) @ views.T.astype(np.int64)).astype(bool)
+    mean = W / (size[:, None] * size[None, :])
+    score = np.where(upper & disjoint & (mean >= min_votes), mean, -1.0)  # -1: not allowed
+    while N:
+        a, b = np.unravel_index(np.argmax(score), score.shape)
+        if score[a, b] < 0:  # an allowed merge has a mean of at least 0
             break
-        a, b = np.unravel_index(np.argmax(np.where(allowed, mean, -1.0)), W.shape)
         W[a] += W[b]
         W[:, a] += W[:, b]
         W[a, a] = 0.0
@@ -157,6 +163,11 @@ def cluster_people(votes: np.ndarray, node_view: np.ndarray, min_votes: int | fl
         size[a] += size[b]
         alive[b] = False
         label[label == b] = a
+        apart = ~(views.astype(np.int64) @ views[a].astype(np.int64)).astype(bool)  # (N,)
+        row, col = W[a] / (size[a] * size), W[:, a] / (size * size[a])
+        score[a] = np.where(upper[a] & alive & apart & (row >= min_votes), row, -1.0)
+        score[:, a] = np.where(upper[:, a] & alive & apart & (col >= min_votes), col, -1.0)
+        score[b], score[:, b] = -1.0, -1.0
     return label
 
 
