@@ -152,7 +152,7 @@ def cluster_people(votes: np.ndarray, node_view: np.ndarray, min_votes: int | fl
     mean = W / (size[:, None] * size[None, :])
     score = np.where(upper & disjoint & (mean >= min_votes), mean, -1.0)  # -1: not allowed
     while N:
-        a, b = np.unravel_index(np.argmax(score), score.shape)
+        a, b = divmod(int(np.argmax(score)), N)
         if score[a, b] < 0:  # an allowed merge has a mean of at least 0
             break
         W[a] += W[b]
@@ -163,10 +163,10 @@ def cluster_people(votes: np.ndarray, node_view: np.ndarray, min_votes: int | fl
         size[a] += size[b]
         alive[b] = False
         label[label == b] = a
-        apart = ~(views.astype(np.int64) @ views[a].astype(np.int64)).astype(bool)  # (N,)
+        open_ = alive & ~(views @ views[a])  # (N,) alive, sharing no view with a
         row, col = W[a] / (size[a] * size), W[:, a] / (size * size[a])
-        score[a] = np.where(upper[a] & alive & apart & (row >= min_votes), row, -1.0)
-        score[:, a] = np.where(upper[:, a] & alive & apart & (col >= min_votes), col, -1.0)
+        score[a] = np.where(open_ & upper[a] & (row >= min_votes), row, -1.0)
+        score[:, a] = np.where(open_ & upper[:, a] & (col >= min_votes), col, -1.0)
         score[b], score[:, b] = -1.0, -1.0
     return label
 
