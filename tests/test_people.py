@@ -203,3 +203,28 @@ def test_writers_carry_the_people(walk, tmp_path):
             tracked,
             people=people._replace(group_person=people.group_person[:2]),
         )
+
+
+def test_frames_whose_people_no_group_holds_have_no_person():
+    """Instances known, yet no group (people seen in one view only), or groups none of whose
+    members has a known instance: no person, no crash, offline and live."""
+    instances = np.full((1, 4, 8), -1, np.int64)
+    instances[0, 0, :2] = 0  # one view sees a person; the groups hold none of it
+    people = identify_people(_one_frame([[2, 2, 2, 2]], [0], instances), instances)
+    assert people.group_person[0].tolist() == [-1] and (people.person_id[0] == -1).all()
+    people = identify_people(_one_frame([[-1, -1, -1, -1]], [-1], instances), instances)
+    assert people.group_person[0].tolist() == [-1]
+
+
+def test_a_live_frame_of_people_in_one_view_has_no_group_and_no_person():
+    from cdog_jax import LiveAssociator
+    from cdog_jax.synthetic import default_rig
+
+    live = LiveAssociator(default_rig(num_views=3), num_classes=2)
+    xy = np.zeros((3, 2, 2), np.float32)
+    xy[0] = [[100, 100], [200, 200]]
+    mask = np.zeros((3, 2), bool)
+    mask[0] = True  # one person's two joints, seen by view 0 alone
+    classes, instances = np.array([[0, 1], [0, 0], [0, 0]]), np.array([[0, 0], [-1, -1], [-1, -1]])
+    out = live.update(xy, mask, classes=classes, instances=instances)
+    assert len(out.groups) == 0 and out.person_id.shape == (0,) and (out.labels == -1).all()

@@ -214,7 +214,7 @@ def frame_people(
     person = cluster_people(vote_matrix(groups, valid, node), node_view, min_votes)
     det_person = np.where(node >= 0, person[np.maximum(node, 0)], -1)  # (M, P)
     member_person = _member_values(det_person, groups, valid)
-    group_person = _row_modes(member_person.reshape(len(groups), -1))
+    group_person = _row_modes(member_person)  # (G, M): a frame may hold no group
     person_views = np.zeros((len(node_view), M), bool)
     person_views[person, node_view] = True
     clash = (
@@ -642,18 +642,19 @@ def people_of_frame(
     ids, temporal_merge, split = linker.step(local_of, track_id)
     K = len(people)
     skeleton = np.full((K, C, 3), np.nan)
-    best = np.full((K, C), -1, np.int64)
+    # Each person's joint of a class: its group of the most views, then of the smallest
+    # error, then the first; a person with two groups of one class is flagged.
+    g = np.flatnonzero(local_of >= 0)
+    k, c = local_of[g], np.asarray(group_class)[g].astype(np.int64)
+    order = np.lexsort((g, np.asarray(err_px)[g], -np.asarray(n_views)[g], c, k))
+    cell = (k * C + c)[order]
+    first = np.r_[True, cell[1:] != cell[:-1]] if len(cell) else np.zeros(0, bool)
+    best = g[order][first]
+    skeleton[local_of[best], np.asarray(group_class)[best]] = points3d[best]
     twice = np.zeros(K, bool)
-    for g in np.flatnonzero(local_of >= 0):
-        k, c = local_of[g], group_class[g]
-        h = best[k, c]
-        if h >= 0:
-            twice[k] = True
-            if (n_views[g], -err_px[g]) <= (n_views[h], -err_px[h]):
-                continue
-        best[k, c] = g
-        skeleton[k, c] = points3d[g]
-    group_person = np.where(local_of >= 0, ids[np.maximum(local_of, 0)], -1).astype(np.int32)
+    twice[k[order][~first]] = True
+    group_person = np.full(G, -1, np.int32)  # (no person: ids is empty)
+    group_person[local_of >= 0] = ids[local_of[local_of >= 0]]
     return FramePersons(
         ids, skeleton, twice | temporal_merge, split, group_person, fp.foreign.any(axis=1) & valid
     )
