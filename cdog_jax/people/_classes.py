@@ -202,6 +202,8 @@ def associate_classes_at(
     classes = _check_classes(classes, mask)
     C = _num_classes(classes, mask, class_names, num_classes)
     vote = person_vote_argument(person_vote, instances)
+    if scenes_only and (vote is not None or mask.shape[0] != 1):
+        raise ValueError("scenes_only: one frame without the person vote")
     instances = None if instances is None else check_instances(instances, mask)
     if sigma_pool not in SIGMA_POOLS:
         raise ValueError(f"sigma_pool must be one of {SIGMA_POOLS}; got {sigma_pool!r}")
