@@ -283,7 +283,8 @@ def track_scenes(
     """One frame's class scenes ``result (B, G, …)`` (as the association program returns
     them; ``slot``, ``scene_class`` as in :func:`~cdog_jax.people._classes.frame_of_scenes`)
     made the frame's table of ``rows`` groups and tracked (:func:`track_step`), in one
-    program: the association's arrays never visit the host. ``xy``, ``mask``, ``det_class``:
+    program: the association's group tables go from its program to this one without the
+    host. ``xy``, ``mask``, ``det_class``:
     the frame's detections (the prior's; zeros without it); ``max_err_px``: the prior's
     error gate, or NaN for the frame's τ. Returns the new carry, the frame's final table and
     the frame's number of groups: more than ``rows`` and the table holds only the first
