@@ -149,6 +149,7 @@ def live_parts(frames, rig, count: int, instances: bool = False, **options) -> d
     outside compiled code (ms)."""
     import cdog_jax._associate as associate_module
     import cdog_jax.people._classes as classes_module
+    import cdog_jax.people._persons as persons_module
     import cdog_jax.tracking._live as live_module
 
     times: dict[str, float] = {}
@@ -169,11 +170,13 @@ def live_parts(frames, rig, count: int, instances: bool = False, **options) -> d
         classes_module.call_stored,
         live_module.track_one,
         live_module.track_scenes,
+        persons_module._retriangulate,
     )
     associate_module.call_stored = timed(program, saved[0])
     classes_module.call_stored = timed(program, saved[1])
     live_module.track_one = timed(lambda args: "track_one", saved[2])
     live_module.track_scenes = timed(lambda args: "track_scenes", saved[3])
+    persons_module._retriangulate = timed(lambda args: "person vote's DLT", saved[4])
     try:
         live = cdog_jax.LiveAssociator(rig, num_classes=25, **options)
         parts: dict[str, list[float]] = {}
@@ -193,6 +196,7 @@ def live_parts(frames, rig, count: int, instances: bool = False, **options) -> d
             classes_module.call_stored,
             live_module.track_one,
             live_module.track_scenes,
+            persons_module._retriangulate,
         ) = saved
     return {name: float(np.median(v)) * 1e3 for name, v in parts.items()}
 
