@@ -201,6 +201,21 @@ def live_parts(frames, rig, count: int, instances: bool = False, **options) -> d
     return {name: float(np.median(v)) * 1e3 for name, v in parts.items()}
 
 
+def _live_line(name: str, t: dict) -> str:
+    """One line of :func:`live_loop`'s numbers."""
+    return (
+        f"{name}: first frame {t['first_s']:.1f} s; per frame p50 {t['p50_ms']:.1f} / "
+        f"p95 {t['p95_ms']:.1f} / p99 {t['p99_ms']:.1f} ms (targets {TARGETS_MS['shelf_p50']} / "
+        f"{TARGETS_MS['shelf_p99']}); {t['raises']} capacity raises; {t['maps']} maps, "
+        f"{t['rss_gb']:.2f} GB"
+    )
+
+
+def _parts_line(name: str, parts: dict) -> str:
+    """One line of :func:`live_parts`' numbers."""
+    return f"{name} (p50 ms): " + ", ".join(f"{k} {v:.2f}" for k, v in parts.items())
+
+
 def shelf_frames(data: str):
     """Shelf's real frames as a user with OpenPose output has them (``experiments/real/
     shelf.py`` writes the rig and one OpenPose folder per camera from the ``data/shelf``
@@ -276,10 +291,10 @@ def main(argv=None):
     )
     if args.parts:
         for name, options in (("σ per frame", {}), ("σ held", {"sigma": "held"})):
-            parts = live_parts(frames, rig, args.frames, **options)
             print(
-                f"LiveAssociator, {name} (p50 ms): "
-                + ", ".join(f"{k} {v:.2f}" for k, v in parts.items())
+                _parts_line(
+                    f"LiveAssociator, {name}", live_parts(frames, rig, args.frames, **options)
+                )
             )
         return
     out = {"shelf_like": shelf_loop(frames, rig, args.frames), "targets_ms": TARGETS_MS}
@@ -297,10 +312,7 @@ def main(argv=None):
         loops += (("live_without_prior", {"temporal_prior": False}),)
     for name, options in loops:
         out[name] = t = live_loop(frames, rig, args.frames, **options)
-        print(
-            f"LiveAssociator {options or ''}: first frame {t['first_s']:.1f} s; per frame p50 {t['p50_ms']:.1f} / "
-            f"p95 {t['p95_ms']:.1f} / p99 {t['p99_ms']:.1f} ms; {t['raises']} capacity raises; {t['maps']} maps, {t['rss_gb']:.2f} GB"
-        )
+        print(_live_line(f"LiveAssociator {options or ''}", t))
     if not args.skip_ten_views:
         out["ten_views_130_points"] = t = ten_views()
         print(
@@ -330,15 +342,10 @@ def shelf_main(args) -> dict:
         ("without people, σ held", {"sigma": "held"}),
     ):
         if args.parts:
-            parts = live_parts(frames, rig, args.frames, **options)
-            print(f"{name} (p50 ms): " + ", ".join(f"{k} {v:.2f}" for k, v in parts.items()))
+            print(_parts_line(name, live_parts(frames, rig, args.frames, **options)))
             continue
         out[name] = t = live_loop(frames, rig, args.frames, **options)
-        print(
-            f"{name}: first frame {t['first_s']:.1f} s; per frame p50 {t['p50_ms']:.1f} / "
-            f"p95 {t['p95_ms']:.1f} / p99 {t['p99_ms']:.1f} ms (targets {TARGETS_MS['shelf_p50']} / "
-            f"{TARGETS_MS['shelf_p99']}); {t['raises']} capacity raises; {t['maps']} maps, {t['rss_gb']:.2f} GB"
-        )
+        print(_live_line(name, t))
     if args.out:
         with open(args.out, "w") as f:
             json.dump(out, f, indent=1)
