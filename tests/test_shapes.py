@@ -46,7 +46,7 @@ def _assert_same(got, want, float_rtol=0.0):
 
 
 def test_ladders():
-    assert [slot_capacity(p) for p in (1, 5, 7, 32, 33, 64, 65, 118, 129, 130, 600)] == [
+    assert [slot_capacity(p) for p in (1, 5, 7, 32, 33, 64, 65, 118, 129, 130, 257, 600)] == [
         4,
         6,
         8,
@@ -55,9 +55,10 @@ def test_ladders():
         64,
         80,
         128,
-        160,
-        160,
-        640,
+        136,
+        136,
+        272,
+        608,
     ]
     # One scene alone: 32, 64 or 128 up to 128 slots (few programs for a notebook's loop),
     # the fine rungs above.
@@ -69,15 +70,18 @@ def test_ladders():
         64,
         128,
         128,
-        160,
-        160,
-        640,
+        136,
+        136,
+        608,
     ]
     assert len({scene_capacity(n) for n in range(1, 129)}) == 3
     capacities = [slot_capacity(n) for n in range(65, 4097)]
     assert all(n <= c < 1.25 * n for n, c in enumerate(capacities, start=65))
+    # Above 128 slots less than a sixteenth of padding: the pairwise work within 1.13×.
+    assert all(c < n * 17 / 16 for n, c in enumerate(capacities, start=65) if n > 128)
     assert all(slot_capacity(c) == c for c in capacities)  # a rung pads to itself
-    assert len(set(capacities)) == 24  # four programs per doubling: 80, 96, 112, 128, 160, …
+    # Four programs per doubling up to 128 (80, 96, 112, 128), sixteen above (136, 144, …).
+    assert len(set(capacities)) == 4 + 16 * 5
     assert [chunk_size(b, 16) for b in (1, 2, 3, 5, 16, 17, 100)] == [1, 2, 3, 6, 16, 16, 16]
     assert chunk_size(9, 10) == 10
     rungs = [ladder_rung(n) for n in range(1, 4097)]

@@ -1,12 +1,13 @@
 """Few shapes, few compiled programs, little padding: :func:`cdog_jax.associate_batch` pads
 the slot capacity ``P`` to a rung of a fine ladder (powers of two and one and a half times
-them: 4, 6, 8, 12, 16, 24, 32, 48, 64; above 64 four rungs per doubling: 80, 96, 112, 128,
-160, …; :func:`cdog_jax.associate`, one scene at a time, pads to 32, 64 or 128 up to 128 slots:
+them: 4, 6, 8, 12, 16, 24, 32, 48, 64; above 64 four rungs per doubling: 80, 96, 112, 128;
+above 128 sixteen: 136, 144, …, 256, 272, …; :func:`cdog_jax.associate`, one scene at a time, pads to 32, 64 or 128 up to 128 slots:
 :func:`scene_capacity`) and also pads the number of scenes ``B`` (a rung of the
 ladder of two rungs per doubling from 1 up to ``batch_size``, then whole chunks of
 ``batch_size``), so that a process compiles two programs per doubling of its frames'
-counts (four above 64 slots) while a padded program does at most 1.5× the slots (2.25×
-the pairwise work; 1.25× and 1.56× above 64 slots) and 1.5× the scenes of the unpadded
+counts (four above 64 slots, sixteen above 128) while a padded program does at most 1.5×
+the slots (2.25× the pairwise work; 1.25× and 1.56× above 64 slots, 1.07× and 1.13× above
+128) and 1.5× the scenes of the unpadded
 one. Padding is neutral: padded slots hold no detection,
 padded scenes none at all, and the result is trimmed back to the caller's shapes (bitwise
 what the unpadded program returns; ALGORITHM.md §16). For the same reason trailing slots
@@ -40,20 +41,28 @@ def ladder_rung(count: int, smallest: int = 1) -> int:
 
 
 FINE_FROM = 64
-"""Above this many slots per view the slot ladder has four rungs per doubling (…, 64, 80,
-96, 112, 128, 160, …): the pairwise work of a scene grows with the square of its slots, so
-that 130 slots run at 160 (1.5× the pairwise work) rather than 192 (2.2×)."""
+"""Above this many slots per view the slot ladder has four rungs per doubling (80, 96, 112,
+128): the pairwise work of a scene grows with the square of its slots."""
+
+FINER_FROM = 128
+"""Above this many slots per view the rungs are the multiples of a thirty-second of the next
+power of two (every 8 slots up to 256, every 16 up to 512, …; sixteen rungs per doubling): a
+rung pads by less than a sixteenth of its slots (1.13× the pairwise work, which is most of
+such a scene's time). 10 views × 130 points run at 136 slots in 35 ms, where a rung of 160
+took 54 ms (2-core CPU, experiments/RESULTS.md); each rung is one more program to compile
+(seconds) for a loop whose scenes' sizes vary this much."""
 
 
 def slot_capacity(num_slots: int) -> int:
     """The padded capacity for ``num_slots`` slots per view: the smallest ladder rung
     (:func:`ladder_rung`) ``>= max(num_slots, MIN_CAPACITY)`` up to :data:`FINE_FROM`; above
     it the smallest multiple of an eighth of the next power of two (less than a quarter of
-    padding)."""
+    padding), and above :data:`FINER_FROM` of a thirty-second (less than a sixteenth)."""
     n = max(int(num_slots), MIN_CAPACITY)
     if n <= FINE_FROM:
         return ladder_rung(n, MIN_CAPACITY)
-    step = (1 << (n - 1).bit_length()) // 8  # the octave (power / 2, power] in quarters
+    power = 1 << (n - 1).bit_length()  # the octave (power / 2, power]
+    step = power // (32 if n > FINER_FROM else 8)
     return -(-n // step) * step
 
 
@@ -67,7 +76,7 @@ def scene_capacity(num_slots: int) -> int:
     at a new capacity compiles for seconds, while up to 128 slots a scene runs in
     milliseconds at any rung: a loop over frames of 5–130 points (a notebook's) compiles
     three programs rather than the fine ladder's ten. Above 128 slots the pairwise work
-    (the square of the slots) dominates, and the fine rungs keep it within 1.56× of the
+    (the square of the slots) dominates, and the fine rungs keep it within 1.13× of the
     unpadded scene's. Batches, the classes' scenes and live frames keep the fine ladder."""
     n = max(int(num_slots), 1)
     if n > COARSE_UP_TO:
