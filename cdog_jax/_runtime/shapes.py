@@ -1,13 +1,13 @@
 """Few shapes, few compiled programs, little padding: :func:`cdog_jax.associate_batch` pads
 the slot capacity ``P`` to a rung of a fine ladder (powers of two and one and a half times
 them: 4, 6, 8, 12, 16, 24, 32, 48, 64; above 64 four rungs per doubling: 80, 96, 112, 128;
-above 128 sixteen: 136, 144, …, 256, 272, …; :func:`cdog_jax.associate`, one scene at a time, pads to 32, 64 or 128 up to 128 slots:
-:func:`scene_capacity`) and also pads the number of scenes ``B`` (a rung of the
-ladder of two rungs per doubling from 1 up to ``batch_size``, then whole chunks of
-``batch_size``), so that a process compiles two programs per doubling of its frames'
-counts (four above 64 slots, sixteen above 128) while a padded program does at most 1.5×
-the slots (2.25× the pairwise work; 1.25× and 1.56× above 64 slots, 1.07× and 1.13× above
-128) and 1.5× the scenes of the unpadded
+above 128 sixteen: 136, 144, …, 256, 272, …; :func:`cdog_jax.associate`, one scene at a
+time, pads to 32, 64 or 128 up to 128 slots: :func:`scene_capacity`) and also pads the
+number of scenes ``B`` (a rung of the ladder of two rungs per doubling from 1 up to
+``batch_size``, then whole chunks of ``batch_size``), so that a process compiles two
+programs per doubling of its frames' counts (four above 64 slots, sixteen above 128) while
+a padded program does at most 1.5× the slots (2.25× the pairwise work; 1.25× and 1.56×
+above 64 slots, 1.07× and 1.13× above 128) and 1.5× the scenes of the unpadded
 one. Padding is neutral: padded slots hold no detection,
 padded scenes none at all, and the result is trimmed back to the caller's shapes (bitwise
 what the unpadded program returns; ALGORITHM.md §16). For the same reason trailing slots
@@ -48,8 +48,8 @@ FINER_FROM = 128
 """Above this many slots per view the rungs are the multiples of a thirty-second of the next
 power of two (every 8 slots up to 256, every 16 up to 512, …; sixteen rungs per doubling): a
 rung pads by less than a sixteenth of its slots (1.13× the pairwise work, which is most of
-such a scene's time). 10 views × 130 points run at 136 slots in 35 ms, where a rung of 160
-took 54 ms (2-core CPU, experiments/RESULTS.md); each rung is one more program to compile
+such a scene's time). 10 views × 130 points run at 136 slots in 36 ms, where a rung of 160
+took 52 ms (2-core CPU, experiments/RESULTS.md); each rung is one more program to compile
 (seconds) for a loop whose scenes' sizes vary this much."""
 
 
