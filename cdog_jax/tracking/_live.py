@@ -282,7 +282,7 @@ class LiveAssociator:
             )
         if scenes is not None:
             out, sigma, tau, status = self._track_scenes(scenes, frame_det)
-        else:
+        else:  # the person vote, or a frame without a scene (its empty table on the host)
             if vote is not None and self._vote_rows != self.rows:
                 # The vote's DLT at the tracker's rows, compiled now: every later frame that
                 # changes a group meets it.
