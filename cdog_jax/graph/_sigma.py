@@ -68,16 +68,14 @@ def log_half_normal_tail(a: Float[Array, " S"]) -> Float[Array, " S"]:
     :data:`SERIES_FROM`, the first terms of the asymptotic series beyond; ``log_ndtr``
     evaluates both ``erf`` and ``erfc`` and its series on every entry."""
     switch = SERIES_FROM[jnp.dtype(a.dtype).itemsize]
-    near = jnp.log(0.5 * jax.lax.erfc(jnp.minimum(a, switch) * np.sqrt(0.5)))
+    near = a < switch
+    tail = 0.5 * jax.lax.erfc(jnp.minimum(a, switch) * np.sqrt(0.5))
     far = jnp.maximum(a, switch)
     inv2 = 1.0 / (far * far)
-    series = (
-        -0.5 * far * far
-        - jnp.log(far)
-        - 0.5 * np.log(2.0 * np.pi)
-        + jnp.log1p(inv2 * (-1.0 + inv2 * (3.0 - 15.0 * inv2)))
-    )
-    return jnp.where(a < switch, near, series)
+    # Far out, log Q(a) = -a²/2 - log(2π)/2 + log((1 + series) / a): one logarithm for both.
+    ratio = (1.0 + inv2 * (-1.0 + inv2 * (3.0 - 15.0 * inv2))) / far
+    exponent = jnp.where(near, 0.0, -0.5 * far * far - 0.5 * np.log(2.0 * np.pi))
+    return jnp.log(jnp.where(near, tail, ratio)) + exponent
 
 
 def half_normal_beyond_moment(x: Float[Array, " S"], c: Float[Array, ""]) -> Float[Array, " S"]:
@@ -95,13 +93,16 @@ def mixture_log_parts(x, count, log_t, log_t_beyond, inv_kappa, pi, width):
     uniform, given the true-pair distance's log density at ``x`` (``log_t``) and the log
     probability that it lies beyond where a hidden match must (``log_t_beyond``); shared by
     every shape of the true-pair distance."""
-    lam_true = (count - 1.0) / inv_kappa  # rate of the nearest unrelated point beside a true match
-    lam_none = count / inv_kappa
+    kappa = 1.0 / inv_kappa
+    log_kappa = -jnp.log(inv_kappa)
+    lam_true = (count - 1.0) * kappa  # rate of the nearest unrelated point beside a true match
+    lam_none = count * kappa
     has_other = count > 1.0
-    log_lam_true = jnp.log(jnp.where(has_other, lam_true, 1.0))
+    # log(count − 1) and log(count) do not change between EM steps (XLA computes them once).
+    log_lam_true = jnp.log(jnp.where(has_other, count - 1.0, 1.0)) + log_kappa
     match = log_t - lam_true * x
     hidden = jnp.where(has_other, log_lam_true - lam_true * x + log_t_beyond, -jnp.inf)
-    none = jnp.log(lam_none) - lam_none * x
+    none = jnp.log(count) + log_kappa - lam_none * x
     uniform = jnp.broadcast_to(-jnp.log(width), x.shape)
     return jnp.stack(
         [
