@@ -559,17 +559,27 @@ def _pooled_sigma(
     return np.full(F, sigma[0]), np.full(F, fell_back[0])
 
 
+def fit_width(samples: int) -> int:
+    """The σ fit's table width for ``samples`` entries: the power of two at or above it (at
+    least 16).
+
+    Powers of two, not the finer shape ladder, so that σ does not depend on the width: XLA's
+    CPU compiler sums more than 32 entries in windows of 32 and then sums the windows' sums
+    the same way, padding a count of windows that is not a power of two on both sides. Between
+    two powers of two the larger table's sums are the smaller's plus sums of zeros, bit for
+    bit; at 1,536 entries the windows group otherwise, and σ differed from that at 2,048 in
+    the last bits (67 of 151 of Shelf's frames fitted alone)."""
+    return 1 << max(4, (int(samples) - 1).bit_length())
+
+
 def sigma_fit_widths(most: int) -> list[int]:
     """The σ fit's table widths of one frame whose used samples number at most ``most``:
-    the ladder rungs from a quarter of ``most``'s rung up to it (five). A caller that must
-    never compile after warming up (a live loop) warms these (:func:`warm_sigma_fits`) and
-    gives the first as ``min_samples``: each frame's fit then runs on the table its samples
-    need, not on the fullest frame's (its cost is per entry; σ is bitwise the same)."""
-    widths = [ladder_rung(most, 16)]
-    while len(widths) < 5 and widths[-1] > 16:  # down the ladder: ×¾ from 2^k, ×⅔ from 1.5 · 2^k
-        top = widths[-1]
-        widths.append(top * 3 // 4 if top & (top - 1) == 0 else top * 2 // 3)
-    return widths[::-1]
+    :func:`fit_width` of ``most`` and the two below it (a half and a quarter). A caller that
+    must never compile after warming up (a live loop) warms these (:func:`warm_sigma_fits`)
+    and gives the first as ``min_samples``: each frame's fit then runs on the table its
+    samples need, not on the fullest frame's (its cost is per entry; σ is bitwise the same)."""
+    top = fit_width(most)
+    return [width for width in (top // 4, top // 2, top) if width >= 16]
 
 
 def warm_sigma_fits(rig, widths, dtype, sigma_mode: str = "auto") -> None:
@@ -585,8 +595,9 @@ def warm_sigma_fits(rig, widths, dtype, sigma_mode: str = "auto") -> None:
 
 FIT_ELEMENTS = 1 << 16
 """Entries (rows × samples) of the σ fit's table in one call: a long recording's frames are
-fitted in chunks of rows (the last padded with empty rows), so that the EM's temporaries stay
-the same size whatever its length. Each row's fit is its own (bitwise the same in any chunk).
+fitted in chunks of rows (the last padded with empty rows, which are not fitted), so that the
+table held stays the same size whatever its length. Each row is fitted alone (bitwise the
+same in any chunk, and in a table of any width that holds it).
 At 2¹⁸ entries a chunk's temporaries (three starts of the EM over the table) held about 130
 MiB on two devices, the peak of a long recording's command; at 2¹⁶ about 15 MiB, and the fit
 of 500 Shelf frames runs faster (1.3 s against 1.8 s: the temporaries stay in cache)."""
@@ -602,8 +613,12 @@ def _chunked_fit(fit, tables: list[np.ndarray], focal) -> tuple[np.ndarray, np.n
     devices = len(jax.local_devices())
     if devices > 1 and G > 1:
         rows = min(rows, ladder_rung(-(-G // devices)))
+    rows = max(rows, 2)
     if G <= rows:
-        return tuple(np.asarray(a) for a in call_stored(fit, (*tables, focal)))
+        if G == 1:  # two rows (see _row_by_row), the second empty and not fitted
+            tables = [np.concatenate([t, np.zeros_like(t)]) for t in tables]
+        out = call_stored(fit, (*tables, focal, np.int32(G)))
+        return tuple(np.asarray(a)[:G] for a in out)
     starts = range(0, G, rows)
     done, running = [], []
     for start, device in zip(starts, chunk_devices(len(starts))):
@@ -614,7 +629,8 @@ def _chunked_fit(fit, tables: list[np.ndarray], focal) -> tuple[np.ndarray, np.n
         n = len(part[0])
         if n < rows:  # empty rows: weight 0, discarded
             part = [np.concatenate([t, np.zeros((rows - n, S), t.dtype)]) for t in part]
-        args = (*part, focal) if device is None else jax.device_put((*part, focal), device)
+        args = (*part, focal, np.int32(n))
+        args = args if device is None else jax.device_put(args, device)
         running.append((call_stored(fit, args), n))  # dispatched; the host waits above
     done += [[np.asarray(a)[:n] for a in out] for out, n in running]
     return np.concatenate([d[0] for d in done]), np.concatenate([d[1] for d in done])
@@ -623,7 +639,8 @@ def _chunked_fit(fit, tables: list[np.ndarray], focal) -> tuple[np.ndarray, np.n
 def _sample_tables(samples: _UsedSamples, group: np.ndarray, G: int, min_width: int = 0) -> list:
     """The σ fit's inputs, ``(G, S)`` per array: each group's used samples side by side, in
     scene order, then padding of weight 0 up to the ladder rung above the largest group's
-    count and ``min_width`` (so few table shapes are compiled). ``samples``: the used entries
+    count and ``min_width``, a power of two (:func:`fit_width`: σ is then bitwise the same
+    at any width that holds the samples). ``samples``: the used entries
     of :func:`_nearest_samples` (distance, weight, count[, second distance]); ``group (B,)``
     each scene's group, sorted.
 
@@ -631,9 +648,7 @@ def _sample_tables(samples: _UsedSamples, group: np.ndarray, G: int, min_width: 
     classes, a view against itself), and the EM's cost is per entry. The one number the fit
     reads from unused entries, the largest view count, is kept in every padding entry."""
     per_group = np.bincount(group, weights=samples.per_scene, minlength=G).astype(np.int64)
-    width = ladder_rung(
-        max(int(per_group.max()) + 1, min_width), 16
-    )  # + 1: room for the largest count
+    width = fit_width(max(int(per_group.max()) + 1, min_width))  # + 1: room for the largest count
     rows = np.repeat(group, samples.per_scene)  # the group of each used sample, in order
     start = np.r_[0, np.cumsum(per_group)[:-1]]
     column = np.arange(len(rows)) - start[rows]
@@ -651,21 +666,35 @@ def _sample_tables(samples: _UsedSamples, group: np.ndarray, G: int, min_width: 
     return tables
 
 
+def _row_by_row(fit_row, tables: tuple, focal, used):
+    """``(G,)`` σ and ``(G,)`` fallback of the first ``used`` rows of ``tables`` (``(G, S)``
+    each; the rest 0 and False), one row at a time: a row's σ is then bitwise the same
+    whatever the table's row count (a batch over the rows orders the sums by the rows'
+    count), and the padding rows of a chunk cost nothing. Tables of one row are given two
+    (:func:`_chunked_fit`): XLA compiles a row that is its table's only row otherwise."""
+    G = tables[0].shape[0]
+
+    def body(i, out):
+        sigma, fallback = fit_row(*(t[i] for t in tables), focal)
+        return out[0].at[i].set(sigma), out[1].at[i].set(fallback)
+
+    init = (jnp.zeros(G, tables[0].dtype), jnp.zeros(G, bool))
+    return jax.lax.fori_loop(0, used, body, init)
+
+
 # Compiled once per table shape. Run eagerly, the fits' EM loops are traced and compiled
 # again on every call (each call then leaves its programs' code mapped in memory, until
 # the process runs out of memory maps), and the robust estimator's twelve fits take
 # seconds more than compiling them.
 # Called through call_stored: a later process loads the lowered fit instead of tracing it.
 @jit
-def _pooled_fit(x, w, count, focal):
-    return jax.vmap(sigma_from_samples, in_axes=(0, 0, 0, None))(x, w, count, focal)
+def _pooled_fit(x, w, count, focal, used):
+    return _row_by_row(sigma_from_samples, (x, w, count), focal, used)
 
 
 @jit
-def _pooled_robust_fit(x, w, count, second, focal):
-    return jax.vmap(robust_sigma_from_samples, in_axes=(0, 0, 0, 0, None))(
-        x, w, count, second, focal
-    )
+def _pooled_robust_fit(x, w, count, second, focal, used):
+    return _row_by_row(robust_sigma_from_samples, (x, w, count, second), focal, used)
 
 
 def _map_back(

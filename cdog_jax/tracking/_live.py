@@ -470,8 +470,8 @@ class LiveAssociator:
 
     def _warm_sigma_fits(self, M: int) -> None:
         """The σ fit's table widths for the current slots, each compiled now: a frame's fit
-        then runs on the narrowest that holds its samples (a few programs, at every rung of
-        the upper quarter of the fullest frame's table), not on the fullest frame's."""
+        then runs on the narrowest that holds its samples (three programs: the fullest frame's
+        table, a half and a quarter of it), not on the fullest frame's."""
         most = self.num_classes * self.slots * M * (M - 1) + 1  # a frame that fits, + 1
         self._fit_widths = sigma_fit_widths(most)
         if self.sigma in ("auto", "held") or self.method.sigma_mode != "given":  # the fit runs

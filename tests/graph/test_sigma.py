@@ -6,7 +6,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import random_scene, ring_rig
+from helpers import random_scene, ring_rig, run_with_xla_defaults
 from oracle import (
     _log_q as oracle_log_q,
     epipolar_distance_table,
@@ -190,3 +190,44 @@ def test_most_likely_takes_the_first_of_near_ties_and_never_nan():
     # Within 1e-5 (1 + |top|) = 1e-3 of the top: a tie, the first of them wins.
     assert int(most_likely(lik.at[1].set(-99.0005))) == 1
     assert int(most_likely(jnp.asarray([np.nan, -5.0]))) == 1
+
+
+def sigma_is_bitwise_the_same_at_every_table_width():
+    """The pooled fit (``associate_classes``' σ per frame) on tables of every width the
+    library picks for one frame's samples: what a live frame gets (its narrowest table) is
+    what the offline call gets (the fullest frame's table, among the other frames' rows).
+    With the shape ladder's widths (1,024 and 1,536 here) σ at 1,536 differed in its
+    last bits, and a row fitted alone differed from the same row among others."""
+    from cdog_jax.people import _classes as classes
+
+    rng = np.random.default_rng(0)
+    n = 900  # samples of a Shelf-like frame: some true pairs, the rest farther off
+    x = np.where(
+        rng.random(n) < 0.6, np.abs(rng.normal(0.0, 2.8, n)), rng.exponential(40.0, n)
+    ).astype(np.float32)
+    count = rng.integers(2, 6, n).astype(np.float32)
+    values = [x, np.full(n, 0.5, np.float32), count]
+    samples = classes._UsedSamples(values, np.array([n]), np.array([count.max()]))
+    sigmas, widths = set(), set()
+    for least in (0, 1100):
+        tables = classes._sample_tables(samples, np.zeros(1, np.int64), 1, least)
+        widths.add(tables[0].shape[1])
+        sigma, _ = classes._chunked_fit(classes._pooled_fit, tables, np.float32(FOCAL))
+        sigmas.add(sigma.tobytes())
+        # The same row among others (3 rows; 70 rows: chunks of 64 at 1,024 entries).
+        for rows in (3, 70) if least == 0 else (3,):
+            others = [
+                np.concatenate([np.roll(t, k + 1, axis=1) for k in range(rows - 1)]) for t in tables
+            ]
+            stacked = [
+                np.concatenate([o[: rows // 2], t, o[rows // 2 :]]) for t, o in zip(tables, others)
+            ]
+            sigma, _ = classes._chunked_fit(classes._pooled_fit, stacked, np.float32(FOCAL))
+            sigmas.add(sigma[rows // 2 : rows // 2 + 1].tobytes())
+    assert widths == {1024, 2048} and len(sigmas) == 1
+
+
+def test_sigma_is_bitwise_the_same_at_every_table_width():
+    """Under XLA's defaults (the code users run): the suite's switches compile sums that do
+    not depend on the width either way."""
+    run_with_xla_defaults(__file__, "sigma_is_bitwise_the_same_at_every_table_width")
