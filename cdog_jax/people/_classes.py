@@ -262,7 +262,7 @@ def associate_classes_at(
         scenes.xy.astype(dtype, copy=False),
         scenes.mask,
         method=method,
-        sigma=jnp.asarray(sigma_arg) if isinstance(sigma_arg, np.ndarray) else sigma_arg,
+        sigma=sigma_arg,  # a NumPy σ per scene goes to the program as it is
         dist=dist,
         weights=None if weights is None else scenes.weights.astype(dtype, copy=False),
         min_views=min_views,
