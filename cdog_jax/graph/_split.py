@@ -67,13 +67,14 @@ def split_conflicts(
     def components(alive):
         return connected_components_capped(edges, alive, N)
 
+    # The loop carries each label's conflict, found after its last removal: the next round
+    # starts from it.
     def cond(carry):
-        _, _, any_conflict, _, it = carry
-        return any_conflict & (it < max_iters)
+        _, _, conflict, _, it = carry
+        return jnp.any(conflict) & (it < max_iters)
 
     def body(carry):
-        alive, labels, _, comp_capped, it = carry
-        conflict, _ = _conflicting(labels, node_view, valid, num_views)
+        alive, labels, conflict, comp_capped, it = carry
         seg = labels[edges.src]
         cand = alive & conflict[seg]
         # Lexicographic (θ ↑, distance ↓, pair ↑) best per component; both proposals of
@@ -85,13 +86,14 @@ def split_conflicts(
         alive = _remove(alive, cand, pair)
         labels, capped = components(alive)
         conflict, _ = _conflicting(labels, node_view, valid, num_views)
-        return alive, labels, jnp.any(conflict), comp_capped | capped, it + 1
+        return alive, labels, conflict, comp_capped | capped, it + 1
 
     alive = alive_edges(edges, A)
     labels, comp_capped = components(alive)
     conflict, _ = _conflicting(labels, node_view, valid, num_views)
-    carry = (alive, labels, jnp.any(conflict), comp_capped, jnp.int32(0))
-    alive, labels, any_conflict, comp_capped, _ = jax.lax.while_loop(cond, body, carry)
+    carry = (alive, labels, conflict, comp_capped, jnp.int32(0))
+    alive, labels, conflict, comp_capped, _ = jax.lax.while_loop(cond, body, carry)
+    any_conflict = jnp.any(conflict)
     alive, labels, last_capped = jax.lax.cond(
         any_conflict,
         lambda: _detach_last_resort(
