@@ -24,7 +24,11 @@ def _conflicting(labels, node_view, valid, num_views):
 
 def _segment_argbest(key, active, seg, num_segments, minimise=True):
     """Per segment, the best key among active entries, broadcast back to the entries."""
-    fill = jnp.inf if minimise else -jnp.inf
+    if jnp.issubdtype(key.dtype, jnp.integer):
+        info = jnp.iinfo(key.dtype)
+        fill = info.max if minimise else info.min
+    else:
+        fill = jnp.inf if minimise else -jnp.inf
     k = jnp.where(active, key, fill)
     init = jnp.full((num_segments,), fill, key.dtype)
     best = init.at[seg].min(k) if minimise else init.at[seg].max(k)
@@ -60,8 +64,13 @@ def split_conflicts(
     proposals' ``(E,)`` liveness rather than the ``(N, N)`` matrix (E = N·M ≪ N²).
     """
     N = A.shape[0]
-    pair_lo = jnp.minimum(edges.src, edges.dst).astype(theta.dtype)
-    pair_hi = jnp.maximum(edges.src, edges.dst).astype(theta.dtype)
+    pair_lo = jnp.minimum(edges.src, edges.dst)
+    pair_hi = jnp.maximum(edges.src, edges.dst)
+    # The node pair (lo, hi) in one int32 key, lo · N + hi, ordered as the pair is: one
+    # segment minimum instead of two, where N² fits.
+    one_key = N * N < 2**31
+    if one_key:
+        node_pair = pair_lo * N + pair_hi
     pair = undirected_ids(edges, N)
 
     def components(alive):
@@ -81,8 +90,11 @@ def split_conflicts(
         # one undirected edge tie on every key and are removed together.
         cand = _segment_argbest(theta, cand, seg, N)
         cand = _segment_argbest(edge_dist, cand, seg, N, minimise=False)
-        cand = _segment_argbest(pair_lo, cand, seg, N)
-        cand = _segment_argbest(pair_hi, cand, seg, N)
+        if one_key:
+            cand = _segment_argbest(node_pair, cand, seg, N)
+        else:
+            cand = _segment_argbest(pair_lo, cand, seg, N)
+            cand = _segment_argbest(pair_hi, cand, seg, N)
         alive = _remove(alive, cand, pair)
         labels, capped = components(alive)
         conflict, _ = _conflicting(labels, node_view, valid, num_views)
