@@ -638,9 +638,9 @@ def _chunked_fit(fit, tables: list[np.ndarray], focal) -> tuple[np.ndarray, np.n
 
 def _sample_tables(samples: _UsedSamples, group: np.ndarray, G: int, min_width: int = 0) -> list:
     """The σ fit's inputs, ``(G, S)`` per array: each group's used samples side by side, in
-    scene order, then padding of weight 0 up to the ladder rung above the largest group's
-    count and ``min_width``, a power of two (:func:`fit_width`: σ is then bitwise the same
-    at any width that holds the samples). ``samples``: the used entries
+    scene order, then padding of weight 0 up to the power of two at or above the largest
+    group's count (+ 1) and ``min_width`` (:func:`fit_width`: σ is then bitwise the same at
+    any width that holds the samples). ``samples``: the used entries
     of :func:`_nearest_samples` (distance, weight, count[, second distance]); ``group (B,)``
     each scene's group, sorted.
 
