@@ -596,11 +596,9 @@ def warm_sigma_fits(rig, widths, dtype, sigma_mode: str = "auto") -> None:
 FIT_ELEMENTS = 1 << 16
 """Entries (rows × samples) of the σ fit's table in one call: a long recording's frames are
 fitted in chunks of rows (the last padded with empty rows, which are not fitted), so that the
-table held stays the same size whatever its length. Each row is fitted alone (bitwise the
-same in any chunk, and in a table of any width that holds it).
-At 2¹⁸ entries a chunk's temporaries (three starts of the EM over the table) held about 130
-MiB on two devices, the peak of a long recording's command; at 2¹⁶ about 15 MiB, and the fit
-of 500 Shelf frames runs faster (1.3 s against 1.8 s: the temporaries stay in cache)."""
+table on the device stays the same size whatever the recording's length, and one program
+serves every chunk. Each row is fitted alone (:func:`_row_by_row`): its EM's temporaries are
+one row's, and its σ is bitwise the same in any chunk and at any width that holds it."""
 
 
 def _chunked_fit(fit, tables: list[np.ndarray], focal) -> tuple[np.ndarray, np.ndarray]:
