@@ -35,9 +35,12 @@ def run_with_xla_defaults(
     test_file: str, function: str, switches: str = FAST_COMPILE_FLAGS
 ) -> None:
     """Call ``function()`` of the test module at ``test_file`` in a child process compiled
-    without the suite's ``switches`` (by default all of them: XLA's defaults, the code users
-    run)."""
-    env = dict(os.environ, XLA_FLAGS=os.environ.get("XLA_FLAGS", "").replace(switches, ""))
+    without the suite's ``switches`` (a space-separated list; by default all of them: XLA's
+    defaults, the code users run)."""
+    kept = [
+        flag for flag in os.environ.get("XLA_FLAGS", "").split() if flag not in switches.split()
+    ]
+    env = dict(os.environ, XLA_FLAGS=" ".join(kept))
     folder, module = os.path.split(os.path.splitext(os.path.abspath(test_file))[0])
     tests = os.path.dirname(os.path.abspath(__file__))
     code = f"import sys; sys.path[:0] = [{tests!r}, {folder!r}]; import {module}; {module}.{function}()"
