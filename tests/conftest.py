@@ -47,7 +47,9 @@ cdog_jax.enable_compilation_cache()  # the run's folder (above); importing the p
 # of compiling a program gives the same bits, so the suite's bitwise comparisons hold
 # whatever XLA fuses. XLA reads the flags when JAX starts its backend (no operation has run
 # yet); child processes (command-line tests) inherit them. tests/test_shapes.py's batch
-# test runs with XLA's defaults, the code users run.
+# test runs with XLA's defaults, the code users run. A fourth switch generates each
+# program's machine code in one piece rather than split over threads (helpers.py): a
+# tenth less processor time, the same code.
 if "xla_cpu_use_fusion_emitters" not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {FAST_COMPILE_FLAGS}".strip()
 
