@@ -100,21 +100,27 @@ def estimate_is_within_a_factor_of_xla():
         assert 1.0 <= ratio <= 1.5, (name, M, P, ratio)
 
 
-# The suite's switches that change what XLA fuses; the other two (LLVM's optimisation level
-# and the instruction set) change only the machine code.
+# The suite's switches that change what XLA fuses; the other three (LLVM's optimisation
+# level, the instruction set, machine code in one piece) change only the machine code.
 _FUSION_SWITCHES = " ".join(
     flag
     for flag in FAST_COMPILE_FLAGS.split()
-    if not flag.startswith(("--xla_backend_optimization_level", "--xla_cpu_max_isa"))
+    if not flag.startswith(
+        (
+            "--xla_backend_optimization_level",
+            "--xla_cpu_max_isa",
+            "--xla_cpu_parallel_codegen_split_count",
+        )
+    )
 )
 
 
 def test_estimate_is_within_a_factor_of_xla():
     """As a library call compiles the program (XLA's fusion and the program's own compile
     options), in a child process: the suite's fusion switch (tests/conftest.py) fuses less
-    and needs more temporary memory. Its two code-generation switches stay on: they change
-    no buffer (the same sizes as XLA's defaults for these four programs) and compile about
-    a third faster."""
+    and needs more temporary memory. Its code-generation switches stay on: they change no
+    buffer (the same sizes as XLA's defaults for these four programs) and compile about a
+    third faster."""
     run_with_xla_defaults(__file__, "estimate_is_within_a_factor_of_xla", switches=_FUSION_SWITCHES)
 
 
