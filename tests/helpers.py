@@ -44,9 +44,8 @@ def run_with_xla_defaults(
     """Call ``function()`` of the test module at ``test_file`` in a child process compiled
     without the suite's ``switches`` (a space-separated list; by default all of them: XLA's
     defaults, the code users run)."""
-    kept = [
-        flag for flag in os.environ.get("XLA_FLAGS", "").split() if flag not in switches.split()
-    ]
+    removed = set(switches.split())
+    kept = [flag for flag in os.environ.get("XLA_FLAGS", "").split() if flag not in removed]
     env = dict(os.environ, XLA_FLAGS=" ".join(kept))
     folder, module = os.path.split(os.path.splitext(os.path.abspath(test_file))[0])
     tests = os.path.dirname(os.path.abspath(__file__))
