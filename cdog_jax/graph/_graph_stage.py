@@ -53,7 +53,7 @@ def graph_groups(
     weak = alive_edges(edges, A) & (theta < thresholds.delta)
     status = jnp.int32(0)
     if options.prune_scope == "conflicts":
-        labels0, capped = connected_components_capped(edges, alive_edges(edges, A), N)
+        labels0, capped = connected_components_capped(edges, alive_edges(edges, A), N, per_node=M)
         status = raise_flag(capped, Status.COMPONENTS_CAPPED)
         counts = component_view_counts(labels0, node_view, valid, M)
         weak = weak & jnp.any(counts >= 2, axis=1)[labels0[edges.src]]
@@ -61,7 +61,7 @@ def graph_groups(
         weak = jnp.zeros_like(weak)
     A = remove_edges(A, edges, weak)
     _, labels, split_status = split_conflicts(
-        A, edges, theta, edge_dist, node_view, valid, M, options.max_split_iters
+        A, edges, theta, edge_dist, node_view, valid, M, options.max_split_iters, per_node=M
     )
     return (*groups_from_labels(labels, valid, M, P), status | split_status)
 

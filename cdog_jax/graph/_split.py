@@ -51,6 +51,7 @@ def split_conflicts(
     valid: Bool[Array, " N"],
     num_views: int,
     max_iters: int,
+    per_node: int | None = None,
 ) -> tuple[Bool[Array, "N N"], Int[Array, " N"], Int[Array, ""]]:
     """Remove edges until every component is view-unique.
 
@@ -62,6 +63,8 @@ def split_conflicts(
 
     Every edge of ``A`` that the splitting works on is a proposal, so the loop carries the
     proposals' ``(E,)`` liveness rather than the ``(N, N)`` matrix (E = N·M ≪ N²).
+    ``per_node``: each node's proposals are consecutive, ``per_node`` of them (the pipeline's
+    edge table; see :func:`connected_components_capped`); None for any edge list.
     """
     N = A.shape[0]
     pair_lo = jnp.minimum(edges.src, edges.dst)
@@ -74,7 +77,7 @@ def split_conflicts(
     pair = undirected_ids(edges, N)
 
     def components(alive):
-        return connected_components_capped(edges, alive, N)
+        return connected_components_capped(edges, alive, N, per_node=per_node)
 
     # The loop carries each label's conflict, found after its last removal: the next round
     # starts from it.
@@ -84,7 +87,7 @@ def split_conflicts(
 
     def body(carry):
         alive, labels, conflict, comp_capped, it = carry
-        seg = labels[edges.src]
+        seg = labels[edges.src] if per_node is None else jnp.repeat(labels, per_node)
         cand = alive & conflict[seg]
         # Lexicographic (θ ↑, distance ↓, pair ↑) best per component; both proposals of
         # one undirected edge tie on every key and are removed together.
@@ -109,7 +112,7 @@ def split_conflicts(
     alive, labels, last_capped = jax.lax.cond(
         any_conflict,
         lambda: _detach_last_resort(
-            alive, labels, edges, edge_dist, pair, node_view, valid, num_views
+            alive, labels, edges, edge_dist, pair, node_view, valid, num_views, per_node
         ),
         lambda: (alive, labels, jnp.bool_(False)),
     )
@@ -128,7 +131,9 @@ def split_conflicts(
     )
 
 
-def _detach_last_resort(alive, labels, edges, edge_dist, pair, node_view, valid, num_views):
+def _detach_last_resort(
+    alive, labels, edges, edge_dist, pair, node_view, valid, num_views, per_node
+):
     """In each conflicting component, keep per over-full view the node of smallest mean edge
     distance (ties: smallest index) and remove every edge of the others; returns the
     proposals' liveness, the labels and whether the components pass stopped at its bound."""
@@ -167,4 +172,4 @@ def _detach_last_resort(alive, labels, edges, edge_dist, pair, node_view, valid,
     first = jnp.full((N, num_views), N, jnp.int32).at[labels, node_view].min(idx.astype(jnp.int32))
     detach = over_full & (first[labels, node_view] != jnp.arange(N, dtype=jnp.int32))
     alive = alive & ~detach[edges.src] & ~detach[edges.dst]
-    return (alive, *connected_components_capped(edges, alive, N))
+    return (alive, *connected_components_capped(edges, alive, N, per_node=per_node))

@@ -6,7 +6,7 @@ from cdog_jax import Status
 from cdog_jax.graph import EdgeTable, alive_edges, connected_components
 from cdog_jax.graph._split import split_conflicts as _split_conflicts
 
-split_conflicts = jax.jit(_split_conflicts, static_argnums=(6, 7))
+split_conflicts = jax.jit(_split_conflicts, static_argnames=("num_views", "max_iters", "per_node"))
 
 
 def _edges(pairs, N):
@@ -134,3 +134,32 @@ def test_split_equals_the_numpy_oracle_with_duplicate_proposals():
             np.testing.assert_array_equal(
                 np.asarray(labels), labels_expected, err_msg=f"trial {trial}, {iters} iterations"
             )
+
+
+def test_proposal_tables_split_the_same_by_their_rows():
+    """The graph stage's own tables (nearest-neighbour proposals of random scenes, mutual
+    adjacency, δ-overlap): splitting with each node's proposals read by rows (``per_node``)
+    gives the general path's graph, labels and status, through the loop and the last resort."""
+    from cdog_jax.graph._adjacency import adjacency_from_edges, nearest_neighbour_edges
+    from cdog_jax.graph._overlap import edge_overlap
+
+    rng = np.random.default_rng(5)
+    M, P = 4, 6
+    N = M * P
+    view = jnp.arange(N) // P
+    for trial in range(4):
+        d = rng.exponential(3.0, (M, P, M, P)).astype(np.float32)
+        for m in range(M):
+            d[m, :, m, :] = np.inf
+        d[:, P - 1 - trial % 2 :] = np.inf  # empty slots
+        edges = nearest_neighbour_edges(jnp.asarray(d), jnp.float32(4.0))
+        A = adjacency_from_edges(edges, N, "mutual")
+        theta = edge_overlap(edges, A, dtype=jnp.float32)
+        dist = jnp.asarray(d.reshape(N, N))[edges.src, edges.dst]
+        valid = jnp.asarray(np.isfinite(d.reshape(N, N)).any(axis=1))
+        for iters in (1, 64):
+            args = (A, edges, theta, dist, view, valid, M)
+            general = split_conflicts(*args, max_iters=iters)
+            by_rows = split_conflicts(*args, max_iters=iters, per_node=M)
+            for a, b in zip(general, by_rows):
+                assert np.array_equal(np.asarray(a), np.asarray(b))
