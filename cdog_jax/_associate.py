@@ -565,9 +565,13 @@ def associate_batch_at(
             type(thresholds)(*(v[part] for v in thresholds)),
             extras_part,
         )
-        if device is not None:
-            args = jax.device_put(args, device)
-        results.append(call_stored(_associate_batch_jit, args, static, shared_rig=shared))
+        if device is None:
+            results.append(call_stored(_associate_batch_jit, args, static, shared_rig=shared))
+            continue
+        # The chunk's device as the default one: its host arguments go there with the call
+        # (jax.device_put of the argument tree costs about as much as a live frame's chunk).
+        with jax.default_device(device):
+            results.append(call_stored(_associate_batch_jit, args, static, shared_rig=shared))
     if len(results) > 1:
         results = [
             jax.tree.map(lambda *parts: np.concatenate([np.asarray(p) for p in parts]), *results)

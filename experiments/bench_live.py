@@ -23,6 +23,7 @@ per frame, 4D association runs at 30 frames/s with 5 cameras.
     python experiments/bench_live.py --skip-prior --skip-ten-views   # memory over 2,000 frames
     python experiments/bench_live.py --parts --frames 200   # inside and outside compiled code
     python experiments/bench_live.py --shelf PATH/data/shelf --frames 600   # real frames
+    python experiments/bench_live.py --shelf PATH/data/shelf --cores 2   # one device a core
 """
 
 from __future__ import annotations
@@ -280,7 +281,17 @@ def main(argv=None):
         help="Shelf's real frames (the data/shelf folder of github.com/zhangyux15/4d_association) "
         "through LiveAssociator, with and without each frame's OpenPose people, instead",
     )
+    p.add_argument(
+        "--cores",
+        type=int,
+        help="give JAX this many CPU devices first (cdog_jax.benchmark.use_cpu_cores): a live "
+        "frame's class scenes then run in one chunk per device, at once",
+    )
     args = p.parse_args(argv)
+    if args.cores:
+        from cdog_jax.benchmark import use_cpu_cores
+
+        print(f"{use_cpu_cores(count=args.cores)} CPU devices")
     if args.shelf:
         return shelf_main(args)
     rig = default_rig(num_views=5)

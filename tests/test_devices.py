@@ -2,6 +2,7 @@
 same results bitwise as on one device; the setting is made only before JAX's first
 computation and never by importing the package."""
 
+import argparse
 import os
 import subprocess
 import sys
@@ -19,14 +20,27 @@ import jax
 from cdog_jax.benchmark import use_cpu_cores
 assert use_cpu_cores(count=2) == 2
 import cdog_jax
+import cdog_jax._associate as associate_module
 sys.path.insert(0, sys.argv[2])
-from test_devices import scenes
+from test_devices import live_frames, scenes
 assert len(jax.local_devices()) == 2
+ran_on = set()  # the devices the association's chunks ran on
+call_stored = associate_module.call_stored
+def recorded(*args, **kwargs):
+    out = call_stored(*args, **kwargs)
+    ran_on.update(d.id for d in jax.tree.leaves(out)[0].devices())
+    return out
+associate_module.call_stored = recorded
 rig, xy, mask, classes = scenes()
 batch = cdog_jax.associate_batch(rig, xy, mask, method="paper", sigma=1.0, batch_size=2)
+assert ran_on == {0, 1}, ran_on
 classed = cdog_jax.associate_classes(rig, xy, mask, classes, method="paper")
+ran_on.clear()
+live = live_frames(rig, xy, mask, classes)
+assert ran_on == {0, 1}, ran_on
 np.savez(sys.argv[1], **{f"batch_{k}": np.asarray(v) for k, v in vars(batch).items()},
-         **{f"classes_{k}": np.asarray(v) for k, v in vars(classed.association).items()})
+         **{f"classes_{k}": np.asarray(v) for k, v in vars(classed.association).items()},
+         **{f"live_{k}": v for k, v in live.items()})
 """
 
 
@@ -41,7 +55,22 @@ def scenes():
     return rig, xy, mask, classes
 
 
+def live_frames(rig, xy, mask, classes) -> dict:
+    """The five scenes as frames of a live associator of 3 classes (on two devices, its
+    class scenes in two chunks, one per device), each frame's answer as arrays."""
+    live = cdog_jax.LiveAssociator(rig, num_classes=3, method="paper", sigma=1.0)
+    answers = [live.update(xy[f], mask[f], classes=classes[f]) for f in range(len(xy))]
+    fields = ("labels", "groups", "points3d", "err_px", "track_id", "group_class")
+    return {
+        f"{name}_{f}": np.asarray(getattr(answer, name))
+        for f, answer in enumerate(answers)
+        for name in fields
+    }
+
+
 def test_two_devices_give_the_same_bits_as_one(tmp_path):
+    """A batch in chunks, classes and a live associator's frames on two devices: the chunks
+    run on both (a chunk's arguments go with its call) and give one device's bits."""
     rig, xy, mask, classes = scenes()
     out = tmp_path / "two.npz"
     # The child inherits this process's XLA flags: the same code generator, the same bits.
@@ -50,7 +79,12 @@ def test_two_devices_give_the_same_bits_as_one(tmp_path):
     # paper(): the point is the devices, and its programs compile in half the time of best()'s
     batch = cdog_jax.associate_batch(rig, xy, mask, method="paper", sigma=1.0, batch_size=2)
     classed = cdog_jax.associate_classes(rig, xy, mask, classes, method="paper")
-    for prefix, result in (("batch_", batch), ("classes_", classed.association)):
+    live = live_frames(rig, xy, mask, classes)
+    for prefix, result in (
+        ("batch_", batch),
+        ("classes_", classed.association),
+        ("live_", argparse.Namespace(**live)),
+    ):
         for name, value in vars(result).items():
             value = np.asarray(value)
             assert two[prefix + name].dtype == value.dtype and np.array_equal(

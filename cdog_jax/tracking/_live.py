@@ -123,7 +123,10 @@ class LiveAssociator:
 
     Every frame's programs are compiled on the first frame and reused for every frame that
     fits; :attr:`compiles` counts the capacity raises since. State (the tracks) lives in the
-    object: :meth:`reset` starts a new recording.
+    object: :meth:`reset` starts a new recording. Where JAX has several CPU devices
+    (:func:`cdog_jax.benchmark.use_cpu_cores`, before JAX's first operation), the class scenes are
+    split into one chunk per device and the chunks run at once, one per core (the same
+    answers; the association's program is then compiled once per device on the first frame).
     """
 
     def __init__(
@@ -198,6 +201,10 @@ class LiveAssociator:
         self.slots = slot_capacity(slots)  # per class and view, the association's programs
         # Group rows the tracker carries: room for every class to hold half its slots' groups.
         self.rows = ladder_rung(self.num_classes * self.slots // 2, 8)
+        # The class scenes in one chunk per device (each chunk of at least two scenes): on
+        # several CPU devices (cdog_jax.benchmark.use_cpu_cores) the chunks run at once, one per core.
+        per_device = -(-self.num_classes // len(jax.local_devices()))
+        self._scenes_per_chunk = per_device if per_device >= 2 else self.num_classes
         self.compiles = 0
         self._compiled = False
         self._vote_rows = 0  # the tracker's rows the person vote's DLT was compiled for
@@ -270,7 +277,7 @@ class LiveAssociator:
             min_views=self.min_views,
             min_scenes=self.num_classes,
             min_slots=self.slots,
-            batch_size=self.num_classes,  # one program of exactly one scene per class
+            batch_size=self._scenes_per_chunk,
             min_samples=self._fit_widths[0],
         )
         frame_det = self._detections(xy_p, mask_p, cls_p)

@@ -3,6 +3,7 @@ frame is sent, a bad line gets one error line and the stream goes on, the end of
 ends the command with status 0; the answers are the live associator's."""
 
 import json
+import os
 import subprocess
 import sys
 
@@ -52,8 +53,16 @@ def test_frames_stream_through_a_pipe(stream):
         "--keypoints",
         "COCO_17",
     ]
+    # One device: the pipe is what is tested here (a live frame on two devices is
+    # tests/test_devices.py's), and on two the first frame compiles once per device.
+    env = dict(os.environ, CDOG_JAX_CPU_DEVICES="1")
     with subprocess.Popen(
-        command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        command,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
     ) as child:
         answers = []
         bad = ("{not json", '{"views": [[[1, 2]]]}', '{"views": [[[1, 2]]], "clases": [[0]]}')
