@@ -393,6 +393,13 @@ def _associate_batch_jit(rig, xy, mask, thresholds, extras, *, method, shared_ri
     return jax.vmap(one)((rig, xy, mask, thresholds, per_scene))
 
 
+def _moved_to(a, device):
+    """``a`` on ``device`` if it is a JAX array committed to another device, else ``a``."""
+    if isinstance(a, jax.Array) and a.committed and a.devices() != {device}:
+        return jax.device_put(a, device)
+    return a
+
+
 def _join(shared, weights):
     return None if shared is None else (shared[0], weights, shared[2])
 
@@ -570,6 +577,9 @@ def associate_batch_at(
             continue
         # The chunk's device as the default one: its host arguments go there with the call
         # (jax.device_put of the argument tree costs about as much as a live frame's chunk).
+        # Arrays committed to another device (a rig the caller placed) would hold the chunk
+        # there: those are moved.
+        args = jax.tree.map(lambda a: _moved_to(a, device), args)
         with jax.default_device(device):
             results.append(call_stored(_associate_batch_jit, args, static, shared_rig=shared))
     if len(results) > 1:
