@@ -123,9 +123,9 @@ class LiveAssociator:
 
     Every frame's programs are compiled on the first frame and reused for every frame that
     fits; :attr:`compiles` counts the capacity raises since. State (the tracks) lives in the
-    object: :meth:`reset` starts a new recording. Where JAX has several CPU devices
-    (:func:`cdog_jax.benchmark.use_cpu_cores`, before JAX's first operation), the class scenes are
-    split into one chunk per device and the chunks run at once, one per core (the same
+    object: :meth:`reset` starts a new recording. Where JAX has several devices (CPU
+    devices: :func:`cdog_jax.benchmark.use_cpu_cores`, before JAX's first operation), the
+    class scenes are split into one chunk per device and the chunks run at once (the same
     answers; the association's program is then compiled once per device on the first frame).
     """
 
@@ -202,7 +202,8 @@ class LiveAssociator:
         # Group rows the tracker carries: room for every class to hold half its slots' groups.
         self.rows = ladder_rung(self.num_classes * self.slots // 2, 8)
         # The class scenes in one chunk per device (each chunk of at least two scenes): on
-        # several CPU devices (cdog_jax.benchmark.use_cpu_cores) the chunks run at once, one per core.
+        # several CPU devices (cdog_jax.benchmark.use_cpu_cores) the chunks run at once, one
+        # per core.
         per_device = -(-self.num_classes // len(jax.local_devices()))
         self._scenes_per_chunk = per_device if per_device >= 2 else self.num_classes
         self.compiles = 0
