@@ -111,3 +111,15 @@ def test_importing_the_package_exposes_no_cores():
     code = "import cdog_jax, cdog_jax.cli, jax; print(len(jax.local_devices()))"
     out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True)
     assert out.stdout.strip() == "1"
+
+
+def test_a_live_frame_takes_two_chunks_however_many_devices(monkeypatch):
+    """The class scenes in two chunks where there are several devices (each device a chunk
+    runs on compiles the association), one where there is one or a chunk would hold one."""
+    import jax
+
+    rig = ring_rig(4)
+    for count, classes, chunk in ((1, 25, 25), (2, 25, 13), (8, 25, 13), (8, 3, 2), (8, 2, 2)):
+        monkeypatch.setattr(jax, "local_devices", lambda count=count: [None] * count)
+        live = cdog_jax.LiveAssociator(rig, num_classes=classes)
+        assert live._scenes_per_chunk == chunk, (count, classes)

@@ -125,8 +125,8 @@ class LiveAssociator:
     fits; :attr:`compiles` counts the capacity raises since. State (the tracks) lives in the
     object: :meth:`reset` starts a new recording. Where JAX has several devices (CPU
     devices: :func:`cdog_jax.benchmark.use_cpu_cores`, before JAX's first operation), the
-    class scenes are split into one chunk per device and the chunks run at once (the same
-    answers; the association's program is then compiled once per device on the first frame).
+    class scenes are split into two chunks that run at once on two of them (the same
+    answers; the association's program is then compiled for both on the first frame).
     """
 
     def __init__(
@@ -201,11 +201,13 @@ class LiveAssociator:
         self.slots = slot_capacity(slots)  # per class and view, the association's programs
         # Group rows the tracker carries: room for every class to hold half its slots' groups.
         self.rows = ladder_rung(self.num_classes * self.slots // 2, 8)
-        # The class scenes in one chunk per device (each chunk of at least two scenes): on
-        # several CPU devices (cdog_jax.benchmark.use_cpu_cores) the chunks run at once, one
-        # per core.
-        per_device = -(-self.num_classes // len(jax.local_devices()))
-        self._scenes_per_chunk = per_device if per_device >= 2 else self.num_classes
+        # The class scenes in two chunks where there are several devices (each chunk of at
+        # least two scenes): on several CPU devices (cdog_jax.benchmark.use_cpu_cores) they
+        # run at once on two cores. Not one chunk per device: each chunk's device compiles
+        # the association once on the first frame and each chunk starts a program (~0.3 ms).
+        half = -(-self.num_classes // 2)
+        several = len(jax.local_devices()) > 1
+        self._scenes_per_chunk = half if several and half >= 2 else self.num_classes
         self.compiles = 0
         self._compiled = False
         self._vote_rows = 0  # the tracker's rows the person vote's DLT was compiled for
