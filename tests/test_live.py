@@ -103,12 +103,14 @@ def test_sigma_fits_of_other_widths_compile_nothing(walk, monkeypatch):
     offline = associate_sequence(rig, xy, mask)
     live = LiveAssociator(rig, slots=32)
     _assert_same_frame(live.update(xy[0], mask[0]), offline, 0, classed=False)
-    widths, fit = [], people_classes._chunked_fit
-    monkeypatch.setattr(
-        people_classes,
-        "_chunked_fit",
-        lambda f, t, *a: widths.append(t[0].shape[1]) or fit(f, t, *a),
-    )
+    widths, call = [], people_classes.call_stored
+
+    def recorded(program, args, **static):
+        if program is people_classes._pooled_table_fit:
+            widths.append(static["width"])
+        return call(program, args, **static)
+
+    monkeypatch.setattr(people_classes, "call_stored", recorded)
     with _lowered() as lowered:
         for f in range(1, FRAMES):
             _assert_same_frame(live.update(xy[f], mask[f]), offline, f, classed=False)
@@ -131,8 +133,8 @@ def test_a_held_sigma_is_the_first_trusted_estimate_and_answers_as_if_given(walk
         given.update(xy[0], m, classes=classes[0])
         assert held.held_sigma is None, out.sigma_px
     assert out.status & cdog_jax.Status.SIGMA_FALLBACK
-    fits, fit = [], people_classes._chunked_fit
-    monkeypatch.setattr(people_classes, "_chunked_fit", lambda *a: fits.append(1) or fit(*a))
+    fits, fit = [], people_classes._one_table_sigma
+    monkeypatch.setattr(people_classes, "_one_table_sigma", lambda *a: fits.append(1) or fit(*a))
     for f in range(FRAMES):
         a = held.update(xy[f], mask[f], classes=classes[f])
         b = given.update(xy[f], mask[f], classes=classes[f])

@@ -547,6 +547,9 @@ def _pooled_sigma(
     at least ``min_samples`` wide."""
     d = None if dist is None else np.asarray(dist, dtype)
     robust = estimator == "robust"
+    if min_samples and (F == 1 or pool == "all") and len(scenes.frame) <= SAMPLE_CHUNK:
+        # One table: the samples, the table and the fit in one program (a live frame).
+        return _one_table_sigma(rig, scenes, d, dtype, robust, min_samples, F)
     samples = _chunked_samples(rig, scenes, d, dtype, robust)
     group = scenes.frame if pool == "frame" else np.zeros_like(scenes.frame)
     G = F if pool == "frame" else 1
@@ -557,6 +560,47 @@ def _pooled_sigma(
     if pool == "frame":
         return sigma, fell_back
     return np.full(F, sigma[0]), np.full(F, fell_back[0])
+
+
+def _sample_bound(mask: np.ndarray) -> int:
+    """An upper bound of the used σ samples of the scenes ``mask (B, M, P)``: a detection
+    has a sample for each other view of its scene that holds a detection (none where the
+    epipolar line is degenerate)."""
+    per_view = mask.sum(axis=2)  # (B, M)
+    other_views = (per_view > 0).sum(axis=1, keepdims=True) - (per_view > 0)
+    return int((per_view * other_views).sum())
+
+
+def _one_table_sigma(rig, scenes: _Scenes, dist, dtype, robust: bool, min_width: int, F: int):
+    """``(F,)`` σ and ``(F,)`` fallback (the one value repeated) of all ``scenes`` pooled, as
+    :func:`_chunked_samples`, :func:`_sample_tables` and :func:`_chunked_fit` give them for one
+    group, bitwise, in one program (:func:`_pooled_table_fit`): no samples to the host and no
+    table back. Its table is as wide as :func:`fit_width` of the samples' upper bound
+    (:func:`_sample_bound`) + 1 and ``min_width``: a power of two at or above the used
+    count's, where σ is bitwise the same."""
+    width = fit_width(max(_sample_bound(scenes.mask) + 1, min_width))
+    args = (rig, np.asarray(scenes.xy, dtype), scenes.mask, dist, _rig_focal(rig), np.int32(1))
+    sigma, fell_back = call_stored(_pooled_table_fit, args, robust=robust, width=width)
+    return np.full(F, np.asarray(sigma)[0]), np.full(F, np.asarray(fell_back)[0])
+
+
+@partial(jit, static_argnames=("robust", "width"))
+def _pooled_table_fit(rig, xy, mask, dist, focal, used, robust: bool, width: int):
+    """:func:`_nearest_samples` of the scenes ``xy (B, M, P, 2)``, their used entries in
+    scene order in one row of ``width`` entries (padding: weight 0, distance 0, count the
+    scenes' largest; a second row empty, as :func:`_chunked_fit` gives one group) and
+    :func:`_pooled_fit` (``robust``: :func:`_pooled_robust_fit`) of it: ``(2,)`` σ and
+    ``(2,)`` fallback, the first row's first. ``used``: 1 (traced, as the fit's)."""
+    samples = [a.reshape(-1) for a in _nearest_samples.__wrapped__(rig, xy, mask, dist, robust)]
+    taken = samples[1] > 0
+    column = jnp.where(taken, jnp.cumsum(taken) - 1, width)  # width: dropped
+    largest = jnp.maximum(jnp.max(samples[2]), 0)
+    tables = []
+    for k, a in enumerate(samples):
+        row = jnp.full(width, largest if k == 2 else 0, a.dtype).at[column].set(a, mode="drop")
+        tables.append(jnp.stack([row, jnp.zeros_like(row)]))
+    fit_row = robust_sigma_from_samples if robust else sigma_from_samples
+    return _row_by_row(fit_row, tuple(tables), focal, used)
 
 
 def fit_width(samples: int) -> int:
@@ -582,15 +626,21 @@ def sigma_fit_widths(most: int) -> list[int]:
     return [width for width in (top // 4, top // 2, top) if width >= 16]
 
 
-def warm_sigma_fits(rig, widths, dtype, sigma_mode: str = "auto") -> None:
-    """Compile (or load) the σ fit of one frame for each table width in ``widths``
-    (:func:`sigma_fit_widths`), as :func:`associate_classes` runs it for ``sigma_mode``
-    (``"robust"``: the robust estimator) on ``dtype`` detections."""
-    robust = sigma_mode == "robust"
-    focal = focal_scale(np.asarray(rig.K))
+def warm_sigma_fits(
+    rig, widths, dtype, sigma_mode: str = "auto", *, scenes: int, slots: int, dist=None
+) -> None:
+    """Compile (or load) the σ fit of one frame of ``scenes`` class scenes of ``slots`` slots
+    per view (the shapes :func:`associate_classes_at` gives them with ``min_scenes`` and
+    ``min_slots``) for each table width in ``widths`` (:func:`sigma_fit_widths`), as it
+    runs for ``sigma_mode`` (``"robust"``: the robust estimator) on ``dtype`` detections
+    with ``dist`` (the given lens)."""
+    M = rig.num_views
+    xy = np.zeros((scenes, M, slots, 2), dtype)
+    mask = np.zeros((scenes, M, slots), bool)
+    d = None if dist is None else np.asarray(dist, dtype)
     for width in widths:
-        tables = [np.zeros((1, width), dtype) for _ in range(4 if robust else 3)]
-        _chunked_fit(_pooled_robust_fit if robust else _pooled_fit, tables, focal)
+        args = (rig, xy, mask, d, _rig_focal(rig), np.int32(1))
+        call_stored(_pooled_table_fit, args, robust=sigma_mode == "robust", width=width)
 
 
 FIT_ELEMENTS = 1 << 16

@@ -485,7 +485,15 @@ class LiveAssociator:
         most = self.num_classes * self.slots * M * (M - 1) + 1  # a frame that fits, + 1
         self._fit_widths = sigma_fit_widths(most)
         if self.sigma in ("auto", "held") or self.method.sigma_mode != "given":  # the fit runs
-            warm_sigma_fits(self.rig, self._fit_widths, self.dtype, self.method.sigma_mode)
+            warm_sigma_fits(
+                self.rig,
+                self._fit_widths,
+                self.dtype,
+                self.method.sigma_mode,
+                scenes=self.num_classes,
+                slots=self.slots,
+                dist=self.dist,
+            )
 
     def _table_rows(self, rows: int) -> int:
         """Rows of the tracker's frame table: the groups', then as many free rows for
