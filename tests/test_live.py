@@ -14,6 +14,7 @@ from cdog_jax import LiveAssociator, associate_sequence
 from cdog_jax.io import detections_from_array
 from cdog_jax.people import _classes as people_classes
 from cdog_jax.synthetic import default_rig, generate_skeleton_scenes
+from cdog_jax.tracking import _live as live_module
 from cdog_jax.tracking._tracks import tracking_frames
 
 M, PEOPLE, FRAMES, J = 4, 2, 6, 17
@@ -89,6 +90,35 @@ def test_nothing_compiled_after_the_first_frame(walk):
             keep = np.random.default_rng(f).random(mask[f].shape) > 0.2  # frames of other counts
             live.update(xy[f], mask[f] & keep, classes=classes[f])
     assert lowered == [] and live.compiles == 0
+
+
+def test_frames_that_fill_half_the_slots_run_the_smaller_programs(walk, monkeypatch):
+    """Frames of at most half the slots of one class in a view (4 of 8) run programs of that
+    rung, the others the full rung's, both compiled on the first frame: the same answers as
+    offline, nothing compiled after the first frame."""
+    rig, xy, mask, classes = walk
+    extra = 5  # five or more detections of class 0 in view 0 of frames 2 and 4: rung 8
+    xy, mask, classes = (
+        np.pad(a, [(0, 0), (0, 0), (0, extra)] + [(0, 0)] * (a.ndim - 3))
+        for a in (xy, mask, classes)
+    )
+    strays = np.random.default_rng(1).uniform(100, 400, (2, extra, 2))
+    xy[[2, 4], 0, -extra:], mask[[2, 4], 0, -extra:] = strays, True
+    offline = associate_sequence(rig, xy, mask, classes=classes)
+    live = LiveAssociator(rig, num_classes=J)
+    assert (live.low_slots, live.slots) == (4, 8)
+    _assert_same_frame(live.update(xy[0], mask[0], classes=classes[0]), offline, 0)
+    rungs, associate = [], live_module.associate_classes_at
+    monkeypatch.setattr(
+        live_module,
+        "associate_classes_at",
+        lambda *a, **k: rungs.append(k["min_slots"]) or associate(*a, **k),
+    )
+    with _lowered() as lowered:
+        for f in range(1, FRAMES):
+            _assert_same_frame(live.update(xy[f], mask[f], classes=classes[f]), offline, f)
+    assert lowered == [] and live.compiles == 0
+    assert rungs == [4, 8, 4, 8, 4]
 
 
 def test_sigma_fits_of_other_widths_compile_nothing(walk, monkeypatch):

@@ -30,6 +30,7 @@ from ..geometry._distortion import as_lens, undistorted_frames
 from ..people._classes import (
     SceneResults,
     associate_classes_at,
+    fit_width,
     frame_fields,
     given_classes,
     sigma_fit_widths,
@@ -119,7 +120,9 @@ class LiveAssociator:
         max_step, max_step_px, max_err_px, max_gap: as in :func:`cdog_jax.track_groups`.
         slots: detections of one class in one view (all detections of a view without
             classes) that the first programs hold (at least 4); a frame with more raises it
-            to the next rung of the shape ladder (one compile, a warning).
+            to the next rung of the shape ladder (one compile, a warning). A frame of at most
+            half of them (:attr:`low_slots`, the rung that holds half) runs programs of that
+            rung, also compiled on the first frame: the same answers in less time.
 
     Every frame's programs are compiled on the first frame and reused for every frame that
     fits; :attr:`compiles` counts the capacity raises since. State (the tracks) lives in the
@@ -199,6 +202,10 @@ class LiveAssociator:
             jnp.asarray(max_step_px, self.dtype),
         )
         self.slots = slot_capacity(slots)  # per class and view, the association's programs
+        # A frame whose classes hold at most half of that in every view runs programs of that
+        # smaller rung (compiled on the first frame too): the association's pairwise work
+        # is per pair of slots, and most frames of a person detector fill half of them.
+        self.low_slots = slot_capacity(max(slots // 2, 1))
         # Group rows the tracker carries: room for every class to hold half its slots' groups.
         self.rows = ladder_rung(self.num_classes * self.slots // 2, 8)
         # The class scenes in two chunks where there are several devices (each chunk of at
@@ -212,6 +219,7 @@ class LiveAssociator:
         self._compiled = False
         self._vote_rows = 0  # the tracker's rows the person vote's DLT was compiled for
         self._fit_widths = [0]  # set on the first frame
+        self._warmed = None  # (slots, rows) whose programs are compiled at every rung
         self.reset()
 
     @property
@@ -279,17 +287,16 @@ class LiveAssociator:
             dist=self.dist,
             min_views=self.min_views,
             min_scenes=self.num_classes,
-            min_slots=self.slots,
+            min_slots=self.low_slots if per_class <= self.low_slots else self.slots,
             batch_size=self._scenes_per_chunk,
             min_samples=self._fit_widths[0],
         )
         frame_det = self._detections(xy_p, mask_p, cls_p)
         vote = person_vote_argument(self.person_vote, inst_p)
+        frame = (xy_p[None], mask_p[None], cls_p[None])
         scenes = None
         if vote is None:  # no person vote: the scenes' results go to the tracker as they are
-            scenes = associate_classes_at(
-                self.rig, xy_p[None], mask_p[None], cls_p[None], scenes_only=True, **association
-            )
+            scenes = associate_classes_at(self.rig, *frame, scenes_only=True, **association)
         if scenes is not None:
             out, sigma, tau, status = self._track_scenes(scenes, frame_det)
         else:  # the person vote, or a frame without a scene (its empty table on the host)
@@ -298,17 +305,13 @@ class LiveAssociator:
                 # changes a group meets it.
                 warm_retriangulation(self.rig, self.rows)
                 self._vote_rows = self.rows
-            result = associate_classes_at(
-                self.rig,
-                xy_p[None],
-                mask_p[None],
-                cls_p[None],
+            vote_args = dict(
                 instances=None if inst_p is None else inst_p[None],
                 person_vote=vote,
                 min_vote_rows=self.rows,
                 on_host=True,  # read here, field by field: no transfer to the device and back
-                **association,
             )
+            result = associate_classes_at(self.rig, *frame, **vote_args, **association)
             assoc = result.association
             sigma, tau = float(assoc.sigma_px[0]), float(assoc.tau_px[0])
             status = int(assoc.status[0])
@@ -333,6 +336,8 @@ class LiveAssociator:
                 min_views=self.min_views,
                 max_gap=self.max_gap,
             )
+        if self._warmed != (self.slots, self.rows):
+            self._warm_other_rung(frame, frame_det, association, vote_args if vote else None)
         if self.sigma == "held" and self.held_sigma is None:
             if sigma > 0 and not status & Status.SIGMA_FALLBACK:  # 0: an empty frame
                 self.held_sigma = sigma
@@ -443,34 +448,60 @@ class LiveAssociator:
             )
         return self._carry
 
+    def _warm_other_rung(self, frame, det, association: dict, vote_args) -> None:
+        """Compile the programs of the slot rung this frame did not run (the association, and
+        the tracker's step or the person vote) by running the frame cut to fit it, each
+        class's first detections in a view, and discarding the answers: the tracks stay as
+        they are. A frame without a scene (no class seen in two views) compiles nothing."""
+        xy, mask, classes = (a[0] for a in frame)
+        M, P = mask.shape
+        earlier = np.arange(P)[:, None] > np.arange(P)[None, :]  # [p, q]: q before p
+        same = (classes[:, :, None] == classes[:, None, :]) & mask[:, None, :] & earlier
+        rank = same.sum(axis=2)  # (M, P) detections of the slot's class before it in its view
+        if not ((_per_class(mask, classes, self.num_classes) > 0).sum(axis=0) >= 2).any():
+            return
+        for rung in {self.low_slots, self.slots} - {association["min_slots"]}:
+            cut = (xy[None], (mask & (rank < rung))[None], classes[None])
+            other = dict(association, min_slots=rung)
+            if vote_args is None:
+                scenes = associate_classes_at(self.rig, *cut, scenes_only=True, **other)
+                jax.block_until_ready(self._tracked(scenes, det))
+            else:
+                associate_classes_at(self.rig, *cut, **vote_args, **other)
+        self._warmed = (self.slots, self.rows)
+
     def _track_scenes(self, scenes: SceneResults, det: tuple):
         """Map the class scenes' results to the frame and track it, in one program
         (:func:`track_scenes`); a frame of more groups than the tracker's rows raises them and
         runs again. Returns the frame's table and its σ, τ and status."""
-        sc = scenes.scenes
-        max_err = np.asarray(np.nan if self.max_err_px is None else self.max_err_px, self.dtype)
-        args = (sc.slot.astype(np.int32), sc.cls.astype(np.int32), *det, max_err, *self._gates)
-
-        def track():
-            return track_scenes(
-                self.rig,
-                self._tracks(),
-                scenes.result,
-                *args,
-                rows=self.rows,
-                prior=self.temporal_prior,
-                min_views=self.min_views,
-                max_gap=self.max_gap,
-            )
-
-        carry, out, found = track()
+        carry, out, found = self._tracked(scenes, det)
         # The association's σ, τ and status, read while the tracker runs.
-        sigma, tau, status = frame_fields(scenes.result, sc.frame, 1, scenes.frame_flags)
+        sigma, tau, status = frame_fields(scenes.result, scenes.scenes.frame, 1, scenes.frame_flags)
         while int(found) > self.rows:  # the tracks as they were, grown: the frame again
             self._grow_rows(int(found))
-            carry, out, found = track()
+            carry, out, found = self._tracked(scenes, det)
         self._carry = carry
         return out, float(sigma[0]), float(tau[0]), int(status[0])
+
+    def _tracked(self, scenes: SceneResults, det: tuple):
+        """:func:`track_scenes` of the frame's class scenes from the tracks carried into it:
+        ``(carry, table, groups found)``, the object's state unchanged."""
+        sc = scenes.scenes
+        max_err = np.asarray(np.nan if self.max_err_px is None else self.max_err_px, self.dtype)
+        return track_scenes(
+            self.rig,
+            self._tracks(),
+            scenes.result,
+            sc.slot.astype(np.int32),
+            sc.cls.astype(np.int32),
+            *det,
+            max_err,
+            *self._gates,
+            rows=self.rows,
+            prior=self.temporal_prior,
+            min_views=self.min_views,
+            max_gap=self.max_gap,
+        )
 
     def _frame_sigma(self) -> float | str:
         """The ``sigma`` of this frame's association: ``"auto"`` until a σ is held."""
@@ -482,18 +513,22 @@ class LiveAssociator:
         """The σ fit's table widths for the current slots, each compiled now: a frame's fit
         then runs on the narrowest that holds its samples (three programs: the fullest frame's
         table, a half and a quarter of it), not on the fullest frame's."""
-        most = self.num_classes * self.slots * M * (M - 1) + 1  # a frame that fits, + 1
-        self._fit_widths = sigma_fit_widths(most)
+
+        def most(slots):  # used samples of a frame that fits, + 1
+            return self.num_classes * slots * M * (M - 1) + 1
+
+        self._fit_widths = sigma_fit_widths(most(self.slots))
         if self.sigma in ("auto", "held") or self.method.sigma_mode != "given":  # the fit runs
-            warm_sigma_fits(
-                self.rig,
-                self._fit_widths,
-                self.dtype,
-                self.method.sigma_mode,
-                scenes=self.num_classes,
-                slots=self.slots,
-                dist=self.dist,
-            )
+            for rung in sorted({self.low_slots, self.slots}):
+                warm_sigma_fits(
+                    self.rig,
+                    [width for width in self._fit_widths if width <= fit_width(most(rung))],
+                    self.dtype,
+                    self.method.sigma_mode,
+                    scenes=self.num_classes,
+                    slots=rung,
+                    dist=self.dist,
+                )
 
     def _table_rows(self, rows: int) -> int:
         """Rows of the tracker's frame table: the groups', then as many free rows for
@@ -519,13 +554,16 @@ def _on_device(tracks: tuple) -> tuple:
     return jax.device_put(tracks, jax.local_devices()[0])
 
 
+def _per_class(mask: np.ndarray, classes: np.ndarray, C: int) -> np.ndarray:
+    """``(M, C)`` detections of each class in each view."""
+    M = mask.shape[0]
+    view = np.broadcast_to(np.arange(M)[:, None], mask.shape)[mask]
+    return np.bincount(view * C + classes[mask], minlength=M * C).reshape(M, C)
+
+
 def _most_per_class(mask: np.ndarray, classes: np.ndarray, C: int) -> int:
     """The most detections of one class in one view."""
-    M = mask.shape[0]
-    if not mask.any():
-        return 0
-    view = np.broadcast_to(np.arange(M)[:, None], mask.shape)[mask]
-    return int(np.bincount(view * C + classes[mask], minlength=M * C).max())
+    return int(_per_class(mask, classes, C).max()) if mask.any() else 0
 
 
 def _answer(
