@@ -63,8 +63,9 @@ def scenes():
 
 def live_frames(rig, xy, mask, classes) -> dict:
     """The five scenes as frames of a live associator of 3 classes (on two devices, its
-    class scenes in two chunks, one per device), each frame's answer as arrays."""
-    live = cdog_jax.LiveAssociator(rig, num_classes=3, method="paper", sigma=1.0)
+    class scenes in two chunks, one per device), each frame's answer as arrays; at 4 slots,
+    its one rung (the point is the devices: one rung compiles half the programs)."""
+    live = cdog_jax.LiveAssociator(rig, num_classes=3, method="paper", sigma=1.0, slots=4)
     answers = [live.update(xy[f], mask[f], classes=classes[f]) for f in range(len(xy))]
     fields = ("labels", "groups", "points3d", "err_px", "track_id", "group_class")
     return {
