@@ -514,9 +514,13 @@ def associate_batch_at(
     padded = -(-B // chunk) * chunk  # whole chunks; padded scenes repeat the last one
     xy = pad_scenes(pad_slots(np.asarray(xy, np_dtype), capacity, axis=2), padded)
     mask = pad_scenes(pad_slots(np.asarray(mask, bool), capacity, axis=2, fill=False), padded)
-    thresholds = type(thresholds)(
-        *(pad_scenes(np.broadcast_to(np.asarray(v, np_dtype), (B,)), padded) for v in thresholds)
-    )
+    # Every threshold of every scene in one table (a row each), padded at once: one array
+    # padded per threshold took ~0.1 ms a call.
+    table = np.empty((len(thresholds), padded), np_dtype)
+    for row, value in zip(table, thresholds):
+        row[:B] = np.asarray(value, np_dtype)
+    table[:, B:] = table[:, B - 1 : B]  # padded scenes repeat the last one (pad_scenes)
+    thresholds = type(thresholds)(*table)
     if not shared:
         rig_arrays = [pad_scenes(np.asarray(a), padded) for a in (rig.K, rig.R, rig.t)]
     if extras is not None and extras[1] is not None:

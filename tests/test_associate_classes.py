@@ -310,44 +310,37 @@ def test_associate_traced_with_classes_never_joins_two_classes():
 def one_program_sigma_is_the_two_programs():
     """A frame's pooled σ fitted in one program (the samples, their table and the fit: a
     live frame's) is bitwise the σ and fallback of the samples' program and the fit's with
-    the table made on the host, at any table width it may get; the samples' bound is the
-    used count where no epipolar line is degenerate."""
+    the table made on the host: both estimators, with a lens, and a frame whose σ falls
+    back; the samples' bound is the used count where no epipolar line is degenerate."""
     from cdog_jax.people import _classes as classes
 
     rig = default_rig(num_views=5)
     rng = np.random.default_rng(3)
     C, K = 6, 3  # classes, people
     lo, hi = (np.asarray(b) for b in DEFAULT_BOX)
-    X = rng.uniform(lo, hi, (2, C * K, 3))
-    xy, _ = cdog_jax.project(rig, jnp.asarray(X.reshape(-1, 3), jnp.float32))
-    xy = np.asarray(xy).reshape(5, 2, C * K, 2).transpose(1, 0, 2, 3)
+    xy, _ = cdog_jax.project(rig, jnp.asarray(rng.uniform(lo, hi, (C * K, 3)), jnp.float32))
+    xy = np.asarray(xy)[None]  # (1, M, C·K, 2)
     xy = (xy + rng.standard_t(3, xy.shape) * 2.0).astype(np.float32)
-    classes_ = np.broadcast_to(np.arange(C * K) // K, (2, 5, C * K)).copy()
-    mask = rng.random((2, 5, C * K)) > 0.2
+    classes_ = np.broadcast_to(np.arange(C * K) // K, (1, 5, C * K)).copy()
+    mask = rng.random((1, 5, C * K)) > 0.2
     mask[:, :, :K] &= np.arange(5)[None, :, None] == 1  # class 0: one view only
     sparse = np.zeros_like(mask)
     sparse[:, :2, K] = True  # one point of class 1 in two views: σ falls back
-    for frames, pool in ((xy[:1], "frame"), (xy, "all")):
-        F = len(frames)
-        for m, falls_back in ((mask[:F], False), (sparse[:F], True)):
-            scenes = classes._at_least(classes._regroup(frames, m, classes_[:F], C, None), 8, 8)
+    dist = np.array([[-0.1, 0.01, 0.0, 0.0, 0.0]] * 5, np.float32)
+    for m, estimator, lens, falls_back in (
+        (mask, "auto", None, False),
+        (sparse, "auto", None, True),
+        (mask, "robust", dist, False),
+    ):
+        scenes = classes._at_least(classes._regroup(xy, m, classes_, C, None), 8, 8)
+        if lens is None:
             used = classes._chunked_samples(rig, scenes, None, np.float32, False).per_scene
             assert classes._sample_bound(scenes.mask) == used.sum()
-            for estimator in ("auto", "robust"):
-                two = classes._pooled_sigma(rig, scenes, F, None, np.float32, pool, estimator)
-                for least in (16, 4096):
-                    one = classes._one_table_sigma(
-                        rig, scenes, None, np.float32, estimator == "robust", least, F
-                    )
-                    for a, b in zip(one, two):
-                        assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), (pool, least)
-                assert two[1].all() == falls_back, estimator
-    # With a lens: the samples on undistorted pixels.
-    dist = np.array([[-0.1, 0.01, 0.0, 0.0, 0.0]] * 5, np.float32)
-    scenes = classes._at_least(classes._regroup(xy[:1], mask[:1], classes_[:1], C, None), 8, 8)
-    two = classes._pooled_sigma(rig, scenes, 1, dist, np.float32, "frame", "auto")
-    one = classes._one_table_sigma(rig, scenes, dist, np.float32, False, 16, 1)
-    assert one[0].tobytes() == two[0].tobytes() and one[1].tobytes() == two[1].tobytes()
+        two = classes._pooled_sigma(rig, scenes, 1, lens, np.float32, "frame", estimator)
+        one = classes._one_table_sigma(rig, scenes, lens, np.float32, estimator == "robust", 16)
+        for a, b in zip(one, two):
+            assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), estimator
+        assert two[1].all() == falls_back, estimator
 
 
 def test_one_program_sigma_is_the_two_programs_bitwise():

@@ -547,9 +547,9 @@ def _pooled_sigma(
     at least ``min_samples`` wide."""
     d = None if dist is None else np.asarray(dist, dtype)
     robust = estimator == "robust"
-    if min_samples and (F == 1 or pool == "all") and len(scenes.frame) <= SAMPLE_CHUNK:
-        # One table: the samples, the table and the fit in one program (a live frame).
-        return _one_table_sigma(rig, scenes, d, dtype, robust, min_samples, F)
+    if min_samples and F == 1 and len(scenes.frame) <= SAMPLE_CHUNK:
+        # One frame: the samples, the table and the fit in one program (a live frame).
+        return _one_table_sigma(rig, scenes, d, dtype, robust, min_samples)
     samples = _chunked_samples(rig, scenes, d, dtype, robust)
     group = scenes.frame if pool == "frame" else np.zeros_like(scenes.frame)
     G = F if pool == "frame" else 1
@@ -571,8 +571,8 @@ def _sample_bound(mask: np.ndarray) -> int:
     return int((per_view * other_views).sum())
 
 
-def _one_table_sigma(rig, scenes: _Scenes, dist, dtype, robust: bool, min_width: int, F: int):
-    """``(F,)`` σ and ``(F,)`` fallback (the one value repeated) of all ``scenes`` pooled, as
+def _one_table_sigma(rig, scenes: _Scenes, dist, dtype, robust: bool, min_width: int):
+    """``(1,)`` σ and ``(1,)`` fallback of one frame's ``scenes`` pooled, as
     :func:`_chunked_samples`, :func:`_sample_tables` and :func:`_chunked_fit` give them for one
     group, bitwise, in one program (:func:`_pooled_table_fit`): no samples to the host and no
     table back. Its table is as wide as :func:`fit_width` of the samples' upper bound
@@ -581,7 +581,7 @@ def _one_table_sigma(rig, scenes: _Scenes, dist, dtype, robust: bool, min_width:
     width = fit_width(max(_sample_bound(scenes.mask) + 1, min_width))
     args = (rig, np.asarray(scenes.xy, dtype), scenes.mask, dist, _rig_focal(rig), np.int32(1))
     sigma, fell_back = call_stored(_pooled_table_fit, args, robust=robust, width=width)
-    return np.full(F, np.asarray(sigma)[0]), np.full(F, np.asarray(fell_back)[0])
+    return np.asarray(sigma)[:1], np.asarray(fell_back)[:1]
 
 
 @partial(jit, static_argnames=("robust", "width"))
