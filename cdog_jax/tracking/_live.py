@@ -337,7 +337,9 @@ class LiveAssociator:
                 max_gap=self.max_gap,
             )
         if self._warmed != (self.slots, self.rows):
-            self._warm_other_rung(frame, frame_det, association, vote_args if vote else None)
+            self._warm_other_rung(
+                frame, frame_det, association, None if vote is None else vote_args
+            )
         if self.sigma == "held" and self.held_sigma is None:
             if sigma > 0 and not status & Status.SIGMA_FALLBACK:  # 0: an empty frame
                 self.held_sigma = sigma
@@ -454,12 +456,12 @@ class LiveAssociator:
         class's first detections in a view, and discarding the answers: the tracks stay as
         they are. A frame without a scene (no class seen in two views) compiles nothing."""
         xy, mask, classes = (a[0] for a in frame)
-        M, P = mask.shape
+        if not ((_per_class(mask, classes, self.num_classes) > 0).sum(axis=0) >= 2).any():
+            return
+        P = mask.shape[1]
         earlier = np.arange(P)[:, None] > np.arange(P)[None, :]  # [p, q]: q before p
         same = (classes[:, :, None] == classes[:, None, :]) & mask[:, None, :] & earlier
         rank = same.sum(axis=2)  # (M, P) detections of the slot's class before it in its view
-        if not ((_per_class(mask, classes, self.num_classes) > 0).sum(axis=0) >= 2).any():
-            return
         for rung in {self.low_slots, self.slots} - {association["min_slots"]}:
             cut = (xy[None], (mask & (rank < rung))[None], classes[None])
             other = dict(association, min_slots=rung)
