@@ -60,6 +60,12 @@ def check_thresholds_type(thresholds, method: Method, where: str) -> None:
         )
 
 
+@partial(jit, static_argnames=("size",))
+def _broadcast_row(value, size: int):
+    """The first entry of ``value`` repeated ``size`` times, where ``value`` is."""
+    return jnp.broadcast_to(jnp.reshape(value, (-1,))[0], (size,))
+
+
 def _run_scene(rig, xy, mask, thresholds, method):
     """The method's per-scene function on plain observations (no weights)."""
     return method.associate_scene(rig, Observations(xy, mask), thresholds)
@@ -462,6 +468,7 @@ def associate_batch_at(
     min_slots=0,
     on_host=False,
     untrimmed=False,
+    shared_sigma=None,
 ):
     """:func:`associate_batch` at a slot capacity of at least ``min_slots`` per view (the
     rung that holds it): a caller that must meet one compiled program on every call (a live
@@ -469,7 +476,10 @@ def associate_batch_at(
     arrays with ``on_host`` (a caller that reads them on the host: no transfer back).
     ``untrimmed``: where one call of the program holds exactly the ``B`` scenes at the
     input's slots, its arrays as it returns them (on the device: a caller that hands them
-    to another program), else as with ``on_host``."""
+    to another program), else as with ``on_host``. ``shared_sigma``: a JAX array whose first
+    entry is every scene's σ (px), where the program that computed it left it, unchecked (the
+    package's own fit; ``sigma`` is then ignored and the method must take σ as given): the
+    association is queued behind that program instead of waiting for its answer here."""
     expect_args("associate_batch", rig=(rig, Rig))
     expect(batch_size, INT, "batch_size", "associate_batch")
     method = method_argument(method, "associate_batch")
@@ -482,6 +492,10 @@ def associate_batch_at(
         raise ValueError(f"batch_size must be >= 1; got {batch_size}")
     B = xy.shape[0]
     check_batch_rig(rig, B)
+    if shared_sigma is not None:
+        if method.sigma_mode != "given":
+            raise ValueError("shared_sigma: for a method that takes σ as given")
+        sigma = 0.0  # the σ row of the thresholds: replaced by shared_sigma chunk by chunk
     check_sigma(sigma, rig, xy, mask, num_scenes=B)
     if thresholds is not None:
         check_threshold_shapes(thresholds, B)
@@ -520,6 +534,10 @@ def associate_batch_at(
     for row, value in zip(table, thresholds):
         row[:B] = np.asarray(value, np_dtype)
     table[:, B:] = table[:, B - 1 : B]  # padded scenes repeat the last one (pad_scenes)
+    if shared_sigma is not None and (chunk == 1 or not static.jittable):
+        # Scene by scene: the σ is read here (the vmapped chunks below take it as it is).
+        table[thresholds._fields.index("sigma_px")] = np.asarray(shared_sigma).reshape(-1)[0]
+        shared_sigma = None
     thresholds = type(thresholds)(*table)
     if not shared:
         rig_arrays = [pad_scenes(np.asarray(a), padded) for a in (rig.K, rig.R, rig.t)]
@@ -561,6 +579,8 @@ def associate_batch_at(
     # Chunks go round-robin over the devices (several run at once where there are several);
     # each is dispatched without waiting for the previous one.
     devices = chunk_devices(padded // chunk)
+    # Every chunk's σ row from the shared σ, on the device (one small program, no wait).
+    sigma_row = None if shared_sigma is None else _broadcast_row(shared_sigma, chunk)
     for start, device in zip(range(0, padded, chunk), devices):
         part = slice(start, start + chunk)
         rig_part = rig if shared else Rig(*(jnp.asarray(a[part]) for a in rig_arrays))
@@ -569,13 +589,10 @@ def associate_batch_at(
             if extras is None
             else (extras[0], None if extras[1] is None else extras[1][part], extras[2])
         )
-        args = (
-            rig_part,
-            xy[part],
-            mask[part],
-            type(thresholds)(*(v[part] for v in thresholds)),
-            extras_part,
-        )
+        thresholds_part = type(thresholds)(*(v[part] for v in thresholds))
+        if sigma_row is not None:
+            thresholds_part = thresholds_part._replace(sigma_px=sigma_row)
+        args = (rig_part, xy[part], mask[part], thresholds_part, extras_part)
         if device is None:
             results.append(call_stored(_associate_batch_jit, args, static, shared_rig=shared))
             continue

@@ -4,6 +4,7 @@ results keep the input's slots and carry the class in JSON, CSV and NPZ, and the
 command line associates an OpenPose folder by keypoint type."""
 
 import csv
+import dataclasses
 import json
 import os
 
@@ -148,6 +149,42 @@ def test_long_recordings_fit_sigma_in_chunks_bitwise_as_in_one(scene, monkeypatc
     np.testing.assert_array_equal(np.asarray(chunked.sigma_px), np.asarray(one.sigma_px))
     np.testing.assert_array_equal(np.asarray(chunked.labels), np.asarray(one.labels))
     np.testing.assert_array_equal(np.asarray(chunked.status), np.asarray(one.status))
+
+
+@pytest.mark.parametrize("robust", [False, True], ids=["auto", "robust"])
+def test_a_frame_queued_behind_its_sigma_fit_is_the_frame_alone(scene, monkeypatch, robust):
+    """One frame with a σ table floor (a live frame): σ stays on the device and the
+    association is queued behind its fit (nothing read back between them); every field is
+    bitwise the frame's through ``associate_classes``, with and without the person vote, and
+    a frame whose σ falls back is flagged as there."""
+    import cdog_jax.people._classes as classes_module
+
+    rig, xy, mask, classes, truth = scene
+    method = cdog_jax.Config.best(sigma_mode="robust") if robust else None
+    shared = []
+    batch = classes_module.associate_batch_at
+
+    def spy(*args, shared_sigma=None, **kwargs):
+        shared.append(isinstance(shared_sigma, jax.Array))
+        return batch(*args, shared_sigma=shared_sigma, **kwargs)
+
+    monkeypatch.setattr(classes_module, "associate_batch_at", spy)
+    thin = mask & (np.cumsum(mask, axis=2) <= 1)  # one detection a view: σ falls back
+    for m, options in ((mask, {}), (thin, {}), (mask, {"instances": truth[:1] % K})):
+        frame = (xy[:1], m[:1], classes[:1])
+        alone = associate_classes(rig, *frame, method=method, **options).association
+        queued = classes_module.associate_classes_at(
+            rig, *frame, method=method, min_samples=16, **options
+        ).association
+        assert shared[-2:] == [False, True]
+        for field in dataclasses.fields(alone):
+            a, b = (np.asarray(getattr(x, field.name)) for x in (alone, queued))
+            assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), field.name
+    assert np.asarray(alone.status)[0] == 0
+    fallback = int(cdog_jax.Status.SIGMA_FALLBACK)
+    thin_frame = (xy[:1], thin[:1], classes[:1])
+    queued = classes_module.associate_classes_at(rig, *thin_frame, method=method, min_samples=16)
+    assert np.asarray(queued.association.status)[0] & fallback
 
 
 @pytest.mark.parametrize("vote", [False, True], ids=["plain", "person-vote"])
@@ -337,8 +374,8 @@ def one_program_sigma_is_the_two_programs():
             used = classes._chunked_samples(rig, scenes, None, np.float32, False).per_scene
             assert classes._sample_bound(scenes.mask) == used.sum()
         two = classes._pooled_sigma(rig, scenes, 1, lens, np.float32, "frame", estimator)
-        one = classes._one_table_sigma(rig, scenes, lens, np.float32, estimator == "robust", 16)
-        for a, b in zip(one, two):
+        one = classes._one_table_fit(rig, scenes, lens, np.float32, estimator == "robust", 16)
+        for a, b in zip((np.asarray(a)[:1] for a in one), two):
             assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), estimator
         assert two[1].all() == falls_back, estimator
 

@@ -164,8 +164,8 @@ def test_a_held_sigma_is_the_first_trusted_estimate_and_answers_as_if_given(walk
         given.update(xy[0], m, classes=classes[0])
         assert held.held_sigma is None, out.sigma_px
     assert out.status & cdog_jax.Status.SIGMA_FALLBACK
-    fits, fit = [], people_classes._one_table_sigma
-    monkeypatch.setattr(people_classes, "_one_table_sigma", lambda *a: fits.append(1) or fit(*a))
+    fits, fit = [], people_classes._one_table_fit
+    monkeypatch.setattr(people_classes, "_one_table_fit", lambda *a: fits.append(1) or fit(*a))
     for f in range(FRAMES):
         a = held.update(xy[f], mask[f], classes=classes[f])
         b = given.update(xy[f], mask[f], classes=classes[f])

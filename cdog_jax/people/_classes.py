@@ -83,6 +83,18 @@ class SceneResults(NamedTuple):
     scenes: _Scenes
     result: Association  # (B, G, …) per scene: the association program's own arrays
     frame_flags: np.ndarray | None  # (1,) status bits of the frame beyond its scenes'
+    fell_back: jax.Array | None = None  # the σ fit's fallback (first entry), not yet read
+
+    def flags(self) -> np.ndarray | None:
+        """``frame_flags``, with the σ fit's fallback once it is read (here)."""
+        return self.frame_flags if self.fell_back is None else fallback_flags(self.fell_back)
+
+
+def fallback_flags(fell_back) -> np.ndarray:
+    """``(1,)`` status bits of a frame from its σ fit's fallback (the first entry of
+    ``fell_back``, read here): a frame whose σ fell back (too little evidence, or
+    implausibly large) is flagged as a scene that estimates its own σ is."""
+    return np.where(np.asarray(fell_back)[:1], np.int32(Status.SIGMA_FALLBACK), np.int32(0))
 
 
 def associate_classes(
@@ -235,7 +247,20 @@ def associate_classes_at(
         xy.dtype if np.issubdtype(xy.dtype, np.floating) else np.float64
     )
     auto = sigma == "auto" or method.sigma_mode != "given"
-    if auto and sigma_pool != "scene":
+    queued = (  # one live frame: σ stays on the device, the association queued behind its fit
+        auto
+        and sigma_pool != "scene"
+        and getattr(method, "threshold_unit", "px") == "px"
+        and _one_table(F, scenes, min_samples)
+    )
+    shared_sigma = fit_fallback = None
+    if queued:
+        robust = method.sigma_mode == "robust"
+        d = None if dist is None else np.asarray(dist, dtype)
+        shared_sigma, fit_fallback = _one_table_fit(rig, scenes, d, dtype, robust, min_samples)
+        method = method.replace(sigma_mode="given")
+        sigma_arg, frame_flags = 0.0, None
+    elif auto and sigma_pool != "scene":
         estimator = "robust" if method.sigma_mode == "robust" else "auto"
         frame_sigma, fell_back = _pooled_sigma(
             rig, scenes, F, dist, dtype, sigma_pool, estimator, min_samples
@@ -271,9 +296,12 @@ def associate_classes_at(
         min_slots=min_slots,
         on_host=True,
         untrimmed=scenes_only,
+        shared_sigma=shared_sigma,
     )
     if scenes_only:
-        return SceneResults(scenes, result, frame_flags)
+        return SceneResults(scenes, result, frame_flags, fit_fallback)
+    if fit_fallback is not None:  # the association is done: the fit's fallback is read now
+        frame_flags = fallback_flags(fit_fallback)
     out = _map_back(result, scenes, F, M, P, C, class_names, on_host, frame_flags)
     if vote is not None:
         fixed = person_consistent(
@@ -547,9 +575,10 @@ def _pooled_sigma(
     at least ``min_samples`` wide."""
     d = None if dist is None else np.asarray(dist, dtype)
     robust = estimator == "robust"
-    if min_samples and F == 1 and len(scenes.frame) <= SAMPLE_CHUNK:
+    if _one_table(F, scenes, min_samples):
         # One frame: the samples, the table and the fit in one program (a live frame).
-        return _one_table_sigma(rig, scenes, d, dtype, robust, min_samples)
+        sigma, fell_back = _one_table_fit(rig, scenes, d, dtype, robust, min_samples)
+        return np.asarray(sigma)[:1], np.asarray(fell_back)[:1]
     samples = _chunked_samples(rig, scenes, d, dtype, robust)
     group = scenes.frame if pool == "frame" else np.zeros_like(scenes.frame)
     G = F if pool == "frame" else 1
@@ -571,17 +600,23 @@ def _sample_bound(mask: np.ndarray) -> int:
     return int((per_view * other_views).sum())
 
 
-def _one_table_sigma(rig, scenes: _Scenes, dist, dtype, robust: bool, min_width: int):
-    """``(1,)`` σ and ``(1,)`` fallback of one frame's ``scenes`` pooled, as
-    :func:`_chunked_samples`, :func:`_sample_tables` and :func:`_chunked_fit` give them for one
-    group, bitwise, in one program (:func:`_pooled_table_fit`): no samples to the host and no
-    table back. Its table is as wide as :func:`fit_width` of the samples' upper bound
-    (:func:`_sample_bound`) + 1 and ``min_width``: a power of two at or above the used
-    count's, where σ is bitwise the same."""
+def _one_table(F: int, scenes: _Scenes, min_samples: int) -> bool:
+    """Whether the σ of one frame's ``scenes`` is fitted by :func:`_one_table_fit`: a caller
+    that gives the table's floor (a live frame) and scenes that one chunk of samples holds."""
+    return bool(min_samples) and F == 1 and len(scenes.frame) <= SAMPLE_CHUNK
+
+
+def _one_table_fit(rig, scenes: _Scenes, dist, dtype, robust: bool, min_width: int):
+    """``(2,)`` σ and ``(2,)`` fallback (the first entries the frame's; JAX arrays, not read)
+    of one frame's ``scenes`` pooled, as :func:`_chunked_samples`, :func:`_sample_tables`
+    and :func:`_chunked_fit` give them for one group, bitwise, in one program
+    (:func:`_pooled_table_fit`): no samples to the host and no table back. Its table is as
+    wide as :func:`fit_width` of the samples' upper bound (:func:`_sample_bound`) + 1 and
+    ``min_width``: a power of two at or above the used count's, where σ is bitwise the
+    same."""
     width = fit_width(max(_sample_bound(scenes.mask) + 1, min_width))
     args = (rig, np.asarray(scenes.xy, dtype), scenes.mask, dist, _rig_focal(rig), np.int32(1))
-    sigma, fell_back = call_stored(_pooled_table_fit, args, robust=robust, width=width)
-    return np.asarray(sigma)[:1], np.asarray(fell_back)[:1]
+    return call_stored(_pooled_table_fit, args, robust=robust, width=width)
 
 
 @partial(jit, static_argnames=("robust", "width"))

@@ -478,7 +478,7 @@ class LiveAssociator:
         runs again. Returns the frame's table and its σ, τ and status."""
         carry, out, found = self._tracked(scenes, det)
         # The association's σ, τ and status, read while the tracker runs.
-        sigma, tau, status = frame_fields(scenes.result, scenes.scenes.frame, 1, scenes.frame_flags)
+        sigma, tau, status = frame_fields(scenes.result, scenes.scenes.frame, 1, scenes.flags())
         while int(found) > self.rows:  # the tracks as they were, grown: the frame again
             self._grow_rows(int(found))
             carry, out, found = self._tracked(scenes, det)
