@@ -469,6 +469,7 @@ def associate_batch_at(
     on_host=False,
     untrimmed=False,
     shared_sigma=None,
+    checked=False,
 ):
     """:func:`associate_batch` at a slot capacity of at least ``min_slots`` per view (the
     rung that holds it): a caller that must meet one compiled program on every call (a live
@@ -479,7 +480,9 @@ def associate_batch_at(
     to another program), else as with ``on_host``. ``shared_sigma``: a JAX array whose first
     entry is every scene's σ (px), where the program that computed it left it, unchecked (the
     package's own fit; ``sigma`` is then ignored and the method must take σ as given): the
-    association is queued behind that program instead of waiting for its answer here."""
+    association is queued behind that program instead of waiting for its answer here.
+    ``checked``: ``xy`` and ``mask`` come from detections the caller has checked (their
+    values are not read again)."""
     expect_args("associate_batch", rig=(rig, Rig))
     expect(batch_size, INT, "batch_size", "associate_batch")
     method = method_argument(method, "associate_batch")
@@ -487,7 +490,8 @@ def associate_batch_at(
     xy, mask = as_array(xy), as_array(mask)
     shared = rig.K.ndim == 3
     check_rig(rig, batched=not shared)
-    check_observations(xy, mask, rig.num_views, batched=True)
+    if not checked:
+        check_observations(xy, mask, rig.num_views, batched=True)
     if batch_size < 1:
         raise ValueError(f"batch_size must be >= 1; got {batch_size}")
     B = xy.shape[0]

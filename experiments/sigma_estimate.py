@@ -292,7 +292,8 @@ def run(*, scenes=4, seed=0, quick=False, log=print):
 
 def markdown(out):
     lines = [
-        "| scenes | n | σ̂/σ before: median [10 %, 90 %] | after (scenes not falling back) | after: fallback share |",
+        "| scenes | n | σ̂/σ, simple EM: median [10 %, 90 %] "
+        '| `sigma="auto"` (scenes not falling back) | `sigma="auto"`: fallback share |',
         "|---|---|---|---|---|",
     ]
     fmt = lambda q: f"{q[0]:.2f} [{q[1]:.2f}, {q[2]:.2f}]"
@@ -308,16 +309,20 @@ def markdown(out):
         else [
             "",
             f"Sparse scenes with clutter ({p['scenes']} scenes), Config.paper(): impure groups "
-            f"{p['before'][0]} of {p['before'][1]} with σ estimated before, "
-            f"{p['auto'][0]} of {p['auto'][1]} after, {p['given'][0]} of {p['given'][1]} with σ = 1 given.",
+            f"{p['before'][0]} of {p['before'][1]} with σ from the simple EM, "
+            f"{p['auto'][0]} of {p['auto'][1]} with sigma='auto', "
+            f"{p['given'][0]} of {p['given'][1]} with σ = 1 given.",
         ]
     )
     nf = out["noise_free_one_point"]
     ez = nf["exact_zero"]
     lines.append(
-        f"Noise-free one-point scenes: before σ̂ = {', '.join(f'{v:.1e}' for v in nf['old'])} px, after "
+        "Noise-free one-point scenes: simple EM σ̂ = "
+        f"{', '.join(f'{v:.1e}' for v in nf['old'])} px, "
+        "sigma='auto' "
         f"{', '.join(f'{v:.1e}' for v in nf['new'])} px (fallback {sum(nf['fallback'])} of {len(nf['new'])}); "
-        f"every distance exactly 0: before {ez['old']}, after {ez['new']:.1e} px (fallback {ez['fallback']})."
+        f"every distance exactly 0: simple EM {ez['old']}, sigma='auto' {ez['new']:.1e} px "
+        f"(fallback {ez['fallback']})."
     )
     return "\n".join(lines)
 

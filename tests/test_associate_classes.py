@@ -151,6 +151,56 @@ def test_long_recordings_fit_sigma_in_chunks_bitwise_as_in_one(scene, monkeypatc
     np.testing.assert_array_equal(np.asarray(chunked.status), np.asarray(one.status))
 
 
+def _regroup_oracle(xy, mask, classes, C, weights):
+    """Scenes of (frame, class) by loops: those whose class shows in two views or more, in
+    (frame, class) order; each view's detections of the class in slot order."""
+    F, M, _ = mask.shape
+    scenes = []
+    for f in range(F):
+        for c in range(C):
+            cell = [np.flatnonzero(mask[f, m] & (classes[f, m] == c)) for m in range(M)]
+            if sum(len(s) > 0 for s in cell) >= 2:
+                scenes.append((f, c, cell))
+    B, Pc = len(scenes), max([len(s) for _, _, cell in scenes for s in cell] + [1])
+    out = (
+        np.zeros((B, M, Pc, 2), xy.dtype),
+        np.zeros((B, M, Pc), bool),
+        np.full((B, M, Pc), -1, np.int64),
+        np.array([f for f, _, _ in scenes], np.int64),
+        np.array([c for _, c, _ in scenes], np.int64),
+        None if weights is None else np.zeros((B, M, Pc), weights.dtype),
+    )
+    for b, (f, _, cell) in enumerate(scenes):
+        for m, slots in enumerate(cell):
+            n = len(slots)
+            out[0][b, m, :n], out[1][b, m, :n], out[2][b, m, :n] = xy[f, m, slots], True, slots
+            if weights is not None:
+                out[5][b, m, :n] = weights[f, m, slots]
+    return out
+
+
+def test_class_scenes_are_the_loops_scenes():
+    """The class scenes of a batch of frames, as loops over frames, classes and views make
+    them (random frames, weights, empty ones)."""
+    import cdog_jax.people._classes as classes_module
+
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        F, M, P, C = (int(rng.integers(1, n)) for n in (4, 6, 9, 5))
+        mask = rng.random((F, M, P)) < rng.random()
+        classes_ = rng.integers(0, C, (F, M, P))
+        xy = rng.random((F, M, P, 2)).astype(np.float32)
+        weights = rng.random((F, M, P)) if rng.random() < 0.5 else None
+        got = classes_module._regroup(xy, mask, classes_, C, weights)
+        want = _regroup_oracle(xy, mask, classes_, C, weights)
+        for name, a, b in zip(got._fields, got, want):
+            if b is None:
+                assert a is None, name
+                continue
+            assert a.dtype == b.dtype and a.shape == b.shape, name
+            np.testing.assert_array_equal(a, b, err_msg=name)
+
+
 @pytest.mark.parametrize("robust", [False, True], ids=["auto", "robust"])
 def test_a_frame_queued_behind_its_sigma_fit_is_the_frame_alone(scene, monkeypatch, robust):
     """One frame with a σ table floor (a live frame): σ stays on the device and the

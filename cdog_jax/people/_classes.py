@@ -297,6 +297,8 @@ def associate_classes_at(
         on_host=True,
         untrimmed=scenes_only,
         shared_sigma=shared_sigma,
+        # The class scenes are slots of the frame checked above (read again if cast).
+        checked=np.dtype(xy.dtype) == np.dtype(dtype),
     )
     if scenes_only:
         return SceneResults(scenes, result, frame_flags, fit_fallback)
@@ -427,22 +429,20 @@ def _num_classes(classes: np.ndarray, mask: np.ndarray, names, num_classes) -> i
 
 def _regroup(xy, mask, classes, C, weights) -> _Scenes:
     """One scene per (frame, class) with detections in >= 2 views; slots by input order."""
-    M = mask.shape[1]
-    f, m, p = np.nonzero(mask)
-    c = classes[f, m, p]
-    key = f * C + c
-    order = np.lexsort((p, m, key))
-    f, m, p, c, key = f[order], m[order], p[order], c[order], key[order]
+    F, M, _ = mask.shape
+    f, m, p = np.nonzero(mask)  # in (frame, view, slot) order
+    key = f * C + classes[f, m, p]  # every detection's (frame, class) scene
     cell = key * M + m
-    start = np.r_[0, np.flatnonzero(np.diff(cell)) + 1]
-    rank = np.arange(len(cell)) - np.repeat(start, np.diff(np.r_[start, len(cell)]))
-    views = (
-        np.zeros(0, np.int64) if len(cell) == 0 else key[start]
-    )  # one entry per (scene, view) cell
-    scene_keys, views_per_scene = np.unique(views, return_counts=True)
-    live = scene_keys[views_per_scene >= 2]
-    keep = np.isin(key, live)
-    b = np.searchsorted(live, key[keep])
+    order = np.argsort(cell, kind="stable")  # by scene, then view; slots keep their order
+    f, m, p, key, cell = f[order], m[order], p[order], key[order], cell[order]
+    first = np.ones(len(cell), bool)  # the first detection of each (scene, view) cell
+    first[1:] = cell[1:] != cell[:-1]
+    start = np.flatnonzero(first)
+    rank = np.arange(len(cell)) - start[np.cumsum(first) - 1]  # slot within its cell
+    views = np.bincount(key[start], minlength=F * C)  # views that hold each scene
+    live = np.flatnonzero(views >= 2)
+    keep = views[key] >= 2
+    b = (np.cumsum(views >= 2) - 1)[key[keep]]
     Pc = int(rank[keep].max()) + 1 if keep.any() else 1
     B = len(live)
     s_xy = np.zeros((B, M, Pc, 2), xy.dtype)
