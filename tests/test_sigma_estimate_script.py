@@ -29,7 +29,7 @@ def test_sigma_estimate_quick(tmp_path, capsys):
     assert out["purity"] == {}  # the association runs are left out of --quick
     nf = out["noise_free_one_point"]
     assert all(math.isfinite(v) for v in nf["new"]) and math.isfinite(nf["exact_zero"]["new"])
-    assert "σ̂/σ before" in capsys.readouterr().out
+    assert "σ̂/σ, simple EM" in capsys.readouterr().out
 
 
 def test_impure_share_counts_mixed_and_clutter_groups():
