@@ -87,14 +87,16 @@ class SceneResults(NamedTuple):
 
     def flags(self) -> np.ndarray | None:
         """``frame_flags``, with the σ fit's fallback once it is read (here)."""
-        return self.frame_flags if self.fell_back is None else fallback_flags(self.fell_back)
+        if self.fell_back is None:
+            return self.frame_flags
+        return fallback_flags(np.asarray(self.fell_back)[:1])
 
 
 def fallback_flags(fell_back) -> np.ndarray:
-    """``(1,)`` status bits of a frame from its σ fit's fallback (the first entry of
-    ``fell_back``, read here): a frame whose σ fell back (too little evidence, or
-    implausibly large) is flagged as a scene that estimates its own σ is."""
-    return np.where(np.asarray(fell_back)[:1], np.int32(Status.SIGMA_FALLBACK), np.int32(0))
+    """Status bits of frames from their σ fits' fallbacks ``fell_back`` (read here): a frame
+    whose σ fell back (too little evidence, or implausibly large) is flagged as a scene that
+    estimates its own σ is."""
+    return np.where(np.asarray(fell_back), np.int32(Status.SIGMA_FALLBACK), np.int32(0))
 
 
 def associate_classes(
@@ -265,9 +267,7 @@ def associate_classes_at(
         frame_sigma, fell_back = _pooled_sigma(
             rig, scenes, F, dist, dtype, sigma_pool, estimator, min_samples
         )
-        # A frame whose σ fell back (too little evidence, or implausibly large) is flagged
-        # as a scene that estimates its own σ is.
-        frame_flags = np.where(fell_back, np.int32(Status.SIGMA_FALLBACK), np.int32(0))
+        frame_flags = fallback_flags(fell_back)
         sigma_arg = np.asarray(frame_sigma[scenes.frame], dtype)
         if (
             getattr(method, "threshold_unit", "px") == "focal"
@@ -303,7 +303,7 @@ def associate_classes_at(
     if scenes_only:
         return SceneResults(scenes, result, frame_flags, fit_fallback)
     if fit_fallback is not None:  # the association is done: the fit's fallback is read now
-        frame_flags = fallback_flags(fit_fallback)
+        frame_flags = fallback_flags(np.asarray(fit_fallback)[:1])
     out = _map_back(result, scenes, F, M, P, C, class_names, on_host, frame_flags)
     if vote is not None:
         fixed = person_consistent(
