@@ -196,6 +196,7 @@ def associate_classes_at(
     min_vote_rows=8,
     on_host=False,
     scenes_only=False,
+    checked=False,
 ):
     """:func:`associate_classes` with at least ``min_scenes`` scenes (empty ones added) of at
     least ``min_slots`` slots per view, the σ fit's table at least ``min_samples`` wide, the
@@ -206,15 +207,21 @@ def associate_classes_at(
     association's fields NumPy arrays with ``on_host`` (for a caller that reads them on the
     host). ``scenes_only`` (one frame, no person vote): the class scenes' results before
     they are mapped to the frame, :class:`SceneResults` (``None`` for a frame without a
-    scene), their arrays left where the program put them."""
+    scene), their arrays left where the program put them. ``checked``: the caller has checked
+    the frames (``xy`` and ``mask`` as :func:`check_observations` wants them, ``classes``
+    int64 ids below ``num_classes``, 0 outside the mask: a live loop, which checks each frame
+    as it comes); they are not read again."""
     expect_args("associate_classes", rig=(rig, Rig))
     expect(batch_size, INT, "batch_size", "associate_classes")
     method = method_argument(method, "associate_classes")
     xy, mask = np.asarray(as_array(xy)), np.asarray(as_array(mask))
     check_rig(rig)
-    check_observations(xy, mask, rig.num_views, batched=True)
-    classes = _check_classes(classes, mask)
-    C = _num_classes(classes, mask, class_names, num_classes)
+    if checked:
+        C = int(num_classes)
+    else:
+        check_observations(xy, mask, rig.num_views, batched=True)
+        classes = _check_classes(classes, mask)
+        C = _num_classes(classes, mask, class_names, num_classes)
     vote = person_vote_argument(person_vote, instances)
     if scenes_only and (vote is not None or mask.shape[0] != 1):
         raise ValueError("scenes_only: one frame without the person vote")

@@ -269,14 +269,14 @@ class LiveAssociator:
         if raised or not self._compiled:
             self._warm_sigma_fits(M)
 
+        front = order[:, :count]
+
         def pad(a, fill):
-            packed = np.take_along_axis(
-                a, order.reshape(order.shape + (1,) * (a.ndim - 2)), axis=1
-            )[:, :count]
-            return np.concatenate(
-                [packed, np.full((M, self.frame_slots - count, *a.shape[2:]), fill, a.dtype)],
-                axis=1,
+            out = np.full((M, self.frame_slots, *a.shape[2:]), fill, a.dtype)
+            out[:, :count] = np.take_along_axis(
+                a, front.reshape(front.shape + (1,) * (a.ndim - 2)), axis=1
             )
+            return out
 
         xy_p, mask_p, cls_p = pad(xy, 0), pad(mask, False), pad(classes, 0)
         inst_p = None if instances is None else pad(instances, -1)
@@ -290,6 +290,7 @@ class LiveAssociator:
             min_slots=self.low_slots if per_class <= self.low_slots else self.slots,
             batch_size=self._scenes_per_chunk,
             min_samples=self._fit_widths[0],
+            checked=True,  # by _frame: the frame is not read again
         )
         frame_det = self._detections(xy_p, mask_p, cls_p)
         vote = person_vote_argument(self.person_vote, inst_p)
