@@ -2,9 +2,12 @@
 formats, the benchmark, calibration (and optimistix), the command line and matplotlib load
 on first use. The command line itself loads the file formats, not the sweep or the figures."""
 
+import ast
 import json
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -87,3 +90,65 @@ def test_a_star_import_still_brings_the_figures():
     names = {}
     exec("from cdog_jax import *", names)
     assert {"associate", "Config", "plot_rig", "plot_association"} <= set(names)
+
+
+def _function_level_imports():
+    """``(file, line, module, commented)`` of every import inside a function of the package:
+    ``module`` as it would be loaded (a relative import resolved; ``from pkg import sub`` of a
+    subpackage is ``pkg.sub``); ``commented``: a comment on the import's block (the line
+    above its first import, or the import line itself)."""
+    root = Path(cdog_jax_root())
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        lines = path.read_text().splitlines()
+        # The package a relative import starts from: the module's own (a package's for
+        # its __init__).
+        package = path.relative_to(root.parent).with_suffix("").parts[:-1]
+        for function in ast.walk(ast.parse("\n".join(lines))):
+            if not isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            block_start = None
+            for node in ast.walk(function):
+                if not isinstance(node, (ast.Import, ast.ImportFrom)):
+                    continue
+                if isinstance(node, ast.Import):
+                    modules = [alias.name for alias in node.names]
+                else:
+                    base = ".".join(package[: len(package) - node.level + 1]) if node.level else ""
+                    module = ".".join(p for p in (base, node.module or "") if p)
+                    modules = (
+                        [module] if node.module else [f"{module}.{a.name}" for a in node.names]
+                    )
+                above = lines[node.lineno - 2].strip()
+                # A block: consecutive imports (blank lines between them allowed).
+                if block_start is None or not all(
+                    line.strip() == ""
+                    or line.strip().startswith(("from ", "import ", ")"))
+                    or line.strip().endswith(",")
+                    for line in lines[block_start : node.lineno - 1]
+                ):
+                    block_start = node.lineno - 1
+                    commented = above.startswith("#") or "#" in lines[node.lineno - 1]
+                for module in modules:
+                    found.append((path.relative_to(root.parent), node.lineno, module, commented))
+    return found
+
+
+def cdog_jax_root() -> str:
+    import cdog_jax
+
+    return os.path.dirname(cdog_jax.__file__)
+
+
+def test_imports_inside_functions_defer_what_the_package_does_not_load(loaded):
+    """An import inside a function is there to defer a module that ``import cdog_jax`` and
+    its command line do not load (matplotlib, scipy, tqdm, the synthetic scenes, the sweep,
+    an optional library), and says so in a comment; any other import goes at the top of its
+    module."""
+    early = set(loaded["cli"])
+    found = _function_level_imports()
+    assert len(found) > 10  # the figures' and the optional libraries' imports at least
+    needless = [f"{f}:{line} {m}" for f, line, m, _ in found if m in early]
+    assert needless == [], "imports inside functions of modules already loaded"
+    silent = [f"{f}:{line} {m}" for f, line, m, commented in found if not commented]
+    assert silent == [], "imports inside functions without a comment saying why"

@@ -14,8 +14,10 @@ compiled, a call whose estimate exceeds the budget of :func:`memory_budget_bytes
 
 from __future__ import annotations
 
+import ctypes
 import os
 
+import jax
 import numpy as np
 
 from .._method import Method
@@ -88,7 +90,6 @@ def memory_budget_bytes(budget_gb: float | None = None) -> tuple[float, str]:
         if not budget_gb > 0:
             raise ValueError(f"the memory budget must be > 0 GB; got {budget_gb!r} ({source})")
         return float(budget_gb) * 1e9, source
-    import jax
 
     device = jax.devices()[0]
     limit = None
@@ -176,8 +177,6 @@ _M_MMAP_THRESHOLD = -3
 
 def _glibc():
     """glibc's C library (``ctypes``), or None under another C library."""
-    import ctypes
-
     try:
         libc = ctypes.CDLL("libc.so.6")
     except OSError:

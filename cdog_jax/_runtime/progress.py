@@ -29,6 +29,7 @@ def interactive() -> bool:
 def bar(total: int | None, desc: str, unit: str = "it", **options: Any) -> Any:
     """A tqdm bar on stderr, disabled (every call a no-op) when not :func:`interactive`;
     ``options`` go to ``tqdm``."""
+    # tqdm loads with the first progress bar
     from tqdm import tqdm
 
     return tqdm(

@@ -34,7 +34,9 @@ from pathlib import Path
 from typing import Any
 
 import jax
+import jaxlib
 import numpy as np
+from jax import export
 
 from .compile_cache import cache_dir_from_environment
 from .xla_kernels import jit
@@ -130,10 +132,6 @@ def _key(fun: Callable, static: dict, treedef, avals, options: tuple) -> str:
 
 
 def _jaxlib_version() -> str:
-    try:
-        import jaxlib
-    except ImportError:
-        return ""
     return str(getattr(jaxlib, "__version__", ""))
 
 
@@ -156,8 +154,6 @@ def _load_or_export(path: Path, fun: Callable, static: dict, treedef, specs):
 
     File: one JSON line (the output dataclass and its field names, so that a later process
     rebuilds the result without tracing), then the serialised program."""
-    from jax import export
-
     try:
         header, blob = path.read_bytes().split(b"\n", 1)
         meta = json.loads(header)

@@ -29,6 +29,7 @@ from collections.abc import Callable
 from typing import Any
 
 import jax
+import jaxlib
 from jax._src import xla_bridge
 
 FLAG = "--xla_cpu_experimental_ynn_fusion_type="
@@ -41,13 +42,7 @@ only on these."""
 
 
 def _measured_jaxlib() -> bool:
-    try:
-        import jaxlib
-
-        version = str(jaxlib.__version__)
-    except (ImportError, AttributeError):
-        return False
-    return version.startswith(MEASURED_JAXLIB)
+    return str(getattr(jaxlib, "__version__", "")).startswith(MEASURED_JAXLIB)
 
 
 def _cpu_is_the_backend() -> bool:

@@ -79,6 +79,7 @@ def exact_groups(
     valid groups first, ordered by their smallest node ``m · P + i``), ``valid (G,)`` and the
     optimal cost (px)."""
     try:
+        # scipy loads with this method alone (scipy ships with jax)
         from scipy.optimize import Bounds, LinearConstraint, milp
         from scipy.sparse import csr_array
     except ImportError as error:  # pragma: no cover - scipy ships with jax

@@ -32,6 +32,7 @@ a smaller scale when the capacities would sum beyond 2²⁹)."""
 
 def _scipy():
     try:
+        # scipy loads with this method alone (scipy ships with jax)
         from scipy.sparse import csr_array
         from scipy.sparse.csgraph import breadth_first_order, connected_components, maximum_flow
         from scipy.spatial import cKDTree

@@ -42,6 +42,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import jaxlib
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
@@ -50,6 +51,7 @@ from .._method import Method, Observations, method_from
 from .._runtime.memory import check_memory
 from .._runtime.progress import compiling, interactive, sweep_bar
 from .._runtime.xla_kernels import jit
+from .._version import __version__
 from ..cdog._pipeline import Config
 from ..geometry._camera import Rig
 from ..metrics._scores import Metrics, scene_metrics
@@ -674,10 +676,6 @@ def _time_buckets(rig, box, configs, grid, layout, image_size, runs):
 
 def versions() -> dict[str, str]:
     """Versions of the libraries that produce a sweep: jax, jaxlib, cdog_jax, numpy."""
-    import jaxlib
-
-    from .._version import __version__
-
     return {
         "jax": jax.__version__,
         "jaxlib": jaxlib.__version__,

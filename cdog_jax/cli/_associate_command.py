@@ -29,11 +29,42 @@ import tempfile
 import time
 from typing import Any, NamedTuple
 
+import equinox as eqx
+import jax
+import jax.numpy as jnp
 import numpy as np
 
+from .. import (
+    Status,
+    associate_batch,
+    method_from,
+)
+from .._result import Association
+from .._runtime.memory import release_freed_memory
+from .._status import status_messages
+from ..geometry import describe_rig
+from ..geometry._distortion import Fisheye
+from ..graph._sigma import FALLBACK_SIGMA_PX
+from ..io import (
+    load_detections,
+    load_keypoint_table,
+    load_openpose,
+    load_rig,
+    save_association_csv,
+    save_association_json,
+    save_association_npz,
+)
+from ..io._association_files import CsvParts, JsonParts, NpzParts
+from ..io._atomic import atomic_savefig
+from ..io._detections_checks import check_float_range
 from ..io._errors import InputError
-from ..io._keypoints import SKELETONS
+from ..io._keypoints import SKELETONS, OpenPoseParts, _OpenPoseFiles
+from ..io._read_files import open_npz
 from ..io._rig_files import FORMATS
+from ..io._trc import TrcParts, person_markers, save_people_trc, save_trc, track_markers
+from ..people._classes import associate_classes_at
+from ..people._persons import PersonLinker, people_part
+from ..tracking._tracks import track_part
 from ._common import (
     _FIGURE_EXTENSIONS,
     _emit,
@@ -278,9 +309,7 @@ def _associate_frames(call, xy, mask, weights, batch_size: int):
     and the results joined: one chunk (one call) up to ``_PROGRESS_STEPS`` batches, else
     chunks of a whole number of batches, the last padded with copies of the last frame
     (one shape, one compiled program), the copies' results dropped."""
-    import jax
-    import jax.numpy as jnp
-
+    # The progress bar (tqdm) loads when a run shows one.
     from .._runtime.progress import bar, compiling
 
     F = xy.shape[0]
@@ -362,8 +391,6 @@ def _points_format(path: str, given: str) -> str:
     if suffix == ".csv":
         return "table"
     if suffix == ".npz":
-        from ..io._read_files import open_npz
-
         with open_npz(path) as npz:
             return "table" if "frame" in npz.files else "detections"
     return "detections"
@@ -371,9 +398,6 @@ def _points_format(path: str, given: str) -> str:
 
 def _load(args):
     """Rig file and detections, checked against each other (views, image size, capacity)."""
-    from ..io import load_detections, load_keypoint_table, load_openpose, load_rig
-    from ..io._keypoints import OpenPoseParts, _OpenPoseFiles
-
     # Far from its world's origin (UTM-like coordinates) the rig is centred on its cameras,
     # so that float32 holds it; the outputs' points are put back in the file's world.
     rig_file = load_rig(args.rig, format=args.rig_format, origin="auto")
@@ -437,8 +461,6 @@ class _Tally:
         self.detections, self.shapes = 0, {"min_slots": 0, "min_samples": 0}
 
     def __call__(self, frames: slice, det) -> None:
-        from ..io._detections_checks import check_float_range
-
         check_float_range(det, self.dtype, self.source, frames.start)
         self.detections += int(det.mask.sum())
         for key, value in _class_shapes(det).items():
@@ -480,8 +502,6 @@ def _padded(det, F: int):
 def _first_frames(result, n: int):
     """A result of frames (an association, a classed or tracked one, people) cut to its
     first ``n`` frames."""
-    import jax
-
     # On the host: slicing a device array would be an eager operation, compiled per shape.
     if result is None or not hasattr(result, "_fields"):  # an Association: every leaf
         cut = lambda a: np.asarray(a)[:n]  # noqa: E731
@@ -499,10 +519,6 @@ def _in_world(result, origin: np.ndarray):
     """A result (an association, a classed or tracked one, people) with its 3D points moved
     from the centred rig's frame back to the rig file's world: float64 points, ``origin``
     added to every valid group's point (padding rows keep 0) and to every person's."""
-    import equinox as eqx  # as every import of JAX here: when the command runs
-
-    from .._result import Association
-
     if result is None:
         return result
     if isinstance(result, Association):
@@ -524,8 +540,6 @@ def refuse_camera_to_world(rig_file, path: str, det=None) -> None:
     convention), judged on the frame with the most detections when ``det`` is given, else
     on where the optical axes meet; before any work. The detections' rays are cast without
     the lens: the test is coarse (cameras facing away), and stays on the host."""
-    from ..geometry import describe_rig
-
     xy = mask = None
     if det is not None and det.mask.any():
         f = int(np.argmax(det.mask.sum(axis=(1, 2))))
@@ -554,25 +568,6 @@ def _image_diagonal(rig_file) -> tuple[float, str]:
 
 def run_associate(args: argparse.Namespace) -> int:
     """Load, check, associate all frames, print a summary, write the outputs."""
-    import jax
-    import jax.numpy as jnp
-
-    from .. import (
-        Status,
-        associate_batch,
-        method_from,
-    )
-    from .._runtime.memory import release_freed_memory
-    from ..geometry._distortion import Fisheye
-    from ..graph._sigma import FALLBACK_SIGMA_PX
-    from ..io import save_association_csv, save_association_json, save_association_npz
-    from ..io._association_files import CsvParts, JsonParts, NpzParts
-    from ..io._detections_checks import check_float_range
-    from ..io._trc import TrcParts
-    from ..people._classes import associate_classes_at
-    from ..people._persons import PersonLinker, people_part
-    from ..tracking._tracks import track_part
-
     _check_paths(
         args, {"--out": (args.out, _OUT_FORMATS), "--plot": (args.plot, _FIGURE_EXTENSIONS)}
     )
@@ -851,7 +846,6 @@ def run_associate(args: argparse.Namespace) -> int:
             else ""
         )
     )
-    from .._status import status_messages
 
     status = summary.status
     for flag in Status:  # the σ fallback is said on the line above
@@ -903,6 +897,7 @@ def run_associate(args: argparse.Namespace) -> int:
         if ext != ".trc":
             lines.append(f"Wrote {args.out}")
     if args.plot is not None:
+        # The figures (matplotlib) and the scenes' image size load only when a plot is asked for.
         from ..synthetic import intrinsics_image_size
         from ..viz import plot_association
 
@@ -1010,12 +1005,8 @@ def _write_trc(args, people, tracked, *, parts=None) -> str:
     """Write ``--out`` as ``.trc``: one file per person, else one marker per track (of the
     whole recording, or of its ``parts``, a :class:`~cdog_jax.io._trc.TrcParts`). Returns the
     summary line."""
-    from ..io._trc import save_people_trc, save_trc, track_markers
-
     options = dict(rate=args.fps, units=args.units, z_up=args.z_up)
     if people is not None or (parts is not None and parts.people is not None):
-        from ..io._trc import person_markers
-
         stem = os.path.splitext(args.out)[0]
         inputs = {"--rig": input_files(args.rig), "--points": _point_files(args.points)}
         targets = (
@@ -1093,8 +1084,6 @@ def _class_summary(per: np.ndarray, most: np.ndarray) -> str:
 
 def run_rig(args: argparse.Namespace) -> int:
     """Print the rig's description (and warnings); optionally draw it."""
-    from ..geometry import describe_rig
-
     _check_paths(args, {"--plot": (args.plot, _FIGURE_EXTENSIONS)})
     rig_file, det, _ = _load(args)
     xy = mask = None
@@ -1117,12 +1106,12 @@ def run_rig(args: argparse.Namespace) -> int:
         )
     lines.append(text)
     if args.plot is not None:
+        # matplotlib loads only when a plot is asked for.
         import matplotlib
 
         matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        import matplotlib.pyplot as plt  # after the backend is chosen
 
-        from ..io._atomic import atomic_savefig
         from ..viz import plot_rig
 
         ax = plot_rig(rig_file.rig, names=rig_file.names, image_size=rig_file.image_size)
@@ -1137,6 +1126,4 @@ def run_rig(args: argparse.Namespace) -> int:
 
 def _has_lens(dist) -> bool:
     """Whether a rig file's lens does anything (a fisheye lens always does)."""
-    from ..geometry._distortion import Fisheye
-
     return isinstance(dist, Fisheye) or (dist is not None and bool(np.any(dist)))

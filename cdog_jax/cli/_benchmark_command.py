@@ -11,11 +11,15 @@ import argparse
 import os
 import time
 
+import numpy as np
+
 from ..benchmark._methods import DEFAULT_METHODS, METHODS
+from ..io import load_rig
 from ..io._errors import InputError
 from ..io._rig_files import FORMATS
 from ._associate_command import _RIG_FORMATS_TEXT
 from ._common import _nonnegative_float, _nonnegative_int, _positive_int, seed_int
+from ._paths import check_input, check_output_folder, input_files, write_output
 
 
 def _method_list(text: str) -> tuple[str, ...]:
@@ -119,6 +123,7 @@ def add_parser(subparsers) -> None:
 
 
 def _grid_from_args(args):
+    # The benchmark's modules load when the command runs: the other commands never pay.
     from ..benchmark._grid import Grid
 
     grid = Grid.quick() if args.quick else Grid.paper()
@@ -149,8 +154,7 @@ def _buckets_for(counts, requested, quick: bool) -> tuple[int, ...]:
 def _scene_setup(args, grid):
     """``(rig, box, image_size, description)`` for the sweep: the built-in rig and box, or
     the rig file of ``--rig`` with the box the (selected) views see, unless ``--box``."""
-    import numpy as np
-
+    # The synthetic scenes' module loads only in the commands that make scenes.
     from ..synthetic import DEFAULT_BOX, IMAGE_SIZE, default_rig, intrinsics_image_size, visible_box
 
     def check_views(rig, name):
@@ -165,7 +169,6 @@ def _scene_setup(args, grid):
         rig = default_rig()
         check_views(rig, "the built-in rig")
         return rig, box, image_size, "the built-in 10-view rig"
-    from ..io import load_rig
 
     # Far from its world's origin (UTM-like coordinates) the rig is centred on its cameras,
     # which float32 can hold; a --box given in the file's world moves with it.
@@ -206,8 +209,6 @@ def _scene_setup(args, grid):
 def _check_paths(args) -> None:
     """The rig exists; ``--out`` is (or can be made) a writable folder whose files are
     not the rig's. Before any work."""
-    from ._paths import check_input, check_output_folder, input_files
-
     inputs = {}
     if args.rig:
         check_input(args.rig, "--rig", kind="any")
@@ -225,6 +226,8 @@ def _check_paths(args) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark; returns the exit code."""
+    # The sweep, its figures and the progress bar load when the command runs: the other
+    # commands and --help never pay for them.
     from .. import viz as figures
     from .._runtime.progress import interactive, sweep_bar
     from ..benchmark._cpu_cores import use_cpu_cores
@@ -279,8 +282,6 @@ def run(args: argparse.Namespace) -> int:
     print(summary_table(result, sigmas=standard if len(standard) >= 2 else grid.sigmas))
     print()
 
-    from ._paths import write_output
-
     write_output(
         args.out,
         "--out",
@@ -295,7 +296,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _figures(figures, result, args) -> None:
     """The benchmark's PNG figures in ``args.out``."""
-    from ..benchmark._grid import Grid
+    from ..benchmark._grid import Grid  # loaded when the command runs (_grid_from_args)
 
     metrics = {name: result.metrics[name] for name in result.configs}
     for name in result.configs:

@@ -5,6 +5,7 @@ after table, and the convergence figure."""
 from __future__ import annotations
 
 import argparse
+import math
 
 import numpy as np
 
@@ -15,6 +16,7 @@ from ._common import (
     check_sigma_fits,
     seed_int,
 )
+from ._paths import check_output, write_output
 
 
 def format_table(rows: list[dict]) -> str:
@@ -91,12 +93,10 @@ def add_parser(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the experiment, print the table, write the figure; returns the exit code."""
-    import math
-
-    # The experiment needs optimistix, a large import: loaded when the command runs.
+    # The experiment needs optimistix, a large import, and the synthetic scenes: loaded when
+    # the command runs.
     from ..calibration._drift_experiment import COARSE_GATES_PX, LEVELS, NO_DRIFT, run_experiment
     from ..synthetic import IMAGE_SIZE
-    from ._paths import check_output, write_output
 
     check_output(str(args.out), "--out", _FIGURE_EXTENSIONS, {})
     check_sigma_fits(

@@ -35,6 +35,9 @@ import os
 import sys
 from collections.abc import Sequence
 
+from .._runtime.compile_cache import disable_compilation_cache, enable_compilation_cache
+from .._runtime.memory import limit_heap_arenas, map_large_blocks
+from .._runtime.xla_kernels import use_xla_kernels
 from .._version import __version__
 from . import (
     _associate_command,
@@ -84,15 +87,13 @@ def main(argv: Sequence[str | os.PathLike[str]] | None = None) -> int:
     ``os.PathLike``); returns the exit code: 0, or 2 for a user error (one line on stderr)."""
     args = build_parser().parse_args(None if argv is None else [str(a) for a in argv])
     if argv is None:  # the process's own command line: batches may use every core
-        from .._runtime.memory import limit_heap_arenas, map_large_blocks
-        from .._runtime.xla_kernels import use_xla_kernels
+        # (the benchmark's package: loaded here, by the process's own command line only)
         from ..benchmark._cpu_cores import use_cpu_cores
 
         limit_heap_arenas()  # the process's C heap stays compact over a long recording
         map_large_blocks()  # and its large tables go back to the system when freed
         use_xla_kernels()  # XLA's own kernels for small sums and products: faster here
         use_cpu_cores(count=_cpu_devices_from_environment())
-    from .._runtime.compile_cache import disable_compilation_cache, enable_compilation_cache
 
     if args.no_cache:
         disable_compilation_cache()

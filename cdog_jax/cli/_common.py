@@ -6,6 +6,7 @@ import argparse
 import math
 import sys
 
+from .._method import method_names
 from ..io._errors import InputError
 
 
@@ -78,8 +79,6 @@ def _emit(lines: list[str]) -> None:
 
 def _method_name(text: str) -> str:
     """A registered method's name (checked when the arguments are parsed)."""
-    from .._method import method_names
-
     if text not in method_names():
         raise argparse.ArgumentTypeError(
             f"unknown method {text!r}; registered: {', '.join(method_names())}"

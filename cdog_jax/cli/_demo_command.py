@@ -5,11 +5,18 @@ the scene as files that ``cdog-jax associate`` reads."""
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import time
 
+import jax
+import numpy as np
+
+from .. import associate, method_from
 from .._runtime.xla_kernels import jit
+from ..io import save_detections_json, save_rig
+from ..io._atomic import atomic_write
 from ._common import (
     _FIGURE_EXTENSIONS,
     _emit,
@@ -19,6 +26,7 @@ from ._common import (
     check_sigma_fits,
     seed_int,
 )
+from ._paths import check_output, check_output_folder, write_output
 
 # Rows of the metrics table: (Metrics field, docs/BENCHMARK.md §2 name, format, unit / meaning).
 _METRIC_ROWS = (
@@ -91,13 +99,7 @@ def _save_scene(folder: str, rig, scene, sigma: float, seed: int) -> None:
     """Write ``scene`` (unbatched) into ``folder`` as ``rig.json``, ``detections.json`` and
     ``truth.json``; the truth lists the point id of every detection in the order of
     ``detections.json`` and the true 3D points (scene units)."""
-    import json
-
-    import numpy as np
-
-    from ..io import save_detections_json, save_rig
-    from ..io._atomic import atomic_write
-    from ..synthetic import IMAGE_SIZE
+    from ..synthetic import IMAGE_SIZE  # the synthetic scenes load when the demo runs
 
     os.makedirs(folder, exist_ok=True)
     mask = np.asarray(scene.mask)
@@ -118,26 +120,22 @@ def _save_scene(folder: str, rig, scene, sigma: float, seed: int) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import jax
-    import numpy as np
-
-    from .. import associate, method_from
+    # The scenes, their scores and the figure (matplotlib) load when the demo runs.
     from ..metrics import scene_metrics
     from ..synthetic import IMAGE_SIZE, default_rig, generate_scene
     from ..viz import plot_association
-    from ._paths import check_output, write_output
 
     capacity = args.points if args.capacity is None else args.capacity
     if capacity < args.points:
         args.parser.error(f"--capacity must be >= --points ({args.points}); got {capacity}")
     check_output(args.out, "--out", _FIGURE_EXTENSIONS, {})
     if args.save_scene is not None:
-        from ._paths import check_output_folder
-
         check_output_folder(args.save_scene, "--save-scene", _SCENE_FILES, {}, replace=args.force)
-    from ..synthetic import IMAGE_SIZE as _SIZE
-
-    check_sigma_fits(args.sigma, math.hypot(*_SIZE), f"the built-in rig ({_SIZE[0]}×{_SIZE[1]} px)")
+    check_sigma_fits(
+        args.sigma,
+        math.hypot(*IMAGE_SIZE),
+        f"the built-in rig ({IMAGE_SIZE[0]}×{IMAGE_SIZE[1]} px)",
+    )
     config = method_from(args.method, "cdog-jax demo")
     sigma_arg = "auto" if args.sigma_auto else args.sigma
     timings: list[tuple[str, float]] = []

@@ -16,8 +16,14 @@ import argparse
 import json
 import sys
 
+import numpy as np
+
+from .. import LiveAssociator, method_from
+from ..io import detections_from_lists, load_rig
+from ..io._class_labels import views_and_labels
 from ..io._errors import InputError
 from ..io._keypoints import SKELETONS
+from ..io._read_files import DuplicateKeyError, check_keys, unique_keys
 from ..io._rig_files import FORMATS
 from ._associate_command import _has_lens, refuse_camera_to_world
 from ._common import _positive_int, add_method_argument
@@ -98,9 +104,6 @@ def add_parser(subparsers) -> None:
 
 def run_track(args: argparse.Namespace) -> int:
     """Read frames from standard input until it ends; one output line per input line."""
-    from .. import LiveAssociator, method_from
-    from ..io import load_rig
-
     names = None
     if args.class_names is not None:
         names = tuple(n.strip() for n in args.class_names.split(","))
@@ -151,12 +154,6 @@ def run_track(args: argparse.Namespace) -> int:
 
 def _parse(line: str, n: int, live, ids):
     """One input line as ``(frame id, xy (M, P, 2), mask (M, P), classes (M, P) or None)``."""
-    import numpy as np
-
-    from ..io import detections_from_lists
-    from ..io._class_labels import views_and_labels
-    from ..io._read_files import DuplicateKeyError, check_keys, unique_keys
-
     where = f"line {n}"
     try:
         obj = json.loads(line, object_pairs_hook=unique_keys)

@@ -11,6 +11,7 @@ import numpy as np
 from .._expect import ARRAY, expect_args
 from .._types import Array, Bool, Float
 from ._camera import Rig, affine_per_view
+from ._distortion import as_lens, distort_pixels
 from ._homogeneous import points_from_homogeneous
 
 
@@ -32,8 +33,6 @@ def project(
     xy, ok = project_views_last(rig, X_world)
     xy, ok = jnp.moveaxis(xy, -2, 0), jnp.moveaxis(ok, -1, 0)
     if dist is not None:
-        from ._distortion import as_lens, distort_pixels
-
         xy = distort_pixels(rig.K, as_lens(dist, xy.dtype), xy.reshape(xy.shape[0], -1, 2)).reshape(
             xy.shape
         )

@@ -17,6 +17,7 @@ from .._expect import ARRAY, expect_args
 from .._types import Array, Bool, Float, Int, lift
 from ._camera import Rig
 from ._checks import check_tracks
+from ._distortion import as_lens, undistort_pixels
 from ._homogeneous import homogeneous_from_points
 
 
@@ -124,8 +125,6 @@ def triangulate(
         mask = jnp.all(jnp.isfinite(jnp.asarray(xy)), axis=-1)
     check_tracks(rig, xy, mask, weights, "triangulate")
     if dist is not None:
-        from ._distortion import as_lens, undistort_pixels
-
         xy = jnp.where(mask[..., None], xy, 0.0)
         xy = undistort_pixels(
             rig.K, as_lens(dist, xy.dtype), xy.reshape(xy.shape[0], -1, 2)

@@ -35,6 +35,7 @@ import io
 import json
 import math
 import os
+import zipfile
 from types import SimpleNamespace
 from typing import Any
 
@@ -462,8 +463,6 @@ class NpzParts:
         self.parts.append(stored)
 
     def write(self, path: PathLike) -> None:
-        import zipfile
-
         names = list(self.parts[0])
         if any(list(p) != names for p in self.parts):
             raise ValueError("NpzParts: every part must hold the same arrays")

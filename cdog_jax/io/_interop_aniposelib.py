@@ -64,6 +64,7 @@ def aniposelib_from_rig(rig: Rig, *, image_size: Any, dist: Any = None, names: A
     ``K / K[2,2]``.
     """
     try:
+        # an optional library (the `interop` extra), loaded by this converter alone
         from aniposelib.cameras import Camera, CameraGroup, FisheyeCamera
     except ImportError as e:
         raise ImportError("aniposelib_from_rig needs aniposelib: pip install aniposelib") from e

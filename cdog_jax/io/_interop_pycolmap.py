@@ -76,6 +76,7 @@ def pycolmap_from_rig(rig: Rig, *, image_size: Any, dist: Any = None, names: Any
     reads (so every pycolmap version builds it the same way). ``image_size``: ``(w, h)`` or
     ``(M, 2)``, required; ``dist``: ``(M, 5)`` or a :class:`cdog_jax.geometry.Fisheye`."""
     try:
+        # an optional library (the `interop` extra), loaded by this converter alone
         import pycolmap
     except ImportError as e:
         raise ImportError("pycolmap_from_rig needs pycolmap: pip install pycolmap") from e

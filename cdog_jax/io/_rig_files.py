@@ -28,6 +28,8 @@ import os
 import re
 from typing import Any, NamedTuple
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
 from ..geometry._camera import (
@@ -123,8 +125,6 @@ class _Views(NamedTuple):
 
 def check_rig_dtype(dtype: Any, function: str) -> None:
     """Refuse ``float64`` while JAX is 32-bit: it would quietly give a float32 rig."""
-    import jax
-
     if dtype is not None and np.dtype(dtype).itemsize == 8 and not jax.config.jax_enable_x64:
         raise ValueError(
             f"{function}: dtype={np.dtype(dtype).name} needs 64-bit JAX, which is off (the rig would be float32); "
@@ -144,7 +144,6 @@ def rig_file_from_views(views: _Views, dtype: Any, path: str, origin: Any = None
             raise ValueError(
                 f"origin must be 'cameras', 'auto' or 3 numbers (x, y, z); got {origin!r}"
             )
-        import jax.numpy as jnp
 
         far = (
             rounding_px(views.K, views.R, views.t, np.dtype(dtype or jnp.asarray(0.0).dtype))
@@ -179,8 +178,6 @@ def rig_file_from_views(views: _Views, dtype: Any, path: str, origin: Any = None
 
 def _check_float_range(views: _Views, dtype: Any, path: str) -> None:
     """Refuse numbers the rig's float type cannot hold (they would turn infinite)."""
-    import jax.numpy as jnp
-
     dtype = np.dtype(dtype or jnp.asarray(0.0).dtype)
     largest = float(np.finfo(dtype).max)
     for key, a in (("K", views.K), ("R", views.R), ("t", views.t)):

@@ -159,6 +159,7 @@ def scenes_for(method_metrics: Mapping[str, Any], field: str) -> np.ndarray:
 
 
 def _new_figure(width, height, **kw):
+    # matplotlib loads with the first figure: importing the package stays quick
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -184,6 +185,7 @@ def _is_score(field: str) -> bool:
 
 def _method_colors(methods: Sequence[str]) -> dict[str, Any]:
     """One colour per method: tab10 up to 10 methods, tab20 beyond (cycled past 20)."""
+    # matplotlib loads with the first figure: importing the package stays quick
     from matplotlib import colormaps
 
     cmap, n = (colormaps["tab10"], 10) if len(methods) <= 10 else (colormaps["tab20"], 20)

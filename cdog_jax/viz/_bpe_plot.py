@@ -35,6 +35,7 @@ def plot_bpe_histogram(
     Returns:
         A :class:`matplotlib.figure.Figure` with one axes.
     """
+    # matplotlib loads with the first figure: importing the package stays quick
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 

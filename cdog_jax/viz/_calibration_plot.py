@@ -11,10 +11,11 @@ def convergence_figure(rows: list[dict], path: str) -> str:
     """Mean rotation error (degrees) and focal error (%) against the truth, at the start and
     after each round, one line per level; the boundary between the coarse rounds (wand
     frames, shrinking gate) and the fine rounds (dense scenes) is marked."""
+    # matplotlib loads with the first figure: importing the package stays quick
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # after the backend is chosen
 
     fig, axes = plt.subplots(1, 2, figsize=(10.0, 4.0), constrained_layout=True)
     panels = (

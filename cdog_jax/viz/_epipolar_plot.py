@@ -76,6 +76,7 @@ def plot_epipolar(
     Returns:
         A :class:`matplotlib.figure.Figure`, one axes per view (``axes[view]`` the source).
     """
+    # matplotlib loads with the first figure: importing the package stays quick
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D

@@ -77,6 +77,7 @@ def heatmaps(
         ncols * (panel_w + 0.5) + 1.6, nrows * (panel_h + 0.9) + 0.7, layout="constrained"
     )
     fig.get_layout_engine().set(w_pad=0.06, h_pad=0.08, wspace=0.03, hspace=0.06)
+    # matplotlib loads with the first figure: importing the package stays quick
     from matplotlib import colormaps
 
     cmap = colormaps[_CMAP].with_extremes(bad="0.82")
@@ -177,6 +178,7 @@ def surfaces(
         raise ValueError(f"method must be one of {list(metrics)}; got {method!r}")
     sigma = _as_1d("sigma", sigma)
     m = _checked(metrics, fields)[method]
+    # matplotlib loads with the first figure: importing the package stays quick
     from matplotlib import colormaps
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize

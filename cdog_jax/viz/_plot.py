@@ -32,6 +32,7 @@ _MAX_NUMBERED_GROUPS = 60  # above this, group numbers next to detections are le
 
 def group_style(g: int) -> tuple[tuple[float, float, float, float], str]:
     """Colour (RGBA) and marker of group ``g``; no two groups below a few hundred share both."""
+    # matplotlib loads with the first figure: importing the package stays quick
     from matplotlib.colors import hsv_to_rgb
 
     hue = (0.07 + g * _GOLDEN) % 1.0
@@ -108,8 +109,10 @@ def plot_association(
     Returns:
         A :class:`matplotlib.figure.Figure` (Agg canvas): ``M`` view axes, then the 3D axes.
     """
+    # matplotlib loads with the first figure: importing the package stays quick
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+    from matplotlib.legend_handler import HandlerTuple
     from matplotlib.lines import Line2D
     from matplotlib.patches import Rectangle
 
@@ -362,7 +365,6 @@ def plot_association(
             )
         )
         names.append("wrong group: members of different true points")
-    from matplotlib.legend_handler import HandlerTuple
 
     fig.legend(
         handles,

@@ -82,6 +82,7 @@ def plot_rig(rig: Rig, *, ax=None, points=None, names=None, image_size=None, fru
     corners = _frustum_corners(K, R, t, size, float(frustum_depth))  # (M, 4, 3)
 
     if ax is None:
+        # matplotlib loads with the first figure: importing the package stays quick
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
 

@@ -134,11 +134,11 @@ def test_a_recording_in_parts_gives_the_whole_recordings_output(tmp_path, capsys
     common = ["associate", "--rig", tmp_path / "rig.json", "--points", tmp_path / "pose"]
     assert main([*common, "--out", tmp_path / "whole.npz"]) == 0
     whole_text = capsys.readouterr().out
-    import cdog_jax._runtime.memory as memory
+    import cdog_jax.cli._associate_command as command
 
     released = []  # between parts, the freed heap goes back to the system
-    release = memory.release_freed_memory
-    monkeypatch.setattr(memory, "release_freed_memory", lambda: released.append(release()))
+    release = command.release_freed_memory
+    monkeypatch.setattr(command, "release_freed_memory", lambda: released.append(release()))
     assert main([*common, "--part-frames", "3", "--out", tmp_path / "parts.npz"]) == 0
     assert len(released) == 3  # 7 frames: parts of 3, 3 and 1
     parts_text = capsys.readouterr().out
