@@ -464,7 +464,8 @@ class LiveAssociator:
         same = (classes[:, :, None] == classes[:, None, :]) & mask[:, None, :] & earlier
         rank = same.sum(axis=2)  # (M, P) detections of the slot's class before it in its view
         for rung in {self.low_slots, self.slots} - {association["min_slots"]}:
-            cut = (xy[None], (mask & (rank < rung))[None], classes[None])
+            kept = mask & (rank < rung)  # classes 0 where no detection, as _frame gives them
+            cut = (xy[None], kept[None], np.where(kept, classes, 0)[None])
             other = dict(association, min_slots=rung)
             if vote_args is None:
                 scenes = associate_classes_at(self.rig, *cut, scenes_only=True, **other)
