@@ -4,7 +4,6 @@ on first use. The command line itself loads the file formats, not the sweep or t
 
 import ast
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -95,9 +94,11 @@ def test_a_star_import_still_brings_the_figures():
 def _function_level_imports():
     """``(file, line, module, commented)`` of every import inside a function of the package:
     ``module`` as it would be loaded (a relative import resolved; ``from pkg import sub`` of a
-    subpackage is ``pkg.sub``); ``commented``: a comment on the import's block (the line
-    above its first import, or the import line itself)."""
-    root = Path(cdog_jax_root())
+    subpackage is ``pkg.sub``, of a name ``pkg``); ``commented``: a comment on the import's
+    block (consecutive imports, blank lines between them allowed) on or above its first line."""
+    import cdog_jax
+
+    root = Path(cdog_jax.__file__).parent
     found = []
     for path in sorted(root.rglob("*.py")):
         lines = path.read_text().splitlines()
@@ -107,7 +108,7 @@ def _function_level_imports():
         for function in ast.walk(ast.parse("\n".join(lines))):
             if not isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 continue
-            block_start = None
+            previous_end, commented = None, False
             for node in ast.walk(function):
                 if not isinstance(node, (ast.Import, ast.ImportFrom)):
                     continue
@@ -117,27 +118,31 @@ def _function_level_imports():
                     base = ".".join(package[: len(package) - node.level + 1]) if node.level else ""
                     module = ".".join(p for p in (base, node.module or "") if p)
                     modules = (
-                        [module] if node.module else [f"{module}.{a.name}" for a in node.names]
+                        [module]
+                        if node.module
+                        else [
+                            f"{module}.{a.name}"
+                            if _is_module(root, f"{module}.{a.name}")
+                            else module
+                            for a in node.names
+                        ]
                     )
-                above = lines[node.lineno - 2].strip()
-                # A block: consecutive imports (blank lines between them allowed).
-                if block_start is None or not all(
-                    line.strip() == ""
-                    or line.strip().startswith(("from ", "import ", ")"))
-                    or line.strip().endswith(",")
-                    for line in lines[block_start : node.lineno - 1]
-                ):
-                    block_start = node.lineno - 1
-                    commented = above.startswith("#") or "#" in lines[node.lineno - 1]
+                between = lines[previous_end : node.lineno - 1] if previous_end else [None]
+                if not all(line is not None and line.strip() == "" for line in between):
+                    commented = (
+                        lines[node.lineno - 2].strip().startswith("#")
+                        or "#" in lines[node.lineno - 1]
+                    )
+                previous_end = node.end_lineno
                 for module in modules:
                     found.append((path.relative_to(root.parent), node.lineno, module, commented))
     return found
 
 
-def cdog_jax_root() -> str:
-    import cdog_jax
-
-    return os.path.dirname(cdog_jax.__file__)
+def _is_module(root: Path, name: str) -> bool:
+    """Whether ``name`` (dotted, from the package's parent folder) is a module or package."""
+    path = root.parent.joinpath(*name.split("."))
+    return path.with_suffix(".py").exists() or (path / "__init__.py").exists()
 
 
 def test_imports_inside_functions_defer_what_the_package_does_not_load(loaded):
