@@ -408,7 +408,11 @@ def one_program_sigma_is_the_two_programs():
     mask[:, :, :K] &= np.arange(5)[None, :, None] == 1  # class 0: one view only
     sparse = np.zeros_like(mask)
     sparse[:, :2, K] = True  # one point of class 1 in two views: σ falls back
+    # View 0 without the last two classes: 185 samples at most, a table of 192 entries whose
+    # sums are 256 wide.
+    mask[0, 0, -2 * K :] = False
     dist = np.array([[-0.1, 0.01, 0.0, 0.0, 0.0]] * 5, np.float32)
+    widths = set()  # the one-program table's width less its sums'
     for m, estimator, lens, falls_back in (
         (mask, "auto", None, False),
         (sparse, "auto", None, True),
@@ -423,6 +427,9 @@ def one_program_sigma_is_the_two_programs():
         for a, b in zip((np.asarray(a)[:1] for a in one), two):
             assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), estimator
         assert two[1].all() == falls_back, estimator
+        bound = classes._sample_bound(scenes.mask) + 1
+        widths.add(classes.fine_fit_width(bound) - classes.fit_width(bound))
+    assert widths == {-64, 0}  # tables narrower than their sums (a power of two) and not
 
 
 def test_one_program_sigma_is_the_two_programs_bitwise():

@@ -57,6 +57,19 @@ def nearest_samples(
     return jnp.where(ok, x, 0.0), jnp.where(ok, 0.5, 0.0).astype(d.dtype), count
 
 
+def table_sum(values: Float[Array, " S"], width: int | None = None) -> Float[Array, ""]:
+    """``Σ values`` of a table of ``S`` samples; with ``width`` (``>= S``), summed as the
+    table padded with zeros to ``width`` entries (an entry of weight 0 adds an exact zero to
+    every sum of a fit). XLA's CPU compiler orders a sum by its length (windows of 32, their
+    sums summed the same way), so that a fit of a narrower table whose sums are padded to a
+    power of two is bitwise the fit of the table of that width, at the per-sample cost (the
+    EM's) of the narrower one."""
+    size = values.shape[-1]
+    if width is not None and width != size:
+        values = jnp.pad(values, (0, width - size))
+    return jnp.sum(values)
+
+
 SERIES_FROM = {4: 10.0, 8: 30.0}
 """log_half_normal_tail's switch to the asymptotic series, by bytes per float: where ``erfc``
 nears the smallest numbers of float32 (as ``log_ndtr``'s switch) and of float64."""
@@ -123,33 +136,52 @@ def _log_parts(x, count, c, inv_kappa, pi, width):
 
 
 def run_em(
-    log_parts, true_moments, x, w, count, c0, inv_kappa0, width, spread_min, pi0=None, iters=None
+    log_parts,
+    true_moments,
+    x,
+    w,
+    count,
+    c0,
+    inv_kappa0,
+    width,
+    spread_min,
+    pi0=None,
+    iters=None,
+    sum_width=None,
 ):
     """``iters`` (default :data:`EM_ITERS`) steps of the censored mixture from the scale
     ``c0``, the unrelated points' spread ``inv_kappa0`` and the shares ``pi0`` (default 0.6,
     0.3, 0.1); returns ``(c, inv_kappa, pi)``. ``log_parts(c, inv_kappa,
     pi)``: the ``(4, S)`` log joint densities; ``true_moments(c, match, hidden)``: ``(S,)``
     each sample's share of ``Σ E[T²]`` over the true pairs (its responsibilities
-    ``match``, ``hidden`` times the squared distance they imply), so that ``c² = Σ / n_true``."""
-    total = jnp.maximum(jnp.sum(w), MIN_SCALE_PX)
+    ``match``, ``hidden`` times the squared distance they imply), so that
+    ``c² = Σ / n_true``. ``sum_width``: the width the table's sums are padded to
+    (:func:`table_sum`)."""
+    total = jnp.maximum(table_sum(w, sum_width), MIN_SCALE_PX)
     max_count = jnp.maximum(jnp.max(jnp.where(w > 0, count, 1.0)), 1.0)
 
     def step(_, state):
         c, inv_kappa, pi = state
         resp = jax.nn.softmax(log_parts(c, inv_kappa, pi), axis=0) * w[None]
         match, hidden, none, uniform = resp
-        n_true = jnp.sum(match + hidden)
+        n_true = table_sum(match + hidden, sum_width)
         c_new = jnp.sqrt(
-            jnp.sum(true_moments(c, match, hidden)) / jnp.maximum(n_true, MIN_SCALE_PX)
+            table_sum(true_moments(c, match, hidden), sum_width) / jnp.maximum(n_true, MIN_SCALE_PX)
         )
         # (count − 1)·U is exponential with mean 1/κ; beside a match it is only known to exceed x.
         others = jnp.where(count > 1.0, count - 1.0, 0.0)
         censored = jnp.where(count > 1.0, match, 0.0)
-        seen = jnp.sum(hidden * others * x + none * count * x + censored * (others * x + inv_kappa))
-        inv_kappa = seen / jnp.maximum(jnp.sum(hidden + none + censored), MIN_SCALE_PX)
+        seen = table_sum(
+            hidden * others * x + none * count * x + censored * (others * x + inv_kappa), sum_width
+        )
+        inv_kappa = seen / jnp.maximum(table_sum(hidden + none + censored, sum_width), MIN_SCALE_PX)
         c = jnp.clip(c_new, MIN_SCALE_PX, width)
         inv_kappa = jnp.clip(inv_kappa, spread_min, width * max_count)
-        pi = jnp.clip(jnp.stack([n_true, jnp.sum(none), jnp.sum(uniform)]) / total, 1e-4, 1.0)
+        pi = jnp.clip(
+            jnp.stack([n_true, table_sum(none, sum_width), table_sum(uniform, sum_width)]) / total,
+            1e-4,
+            1.0,
+        )
         return c, inv_kappa, pi / jnp.sum(pi)
 
     if pi0 is None:
@@ -184,6 +216,7 @@ def em_start(
     w: Float[Array, " S"],
     count: Float[Array, " S"],
     focal_px: Float[Array, ""],
+    sum_width: int | None = None,
 ) -> tuple[
     Float[Array, ""], Float[Array, ""], Float[Array, " Q"], Float[Array, ""], Float[Array, ""]
 ]:
@@ -192,7 +225,7 @@ def em_start(
     when not finite or positive), the width of the uniform part, the half-normal scales
     ``c0 (len(START_QUANTILES),)`` that put each start quantile of the distances at its
     half-normal quantile, the mean of ``count · x`` (an unrelated point's spread) and the
-    smallest spread allowed."""
+    smallest spread allowed. ``sum_width``: as :func:`run_em`'s."""
     n = jnp.sum(w > 0)
     focal_px = jnp.where(jnp.isfinite(focal_px) & (focal_px > 0), focal_px, 1.0)
     width = jnp.maximum(jnp.max(x), UNIFORM_PER_FOCAL * focal_px)
@@ -204,7 +237,9 @@ def em_start(
     z = jnp.sqrt(2.0) * erfinv(q)
     at_q = ordered[jnp.floor(q * last).astype(jnp.int32)]
     c0 = jnp.clip(jnp.where(jnp.isfinite(at_q), at_q, 0.0) / z, MIN_SCALE_PX, width)
-    scaled_mean = jnp.sum(w * count * x) / jnp.maximum(jnp.sum(w), MIN_SCALE_PX)
+    scaled_mean = table_sum(w * count * x, sum_width) / jnp.maximum(
+        table_sum(w, sum_width), MIN_SCALE_PX
+    )
     return focal_px, width, c0, scaled_mean, SPREAD_PER_FOCAL * focal_px
 
 
@@ -213,12 +248,16 @@ def sigma_from_samples(
     w: Float[Array, "*S"],
     count: Float[Array, "*S"],
     focal_px: Float[Array, ""],
+    *,
+    sum_width: int | None = None,
 ) -> tuple[Float[Array, ""], Bool[Array, ""]]:
     """:func:`estimate_sigma` from the samples of :func:`nearest_samples` (any shape, e.g.
-    those of several scenes pooled; weight 0 marks an unused entry)."""
+    those of several scenes pooled; weight 0 marks an unused entry). ``sum_width``: the
+    width the samples' sums are padded to (:func:`table_sum`): σ is then that of the
+    samples padded with unused entries to ``sum_width``, bit for bit."""
     x, w, count = (a.reshape(-1) for a in (x, w, count))
     dtype = x.dtype
-    focal_px, width, c0, scaled_mean, spread_min = em_start(x, w, count, focal_px)
+    focal_px, width, c0, scaled_mean, spread_min = em_start(x, w, count, focal_px, sum_width)
     inv_kappa0 = jnp.clip(scaled_mean, spread_min, width * jnp.maximum(jnp.max(count), 1.0))
 
     def log_parts(c, inv_kappa, pi):
@@ -229,10 +268,21 @@ def sigma_from_samples(
 
     def em(c, inv_kappa, pi, iters):
         c, inv_kappa, pi = run_em(
-            log_parts, true_moments, x, w, count, c, inv_kappa, width, spread_min, pi, iters
+            log_parts,
+            true_moments,
+            x,
+            w,
+            count,
+            c,
+            inv_kappa,
+            width,
+            spread_min,
+            pi,
+            iters,
+            sum_width,
         )
         parts = log_parts(c, inv_kappa, pi)
-        return c, inv_kappa, pi, jnp.sum(w * jax.nn.logsumexp(parts, axis=0)), parts
+        return c, inv_kappa, pi, table_sum(w * jax.nn.logsumexp(parts, axis=0), sum_width), parts
 
     # Every start takes SELECT_AFTER steps; by then the starts bound for one optimum agree
     # and the most likely is on its way to the best one; it alone takes the remaining steps
@@ -241,7 +291,7 @@ def sigma_from_samples(
     best = most_likely(heads[3])
     c, _, _, _, parts = em(*(a[best] for a in heads[:3]), EM_ITERS - SELECT_AFTER)
     resp = jax.nn.softmax(parts, axis=0)
-    n_match = jnp.sum(w * (resp[0] + resp[1]))
+    n_match = table_sum(w * (resp[0] + resp[1]), sum_width)
     sigma, fallback = trusted_sigma(c / jnp.sqrt(2.0), n_match, focal_px)
     return sigma.astype(dtype), fallback
 

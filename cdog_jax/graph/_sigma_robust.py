@@ -34,6 +34,7 @@ from ._sigma import (
     most_likely,
     nearest_samples,
     run_em,
+    table_sum,
     trusted_sigma,
 )
 
@@ -135,7 +136,7 @@ def _second_moments(x, c, nu):
     return weight * x * x, c * c * _log_t_tail(a, nu)[1]
 
 
-def _em(x, x2, w, count, c0, inv_kappa0, width, spread_min, nu):
+def _em(x, x2, w, count, c0, inv_kappa0, width, spread_min, nu, sum_width):
     """EM from half-normal scale ``c0`` with the match distance's ``nu``; returns the scale,
     the unrelated points' spread ``1/κ``, the shares ``π`` and the log-likelihood."""
 
@@ -146,13 +147,22 @@ def _em(x, x2, w, count, c0, inv_kappa0, width, spread_min, nu):
         return match * _second_moments(x, c, nu)[0] + hidden * _second_moments(x2, c, nu)[1]
 
     c, inv_kappa, pi = run_em(
-        log_parts, true_moments, x, w, count, c0, inv_kappa0, width, spread_min
+        log_parts,
+        true_moments,
+        x,
+        w,
+        count,
+        c0,
+        inv_kappa0,
+        width,
+        spread_min,
+        sum_width=sum_width,
     )
-    log_lik = jnp.sum(w * jax.nn.logsumexp(log_parts(c, inv_kappa, pi), axis=0))
+    log_lik = table_sum(w * jax.nn.logsumexp(log_parts(c, inv_kappa, pi), axis=0), sum_width)
     return c, inv_kappa, pi, log_lik
 
 
-def _true_quantiles(q, x, x2, w, count, c, inv_kappa, pi, width, nu):
+def _true_quantiles(q, x, x2, w, count, c, inv_kappa, pi, width, nu, sum_width):
     """The ``q``-quantiles (pixels, any shape) of the true-pair distance ``T``, estimated from
     the samples under one fit, and the expected number of true pairs.
 
@@ -163,13 +173,13 @@ def _true_quantiles(q, x, x2, w, count, c, inv_kappa, pi, width, nu):
     """
     resp = jax.nn.softmax(_log_parts(x, x2, count, c, inv_kappa, pi, width, nu), axis=0) * w[None]
     match, hidden = resp[0], resp[1]
-    n_true = jnp.sum(match + hidden)
+    n_true = table_sum(match + hidden, sum_width)
     log_beyond_x = _log_match(x2 / c, c, nu)[1]
 
     def cdf(t):
         log_beyond_t = _log_match(t / c, c, nu)[1]
         passed = -jnp.expm1(jnp.minimum(log_beyond_t - log_beyond_x, 0.0))  # P(T ≤ t | T > x2)
-        return jnp.sum(jnp.where(x <= t, match, 0.0) + hidden * passed) / jnp.maximum(
+        return table_sum(jnp.where(x <= t, match, 0.0) + hidden * passed, sum_width) / jnp.maximum(
             n_true, MIN_SCALE_PX
         )
 
@@ -213,10 +223,13 @@ def robust_sigma_from_samples(
     count: Float[Array, "*S"],
     x2: Float[Array, "*S"],
     focal_px: Float[Array, ""],
+    *,
+    sum_width: int | None = None,
 ) -> tuple[Float[Array, ""], Bool[Array, ""]]:
     """:func:`estimate_sigma_robust` from the samples of :func:`nearest_two_samples` (any
-    shape, e.g. those of several scenes pooled; weight 0 marks an unused entry)."""
-    sigma, _, fallback = fit_noise(x, w, count, x2, focal_px, GAUSS_COVERAGE)
+    shape, e.g. those of several scenes pooled; weight 0 marks an unused entry);
+    ``sum_width`` as :func:`~cdog_jax.graph._sigma.sigma_from_samples`'."""
+    sigma, _, fallback = fit_noise(x, w, count, x2, focal_px, GAUSS_COVERAGE, sum_width=sum_width)
     return sigma, fallback
 
 
@@ -227,26 +240,29 @@ def fit_noise(
     x2: Float[Array, "*S"],
     focal_px: Float[Array, ""],
     coverage: float | Float[Array, ""],
+    *,
+    sum_width: int | None = None,
 ) -> tuple[Float[Array, ""], Float[Array, ""], Bool[Array, ""]]:
     """``(sigma, gate_px, fallback)`` from the samples of :func:`nearest_two_samples`:
     :func:`estimate_sigma_robust`'s σ and fallback, and ``gate_px``, the ``coverage``-quantile
-    (in ``(0, 1)``) of the true-pair distance (pixels; NaN on a fallback)."""
+    (in ``(0, 1)``) of the true-pair distance (pixels; NaN on a fallback). ``sum_width``: the
+    width the samples' sums are padded to (:func:`~cdog_jax.graph._sigma.table_sum`)."""
     x, w, count, x2 = (a.reshape(-1) for a in (x, w, count, x2))
     dtype = x.dtype
-    focal_px, width, c0, scaled_mean, spread_min = em_start(x, w, count, focal_px)
+    focal_px, width, c0, scaled_mean, spread_min = em_start(x, w, count, focal_px, sum_width)
     # The spread starts from the second-nearest distances (mostly unrelated points: the
     # nearest of count − 1 of them has mean 1/κ / (count − 1)); without any, the nearest.
     w_other = jnp.where(count > 1.0, w, 0.0)
-    second_mean = jnp.sum(w_other * (count - 1.0) * x2) / jnp.maximum(
-        jnp.sum(w_other), MIN_SCALE_PX
+    second_mean = table_sum(w_other * (count - 1.0) * x2, sum_width) / jnp.maximum(
+        table_sum(w_other, sum_width), MIN_SCALE_PX
     )
-    spread0 = jnp.where(jnp.sum(w_other) > 0, second_mean, scaled_mean)
+    spread0 = jnp.where(table_sum(w_other, sum_width) > 0, second_mean, scaled_mean)
     inv_kappa0 = jnp.clip(spread0, spread_min, width * jnp.maximum(jnp.max(count), 1.0))
 
     # Every ν from every start; the most likely fit wins. (ν, start) pairs in NU_GRID order.
     fits = [
-        jax.vmap(_em, in_axes=(None, None, None, None, 0, None, None, None, None))(
-            x, x2, w, count, c0, inv_kappa0, width, spread_min, nu
+        jax.vmap(_em, in_axes=(None, None, None, None, 0, None, None, None, None, None))(
+            x, x2, w, count, c0, inv_kappa0, width, spread_min, nu, sum_width
         )
         for nu in NU_GRID
     ]
@@ -254,7 +270,9 @@ def fit_noise(
     best = most_likely(log_lik)  # near-ties: the first (the half-normal before heavier tails)
     levels = jnp.stack([jnp.asarray(0.5, dtype), jnp.asarray(coverage, dtype)])
     branches = [
-        lambda c, k, p, nu=nu: _true_quantiles(levels, x, x2, w, count, c, k, p, width, nu)
+        lambda c, k, p, nu=nu: _true_quantiles(
+            levels, x, x2, w, count, c, k, p, width, nu, sum_width
+        )
         for nu in NU_GRID
     ]
     (median, gate), n_match = jax.lax.switch(

@@ -618,10 +618,10 @@ def _one_table_fit(rig, scenes: _Scenes, dist, dtype, robust: bool, min_width: i
     of one frame's ``scenes`` pooled, as :func:`_chunked_samples`, :func:`_sample_tables`
     and :func:`_chunked_fit` give them for one group, bitwise, in one program
     (:func:`_pooled_table_fit`): no samples to the host and no table back. Its table is as
-    wide as :func:`fit_width` of the samples' upper bound (:func:`_sample_bound`) + 1 and
-    ``min_width``: a power of two at or above the used count's, where σ is bitwise the
-    same."""
-    width = fit_width(max(_sample_bound(scenes.mask) + 1, min_width))
+    wide as :func:`fine_fit_width` of the samples' upper bound (:func:`_sample_bound`) + 1
+    and ``min_width``, its sums as wide as :func:`fit_width` of it: σ is bitwise that of the
+    power-of-two table the other fits use, at the narrower table's cost."""
+    width = fine_fit_width(max(_sample_bound(scenes.mask) + 1, min_width))
     args = (rig, np.asarray(scenes.xy, dtype), scenes.mask, dist, _rig_focal(rig), np.int32(1))
     return call_stored(_pooled_table_fit, args, robust=robust, width=width)
 
@@ -632,7 +632,9 @@ def _pooled_table_fit(rig, xy, mask, dist, focal, used, robust: bool, width: int
     scene order in one row of ``width`` entries (padding: weight 0, distance 0, count the
     scenes' largest; a second row empty, as :func:`_chunked_fit` gives one group) and
     :func:`_pooled_fit` (``robust``: :func:`_pooled_robust_fit`) of it: ``(2,)`` σ and
-    ``(2,)`` fallback, the first row's first. ``used``: 1 (traced, as the fit's)."""
+    ``(2,)`` fallback, the first row's first. ``used``: 1 (traced, as the fit's). The fit's
+    sums are padded to :func:`fit_width` of ``width`` (:func:`~cdog_jax.graph._sigma.table_sum`):
+    σ is that of the power-of-two table, bit for bit."""
     samples = [a.reshape(-1) for a in _nearest_samples.__wrapped__(rig, xy, mask, dist, robust)]
     taken = samples[1] > 0
     column = jnp.where(taken, jnp.cumsum(taken) - 1, width)  # width: dropped
@@ -642,7 +644,7 @@ def _pooled_table_fit(rig, xy, mask, dist, focal, used, robust: bool, width: int
         row = jnp.full(width, largest if k == 2 else 0, a.dtype).at[column].set(a, mode="drop")
         tables.append(jnp.stack([row, jnp.zeros_like(row)]))
     fit_row = robust_sigma_from_samples if robust else sigma_from_samples
-    return _row_by_row(fit_row, tuple(tables), focal, used)
+    return _row_by_row(partial(fit_row, sum_width=fit_width(width)), tuple(tables), focal, used)
 
 
 def fit_width(samples: int) -> int:
@@ -658,14 +660,31 @@ def fit_width(samples: int) -> int:
     return 1 << max(4, (int(samples) - 1).bit_length())
 
 
+FIT_STEPS = 2
+"""Table widths per doubling of one frame's σ fit (:func:`fine_fit_width`)."""
+
+
+def fine_fit_width(samples: int) -> int:
+    """One frame's σ fit table width for ``samples`` entries: the smallest multiple of
+    :func:`fit_width` ``(samples) / (2 FIT_STEPS)`` at or above it (:data:`FIT_STEPS` widths
+    from a power of two to the next: 1,536 and 2,048 above 1,024). Its sums are padded to
+    :func:`fit_width` (σ is bitwise the same); the fit's cost is per entry. More widths
+    would cost a live object a compiled fit each (about 2 s on a 2-core CPU) for less."""
+    top = fit_width(samples)
+    step = max(top // (2 * FIT_STEPS), 1)
+    return max(-(-int(samples) // step) * step, 16)
+
+
 def sigma_fit_widths(most: int) -> list[int]:
     """The σ fit's table widths of one frame whose used samples number at most ``most``:
-    :func:`fit_width` of ``most`` and the two below it (a half and a quarter). A caller that
-    must never compile after warming up (a live loop) warms these (:func:`warm_sigma_fits`)
-    and gives the first as ``min_samples``: each frame's fit then runs on the table its
-    samples need, not on the fullest frame's (its cost is per entry; σ is bitwise the same)."""
+    :func:`fine_fit_width` of every count from a quarter of :func:`fit_width` ``(most)`` to
+    it. A caller that must never compile after warming up (a live loop) warms these
+    (:func:`warm_sigma_fits`) and gives the first as ``min_samples``: each frame's fit then
+    runs on the table its samples need, not on the fullest frame's (its cost is per entry;
+    σ is bitwise the same)."""
     top = fit_width(most)
-    return [width for width in (top // 4, top // 2, top) if width >= 16]
+    low = max(top // 4, 16)
+    return sorted({fine_fit_width(n) for n in range(low, top + 1)})
 
 
 def warm_sigma_fits(
