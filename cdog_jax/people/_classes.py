@@ -648,15 +648,15 @@ def _pooled_table_fit(rig, xy, mask, dist, focal, used, robust: bool, width: int
 
 
 def fit_width(samples: int) -> int:
-    """The σ fit's table width for ``samples`` entries: the power of two at or above it (at
-    least 16).
+    """The width of the σ fit's sums for ``samples`` entries: the power of two at or above it
+    (at least 16). The table itself is :func:`fine_fit_width` wide, its sums padded to this.
 
     Powers of two, not the finer shape ladder, so that σ does not depend on the width: XLA's
     CPU compiler sums more than 32 entries in windows of 32 and then sums the windows' sums
     the same way, padding a count of windows that is not a power of two on both sides. Between
     two powers of two the larger table's sums are the smaller's plus sums of zeros, bit for
-    bit; at 1,536 entries the windows group otherwise, and σ differed from that at 2,048 in
-    the last bits (67 of 151 of Shelf's frames fitted alone)."""
+    bit; a sum of 1,536 entries groups its windows otherwise, and σ differed from that at
+    2,048 in the last bits (67 of 151 of Shelf's frames fitted alone)."""
     return 1 << max(4, (int(samples) - 1).bit_length())
 
 
@@ -747,9 +747,9 @@ def _chunked_fit(fit, tables: list[np.ndarray], focal) -> tuple[np.ndarray, np.n
 
 def _sample_tables(samples: _UsedSamples, group: np.ndarray, G: int, min_width: int = 0) -> list:
     """The σ fit's inputs, ``(G, S)`` per array: each group's used samples side by side, in
-    scene order, then padding of weight 0 up to the power of two at or above the largest
-    group's count (+ 1) and ``min_width`` (:func:`fit_width`: σ is then bitwise the same at
-    any width that holds the samples). ``samples``: the used entries
+    scene order, then padding of weight 0 up to :func:`fine_fit_width` of the largest
+    group's count (+ 1) and ``min_width`` (the fit's sums padded to the power of two above:
+    σ is bitwise the same at any width that holds the samples). ``samples``: the used entries
     of :func:`_nearest_samples` (distance, weight, count[, second distance]); ``group (B,)``
     each scene's group, sorted.
 
@@ -757,7 +757,8 @@ def _sample_tables(samples: _UsedSamples, group: np.ndarray, G: int, min_width: 
     classes, a view against itself), and the EM's cost is per entry. The one number the fit
     reads from unused entries, the largest view count, is kept in every padding entry."""
     per_group = np.bincount(group, weights=samples.per_scene, minlength=G).astype(np.int64)
-    width = fit_width(max(int(per_group.max()) + 1, min_width))  # + 1: room for the largest count
+    # + 1: room for the largest count
+    width = fine_fit_width(max(int(per_group.max()) + 1, min_width))
     rows = np.repeat(group, samples.per_scene)  # the group of each used sample, in order
     start = np.r_[0, np.cumsum(per_group)[:-1]]
     column = np.arange(len(rows)) - start[rows]
@@ -796,14 +797,18 @@ def _row_by_row(fit_row, tables: tuple, focal, used):
 # the process runs out of memory maps), and the robust estimator's twelve fits take
 # seconds more than compiling them.
 # Called through call_stored: a later process loads the lowered fit instead of tracing it.
+# The sums of a table's fit are padded to fit_width of its width (table_sum): bitwise the fit
+# of the power-of-two table, at the narrower table's cost.
 @jit
 def _pooled_fit(x, w, count, focal, used):
-    return _row_by_row(sigma_from_samples, (x, w, count), focal, used)
+    fit = partial(sigma_from_samples, sum_width=fit_width(x.shape[-1]))
+    return _row_by_row(fit, (x, w, count), focal, used)
 
 
 @jit
 def _pooled_robust_fit(x, w, count, second, focal, used):
-    return _row_by_row(robust_sigma_from_samples, (x, w, count, second), focal, used)
+    fit = partial(robust_sigma_from_samples, sum_width=fit_width(x.shape[-1]))
+    return _row_by_row(fit, (x, w, count, second), focal, used)
 
 
 def _map_back(
