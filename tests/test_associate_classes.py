@@ -408,8 +408,8 @@ def one_program_sigma_is_the_two_programs():
     mask[:, :, :K] &= np.arange(5)[None, :, None] == 1  # class 0: one view only
     sparse = np.zeros_like(mask)
     sparse[:, :2, K] = True  # one point of class 1 in two views: σ falls back
-    # View 0 without the last two classes: 185 samples at most, a table of 192 entries whose
-    # sums are 256 wide.
+    # View 0 without the last two classes: 185 samples at most, a table of 192 entries (one
+    # and a half times the floor of 128) whose sums are 256 wide.
     mask[0, 0, -2 * K :] = False
     dist = np.array([[-0.1, 0.01, 0.0, 0.0, 0.0]] * 5, np.float32)
     widths = set()  # the one-program table's width less its sums'
@@ -423,12 +423,12 @@ def one_program_sigma_is_the_two_programs():
             used = classes._chunked_samples(rig, scenes, None, np.float32, False).per_scene
             assert classes._sample_bound(scenes.mask) == used.sum()
         two = classes._pooled_sigma(rig, scenes, 1, lens, np.float32, "frame", estimator)
-        one = classes._one_table_fit(rig, scenes, lens, np.float32, estimator == "robust", 16)
+        one = classes._one_table_fit(rig, scenes, lens, np.float32, estimator == "robust", 128)
         for a, b in zip((np.asarray(a)[:1] for a in one), two):
             assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), estimator
         assert two[1].all() == falls_back, estimator
-        bound = classes._sample_bound(scenes.mask) + 1
-        widths.add(classes.fine_fit_width(bound) - classes.fit_width(bound))
+        width = classes.live_fit_width(classes._sample_bound(scenes.mask) + 1, 128)
+        widths.add(width - classes.fit_width(width))
     assert widths == {-64, 0}  # tables narrower than their sums (a power of two) and not
 
 

@@ -618,10 +618,10 @@ def _one_table_fit(rig, scenes: _Scenes, dist, dtype, robust: bool, min_width: i
     of one frame's ``scenes`` pooled, as :func:`_chunked_samples`, :func:`_sample_tables`
     and :func:`_chunked_fit` give them for one group, bitwise, in one program
     (:func:`_pooled_table_fit`): no samples to the host and no table back. Its table is as
-    wide as :func:`fine_fit_width` of the samples' upper bound (:func:`_sample_bound`) + 1
+    wide as :func:`live_fit_width` of the samples' upper bound (:func:`_sample_bound`) + 1
     and ``min_width``, its sums as wide as :func:`fit_width` of it: σ is bitwise that of the
     power-of-two table the other fits use, at the narrower table's cost."""
-    width = fine_fit_width(max(_sample_bound(scenes.mask) + 1, min_width))
+    width = live_fit_width(_sample_bound(scenes.mask) + 1, min_width)
     args = (rig, np.asarray(scenes.xy, dtype), scenes.mask, dist, _rig_focal(rig), np.int32(1))
     return call_stored(_pooled_table_fit, args, robust=robust, width=width)
 
@@ -649,7 +649,8 @@ def _pooled_table_fit(rig, xy, mask, dist, focal, used, robust: bool, width: int
 
 def fit_width(samples: int) -> int:
     """The width of the σ fit's sums for ``samples`` entries: the power of two at or above it
-    (at least 16). The table itself is :func:`fine_fit_width` wide, its sums padded to this.
+    (at least 16). The table itself may be narrower (:func:`fine_fit_width`,
+    :func:`live_fit_width`), its sums padded to this.
 
     Powers of two, not the finer shape ladder, so that σ does not depend on the width: XLA's
     CPU compiler sums more than 32 entries in windows of 32 and then sums the windows' sums
@@ -660,31 +661,37 @@ def fit_width(samples: int) -> int:
     return 1 << max(4, (int(samples) - 1).bit_length())
 
 
-FIT_STEPS = 2
-"""Table widths per doubling of one frame's σ fit (:func:`fine_fit_width`)."""
-
-
 def fine_fit_width(samples: int) -> int:
-    """One frame's σ fit table width for ``samples`` entries: the smallest multiple of
-    :func:`fit_width` ``(samples) / (2 FIT_STEPS)`` at or above it (:data:`FIT_STEPS` widths
-    from a power of two to the next: 1,536 and 2,048 above 1,024). Its sums are padded to
-    :func:`fit_width` (σ is bitwise the same); the fit's cost is per entry. More widths
-    would cost a live object a compiled fit each (about 2 s on a 2-core CPU) for less."""
+    """An offline σ fit's table width for ``samples`` entries (its fullest row's): one and a
+    half times a power of two where that holds them, else :func:`fit_width`; its sums are
+    padded to :func:`fit_width` (σ is bitwise the same), the fit's cost is per entry."""
     top = fit_width(samples)
-    step = max(top // (2 * FIT_STEPS), 1)
-    return max(-(-int(samples) // step) * step, 16)
+    between = top // 2 * 3 // 2
+    return between if top >= 32 and samples <= between else top
+
+
+def live_fit_width(samples: int, floor: int) -> int:
+    """One frame's σ fit table width (:func:`_one_table_fit`) for ``samples`` entries and a
+    table of at least ``floor`` (a power of two, the first of :func:`sigma_fit_widths`):
+    :func:`fit_width`, or one and a half times the floor where that holds the samples."""
+    if floor < samples <= floor * 3 // 2:
+        return floor * 3 // 2
+    return fit_width(max(samples, floor))
 
 
 def sigma_fit_widths(most: int) -> list[int]:
     """The σ fit's table widths of one frame whose used samples number at most ``most``:
-    :func:`fine_fit_width` of every count from a quarter of :func:`fit_width` ``(most)`` to
-    it. A caller that must never compile after warming up (a live loop) warms these
-    (:func:`warm_sigma_fits`) and gives the first as ``min_samples``: each frame's fit then
-    runs on the table its samples need, not on the fullest frame's (its cost is per entry;
-    σ is bitwise the same)."""
+    :func:`fit_width` of ``most`` (the fullest frame's), a half and a quarter of it, and one
+    and a half times the quarter. A caller that must never compile after warming up (a live
+    loop) warms these (:func:`warm_sigma_fits`) and gives the first as ``min_samples``:
+    each frame's fit then runs on the narrowest that holds its samples
+    (:func:`live_fit_width`), not on the fullest frame's (its cost is per entry; σ is
+    bitwise the same). Most frames fill half the slots or less, their samples a quarter to
+    a half of the fullest frame's: the widths in between pay there. Each width is a
+    compiled fit (about 2 s on a 2-core CPU, and its code in memory)."""
     top = fit_width(most)
-    low = max(top // 4, 16)
-    return sorted({fine_fit_width(n) for n in range(low, top + 1)})
+    floor = max(top // 4, 16)
+    return sorted({w for w in (floor, floor * 3 // 2, top // 2, top) if floor <= w <= top})
 
 
 def warm_sigma_fits(
