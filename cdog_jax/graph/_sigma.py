@@ -24,6 +24,8 @@ points with large noise, such as one joint type of real pose detections, must no
 small fallback).
 """
 
+from functools import partial
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -266,21 +268,10 @@ def sigma_from_samples(
     def true_moments(c, match, hidden):
         return match * x * x + hidden * half_normal_beyond_moment(x, c)
 
+    em_steps = partial(run_em, log_parts, true_moments, x, w, count, sum_width=sum_width)
+
     def em(c, inv_kappa, pi, iters):
-        c, inv_kappa, pi = run_em(
-            log_parts,
-            true_moments,
-            x,
-            w,
-            count,
-            c,
-            inv_kappa,
-            width,
-            spread_min,
-            pi,
-            iters,
-            sum_width,
-        )
+        c, inv_kappa, pi = em_steps(c, inv_kappa, width, spread_min, pi, iters)
         parts = log_parts(c, inv_kappa, pi)
         return c, inv_kappa, pi, table_sum(w * jax.nn.logsumexp(parts, axis=0), sum_width), parts
 

@@ -147,16 +147,7 @@ def _em(x, x2, w, count, c0, inv_kappa0, width, spread_min, nu, sum_width):
         return match * _second_moments(x, c, nu)[0] + hidden * _second_moments(x2, c, nu)[1]
 
     c, inv_kappa, pi = run_em(
-        log_parts,
-        true_moments,
-        x,
-        w,
-        count,
-        c0,
-        inv_kappa0,
-        width,
-        spread_min,
-        sum_width=sum_width,
+        log_parts, true_moments, x, w, count, c0, inv_kappa0, width, spread_min, sum_width=sum_width
     )
     log_lik = table_sum(w * jax.nn.logsumexp(log_parts(c, inv_kappa, pi), axis=0), sum_width)
     return c, inv_kappa, pi, log_lik
