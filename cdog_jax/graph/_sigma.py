@@ -66,10 +66,16 @@ def table_sum(values: Float[Array, " S"], width: int | None = None) -> Float[Arr
     sums summed the same way), so that a fit of a narrower table whose sums are padded to a
     power of two is bitwise the fit of the table of that width, at the per-sample cost (the
     EM's) of the narrower one."""
+    return table_sums(values[None], width)[0]
+
+
+def table_sums(values: Float[Array, "K S"], width: int | None = None) -> Float[Array, " K"]:
+    """The ``K`` sums of :func:`table_sum` of the rows of ``values``, in one reduction (one
+    kernel where ``K`` separate sums are ``K``), each row's bitwise its :func:`table_sum`."""
     size = values.shape[-1]
     if width is not None and width != size:
-        values = jnp.pad(values, (0, width - size))
-    return jnp.sum(values)
+        values = jnp.pad(values, ((0, 0), (0, width - size)))
+    return jnp.sum(values, axis=-1)
 
 
 SERIES_FROM = {4: 10.0, 8: 30.0}
@@ -166,24 +172,29 @@ def run_em(
         c, inv_kappa, pi = state
         resp = jax.nn.softmax(log_parts(c, inv_kappa, pi), axis=0) * w[None]
         match, hidden, none, uniform = resp
-        n_true = table_sum(match + hidden, sum_width)
-        c_new = jnp.sqrt(
-            table_sum(true_moments(c, match, hidden), sum_width) / jnp.maximum(n_true, MIN_SCALE_PX)
-        )
         # (count − 1)·U is exponential with mean 1/κ; beside a match it is only known to exceed x.
         others = jnp.where(count > 1.0, count - 1.0, 0.0)
         censored = jnp.where(count > 1.0, match, 0.0)
-        seen = table_sum(
-            hidden * others * x + none * count * x + censored * (others * x + inv_kappa), sum_width
+        # The step's six sums in one reduction: a step is a few dozen small kernels, and a
+        # kernel costs about as much to launch as to sum a table.
+        n_true, moments, seen, exposed, n_none, n_uniform = table_sums(
+            jnp.stack(
+                [
+                    match + hidden,
+                    true_moments(c, match, hidden),
+                    hidden * others * x + none * count * x + censored * (others * x + inv_kappa),
+                    hidden + none + censored,
+                    none,
+                    uniform,
+                ]
+            ),
+            sum_width,
         )
-        inv_kappa = seen / jnp.maximum(table_sum(hidden + none + censored, sum_width), MIN_SCALE_PX)
+        c_new = jnp.sqrt(moments / jnp.maximum(n_true, MIN_SCALE_PX))
+        inv_kappa = seen / jnp.maximum(exposed, MIN_SCALE_PX)
         c = jnp.clip(c_new, MIN_SCALE_PX, width)
         inv_kappa = jnp.clip(inv_kappa, spread_min, width * max_count)
-        pi = jnp.clip(
-            jnp.stack([n_true, table_sum(none, sum_width), table_sum(uniform, sum_width)]) / total,
-            1e-4,
-            1.0,
-        )
+        pi = jnp.clip(jnp.stack([n_true, n_none, n_uniform]) / total, 1e-4, 1.0)
         return c, inv_kappa, pi / jnp.sum(pi)
 
     if pi0 is None:
