@@ -224,6 +224,28 @@ def estimate_sigma(
     return sigma_from_samples(*nearest_samples(d, mask), focal_px)
 
 
+def sorted_at(values: Float[Array, " S"], ranks: Int[Array, " Q"]) -> Float[Array, " Q"]:
+    """``jnp.sort(values)[ranks]`` for ``values ≥ 0`` (``+inf`` and NaN allowed; ``-0``
+    reads as ``+0``), without the sort: the bits of a non-negative float order as the float
+    does, so each value is bisected bit by bit, ``(Q, S)`` comparisons a step. XLA's CPU
+    sort compares through a call per pair: a σ fit's 1,024 samples took 0.12 ms to sort."""
+    itype = {4: jnp.int32, 8: jnp.int64}[jnp.dtype(values.dtype).itemsize]
+    bits = jax.lax.bitcast_convert_type(jnp.where(values == 0, 0.0, values), itype)
+    steps = 8 * jnp.dtype(itype).itemsize - 1
+    # The answer lies in (low, high]: fewer than rank + 1 bits at or below low, more at high.
+    low = jnp.full(ranks.shape, -1, itype)
+    high = jnp.full(ranks.shape, jnp.iinfo(itype).max, itype)
+
+    def halve(_, bounds):
+        low, high = bounds
+        mid = (low & high) + ((low ^ high) >> 1)  # their mean, rounded down, not overflowing
+        above = jnp.sum(bits[None, :] <= mid[:, None], axis=1, dtype=ranks.dtype) > ranks
+        return jnp.where(above, low, mid), jnp.where(above, mid, high)
+
+    _, high = jax.lax.fori_loop(0, steps, halve, (low, high))
+    return jax.lax.bitcast_convert_type(high, values.dtype)
+
+
 def em_start(
     x: Float[Array, " S"],
     w: Float[Array, " S"],
@@ -243,12 +265,11 @@ def em_start(
     focal_px = jnp.where(jnp.isfinite(focal_px) & (focal_px > 0), focal_px, 1.0)
     width = jnp.maximum(jnp.max(x), UNIFORM_PER_FOCAL * focal_px)
 
-    ordered = jnp.sort(jnp.where(w > 0, x, jnp.inf))
     last = jnp.maximum(n - 1, 0).astype(x.dtype)
     # A half-normal's q-quantile is c · Φ⁻¹((1 + q) / 2) = c · √2 erfinv(q).
     q = jnp.asarray(START_QUANTILES, x.dtype)
     z = jnp.sqrt(2.0) * erfinv(q)
-    at_q = ordered[jnp.floor(q * last).astype(jnp.int32)]
+    at_q = sorted_at(jnp.where(w > 0, x, jnp.inf), jnp.floor(q * last).astype(jnp.int32))
     c0 = jnp.clip(jnp.where(jnp.isfinite(at_q), at_q, 0.0) / z, MIN_SCALE_PX, width)
     scaled_mean = table_sum(w * count * x, sum_width) / jnp.maximum(
         table_sum(w, sum_width), MIN_SCALE_PX

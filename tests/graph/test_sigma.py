@@ -192,6 +192,36 @@ def test_most_likely_takes_the_first_of_near_ties_and_never_nan():
     assert int(most_likely(jnp.asarray([np.nan, -5.0]))) == 1
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_sorted_at_reads_the_sorted_values_without_a_sort(dtype):
+    """The EM's start quantiles, bisected on the values' bits, are ``np.sort``'s entries at
+    those ranks: ties, zeros (``-0`` as ``+0``), ``+inf`` (unused samples), NaN; the first,
+    the last and every rank between."""
+    from cdog_jax.graph._sigma import sorted_at
+
+    with jax.enable_x64(dtype == np.float64):
+        _check_sorted_at(jax.jit(sorted_at), dtype)
+
+
+def _check_sorted_at(at, dtype):
+    rng = np.random.default_rng(0)
+    for case in range(12):
+        S = int(rng.integers(1, 200))
+        v = rng.exponential(rng.uniform(0.1, 100.0), S).astype(dtype)
+        v[rng.random(S) < 0.2] = np.inf
+        v[rng.random(S) < 0.1] = 0.0
+        v[rng.random(S) < 0.05] = -0.0
+        if case % 3 == 0:
+            v = np.round(v)  # many ties
+        if case % 4 == 1:
+            v[rng.random(S) < 0.1] = np.nan
+        ranks = np.unique(np.r_[0, S - 1, rng.integers(0, S, 6)]).astype(np.int32)
+        want = np.sort(np.where(v == 0, 0.0, v).astype(dtype))[ranks]
+        got = np.asarray(at(v, ranks))
+        assert got.dtype == dtype
+        np.testing.assert_array_equal(got.view(f"u{v.itemsize}"), want.view(f"u{v.itemsize}"))
+
+
 def sigma_is_bitwise_the_same_at_every_table_width():
     """The pooled fit (``associate_classes``' σ per frame) on tables of every width the
     library picks for one frame's samples: what a live frame gets (its narrowest table) is
