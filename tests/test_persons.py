@@ -229,6 +229,45 @@ def test_clustering_matches_brute_force(data):
     np.testing.assert_array_equal(got, _brute_force_people(votes, node_view, 2))
 
 
+def _table_people(votes, node_view, min_votes):
+    """Greedy average linkage as a table: each step the argmax of every allowed pair's mean
+    (upper triangle, row-major: ties to the first pair), the whole table computed again."""
+    N = len(node_view)
+    W, size = votes.astype(np.float64), np.ones(N)
+    views = np.eye(int(node_view.max()) + 1 if N else 1, dtype=bool)[node_view]
+    label, alive = np.arange(N), np.ones(N, bool)
+    while True:
+        mean = W / (size[:, None] * size[None, :])
+        allowed = np.triu(np.ones((N, N), bool), 1) & alive[:, None] & alive[None, :]
+        allowed &= ~(views.astype(int) @ views.T.astype(int)).astype(bool)
+        score = np.where(allowed & (mean >= min_votes), mean, -1.0)
+        if not N or score.max() < 0:
+            return label
+        a, b = divmod(int(np.argmax(score)), N)
+        W[a] += W[b]
+        W[:, a] += W[:, b]
+        W[b], W[:, b] = 0.0, 0.0
+        views[a] |= views[b]
+        size[a] += size[b]
+        alive[b] = False
+        label[label == b] = a
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.data())
+def test_clustering_is_the_table_argmax(data):
+    """Any votes (ties, clusters of unequal sizes, fractional and zero thresholds): the
+    clustering merges as an argmax over the whole table of means would, step by step."""
+    N = data.draw(st.integers(0, 12))
+    node_view = np.array(data.draw(st.lists(st.integers(0, 3), min_size=N, max_size=N)), int)
+    half = np.array(data.draw(st.lists(st.integers(0, 4), min_size=N * N, max_size=N * N)))
+    votes = np.triu(half.reshape(N, N).astype(np.int64), 1)
+    votes = votes + votes.T
+    min_votes = data.draw(st.sampled_from([0, 1, 2, 2.5]))
+    got = cluster_people(votes, node_view, min_votes)
+    np.testing.assert_array_equal(got, _table_people(votes, node_view, min_votes))
+
+
 def test_nodes_and_votes():
     instances = np.array([[0, 7], [7, 0], [0, -1]])  # any ints as indices; -1 unknown
     node, node_view = person_nodes(instances)

@@ -15,6 +15,7 @@ re-triangulation of the groups it changes is compiled (:func:`_retriangulate`).
 from __future__ import annotations
 
 import dataclasses
+import heapq
 from typing import NamedTuple
 
 import jax
@@ -122,11 +123,7 @@ def vote_matrix(groups: np.ndarray, valid: np.ndarray, node: np.ndarray) -> np.n
     member = _member_values(node, groups, valid)  # (G, M)
     a, b = member[:, :, None], member[:, None, :]  # every ordered pair of a group's views
     pair = (a >= 0) & (b >= 0) & ~np.eye(M, dtype=bool)[None]
-    votes = np.zeros((N, N), np.int64)
-    np.add.at(
-        votes, (np.broadcast_to(a, pair.shape)[pair], np.broadcast_to(b, pair.shape)[pair]), 1
-    )
-    return votes
+    return np.bincount((a * N + b)[pair], minlength=N * N).reshape(N, N).astype(np.int64)
 
 
 def cluster_people(votes: np.ndarray, node_view: np.ndarray, min_votes: int | float) -> np.ndarray:
@@ -134,40 +131,51 @@ def cluster_people(votes: np.ndarray, node_view: np.ndarray, min_votes: int | fl
     linkage, each step merging the two clusters with the most votes per node pair between
     them among those that share no view (``node_view (N,)``), while that mean is at least
     ``min_votes``. (A sum over the pairs would let a few stray votes from each node of a
-    large cluster add up to a merge.)
+    large cluster add up to a merge.) Ties go to the pair ``(a, b)``, ``a < b``, first in
+    row-major order; ``b`` merges into ``a``.
 
-    The table of allowed merges is kept from step to step: a merge of ``b`` into ``a``
-    changes only the row and column of ``a`` (and removes those of ``b``), each entry as
-    the whole table would give it."""
+    The allowed merges wait in a heap, best mean first: a merge of ``b`` into ``a`` changes
+    only the pairs of ``a`` (pushed again with their new means) and ends those of ``b``, so
+    an entry whose clusters changed since it was pushed is dropped when it comes up. A
+    frame holds a few dozen nodes: plain Python on them costs less than a NumPy call per
+    step. Votes are counts, so the sums are exact and every mean is one division, the same
+    bits whatever the order of the merges before it."""
     N = votes.shape[0]
-    num_views = int(node_view.max()) + 1 if N else 0
-    W = votes.astype(np.float64).copy()
-    views = np.zeros((N, num_views), bool)
-    views[np.arange(N), node_view] = True
-    size = np.ones(N)
-    alive = np.ones(N, bool)
-    label = np.arange(N)
-    upper = np.triu(np.ones((N, N), bool), 1)
-    disjoint = ~(views.astype(np.int64) @ views.T.astype(np.int64)).astype(bool)
-    mean = W / (size[:, None] * size[None, :])
-    score = np.where(upper & disjoint & (mean >= min_votes), mean, -1.0)  # -1: not allowed
-    while N:
-        a, b = divmod(int(np.argmax(score)), N)
-        if score[a, b] < 0:  # an allowed merge has a mean of at least 0
-            break
-        W[a] += W[b]
-        W[:, a] += W[:, b]
-        W[a, a] = 0.0
-        W[b], W[:, b] = 0.0, 0.0
+    W = votes.tolist()  # (N, N) votes between clusters (rows and columns of live ones)
+    size = [1] * N
+    views = [1 << v for v in node_view.tolist()]  # each cluster's views as the bits of an int
+    version = [0] * N  # -1: merged into another
+    members = [[n] for n in range(N)]
+    heap = [
+        (-mean, a, b, 0, 0)
+        for a in range(N)
+        for b in range(a + 1, N)
+        if not views[a] & views[b] and (mean := W[a][b] / 1) >= min_votes
+    ]
+    heapq.heapify(heap)
+    while heap:
+        _, a, b, version_a, version_b = heapq.heappop(heap)
+        if version_a != version[a] or version_b != version[b]:
+            continue  # a or b has merged since this entry was pushed
+        version[a] += 1
+        version[b] = -1
+        members[a] += members[b]
         views[a] |= views[b]
         size[a] += size[b]
-        alive[b] = False
-        label[label == b] = a
-        open_ = alive & ~(views @ views[a])  # (N,) alive, sharing no view with a
-        row, col = W[a] / (size[a] * size), W[:, a] / (size * size[a])
-        score[a] = np.where(open_ & upper[a] & (row >= min_votes), row, -1.0)
-        score[:, a] = np.where(open_ & upper[:, a] & (col >= min_votes), col, -1.0)
-        score[b], score[:, b] = -1.0, -1.0
+        for j in range(N):
+            if version[j] < 0 or j == a:
+                continue
+            W[a][j] += W[b][j]
+            W[j][a] += W[j][b]
+            if not views[a] & views[j]:
+                i, k = min(a, j), max(a, j)
+                mean = W[i][k] / (size[i] * size[k])
+                if mean >= min_votes:
+                    heapq.heappush(heap, (-mean, i, k, version[i], version[k]))
+    label = np.arange(N)
+    for root in range(N):
+        if version[root] >= 0:
+            label[members[root]] = root
     return label
 
 
