@@ -306,22 +306,27 @@ def consistent_groups(
     if changed.any():
         points[changed] = project.triangulate(xy, kept[changed])
 
-    # (3) re-attach to the person's group of the class.
+    # (3) re-attach to the person's group of the class. The points stay as they are through
+    # the loop, so they are projected once (a point's pixels are the same bits alone or
+    # among others).
     g_idx, m_idx = np.nonzero(detach)
     slots = groups[g_idx, m_idx]
+    pixels = np.zeros((len(valid), M, 2))  # (G, M, 2) of the valid groups' points
+    with np.errstate(invalid="ignore", over="ignore"):  # a point at infinity meets no gate
+        pixels[valid] = project(points[valid])
     left = []
-    for m, s in zip(m_idx, slots):
+    for m, s in zip(m_idx.tolist(), slots.tolist()):
         c, p = classes[m, s], det_person[m, s]
         options = np.flatnonzero(
             valid & (group_class == c) & (group_person == p) & (kept[:, m] < 0)
         )
         if options.size:
             g = options[np.argmax((kept[options] >= 0).sum(axis=1))]
-            if np.linalg.norm(project(points[g][None])[0, m] - xy[m, s]) <= gate_px:
+            if np.linalg.norm(pixels[g, m] - xy[m, s]) <= gate_px:
                 kept[g, m] = s
                 changed[g] = True
                 continue
-        left.append((int(c), int(p), int(m), int(s)))
+        left.append((int(c), int(p), m, s))
 
     # (4) what is left forms groups of its own.
     new = []
@@ -387,6 +392,19 @@ class _Camera:
         # cost more than the program itself (three per call, two calls a frame).
         out = _retriangulate(self.rig, xy_g.astype(dtype), member, w.astype(dtype))
         return tuple(np.asarray(a)[:K] for a in out)
+
+
+_LAST_CAMERA: list[_Camera] = []  # the last rig's: a live loop passes one rig every frame
+
+
+def _camera(rig: Rig, min_rows: int) -> _Camera:
+    """:class:`_Camera` of ``rig``, the last one made when ``rig`` is the same object (its
+    projection matrices computed once, not every frame)."""
+    camera = _LAST_CAMERA[0] if _LAST_CAMERA else None
+    if camera is None or camera.rig is not rig or camera.min_rows != min_rows:
+        camera = _Camera(rig, min_rows)
+        _LAST_CAMERA[:] = [camera]
+    return camera
 
 
 @jit
@@ -456,7 +474,7 @@ def person_consistent(
     if dist is not None:
         lens, xy_j = as_lens(dist, rig.K.dtype), jnp.asarray(xy, rig.K.dtype)
         pinhole = np.asarray(undistorted_frames(rig, xy_j, jnp.asarray(mask), lens), np.float64)
-    camera = _Camera(rig, min_rows)
+    camera = _camera(rig, min_rows)
     fields = {
         k: np.asarray(getattr(assoc, k)) for k in ("groups", "valid", "points3d", "bpe", "err_px")
     }
