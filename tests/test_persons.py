@@ -12,7 +12,13 @@ from hypothesis import given, settings, strategies as st
 
 import cdog_jax
 from cdog_jax import PersonVote, associate_classes
-from cdog_jax.people._persons import cluster_people, consistent_groups, person_nodes, vote_matrix
+from cdog_jax.people._persons import (
+    _camera,
+    cluster_people,
+    consistent_groups,
+    person_nodes,
+    vote_matrix,
+)
 from cdog_jax.synthetic import default_rig
 
 M, J = 3, 3  # views, joint classes
@@ -266,6 +272,21 @@ def test_clustering_is_the_table_argmax(data):
     min_votes = data.draw(st.sampled_from([0, 1, 2, 2.5]))
     got = cluster_people(votes, node_view, min_votes)
     np.testing.assert_array_equal(got, _table_people(votes, node_view, min_votes))
+
+
+def test_the_kept_camera_is_the_rigs_own():
+    """The vote's host projection is kept for the rig a loop passes frame after frame, and
+    made again for another rig object (even an equal one) or another table size."""
+    rig, other = default_rig(num_views=3), default_rig(num_views=4)
+    first = _camera(rig, 8)
+    assert _camera(rig, 8) is first
+    assert _camera(other, 8).rig is other
+    np.testing.assert_array_equal(_camera(other, 8).P, other.host_proj())
+    again = _camera(rig, 8)
+    assert again is not first and again.rig is rig
+    assert _camera(rig, 16).min_rows == 16
+    equal = default_rig(num_views=3)
+    assert _camera(equal, 16).rig is equal
 
 
 def test_nodes_and_votes():
