@@ -72,3 +72,15 @@ def test_no_subpackage_is_a_name_of_all(module):
     # import gives functions, classes and constants only.
     names = getattr(module, "__all__", [])
     assert not [name for name in names if inspect.ismodule(getattr(module, name))], names
+
+
+def test_the_public_surface_stays_small():
+    # Every public function, class and constant of the public modules, each counted once
+    # where a module re-exports another's (cdog_jax.Rig is cdog_jax.geometry.Rig).
+    surface = {
+        (name, id(obj))
+        for module in MODULES + [cdog_jax.baselines]
+        for name in dir(module)
+        if not name.startswith("_") and not inspect.ismodule(obj := getattr(module, name))
+    }
+    assert len(surface) <= 150, sorted(name for name, _ in surface)

@@ -898,7 +898,7 @@ def run_associate(args: argparse.Namespace) -> int:
             lines.append(f"Wrote {args.out}")
     if args.plot is not None:
         # The figures (matplotlib) and the scenes' image size load only when a plot is asked for.
-        from ..synthetic import intrinsics_image_size
+        from ..synthetic._box import intrinsics_image_size
         from ..viz import plot_association
 
         first = jax.tree_util.tree_map(lambda a: a[0], first_result)

@@ -155,7 +155,8 @@ def _scene_setup(args, grid):
     """``(rig, box, image_size, description)`` for the sweep: the built-in rig and box, or
     the rig file of ``--rig`` with the box the (selected) views see, unless ``--box``."""
     # The synthetic scenes' module loads only in the commands that make scenes.
-    from ..synthetic import DEFAULT_BOX, IMAGE_SIZE, default_rig, intrinsics_image_size, visible_box
+    from ..synthetic import DEFAULT_BOX, IMAGE_SIZE, default_rig, visible_box
+    from ..synthetic._box import intrinsics_image_size
 
     def check_views(rig, name):
         if grid.views is not None and max(grid.views) >= rig.num_views:

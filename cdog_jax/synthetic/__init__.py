@@ -1,6 +1,6 @@
 """Benchmark data (docs/BENCHMARK.md §1): the built-in rig and synthetic scenes with ground truth."""
 
-from ._box import intrinsics_image_size as intrinsics_image_size, visible_box as visible_box
+from ._box import visible_box as visible_box
 from ._realism import Realism as Realism, perturb_rig as perturb_rig
 from ._render import RealScene as RealScene, generate_realistic_scene as generate_realistic_scene
 from ._rig import DEFAULT_BOX as DEFAULT_BOX, IMAGE_SIZE as IMAGE_SIZE, default_rig as default_rig

@@ -2,7 +2,6 @@
 histogram, the benchmark's figures (docs/BENCHMARK.md) and the calibration convergence.
 matplotlib is imported when a figure is drawn, not with this package."""
 
-from ._benchmark_common import PAPER_VIEWS_PG_F1 as PAPER_VIEWS_PG_F1
 from ._benchmark_curves import (
     metrics_vs_sigma as metrics_vs_sigma,
     time_vs_count as time_vs_count,

@@ -70,7 +70,7 @@ _ORIGINAL_CODE = {
 _ORIGINAL_TIME_COUNTS = (5, 40, 130)
 _ORIGINAL_TIME_S = (0.06, 0.56, 4.6)
 # PG-F1 of the paper's Table I for 2, 3, … 10 views (σ = 3 px).
-PAPER_VIEWS_PG_F1 = (0.766, 0.726, 0.562, 0.601, 0.668, 0.685, 0.719, 0.747, 0.761)
+_PAPER_VIEWS_PG_F1 = (0.766, 0.726, 0.562, 0.601, 0.668, 0.685, 0.719, 0.747, 0.761)
 
 _DPI = 120
 _REF_COLOR = "0.1"

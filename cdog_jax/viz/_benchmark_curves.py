@@ -19,8 +19,8 @@ from ._benchmark_common import (
     _ORIGINAL_TIME_S,
     _PAPER_OURS,
     _PAPER_SIGMA_PX,
+    _PAPER_VIEWS_PG_F1,
     _REF_COLOR,
-    PAPER_VIEWS_PG_F1,
     _as_1d,
     _as_fields,
     _checked,
@@ -273,7 +273,7 @@ def views_ablation(
     values_by_method: Mapping[str, Any],
     *,
     field: str = "pg_f1",
-    paper=PAPER_VIEWS_PG_F1,
+    paper=_PAPER_VIEWS_PG_F1,
     sigma_px=3.0,
     path: str | os.PathLike | None = None,
 ):
@@ -315,7 +315,7 @@ def views_ablation(
         values = _as_1d(f"values_by_method[{method!r}]", values, views.size).astype(np.float64)
         xs, means = _group_means(views, values, keep)
         ax.plot(xs, means, color=colors[method], lw=1.8, marker="o", ms=5, label=method)
-    if paper is PAPER_VIEWS_PG_F1 and field != "pg_f1":
+    if paper is _PAPER_VIEWS_PG_F1 and field != "pg_f1":
         paper = None  # Table I only reports PG-F1
     if paper is not None:
         paper_views = np.arange(2, 2 + len(paper))

@@ -12,10 +12,9 @@ from cdog_jax.synthetic import (
     IMAGE_SIZE,
     default_rig,
     generate_scene,
-    intrinsics_image_size,
     visible_box,
 )
-from cdog_jax.synthetic._box import _seen
+from cdog_jax.synthetic._box import _seen, intrinsics_image_size
 from cdog_jax.synthetic._rig import negate_intrinsics
 
 LO, HI = (np.asarray(c) for c in DEFAULT_BOX)
