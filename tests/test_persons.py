@@ -5,6 +5,7 @@ tiny cases, and bad instance arguments are refused before any work."""
 
 import itertools
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -287,6 +288,20 @@ def test_the_kept_camera_is_the_rigs_own():
     assert _camera(rig, 16).min_rows == 16
     equal = default_rig(num_views=3)
     assert _camera(equal, 16).rig is equal
+
+
+def test_a_rig_of_numpy_cameras_is_read_every_call():
+    """NumPy cameras can change in place between two calls with the same rig object: the
+    vote's host projection is then made from what they hold now, never kept."""
+    base = default_rig(num_views=3)
+    # As a rig built from NumPy arrays outside the suite's type checks holds them.
+    fields = lambda r: (r.K, r.R, r.t)  # noqa: E731
+    rig = eqx.tree_at(fields, base, tuple(np.array(a) for a in fields(base)))
+    before = _camera(rig, 8).P.copy()
+    rig.t[0, 0] += 1.0  # moved in place: the same rig object
+    after = _camera(rig, 8)
+    np.testing.assert_array_equal(after.P, rig.host_proj())
+    assert not np.array_equal(after.P, before)
 
 
 def test_nodes_and_votes():

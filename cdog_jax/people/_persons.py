@@ -398,11 +398,14 @@ _LAST_CAMERA: list[_Camera] = []  # the last rig's: a live loop passes one rig e
 
 
 def _camera(rig: Rig, min_rows: int) -> _Camera:
-    """:class:`_Camera` of ``rig``, the last one made when ``rig`` is the same object (its
-    projection matrices computed once, not every frame)."""
+    """:class:`_Camera` of ``rig``, the last one made when ``rig`` is the same object with
+    JAX cameras (its projection matrices computed once, not every frame). A JAX array cannot
+    change in place; a NumPy one can, so a rig of NumPy cameras is read every call."""
     camera = _LAST_CAMERA[0] if _LAST_CAMERA else None
-    if camera is None or camera.rig is not rig or camera.min_rows != min_rows:
-        camera = _Camera(rig, min_rows)
+    if camera is not None and camera.rig is rig and camera.min_rows == min_rows:
+        return camera
+    camera = _Camera(rig, min_rows)
+    if all(isinstance(a, jax.Array) for a in (rig.K, rig.R, rig.t)):
         _LAST_CAMERA[:] = [camera]
     return camera
 
