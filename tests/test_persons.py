@@ -150,6 +150,49 @@ def test_consistent_groups_reattaches_within_the_gate_only():
     assert not unknown.changed.any()
 
 
+def test_the_gate_reads_a_changed_groups_point_triangulated_again():
+    """The crossed groups of the test above, their points as the association left them,
+    pulled 3 units up by the foreign member (12 px off in view 2, beyond the 5 px gate): each
+    detached joint is measured against its own person's group re-triangulated without that
+    member (4 px) and joins it. Only those two groups, the ones a detached joint may join,
+    are triangulated again."""
+    scale = np.array([400.0, 400.0, 4.0])
+    height = np.arange(2 * J) // J
+    xy = np.stack(np.broadcast_arrays(100.0 + scale[:, None] * height[None, :], 0.0), axis=-1)
+    xy[2, [2, J + 2]] = xy[2, [J + 2, 2]]
+    classes = np.broadcast_to(np.arange(2 * J) % J, (M, 2 * J))
+    groups = np.array([[s] * M for s in range(2 * J)])
+    groups[2, 2], groups[J + 2, 2] = J + 2, 2
+    points = np.array([[0.0, 0.0, float(z)] for z in height])
+    points[[2, J + 2], 2] += 3.0  # the association's points of the two crossed groups
+    triangulated = []
+
+    class Flat:
+        def __call__(self, X):
+            return np.stack(np.broadcast_arrays(100.0 + scale[None, :] * X[:, 2:3], 0.0), axis=-1)
+
+        def triangulate(self, xy_, rows):  # from view 0's pixel
+            triangulated.extend(r[0] for r in rows)
+            return np.array([[0.0, 0.0, (xy_[0, r[0], 0] - 100.0) / scale[0]] for r in rows])
+
+    gclass = np.arange(2 * J) % J
+    fixed = consistent_groups(
+        groups,
+        np.ones(2 * J, bool),
+        gclass,
+        classes,
+        INSTANCE[:, height],
+        xy,
+        points,
+        Flat(),
+        5.0,
+        PersonVote(),
+        2,
+    )
+    assert fixed.groups[2, 2] == 2 and fixed.groups[J + 2, 2] == J + 2
+    assert sorted(triangulated) == [2, J + 2]
+
+
 def test_a_group_of_two_weakly_linked_nodes_is_kept():
     """A person seen in views 0 and 1 with a single joint group: its two nodes get one
     vote, too few to merge, but they share no view, so nothing says they are two people:

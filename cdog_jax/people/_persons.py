@@ -302,15 +302,25 @@ def consistent_groups(
     changed = detach.any(axis=1) & valid
     if not detach.any():
         return FrameGroups(groups, valid, group_class, changed, np.arange(len(valid)))
+    g_idx, m_idx = np.nonzero(detach)
+    slots = groups[g_idx, m_idx]
+    # A changed group's point is re-triangulated only where a detached joint may join it:
+    # a group of the joint's class and person with no member in the joint's view before the
+    # loop (the loop only fills views, so its choices are among these). Most frames need
+    # none, and skip the DLT's call; a point's DLT is the same bits alone or among others.
+    may_join = (
+        valid[None, :]
+        & (group_class[None, :] == classes[m_idx, slots][:, None])
+        & (group_person[None, :] == det_person[m_idx, slots][:, None])
+        & (kept[:, m_idx].T < 0)
+    ).any(axis=0)  # (G,)
     points = points3d.copy()
-    if changed.any():
-        points[changed] = project.triangulate(xy, kept[changed])
+    if (needed := changed & may_join).any():
+        points[needed] = project.triangulate(xy, kept[needed])
 
     # (3) re-attach to the person's group of the class. The points stay as they are through
     # the loop, so they are projected once (a point's pixels are the same bits alone or
     # among others).
-    g_idx, m_idx = np.nonzero(detach)
-    slots = groups[g_idx, m_idx]
     pixels = np.zeros((len(valid), M, 2))  # (G, M, 2) of the valid groups' points
     with np.errstate(invalid="ignore", over="ignore"):  # a point at infinity meets no gate
         pixels[valid] = project(points[valid])
