@@ -94,39 +94,54 @@ def test_vote_puts_a_swapped_joint_group_right(swapped):
     )
 
 
-def test_consistent_groups_reattaches_within_the_gate_only():
-    """A hand-made group table (no pipeline): view m sees a point of height z at
-    ``(100 + scale[m] · z, 0)`` px; A is at z = 0, B at z = 1, 4 px apart in
-    view 2 only. There, A's joint-2 detection sits at B's pixel and is in B's group, and B's
-    in A's. Within the gate (5 px) they change groups; within 1 px they are only detached."""
+class _Flat:
+    """The camera of :func:`_crossed`: view m sees a point of height z at
+    ``(100 + scale[m] · z, 0)`` px; its DLT reads the height from view 0's pixel. The rows
+    it triangulates are kept in ``triangulated`` (each row's view-0 slot)."""
+
     scale = np.array([400.0, 400.0, 4.0])
+
+    def __init__(self):
+        self.triangulated = []
+
+    def __call__(self, X):
+        return np.stack(np.broadcast_arrays(100.0 + self.scale[None, :] * X[:, 2:3], 0.0), axis=-1)
+
+    def triangulate(self, xy_, rows):
+        self.triangulated.extend(int(r[0]) for r in rows)
+        return np.array([[0.0, 0.0, (xy_[0, r[0], 0] - 100.0) / self.scale[0]] for r in rows])
+
+
+def _crossed():
+    """A hand-made group table (no pipeline) seen by :class:`_Flat`'s camera: person A at
+    z = 0, B at z = 1, 4 px apart in view 2 only. There, A's joint-2 detection sits at B's
+    pixel and is in B's group, and B's in A's. Returns ``groups, classes, instances, xy,
+    points`` (the points of the groups as drawn)."""
     height = np.arange(2 * J) // J  # the person of every slot is its height
     xy = np.stack(
-        np.broadcast_arrays(100.0 + scale[:, None] * height[None, :], 0.0), axis=-1
+        np.broadcast_arrays(100.0 + _Flat.scale[:, None] * height[None, :], 0.0), axis=-1
     )  # (M, 2·J, 2)
     xy[2, [2, J + 2]] = xy[2, [J + 2, 2]]
     classes = np.broadcast_to(np.arange(2 * J) % J, (M, 2 * J))
-    instances = INSTANCE[:, height]
     groups = np.array([[s] * M for s in range(2 * J)])
     groups[2, 2], groups[J + 2, 2] = J + 2, 2  # the geometric (crossed) groups
     points = np.array([[0.0, 0.0, float(z)] for z in height])
+    return groups, classes, INSTANCE[:, height], xy, points
 
-    class Flat:
-        def __call__(self, X):
-            return np.stack(np.broadcast_arrays(100.0 + scale[None, :] * X[:, 2:3], 0.0), axis=-1)
 
-        def triangulate(self, xy_, rows):  # from view 0's pixel
-            return np.array([[0.0, 0.0, (xy_[0, r[0], 0] - 100.0) / scale[0]] for r in rows])
-
+def test_consistent_groups_reattaches_within_the_gate_only():
+    """The crossed groups of :func:`_crossed`: within the gate (5 px) the two joints change
+    groups; within 1 px they are only detached."""
+    groups, classes, instances, xy, points = _crossed()
     valid = np.ones(2 * J, bool)
     gclass = np.arange(2 * J) % J
     fixed = consistent_groups(
-        groups, valid, gclass, classes, instances, xy, points, Flat(), 5.0, PersonVote(), 2
+        groups, valid, gclass, classes, instances, xy, points, _Flat(), 5.0, PersonVote(), 2
     )
     assert fixed.groups[2, 2] == 2 and fixed.groups[J + 2, 2] == J + 2
     assert fixed.changed.tolist() == [s % J == 2 for s in range(2 * J)] and fixed.valid.all()
     tight = consistent_groups(
-        groups, valid, gclass, classes, instances, xy, points, Flat(), 1.0, PersonVote(), 2
+        groups, valid, gclass, classes, instances, xy, points, _Flat(), 1.0, PersonVote(), 2
     )
     assert tight.groups[2, 2] == -1 and tight.groups[J + 2, 2] == -1  # detached, beyond the gate
     assert tight.valid.all() and len(tight.valid) == 2 * J
@@ -141,7 +156,7 @@ def test_consistent_groups_reattaches_within_the_gate_only():
         np.full_like(instances, -1),
         xy,
         points,
-        Flat(),
+        _Flat(),
         5.0,
         PersonVote(),
         2,
@@ -151,46 +166,50 @@ def test_consistent_groups_reattaches_within_the_gate_only():
 
 
 def test_the_gate_reads_a_changed_groups_point_triangulated_again():
-    """The crossed groups of the test above, their points as the association left them,
+    """The crossed groups of :func:`_crossed`, their points as the association left them,
     pulled 3 units up by the foreign member (12 px off in view 2, beyond the 5 px gate): each
     detached joint is measured against its own person's group re-triangulated without that
     member (4 px) and joins it. Only those two groups, the ones a detached joint may join,
     are triangulated again."""
-    scale = np.array([400.0, 400.0, 4.0])
-    height = np.arange(2 * J) // J
-    xy = np.stack(np.broadcast_arrays(100.0 + scale[:, None] * height[None, :], 0.0), axis=-1)
-    xy[2, [2, J + 2]] = xy[2, [J + 2, 2]]
-    classes = np.broadcast_to(np.arange(2 * J) % J, (M, 2 * J))
-    groups = np.array([[s] * M for s in range(2 * J)])
-    groups[2, 2], groups[J + 2, 2] = J + 2, 2
-    points = np.array([[0.0, 0.0, float(z)] for z in height])
+    groups, classes, instances, xy, points = _crossed()
     points[[2, J + 2], 2] += 3.0  # the association's points of the two crossed groups
-    triangulated = []
-
-    class Flat:
-        def __call__(self, X):
-            return np.stack(np.broadcast_arrays(100.0 + scale[None, :] * X[:, 2:3], 0.0), axis=-1)
-
-        def triangulate(self, xy_, rows):  # from view 0's pixel
-            triangulated.extend(r[0] for r in rows)
-            return np.array([[0.0, 0.0, (xy_[0, r[0], 0] - 100.0) / scale[0]] for r in rows])
-
-    gclass = np.arange(2 * J) % J
+    camera = _Flat()
     fixed = consistent_groups(
         groups,
         np.ones(2 * J, bool),
-        gclass,
+        np.arange(2 * J) % J,
         classes,
-        INSTANCE[:, height],
+        instances,
         xy,
         points,
-        Flat(),
+        camera,
         5.0,
         PersonVote(),
         2,
     )
     assert fixed.groups[2, 2] == 2 and fixed.groups[J + 2, 2] == J + 2
-    assert sorted(triangulated) == [2, J + 2]
+    assert sorted(camera.triangulated) == [2, J + 2]
+    # Only A's joint crossed (A's group has no view-2 member): B's group changes, but no
+    # detached joint may join it, so nothing is triangulated again; A's joint joins A's
+    # group at its point as drawn.
+    groups[2, 2] = -1
+    points = _crossed()[4]  # A's group, with no foreign member, is where it was drawn
+    camera = _Flat()
+    one = consistent_groups(
+        groups,
+        np.ones(2 * J, bool),
+        np.arange(2 * J) % J,
+        classes,
+        instances,
+        xy,
+        points,
+        camera,
+        5.0,
+        PersonVote(),
+        2,
+    )
+    assert one.groups[2, 2] == 2 and one.groups[J + 2, 2] == -1
+    assert one.changed[[2, J + 2]].all() and camera.triangulated == []
 
 
 def test_a_group_of_two_weakly_linked_nodes_is_kept():
