@@ -306,8 +306,8 @@ def consistent_groups(
     slots = groups[g_idx, m_idx]
     # A changed group's point is re-triangulated only where a detached joint may join it:
     # a group of the joint's class and person with no member in the joint's view before the
-    # loop (the loop only fills views, so its choices are among these). Most frames need
-    # none, and skip the DLT's call; a point's DLT is the same bits alone or among others.
+    # loop (the loop only fills views, so its choices are among these). Frames that need
+    # none skip the DLT's call; a point's DLT is the same bits alone or among others.
     may_join = (
         valid[None, :]
         & (group_class[None, :] == classes[m_idx, slots][:, None])
