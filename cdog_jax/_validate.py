@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .geometry._camera import Rig, check_rig_values
+from .geometry._camera import Rig, cannot_change, check_rig_values
 
 
 def _is_concrete(*arrays) -> bool:
@@ -58,7 +58,7 @@ def check_rig(rig: Rig, batched: bool = False) -> None:
                     check_rig_values(K[b], R[b], t[b])
                 except ValueError as e:
                     raise ValueError(f"rig of scene {b}: {e}") from None
-        if all(isinstance(a, jax.Array) for a in arrays):
+        if cannot_change(*arrays):
             _last_checked = (*arrays, batched)
 
 

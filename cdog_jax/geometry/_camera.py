@@ -7,6 +7,7 @@ the third coordinate (K[2,2] may be negative). "In front" means ``X_cam[2] > 0``
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -75,6 +76,13 @@ class Rig(eqx.Module):
                 f"Rig.select: view index {int(views[out].flat[0])} is out of range for a rig of {M} views"
             )
         return Rig(self.K[..., views, :, :], self.R[..., views, :, :], self.t[..., views, :])
+
+
+def cannot_change(*arrays) -> bool:
+    """Whether every one of ``arrays`` is a JAX array, whose values cannot change in place:
+    what is read or computed from it may be kept while the same object comes back (a frame
+    loop on one rig). A NumPy array can change between two calls and is read every time."""
+    return all(isinstance(a, jax.Array) for a in arrays)
 
 
 def centres_on_host(R: np.ndarray, t: np.ndarray) -> np.ndarray:

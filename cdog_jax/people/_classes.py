@@ -34,7 +34,7 @@ from .._status import Status
 from .._types import Array, Int
 from .._validate import as_array, check_observations, check_rig
 from ..cdog._config import REFERENCE_FOCAL_PX
-from ..geometry._camera import Rig
+from ..geometry._camera import Rig, cannot_change
 from ..geometry._distortion import undistorted
 from ..geometry._epipolar import epipolar_distances
 from ..graph._sigma import FALLBACK_SIGMA_PX, focal_scale, nearest_samples, sigma_from_samples
@@ -478,7 +478,7 @@ def _rig_focal(rig: Rig):
     if _last_focal and _last_focal[0] is K:
         return _last_focal[1]
     focal = focal_scale(np.asarray(K))
-    if isinstance(K, jax.Array):
+    if cannot_change(K):
         _last_focal = (K, focal)
     return focal
 

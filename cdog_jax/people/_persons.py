@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._runtime.xla_kernels import jit
-from ..geometry._camera import Rig
+from ..geometry._camera import Rig, cannot_change
 from ..geometry._distortion import as_lens, undistorted_frames
 from ..geometry._projection import group_errors
 from ..geometry._triangulate import triangulate_views_last
@@ -415,7 +415,7 @@ def _camera(rig: Rig, min_rows: int) -> _Camera:
     if camera is not None and camera.rig is rig and camera.min_rows == min_rows:
         return camera
     camera = _Camera(rig, min_rows)
-    if all(isinstance(a, jax.Array) for a in (rig.K, rig.R, rig.t)):
+    if cannot_change(rig.K, rig.R, rig.t):
         _LAST_CAMERA[:] = [camera]
     return camera
 
