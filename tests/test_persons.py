@@ -171,45 +171,28 @@ def test_the_gate_reads_a_changed_groups_point_triangulated_again():
     detached joint is measured against its own person's group re-triangulated without that
     member (4 px) and joins it. Only those two groups, the ones a detached joint may join,
     are triangulated again."""
-    groups, classes, instances, xy, points = _crossed()
-    points[[2, J + 2], 2] += 3.0  # the association's points of the two crossed groups
-    camera = _Flat()
-    fixed = consistent_groups(
-        groups,
-        np.ones(2 * J, bool),
-        np.arange(2 * J) % J,
-        classes,
-        instances,
-        xy,
-        points,
-        camera,
-        5.0,
-        PersonVote(),
-        2,
-    )
+    groups, classes, instances, xy, drawn = _crossed()
+
+    def vote(groups, points):  # the vote at a 5 px gate, and the rows it triangulated
+        camera = _Flat()
+        valid, gclass = np.ones(2 * J, bool), np.arange(2 * J) % J
+        out = consistent_groups(
+            groups, valid, gclass, classes, instances, xy, points, camera, 5.0, PersonVote(), 2
+        )
+        return out, camera.triangulated
+
+    pulled = drawn.copy()
+    pulled[[2, J + 2], 2] += 3.0  # the association's points of the two crossed groups
+    fixed, triangulated = vote(groups, pulled)
     assert fixed.groups[2, 2] == 2 and fixed.groups[J + 2, 2] == J + 2
-    assert sorted(camera.triangulated) == [2, J + 2]
+    assert sorted(triangulated) == [2, J + 2]
     # Only A's joint crossed (A's group has no view-2 member): B's group changes, but no
     # detached joint may join it, so nothing is triangulated again; A's joint joins A's
     # group at its point as drawn.
     groups[2, 2] = -1
-    points = _crossed()[4]  # A's group, with no foreign member, is where it was drawn
-    camera = _Flat()
-    one = consistent_groups(
-        groups,
-        np.ones(2 * J, bool),
-        np.arange(2 * J) % J,
-        classes,
-        instances,
-        xy,
-        points,
-        camera,
-        5.0,
-        PersonVote(),
-        2,
-    )
+    one, triangulated = vote(groups, drawn)
     assert one.groups[2, 2] == 2 and one.groups[J + 2, 2] == -1
-    assert one.changed[[2, J + 2]].all() and camera.triangulated == []
+    assert one.changed[[2, J + 2]].all() and triangulated == []
 
 
 def test_a_group_of_two_weakly_linked_nodes_is_kept():
