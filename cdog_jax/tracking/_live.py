@@ -345,10 +345,10 @@ class LiveAssociator:
             if sigma > 0 and not status & Status.SIGMA_FALLBACK:  # 0: an empty frame
                 self.held_sigma = sigma
         self._compiled = True
-        # The frame's answer in one transfer to the host, not one per field read.
-        answer = _answer(
-            self.frame, jax.device_get(out), order, P, self.classed, sigma, tau, status
-        )
+        # The frame's answer in one transfer to the host, not one per field read, without
+        # the fields the answer does not hold.
+        read = jax.device_get(out._replace(bpe=None, unplaced=None))
+        answer = _answer(self.frame, read, order, P, self.classed, sigma, tau, status)
         if instances is not None and self.classed:
             G = len(answer.groups)
             one = people_of_frame(
