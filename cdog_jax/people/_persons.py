@@ -118,12 +118,31 @@ def person_nodes(instances: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def vote_matrix(groups: np.ndarray, valid: np.ndarray, node: np.ndarray) -> np.ndarray:
     """``(N, N)`` int votes between nodes (``node (M, P)``, :func:`person_nodes`): how many
     valid groups ``groups (G, M)`` (slots, -1) hold a detection of both."""
-    M = groups.shape[1]
     N = int(node.max()) + 1 if node.size else 0
-    member = _member_values(node, groups, valid)  # (G, M)
-    a, b = member[:, :, None], member[:, None, :]  # every ordered pair of a group's views
-    pair = (a >= 0) & (b >= 0) & ~np.eye(M, dtype=bool)[None]
-    return np.bincount((a * N + b)[pair], minlength=N * N).reshape(N, N).astype(np.int64)
+    return _votes(_held_nodes(groups, valid, node, N)[1])
+
+
+def _held_nodes(
+    groups: np.ndarray, valid: np.ndarray, node: np.ndarray, N: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """``member (G, M)``: the node of every valid group's member in each view (``N``: none,
+    or of unknown instance), and ``holds (G, N)`` int64, 1 where the group holds a detection
+    of the node."""
+    G, M = groups.shape
+    at = node[np.arange(M)[None, :], np.maximum(groups, 0)]
+    member = np.where((groups >= 0) & valid[:, None] & (at >= 0), at, N)
+    holds = np.zeros((G, N + 1), np.int64)
+    holds[np.arange(G)[:, None], member] = 1
+    return member, holds[:, :N]
+
+
+def _votes(holds: np.ndarray) -> np.ndarray:
+    """``(N, N)`` votes of the groups' ``holds (G, N)`` (:func:`_held_nodes`): the groups
+    holding both nodes. Two nodes of one view are never in one group, so the product counts
+    pairs of views, as the votes do; a node with itself is no vote."""
+    votes = holds.T @ holds
+    np.fill_diagonal(votes, 0)
+    return votes
 
 
 def cluster_people(votes: np.ndarray, node_view: np.ndarray, min_votes: int | float) -> np.ndarray:
@@ -132,7 +151,8 @@ def cluster_people(votes: np.ndarray, node_view: np.ndarray, min_votes: int | fl
     them among those that share no view (``node_view (N,)``), while that mean is at least
     ``min_votes``. (A sum over the pairs would let a few stray votes from each node of a
     large cluster add up to a merge.) Ties go to the pair ``(a, b)``, ``a < b``, first in
-    row-major order; ``b`` merges into ``a``.
+    row-major order; ``b`` merges into ``a``. ``votes (N, N)``: symmetric counts
+    (:func:`vote_matrix`).
 
     The allowed merges wait in a heap, best mean first: a merge of ``b`` into ``a`` changes
     only the pairs of ``a`` (pushed again with their new means) and ends those of ``b``, so
@@ -153,47 +173,32 @@ def cluster_people(votes: np.ndarray, node_view: np.ndarray, min_votes: int | fl
         if not views[a] & views[b] and (mean := W[a][b] / 1) >= min_votes
     ]
     heapq.heapify(heap)
+    alive = list(range(N))  # the clusters not merged into another, in order
     while heap:
         _, a, b, version_a, version_b = heapq.heappop(heap)
         if version_a != version[a] or version_b != version[b]:
             continue  # a or b has merged since this entry was pushed
         version[a] += 1
         version[b] = -1
+        alive.remove(b)
         members[a] += members[b]
         views[a] |= views[b]
         size[a] += size[b]
-        for j in range(N):
-            if version[j] < 0 or j == a:
+        W_a, W_b, views_a, size_a = W[a], W[b], views[a], size[a]
+        for j in alive:
+            if j == a:
                 continue
-            W[a][j] += W[b][j]
-            W[j][a] += W[j][b]
-            if not views[a] & views[j]:
-                i, k = min(a, j), max(a, j)
-                mean = W[i][k] / (size[i] * size[k])
+            w = W_a[j] + W_b[j]  # the votes stay symmetric: one sum for both entries
+            W_a[j] = W[j][a] = w
+            if not views_a & views[j]:
+                mean = w / (size_a * size[j])
                 if mean >= min_votes:
+                    i, k = (a, j) if a < j else (j, a)
                     heapq.heappush(heap, (-mean, i, k, version[i], version[k]))
     label = np.arange(N)
-    for root in range(N):
-        if version[root] >= 0:
-            label[members[root]] = root
+    for root in alive:
+        label[members[root]] = root
     return label
-
-
-def _member_values(values: np.ndarray, groups: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """``(G, M)``: ``values (M, P)`` at every member of the valid groups, -1 elsewhere."""
-    M = groups.shape[1]
-    out = values[np.arange(M)[None, :], np.maximum(groups, 0)]
-    return np.where((groups >= 0) & valid[:, None], out, -1)
-
-
-def _row_modes(values: np.ndarray) -> np.ndarray:
-    """``(G,)`` the most frequent value ``>= 0`` of every row of ``values (G, M)`` (ties: the
-    smallest), -1 for a row with none; one count table for all rows."""
-    top = int(values.max()) + 1 if values.size else 0
-    if top <= 0:
-        return np.full(len(values), -1, np.int64)
-    counts = (values[:, :, None] == np.arange(top)[None, None, :]).sum(axis=1)  # (G, top)
-    return np.where(counts.any(axis=1), np.argmax(counts, axis=1), -1).astype(np.int64)
 
 
 class FramePeople(NamedTuple):
@@ -217,18 +222,21 @@ def frame_people(
     ``None`` when no instance is known."""
     M = groups.shape[1]
     node, node_view = person_nodes(instances)
-    if len(node_view) == 0:
+    N = len(node_view)
+    if N == 0:
         return None
-    person = cluster_people(vote_matrix(groups, valid, node), node_view, min_votes)
+    member, holds = _held_nodes(groups, valid, node, N)
+    person = cluster_people(_votes(holds), node_view, min_votes)
     det_person = np.where(node >= 0, person[np.maximum(node, 0)], -1)  # (M, P)
-    member_person = _member_values(det_person, groups, valid)
-    group_person = _row_modes(member_person)  # (G, M): a frame may hold no group
-    person_views = np.zeros((len(node_view), M), bool)
-    person_views[person, node_view] = True
-    clash = (
-        person_views[np.maximum(member_person, 0)]
-        & person_views[np.maximum(group_person, 0)][:, None, :]
-    ).any(axis=-1)
+    member_person = np.r_[person, -1][member]  # (G, M)
+    # Each group's person: the most frequent among its members (ties: the smallest id; -1
+    # when none is known), from its members counted per person (a frame may hold no group).
+    per_person = holds @ (person[:, None] == np.arange(N)[None, :])  # (G, N)
+    group_person = np.where(per_person.any(axis=1), np.argmax(per_person, axis=1), -1)
+    person_views = np.zeros((N, M), np.int64)
+    person_views[person, node_view] = 1
+    share_a_view = (person_views @ person_views.T) > 0  # (N, N) between persons
+    clash = share_a_view[np.maximum(member_person, 0), np.maximum(group_person, 0)[:, None]]
     foreign = (member_person >= 0) & (member_person != group_person[:, None]) & clash
     return FramePeople(det_person, group_person, foreign)
 
