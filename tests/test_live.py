@@ -13,6 +13,7 @@ import cdog_jax
 from cdog_jax import LiveAssociator, associate_sequence
 from cdog_jax.io import detections_from_array
 from cdog_jax.people import _classes as people_classes
+from cdog_jax.people._persons import PersonVote
 from cdog_jax.synthetic import default_rig, generate_skeleton_scenes
 from cdog_jax.tracking import _live as live_module
 from cdog_jax.tracking._tracks import tracking_frames
@@ -321,3 +322,42 @@ def test_the_frame_table_made_on_the_device_is_the_hosts(walk, rows):
     np.testing.assert_array_equal(err_px, oracle.err_px[0])
     np.testing.assert_array_equal(labels, oracle.labels[0])
     np.testing.assert_array_equal(cls[valid], oracle.cls[0][valid])
+
+
+@pytest.mark.parametrize("rows", [16, 64], ids=["rows-cut", "rows-enough"])
+def test_the_vote_on_the_scenes_is_the_vote_on_the_frame(walk, rows):
+    """The person vote on a frame's class scenes, their table made on the device
+    (:func:`vote_on_scenes`, as the live object runs it), returns the arrays of the vote on
+    the frame mapped back on the host, bitwise; a frame of more groups than the table's
+    rows gets ``None`` (the object then votes on the host's table)."""
+    rig, xy, mask, classes = walk
+    sk = generate_skeleton_scenes(jax.random.PRNGKey(1), rig, PEOPLE, 1.0, num_frames=FRAMES)
+    person = np.where(mask[:1], np.asarray(sk.frames.instance[:1]) // J, -1)
+    # Two joints of a view that sees both people given the other person: the vote detaches
+    # them, and changes and triangulates their groups again.
+    view = next(m for m in range(M) if set(person[0, m][person[0, m] >= 0].tolist()) == {0, 1})
+    swapped = np.flatnonzero(person[0, view] == 0)[:2]
+    person[0, view, swapped] = 1
+    shapes = dict(num_classes=J, min_scenes=J, min_slots=8, batch_size=J, sigma=2.0)
+    args = (rig, xy[:1], mask[:1], classes[:1])
+    scenes = people_classes.associate_classes_at(*args, scenes_only=True, **shapes)
+    got = people_classes.vote_on_scenes(
+        rig, scenes, *args[1:], person, PersonVote(), rows=rows, num_classes=J
+    )
+    if rows == 16:  # the frame holds more groups
+        assert got is None
+        return
+    host = people_classes.associate_classes_at(
+        *args, instances=person, person_vote=True, min_vote_rows=rows, on_host=True, **shapes
+    )
+    unvoted = people_classes.associate_classes_at(*args, on_host=True, **shapes).association
+    changed = host.association.groups.shape != unvoted.groups.shape or not np.array_equal(
+        host.association.groups, unvoted.groups
+    )
+    assert changed  # the vote changed the frame's groups
+    for name in host.association.__dataclass_fields__:
+        want, have = getattr(host.association, name), getattr(got.association, name)
+        assert want.dtype == have.dtype, name
+        np.testing.assert_array_equal(have, want, err_msg=name)
+    np.testing.assert_array_equal(got.group_class, host.group_class)
+    assert got.num_classes == host.num_classes == J and got.class_names is None

@@ -936,6 +936,87 @@ def frame_of_scenes(
     )
 
 
+@partial(jit, static_argnames=("num_slots", "rows"))
+def _frame_table(result, slot, scene_class, *, num_slots: int, rows: int) -> tuple:
+    """:func:`frame_of_scenes` in ``rows`` rows, its fields the person vote reads: ``(X,
+    valid, cls, groups, bpe, err_px, found)``."""
+    X, valid, cls, groups, bpe, err_px, _, found, _ = frame_of_scenes(
+        result, slot, scene_class, num_slots, rows, rows
+    )
+    return X, valid, cls, groups, bpe, err_px, found
+
+
+class _Voted(NamedTuple):
+    """The fields of one frame's association that :func:`person_consistent` reads."""
+
+    groups: np.ndarray
+    valid: np.ndarray
+    points3d: np.ndarray
+    bpe: np.ndarray
+    err_px: np.ndarray
+    tau_px: np.ndarray
+
+
+def vote_on_scenes(
+    rig: Rig,
+    scenes: SceneResults,
+    xy: np.ndarray,
+    mask: np.ndarray,
+    classes: np.ndarray,
+    instances: np.ndarray,
+    vote,
+    *,
+    rows: int,
+    num_classes: int,
+    dist=None,
+    min_views: int = 2,
+) -> ClassAssociation | None:
+    """One frame's class scenes (:func:`associate_classes_at` with ``scenes_only``) as the
+    frame's groups after the person vote: the same arrays as :func:`associate_classes_at`
+    with ``instances``, ``person_vote`` and ``on_host`` (``min_vote_rows=rows``). The
+    frame's table is made from the scenes' tables on the device (one small program), so
+    that only the frame's groups come to the host, not every scene's table. ``xy``,
+    ``mask``, ``classes``, ``instances``: the frame ``(1, M, P)``, checked. ``None`` when
+    the frame holds more than ``rows`` groups (the table has no room for them)."""
+    sc = scenes.scenes
+    table = _frame_table(
+        scenes.result,
+        sc.slot.astype(np.int32),
+        sc.cls.astype(np.int32),
+        num_slots=mask.shape[-1],
+        rows=rows,
+    )
+    X, valid, cls, groups, bpe, err_px, found = jax.device_get(table)
+    if found > rows:
+        return None
+    G = max(1, int(found))  # as _map_back: a frame may hold no group
+    sigma, tau, status = frame_fields(scenes.result, sc.frame, 1, scenes.flags())
+    before = _Voted(
+        groups[None, :G], valid[None, :G], X[None, :G], bpe[None, :G], err_px[None, :G], tau
+    )
+    fixed = person_consistent(
+        rig,
+        before,
+        cls[None, :G],
+        xy,
+        mask,
+        classes,
+        check_instances(instances, mask),
+        vote,
+        dist=dist,
+        min_views=min_views,
+        min_rows=rows,
+    )
+    assoc = batched_association(
+        on_host=True,
+        **{k: v for k, v in fixed._asdict().items() if k != "group_class"},
+        sigma_px=sigma,
+        tau_px=tau,
+        status=status,
+    )
+    return ClassAssociation(assoc, fixed.group_class, None, num_classes)
+
+
 def _per_frame(values: np.ndarray, frame: np.ndarray, F: int) -> np.ndarray:
     """The median over each frame's scenes (one value when σ was pooled); 0 without scenes."""
     out = np.zeros(F, values.dtype)

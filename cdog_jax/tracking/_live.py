@@ -34,6 +34,7 @@ from ..people._classes import (
     frame_fields,
     given_classes,
     sigma_fit_widths,
+    vote_on_scenes,
     warm_sigma_fits,
 )
 from ..people._persons import (
@@ -312,7 +313,13 @@ class LiveAssociator:
                 min_vote_rows=self.rows,
                 on_host=True,  # read here, field by field: no transfer to the device and back
             )
-            result = associate_classes_at(self.rig, *frame, **vote_args, **association)
+            result = None
+            if vote is not None:  # the scenes' tables made the frame's on the device
+                scenes = associate_classes_at(self.rig, *frame, scenes_only=True, **association)
+                if scenes is not None:
+                    result = self._voted(scenes, frame, inst_p, vote)
+            if result is None:  # no scene, or more groups than the vote's table holds
+                result = associate_classes_at(self.rig, *frame, **vote_args, **association)
             assoc = result.association
             sigma, tau = float(assoc.sigma_px[0]), float(assoc.tau_px[0])
             status = int(assoc.status[0])
@@ -470,9 +477,26 @@ class LiveAssociator:
             if vote_args is None:
                 scenes = associate_classes_at(self.rig, *cut, scenes_only=True, **other)
                 jax.block_until_ready(self._tracked(scenes, det))
-            else:
-                associate_classes_at(self.rig, *cut, **vote_args, **other)
+            else:  # the association and the vote's frame table at this rung
+                scenes = associate_classes_at(self.rig, *cut, scenes_only=True, **other)
+                if scenes is not None:
+                    self._voted(scenes, cut, vote_args["instances"][0], vote_args["person_vote"])
         self._warmed = (self.slots, self.rows)
+
+    def _voted(self, scenes: SceneResults, frame: tuple, instances, vote):
+        """The frame's groups after the person vote from its class scenes
+        (:func:`vote_on_scenes`), or ``None`` where they do not fit the tracker's rows."""
+        return vote_on_scenes(
+            self.rig,
+            scenes,
+            *frame,
+            instances[None],
+            vote,
+            rows=self.rows,
+            num_classes=self.num_classes,
+            dist=self.dist,
+            min_views=self.min_views,
+        )
 
     def _track_scenes(self, scenes: SceneResults, det: tuple):
         """Map the class scenes' results to the frame and track it, in one program
